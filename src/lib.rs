@@ -1,0 +1,11 @@
+//! beamshaper core: `no_std`, no heap, no embassy.
+//!
+//! The same code runs in the firmware's timer interrupt (Cortex-M4F), in the host tests,
+//! in the host tools and in the Cortex-M4 QEMU golden-vector image.
+//!
+//! - [`shaper`]: input-shaper design (paper §4, eqs. 30–32, and the wider literature),
+//!   multi-mode convolution and the percentage residual vibration.
+#![no_std]
+#![forbid(unsafe_code)]
+
+pub mod shaper;

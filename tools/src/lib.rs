@@ -1,0 +1,10 @@
+//! Host tools for the beamshaper project (std).
+//!
+//! One module per job; the CLI in `main.rs` is a thin layer over these.
+//! - [`recording`]: the recording CSV shared by every tool (and NumPy `.npy` import).
+//! - [`model`]: the beam-on-moving-base model of the paper's §2 and its simulator.
+//! - [`ident`]: modal identification (paper §3, §5.2).
+//! - [`diagnose`]: model-discrepancy diagnosis.
+//! - [`tune`]: the main job end to end.
+
+pub mod recording;
