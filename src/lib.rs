@@ -9,3 +9,8 @@
 #![forbid(unsafe_code)]
 
 pub mod shaper;
+pub mod engine;
+pub mod output;
+pub mod reference;
+pub mod config;
+pub mod runtime;

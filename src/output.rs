@@ -1,0 +1,96 @@
+//! Outputs of a tick: step/direction pulses to the servo drive, and a DAC mirror of the
+//! setpoint for a scope.
+
+/// Step/direction output with exact accounting: after every tick the number of steps
+/// emitted (signed) equals the shaped setpoint divided by the step size, rounded toward −∞.
+/// Steps are never dropped; a tick that needs more pulses than the drive's maximum step rate
+/// allows is still emitted in full and counted as a step-rate fault.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StepOutput {
+    /// Signed steps emitted since the last re-base.
+    emitted: i64,
+    /// Step size (counts per step, nm).
+    counts_per_step: i32,
+    /// Pulses one tick may carry at the drive's maximum step rate.
+    max_pulses_per_tick: u32,
+    /// Ticks that needed more pulses than the maximum.
+    rate_faults: u32,
+}
+
+/// Pulses to emit during the next tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct StepCommand {
+    /// Number of step pulses.
+    pub pulses: u32,
+    /// Direction pin: true = forward (positive).
+    pub forward: bool,
+}
+
+impl StepOutput {
+    /// Output for `counts_per_step` (≥ 1) with at most `max_pulses_per_tick` pulses a tick,
+    /// at `position` (counts).
+    pub const fn new(counts_per_step: i32, max_pulses_per_tick: u32, position: i32) -> Self {
+        let c = if counts_per_step < 1 { 1 } else { counts_per_step };
+        StepOutput {
+            emitted: (position as i64).div_euclid(c as i64),
+            counts_per_step: c,
+            max_pulses_per_tick,
+            rate_faults: 0,
+        }
+    }
+
+    /// The steps that must have been emitted for `setpoint` (counts).
+    #[inline]
+    pub fn steps_for(&self, setpoint: i32) -> i64 {
+        (setpoint as i64).div_euclid(self.counts_per_step as i64)
+    }
+
+    /// Pulses for this tick so that the emitted count equals the setpoint's step count.
+    #[inline]
+    pub fn update(&mut self, setpoint: i32) -> StepCommand {
+        let want = self.steps_for(setpoint);
+        let delta = want - self.emitted;
+        self.emitted = want;
+        let pulses = delta.unsigned_abs().min(u32::MAX as u64) as u32;
+        if pulses > self.max_pulses_per_tick {
+            self.rate_faults = self.rate_faults.saturating_add(1);
+        }
+        StepCommand { pulses, forward: delta >= 0 }
+    }
+
+    /// Signed steps emitted.
+    pub fn emitted(&self) -> i64 {
+        self.emitted
+    }
+
+    /// Ticks that exceeded the maximum step rate.
+    pub fn rate_faults(&self) -> u32 {
+        self.rate_faults
+    }
+
+    /// Counts per step.
+    pub fn counts_per_step(&self) -> i32 {
+        self.counts_per_step
+    }
+}
+
+/// Maps the setpoint onto a 12-bit DAC: code 2048 at position 0, full scale at ±`span`
+/// counts, clamped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DacMirror {
+    span_counts: i32,
+}
+
+impl DacMirror {
+    /// Mirror with full scale ±`span_counts` (≥ 1).
+    pub const fn new(span_counts: i32) -> Self {
+        DacMirror { span_counts: if span_counts < 1 { 1 } else { span_counts } }
+    }
+
+    /// DAC code (0..=4095) of `setpoint`.
+    #[inline]
+    pub fn code(&self, setpoint: i32) -> u16 {
+        let c = 2048 + (setpoint as i64 * 2048) / self.span_counts as i64;
+        c.clamp(0, 4095) as u16
+    }
+}

@@ -1,0 +1,357 @@
+//! The run-time state the timer interrupt owns: reference source, shaping engine, pending
+//! parameter change, step/direction output and DAC mirror.
+//!
+//! **Parameter changes never jump the setpoint.** A new shaper (or numeric path, tick rate,
+//! step size, source) is held as *pending* and takes effect on the first tick at which
+//! (a) no internal move is running and (b) the reference has been still for at least the
+//! active shaper's duration. At that moment every sample in the active shaper's window
+//! equals the current reference `x`, so the old output is exactly `x` (both numeric paths
+//! have exact unity DC gain); the history is then reset to `x`, so the new shaper's output
+//! is exactly `x` too.
+//!
+//! Per tick the work is bounded: one reference sample, one O(taps) convolution, a constant
+//! amount of bookkeeping. Nothing allocates or panics.
+
+use crate::config::{Settings, Source};
+use crate::engine::{Engine, NumericPath, TapTable};
+use crate::output::{DacMirror, StepCommand, StepOutput};
+use crate::reference::{MoveError, StepDirCounter, TrapezoidMove, POSITION_LIMIT};
+
+/// History length (samples): 16384 × 4 B = 64 KiB of RAM; 16.4 s of shaper duration at
+/// 1 kHz, 1.6 s at 10 kHz.
+pub const HISTORY_LEN: usize = 16384;
+
+/// What the glue reads from the hardware each tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TickInput {
+    /// Raw 16-bit count of the timer in encoder (clock + direction) mode.
+    pub stepdir_count: u16,
+}
+
+/// What the glue writes to the hardware each tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TickOutput {
+    /// Reference sample of this tick (nm).
+    pub reference_counts: i32,
+    /// Shaped servo setpoint (nm).
+    pub setpoint_counts: i32,
+    /// Step pulses to emit during the next tick.
+    pub step: StepCommand,
+    /// 12-bit DAC code mirroring the setpoint.
+    pub dac_code: u16,
+}
+
+/// Parameters applied together at a safe moment.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunParams {
+    /// The shaper on the tick grid.
+    pub taps: TapTable,
+    /// Numeric path.
+    pub path: NumericPath,
+    /// Tick rate (Hz).
+    pub tick_rate_hz: u32,
+    /// nm per output step.
+    pub step_nm: u32,
+    /// Maximum output step rate (steps/s).
+    pub max_step_rate_hz: u32,
+    /// nm per input count of the step/direction pass-through.
+    pub input_nm_per_count: u32,
+    /// Reference source.
+    pub source: Source,
+    /// DAC full scale ± (nm).
+    pub dac_span_nm: i32,
+}
+
+impl RunParams {
+    /// Validates `settings` and builds the parameters for a history of [`HISTORY_LEN`].
+    pub fn from_settings(settings: &Settings) -> Result<Self, crate::config::ConfigError> {
+        let taps = settings.tap_table(HISTORY_LEN)?;
+        Ok(RunParams {
+            taps,
+            path: settings.path,
+            tick_rate_hz: settings.tick_rate_hz,
+            step_nm: settings.step_nm,
+            max_step_rate_hz: settings.max_step_rate_hz,
+            input_nm_per_count: settings.input_nm_per_count,
+            source: settings.source,
+            dac_span_nm: (settings.dac_span_mm as f64 * 1e6) as i32,
+        })
+    }
+
+    const fn default_const() -> Self {
+        RunParams {
+            taps: TapTable::identity(),
+            path: NumericPath::Fixed,
+            tick_rate_hz: 1000,
+            step_nm: 1000,
+            max_step_rate_hz: 200_000,
+            input_nm_per_count: 1000,
+            source: Source::Internal,
+            dac_span_nm: 100_000_000,
+        }
+    }
+
+    fn max_pulses_per_tick(&self) -> u32 {
+        (self.max_step_rate_hz / self.tick_rate_hz.max(1)).max(1)
+    }
+}
+
+/// Why a run-time request was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RuntimeError {
+    /// A move is running (or the reference is not still, for `zero`).
+    Busy,
+    /// Moves are refused while the source is the step/direction pass-through.
+    Source,
+    /// The move profile is invalid or out of range.
+    Move(MoveError),
+    /// The shaped move would exceed the drive's maximum step rate.
+    StepRate,
+}
+
+impl RuntimeError {
+    /// Short code for the console.
+    pub fn code(&self) -> &'static str {
+        match self {
+            RuntimeError::Busy => "busy",
+            RuntimeError::Source => "source",
+            RuntimeError::Move(_) => "range",
+            RuntimeError::StepRate => "step-rate",
+        }
+    }
+
+    /// Message for the console.
+    pub fn message(&self) -> &'static str {
+        match self {
+            RuntimeError::Busy => "a move is running or the reference is not still",
+            RuntimeError::Source => "moves need source internal",
+            RuntimeError::Move(MoveError::Profile) => "speed and acceleration must be finite and > 0",
+            RuntimeError::Move(MoveError::Range) => "target outside +-1073 mm",
+            RuntimeError::Move(MoveError::TooLong) => "move too long",
+            RuntimeError::StepRate => "shaped move would exceed the maximum step rate",
+        }
+    }
+}
+
+/// A snapshot for `status`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Status {
+    /// Ticks since start.
+    pub ticks: u64,
+    /// Current reference (nm).
+    pub reference_counts: i32,
+    /// Current shaped setpoint (nm).
+    pub setpoint_counts: i32,
+    /// Signed steps emitted.
+    pub emitted_steps: i64,
+    /// An internal move is running.
+    pub moving: bool,
+    /// A parameter change waits for the reference to be still.
+    pub pending: bool,
+    /// Ticks the reference has been still.
+    pub still_ticks: u32,
+    /// Ticks that exceeded the maximum step rate.
+    pub step_rate_faults: u32,
+    /// Tick rate in force (Hz).
+    pub tick_rate_hz: u32,
+    /// Numeric path in force.
+    pub path: NumericPath,
+    /// Taps in force.
+    pub taps: usize,
+    /// Duration of the shaper in force (ticks).
+    pub duration_ticks: u32,
+    /// Source in force.
+    pub source: Source,
+    /// Parameter changes applied since start.
+    pub applied_changes: u32,
+}
+
+/// The interrupt-owned state. `const`-constructible so it can live in a `static`.
+#[derive(Clone, Debug)]
+pub struct Runtime {
+    engine: Engine<HISTORY_LEN>,
+    params: RunParams,
+    pending: Option<RunParams>,
+    reference: i32,
+    still_ticks: u32,
+    mover: Option<TrapezoidMove>,
+    stepdir: StepDirCounter,
+    /// reference = stepdir_offset + input steps × input_nm_per_count (pass-through).
+    stepdir_offset: i64,
+    steps: StepOutput,
+    dac: DacMirror,
+    setpoint: i32,
+    ticks: u64,
+    applied_changes: u32,
+}
+
+impl Default for Runtime {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Runtime {
+    /// Identity shaping at position 0 with default parameters.
+    pub const fn new() -> Self {
+        let params = RunParams::default_const();
+        Runtime {
+            engine: Engine::new(0),
+            steps: StepOutput::new(1000, 200, 0),
+            dac: DacMirror::new(100_000_000),
+            params,
+            pending: None,
+            reference: 0,
+            still_ticks: u32::MAX,
+            mover: None,
+            stepdir: StepDirCounter::new(0),
+            stepdir_offset: 0,
+            setpoint: 0,
+            ticks: 0,
+            applied_changes: 0,
+        }
+    }
+
+    /// Queues parameters; they take effect at the next safe tick (see the module docs).
+    /// A newer request replaces an older pending one.
+    pub fn request(&mut self, params: RunParams) {
+        self.pending = Some(params);
+    }
+
+    /// Applies parameters immediately, at boot, before the first tick.
+    pub fn configure_at_boot(&mut self, params: RunParams, stepdir_count: u16) {
+        self.stepdir = StepDirCounter::new(stepdir_count);
+        self.apply(params);
+    }
+
+    fn apply(&mut self, p: RunParams) {
+        if p.source == Source::StepDir {
+            self.stepdir_offset =
+                self.reference as i64 - self.stepdir.steps() * p.input_nm_per_count as i64;
+        }
+        self.engine.install(p.taps.clone(), p.path, self.reference);
+        self.steps = StepOutput::new(p.step_nm as i32, p.max_pulses_per_tick(), self.setpoint);
+        self.dac = DacMirror::new(p.dac_span_nm);
+        self.params = p;
+        self.applied_changes = self.applied_changes.wrapping_add(1);
+    }
+
+    /// Starts a point-to-point move to `target` (nm) at `speed` (nm/s) and `accel` (nm/s²).
+    /// Returns the move's duration in ticks (without the shaper's delay).
+    pub fn start_move(&mut self, target: i32, speed: f32, accel: f32) -> Result<u32, RuntimeError> {
+        if self.params.source != Source::Internal {
+            return Err(RuntimeError::Source);
+        }
+        if self.mover.is_some() {
+            return Err(RuntimeError::Busy);
+        }
+        let m = TrapezoidMove::new(self.reference, target, speed, accel, self.params.tick_rate_hz as f32)
+            .map_err(RuntimeError::Move)?;
+        let shaped_peak_steps_s = m.peak_speed() * self.engine.taps().abs_weight_sum() / self.params.step_nm as f32;
+        if shaped_peak_steps_s > self.params.max_step_rate_hz as f32 {
+            return Err(RuntimeError::StepRate);
+        }
+        let n = m.duration_ticks();
+        self.mover = Some(m);
+        Ok(n)
+    }
+
+    /// Declares the current position to be 0 (no pulses are emitted). Refused unless the
+    /// reference is still for the active shaper's duration and no move runs.
+    pub fn zero(&mut self) -> Result<(), RuntimeError> {
+        if self.mover.is_some() || self.still_ticks < self.engine.taps().duration_ticks() {
+            return Err(RuntimeError::Busy);
+        }
+        self.reference = 0;
+        self.setpoint = 0;
+        self.stepdir_offset = -self.stepdir.steps() * self.params.input_nm_per_count as i64;
+        self.engine.reset(0);
+        self.steps = StepOutput::new(self.params.step_nm as i32, self.params.max_pulses_per_tick(), 0);
+        Ok(())
+    }
+
+    /// One timer tick. Bounded work, no allocation, no panic.
+    pub fn tick(&mut self, input: &TickInput) -> TickOutput {
+        self.ticks = self.ticks.wrapping_add(1);
+        let steps_in = self.stepdir.update(input.stepdir_count);
+        let x = match self.params.source {
+            Source::Internal => match self.mover.as_mut() {
+                Some(m) => {
+                    let x = m.next();
+                    if m.done() {
+                        self.mover = None;
+                    }
+                    x
+                }
+                None => self.reference,
+            },
+            Source::StepDir => {
+                let p = self.stepdir_offset + steps_in * self.params.input_nm_per_count as i64;
+                p.clamp(-(POSITION_LIMIT as i64), POSITION_LIMIT as i64) as i32
+            }
+        };
+        if x == self.reference {
+            self.still_ticks = self.still_ticks.saturating_add(1);
+        } else {
+            self.still_ticks = 0;
+        }
+        self.reference = x;
+        if self.pending.is_some() && self.mover.is_none() && self.still_ticks >= self.engine.taps().duration_ticks() {
+            if let Some(p) = self.pending.take() {
+                self.apply(p);
+            }
+        }
+        self.setpoint = self.engine.tick(x);
+        TickOutput {
+            reference_counts: x,
+            setpoint_counts: self.setpoint,
+            step: self.steps.update(self.setpoint),
+            dac_code: self.dac.code(self.setpoint),
+        }
+    }
+
+    /// Tick rate in force (Hz); the glue reprograms its timer when this changes.
+    pub fn tick_rate_hz(&self) -> u32 {
+        self.params.tick_rate_hz
+    }
+
+    /// Parameters in force.
+    pub fn params(&self) -> &RunParams {
+        &self.params
+    }
+
+    /// Pending parameters, if any.
+    pub fn pending(&self) -> Option<&RunParams> {
+        self.pending.as_ref()
+    }
+
+    /// The engine (for inspection).
+    pub fn engine(&self) -> &Engine<HISTORY_LEN> {
+        &self.engine
+    }
+
+    /// The step output (for inspection).
+    pub fn step_output(&self) -> &StepOutput {
+        &self.steps
+    }
+
+    /// A snapshot for the console's `status`.
+    pub fn status(&self) -> Status {
+        Status {
+            ticks: self.ticks,
+            reference_counts: self.reference,
+            setpoint_counts: self.setpoint,
+            emitted_steps: self.steps.emitted(),
+            moving: self.mover.is_some(),
+            pending: self.pending.is_some(),
+            still_ticks: self.still_ticks,
+            step_rate_faults: self.steps.rate_faults(),
+            tick_rate_hz: self.params.tick_rate_hz,
+            path: self.params.path,
+            taps: self.engine.taps().taps().len(),
+            duration_ticks: self.engine.taps().duration_ticks(),
+            source: self.params.source,
+            applied_changes: self.applied_changes,
+        }
+    }
+}
