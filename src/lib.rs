@@ -14,3 +14,4 @@ pub mod output;
 pub mod reference;
 pub mod config;
 pub mod runtime;
+pub mod console;
