@@ -102,6 +102,7 @@ const HELP: &[&str] = &[
     "move <target_mm> [speed_mm_s] [accel_mm_s2] | zero | speed <mm_s> | accel <mm_s2>",
     "rate <tick_hz> | step <nm_per_step> | maxrate <steps_per_s> | input <nm_per_count>",
     "source internal|stepdir | save | load | defaults",
+    "capture <every_n_ticks> | dump <first> <count<=32>   (setpoints in nm)",
 ];
 
 impl Console {
@@ -180,6 +181,8 @@ impl Console {
             "speed" | "accel" => self.cmd_motion_default(cmd, &args, out),
             "source" => self.cmd_source(&args, rt, out),
             "move" => self.cmd_move(&args, rt, out),
+            "capture" => self.cmd_capture(&args, rt, out),
+            "dump" => self.cmd_dump(&args, rt, out),
             "zero" => rt.with(|r| r.zero()).map_err(|e| CmdErr(e.code(), e.message())).map(|_| {
                 let _ = writeln!(out, "ok zero");
             }),
@@ -453,6 +456,54 @@ impl Console {
         new.validate().map_err(|e| CmdErr(e.code(), config_message(&e)))?;
         self.settings = new;
         let _ = writeln!(out, "ok {cmd}");
+        Ok(())
+    }
+
+    fn cmd_capture(&mut self, args: &[&str], rt: &mut impl RuntimeAccess, out: &mut impl Write) -> CmdResult {
+        let [d] = args else {
+            return Err(CmdErr("syntax", "capture <every_n_ticks>"));
+        };
+        let d: u32 = d.parse().map_err(|_| CmdErr("syntax", "expected a positive integer"))?;
+        if !(1..=10_000).contains(&d) {
+            return Err(CmdErr("range", "decimation must be 1..10000 ticks"));
+        }
+        let tick_hz = rt.with(|r| {
+            r.arm_capture(d);
+            r.tick_rate_hz()
+        });
+        let _ = writeln!(
+            out,
+            "ok capture every_ticks={d} sample_rate_hz={} capacity={}",
+            tick_hz as f64 / d as f64,
+            crate::runtime::CAPTURE_LEN
+        );
+        Ok(())
+    }
+
+    fn cmd_dump(&mut self, args: &[&str], rt: &mut impl RuntimeAccess, out: &mut impl Write) -> CmdResult {
+        let [first, count] = args else {
+            return Err(CmdErr("syntax", "dump <first> <count>"));
+        };
+        let first: usize = first.parse().map_err(|_| CmdErr("syntax", "expected an integer"))?;
+        let count: usize = count.parse().map_err(|_| CmdErr("syntax", "expected an integer"))?;
+        if count > 32 {
+            return Err(CmdErr("range", "count must be <= 32"));
+        }
+        let mut vals = [0i32; 32];
+        let (total, armed, n) = rt.with(|r| {
+            let c = r.capture();
+            let s = c.samples();
+            let n = s.len().saturating_sub(first).min(count);
+            if let (Some(src), Some(dst)) = (s.get(first..first + n), vals.get_mut(..n)) {
+                dst.copy_from_slice(src);
+            }
+            (s.len(), c.armed(), n)
+        });
+        let _ = write!(out, "ok dump first={first} n={n} total={total} armed={} values=", armed as u8);
+        for (i, v) in vals.iter().take(n).enumerate() {
+            let _ = write!(out, "{}{v}", if i == 0 { "" } else { "," });
+        }
+        let _ = writeln!(out);
         Ok(())
     }
 

@@ -21,6 +21,69 @@ use crate::reference::{MoveError, StepDirCounter, TrapezoidMove, POSITION_LIMIT}
 /// 1 kHz, 1.6 s at 10 kHz.
 pub const HISTORY_LEN: usize = 16384;
 
+/// Setpoints the capture buffer holds (16 KiB): at 1 kHz and one sample in 10 ticks, 41 s.
+pub const CAPTURE_LEN: usize = 4096;
+
+/// Records the shaped setpoint every `decimation` ticks into a fixed buffer, so that a host
+/// can read back the exact setpoints a move produced (`capture` / `dump` on the console).
+#[derive(Clone, Debug)]
+pub struct Capture {
+    buf: [i32; CAPTURE_LEN],
+    len: usize,
+    decimation: u32,
+    phase: u32,
+    armed: bool,
+}
+
+impl Capture {
+    const fn new() -> Self {
+        Capture { buf: [0; CAPTURE_LEN], len: 0, decimation: 1, phase: 0, armed: false }
+    }
+
+    /// Starts a new capture of one sample every `decimation` (≥ 1) ticks.
+    pub fn arm(&mut self, decimation: u32) {
+        self.len = 0;
+        self.phase = 0;
+        self.decimation = decimation.max(1);
+        self.armed = true;
+    }
+
+    #[inline]
+    fn record(&mut self, setpoint: i32) {
+        if !self.armed {
+            return;
+        }
+        if self.phase == 0 {
+            match self.buf.get_mut(self.len) {
+                Some(slot) => {
+                    *slot = setpoint;
+                    self.len += 1;
+                }
+                None => self.armed = false,
+            }
+        }
+        self.phase += 1;
+        if self.phase >= self.decimation {
+            self.phase = 0;
+        }
+    }
+
+    /// Samples recorded so far.
+    pub fn samples(&self) -> &[i32] {
+        self.buf.get(..self.len).unwrap_or(&[])
+    }
+
+    /// Ticks between samples.
+    pub fn decimation(&self) -> u32 {
+        self.decimation
+    }
+
+    /// Still recording.
+    pub fn armed(&self) -> bool {
+        self.armed && self.len < CAPTURE_LEN
+    }
+}
+
 /// What the glue reads from the hardware each tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TickInput {
@@ -183,6 +246,7 @@ pub struct Runtime {
     setpoint: i32,
     ticks: u64,
     applied_changes: u32,
+    capture: Capture,
 }
 
 impl Default for Runtime {
@@ -209,6 +273,7 @@ impl Runtime {
             setpoint: 0,
             ticks: 0,
             applied_changes: 0,
+            capture: Capture::new(),
         }
     }
 
@@ -302,12 +367,23 @@ impl Runtime {
             }
         }
         self.setpoint = self.engine.tick(x);
+        self.capture.record(self.setpoint);
         TickOutput {
             reference_counts: x,
             setpoint_counts: self.setpoint,
             step: self.steps.update(self.setpoint),
             dac_code: self.dac.code(self.setpoint),
         }
+    }
+
+    /// The setpoint capture buffer.
+    pub fn capture(&self) -> &Capture {
+        &self.capture
+    }
+
+    /// Starts capturing one setpoint every `decimation` ticks.
+    pub fn arm_capture(&mut self, decimation: u32) {
+        self.capture.arm(decimation);
     }
 
     /// Tick rate in force (Hz); the glue reprograms its timer when this changes.
