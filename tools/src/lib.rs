@@ -7,4 +7,5 @@
 //! - [`diagnose`]: model-discrepancy diagnosis.
 //! - [`tune`]: the main job end to end.
 
+pub mod board;
 pub mod recording;

@@ -1,4 +1,9 @@
-use clap::Parser;
+use anyhow::{Context, Result};
+use serialport::SerialPort;
+use beamshaper::shaper::{design, insensitivity_band, residual_vibration, Shaper, ShaperKind};
+use beamtools::board;
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
 
 /// beamtool: model, identify, shape and verify a flexible beam on a linear-motor carriage.
 #[derive(Parser)]
@@ -8,10 +13,130 @@ struct Cli {
     command: Command,
 }
 
-#[derive(clap::Subcommand)]
-enum Command {}
+#[derive(Subcommand)]
+enum Command {
+    /// Run the virtual board (the firmware core on the host) on a pseudo-terminal.
+    Vboard(VboardArgs),
+    /// Send console commands to a board (real or virtual) and print the replies.
+    Console(ConsoleArgs),
+    /// Design a (multi-mode) input shaper and print its impulse table and sensitivity.
+    Shaper(ShaperArgs),
+}
 
-fn main() -> anyhow::Result<()> {
+#[derive(Args)]
+struct VboardArgs {
+    /// File that emulates the board's settings flash.
+    #[arg(long, default_value = "vboard-flash.bin")]
+    flash: PathBuf,
+    /// Also create this symlink to the pseudo-terminal (e.g. /tmp/ttyBEAM).
+    #[arg(long)]
+    link: Option<PathBuf>,
+    /// Run the tick loop this many times faster than real time.
+    #[arg(long, default_value_t = 1.0)]
+    time_scale: f64,
+}
+
+#[derive(Args)]
+struct ConsoleArgs {
+    /// Serial port of the board (e.g. /dev/ttyACM0, or the path `vboard` printed).
+    #[arg(long)]
+    port: String,
+    /// Console lines to send, in order (e.g. "mode 1 zvd 1.1 0.0074" status).
+    lines: Vec<String>,
+}
+
+#[derive(Args)]
+struct ShaperArgs {
+    /// Shaper kind: zv, zvd, zvdd, zvddd, mzv, ei, 2hei, 3hei, umzv.
+    #[arg(long, default_value = "zvd")]
+    kind: String,
+    /// Natural frequency of mode 1 (Hz).
+    #[arg(long)]
+    freq_hz: f64,
+    /// Damping ratio of mode 1.
+    #[arg(long, default_value_t = 0.0)]
+    zeta: f64,
+    /// Natural frequency of mode 2 (Hz): convolve a second shaper of the same kind.
+    #[arg(long)]
+    freq2_hz: Option<f64>,
+    /// Damping ratio of mode 2 (default: same as mode 1).
+    #[arg(long)]
+    zeta2: Option<f64>,
+    /// Vibration tolerance of the EI kinds and of the insensitivity band (fraction).
+    #[arg(long, default_value_t = 0.05)]
+    v_tol: f64,
+}
+
+fn main() -> Result<()> {
     let cli = Cli::parse();
-    match cli.command {}
+    match cli.command {
+        Command::Vboard(a) => vboard(a),
+        Command::Console(a) => console(a),
+        Command::Shaper(a) => shaper(a),
+    }
+}
+
+fn vboard(a: VboardArgs) -> Result<()> {
+    let (mut master, slave) = serialport::TTYPort::pair().context("cannot create a pseudo-terminal")?;
+    let path = slave.name().context("pseudo-terminal has no name")?;
+    if let Some(link) = &a.link {
+        let _ = std::fs::remove_file(link);
+        std::os::unix::fs::symlink(&path, link).with_context(|| format!("cannot create {}", link.display()))?;
+    }
+    println!("virtual board console on {path} (115200 8N1); flash file {}; Ctrl-C to stop", a.flash.display());
+    let mut boot = String::new();
+    let mut b = board::VirtualBoard::boot(Some(a.flash), &mut boot);
+    print!("{boot}");
+    b.serve(&mut master, a.time_scale)
+}
+
+fn console(a: ConsoleArgs) -> Result<()> {
+    let mut c = board::client::BoardClient::open(&a.port)?;
+    for line in &a.lines {
+        let r = c.command(line)?;
+        for i in &r.info {
+            println!("# {i}");
+        }
+        println!("{}", r.ok);
+    }
+    Ok(())
+}
+
+fn shaper(a: ShaperArgs) -> Result<()> {
+    let kind = ShaperKind::from_name(&a.kind, a.v_tol).with_context(|| format!("unknown shaper kind `{}`", a.kind))?;
+    let mut s: Shaper = design(kind, a.freq_hz, a.zeta).map_err(|e| anyhow::anyhow!("mode 1: {}", e.message()))?;
+    let mut modes = vec![(a.freq_hz, a.zeta)];
+    if let Some(f2) = a.freq2_hz {
+        let z2 = a.zeta2.unwrap_or(a.zeta);
+        let s2 = design(kind, f2, z2).map_err(|e| anyhow::anyhow!("mode 2: {}", e.message()))?;
+        s = s.convolve(&s2).map_err(|e| anyhow::anyhow!("{}", e.message()))?;
+        modes.push((f2, z2));
+    }
+    println!("{} shaper, {} impulses, duration {:.6} s", kind.name().to_uppercase(), s.len(), s.duration_s());
+    println!("{:>4} {:>22} {:>22}", "i", "amplitude", "time_s");
+    for (i, imp) in s.impulses().iter().enumerate() {
+        println!("{:>4} {:>22} {:>22}", i + 1, imp.amplitude, imp.time_s);
+    }
+    for (i, &(f, z)) in modes.iter().enumerate() {
+        let v = |r: f64| 100.0 * residual_vibration(&s, r * f, z);
+        print!(
+            "mode {}: f = {f} Hz, zeta = {z}: V(-10 %) = {:.3} %, V(0) = {:.3} %, V(+10 %) = {:.3} %",
+            i + 1,
+            v(0.9),
+            v(1.0),
+            v(1.1)
+        );
+        match insensitivity_band(&s, f, z, a.v_tol) {
+            Some((lo, hi)) => println!(", V <= {} % on {lo:.4}..{hi:.4} Hz (width {:.1} %)", 100.0 * a.v_tol, 100.0 * (hi - lo) / f),
+            None => println!(", V > {} % at the design frequency", 100.0 * a.v_tol),
+        }
+    }
+    let mut line = String::from("console: custom");
+    for imp in s.impulses() {
+        line.push_str(&format!(" {}@{}", imp.amplitude, imp.time_s));
+    }
+    if s.len() <= beamshaper::config::MAX_CUSTOM_IMPULSES {
+        println!("{line}");
+    }
+    Ok(())
 }

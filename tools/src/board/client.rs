@@ -1,0 +1,111 @@
+//! Serial-console client for the board (real or virtual), on the `serialport` crate.
+//!
+//! Speaks the console protocol of [`beamshaper::console`]: one command line out, reply lines
+//! back until a final `ok …` or `err <code>: …` line.
+
+use anyhow::{anyhow, bail, Context, Result};
+use serialport::SerialPort;
+use std::io::{Read, Write};
+use std::time::{Duration, Instant};
+
+/// A reply: the informational `# ` lines and the final `ok …` line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Reply {
+    /// Informational lines (without the `# `).
+    pub info: Vec<String>,
+    /// The final line, starting with `ok `.
+    pub ok: String,
+}
+
+impl Reply {
+    /// Value of `key=` in the `ok` line.
+    pub fn field(&self, key: &str) -> Option<&str> {
+        self.ok.split_whitespace().find_map(|w| w.strip_prefix(key).and_then(|r| r.strip_prefix('=')))
+    }
+
+    /// Numeric value of `key=` in the `ok` line.
+    pub fn number(&self, key: &str) -> Result<f64> {
+        let v = self.field(key).ok_or_else(|| anyhow!("reply has no `{key}=`: {}", self.ok))?;
+        v.parse().map_err(|_| anyhow!("reply field {key}=`{v}` is not a number: {}", self.ok))
+    }
+}
+
+/// A console connection.
+pub struct BoardClient {
+    port: Box<dyn SerialPort>,
+    pending: Vec<u8>,
+    timeout: Duration,
+}
+
+impl BoardClient {
+    /// Opens `path` at 115200 8N1 and drains any boot messages.
+    pub fn open(path: &str) -> Result<Self> {
+        let port = serialport::new(path, 115_200)
+            .timeout(Duration::from_millis(20))
+            .open()
+            .with_context(|| format!("cannot open serial port {path}"))?;
+        let mut c = BoardClient { port, pending: Vec::new(), timeout: Duration::from_secs(3) };
+        c.drain(Duration::from_millis(100));
+        Ok(c)
+    }
+
+    /// Sets how long to wait for a reply before declaring the board silent.
+    pub fn set_timeout(&mut self, t: Duration) {
+        self.timeout = t;
+    }
+
+    fn drain(&mut self, for_: Duration) {
+        let end = Instant::now() + for_;
+        let mut buf = [0u8; 256];
+        while Instant::now() < end {
+            if let Ok(n) = self.port.read(&mut buf) {
+                if n == 0 {
+                    break;
+                }
+            }
+        }
+        self.pending.clear();
+    }
+
+    fn read_line(&mut self, deadline: Instant) -> Result<String> {
+        let mut buf = [0u8; 256];
+        loop {
+            if let Some(i) = self.pending.iter().position(|&b| b == b'\n') {
+                let line: Vec<u8> = self.pending.drain(..=i).collect();
+                let s = String::from_utf8(line).map_err(|_| anyhow!("board sent non-UTF-8 bytes"))?;
+                return Ok(s.trim_end_matches(['\r', '\n']).to_string());
+            }
+            if Instant::now() > deadline {
+                bail!("board stopped answering (no complete reply within {:?})", self.timeout);
+            }
+            match self.port.read(&mut buf) {
+                Ok(n) => self.pending.extend_from_slice(&buf[..n]),
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+                Err(e) => return Err(e).context("serial read"),
+            }
+        }
+    }
+
+    /// Sends one command line and waits for its reply. Errors: an `err` reply (code and
+    /// message in the error), a malformed reply line, or no reply within the timeout.
+    pub fn command(&mut self, line: &str) -> Result<Reply> {
+        self.port.write_all(format!("{line}\n").as_bytes()).context("serial write")?;
+        self.port.flush().ok();
+        let deadline = Instant::now() + self.timeout;
+        let mut info = Vec::new();
+        loop {
+            let l = self.read_line(deadline).with_context(|| format!("waiting for the reply to `{line}`"))?;
+            if let Some(rest) = l.strip_prefix("# ") {
+                info.push(rest.to_string());
+            } else if l.starts_with("ok ") || l == "ok" {
+                return Ok(Reply { info, ok: l });
+            } else if let Some(e) = l.strip_prefix("err ") {
+                bail!("board refused `{line}`: {e}");
+            } else if l.is_empty() {
+                continue;
+            } else {
+                bail!("malformed reply to `{line}`: `{l}` (expected `# …`, `ok …` or `err …`)");
+            }
+        }
+    }
+}
