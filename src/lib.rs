@@ -15,3 +15,4 @@ pub mod reference;
 pub mod config;
 pub mod runtime;
 pub mod console;
+pub mod storage;
