@@ -1,0 +1,11 @@
+//! Link arguments for the firmware image only; the no_std core library builds for any target.
+fn main() {
+    let target = std::env::var("TARGET").unwrap_or_default();
+    if target.starts_with("thumb") {
+        let out = std::path::PathBuf::from(std::env::var("OUT_DIR").unwrap());
+        std::fs::copy("memory.x", out.join("memory.x")).expect("copy memory.x");
+        println!("cargo:rustc-link-search={}", out.display());
+    }
+    println!("cargo:rerun-if-changed=memory.x");
+    println!("cargo:rerun-if-changed=build.rs");
+}

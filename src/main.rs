@@ -1,0 +1,235 @@
+//! Firmware for the drive-interface MCU (NUCLEO-G474RE, STM32G474RE, Cortex-M4F @ 170 MHz).
+//!
+//! Thin glue around the `beamshaper` core:
+//! - **TIM6 update interrupt** (highest priority, raw handler): one [`Runtime::tick`] per
+//!   period (default 1 kHz): reads the upstream step/direction count (TIM4), shapes, programs
+//!   the step pulse train (TIM8), sets the direction pin and the DAC mirror.
+//! - **Console task** (thread mode): LPUART1 on PA2/PA3 (ST-LINK virtual COM port, 115200 8N1),
+//!   lines into the core's [`Console`]; shaper design runs here, outside the interrupt.
+//! - **Settings** in the last 16 KiB of flash via `sequential-storage` (see `memory.x`).
+//!
+//! Pins: PC6 = STEP (TIM8_CH1, one-pulse train of N pulses per tick using the repetition
+//! counter), PC7 = DIR, PB6/PB7 = upstream STEP/DIR in (TIM4 CH1/CH2, clock + direction
+//! encoder mode), PA4 = DAC1_OUT1 (setpoint mirror), PA2/PA3 = console.
+#![no_std]
+#![no_main]
+
+use beamshaper::console::{Action, Console, LineBuffer, RuntimeAccess};
+use beamshaper::runtime::{Runtime, TickInput, TickOutput};
+use beamshaper::storage::{load_settings, save_settings, STORAGE_BUFFER_BYTES};
+use core::cell::RefCell;
+use core::fmt::Write as _;
+use embassy_embedded_hal::adapter::BlockingAsync;
+use embassy_executor::Spawner;
+use embassy_stm32::flash::{Blocking, Flash};
+use embassy_stm32::gpio::{Level, Output, Speed};
+use embassy_stm32::interrupt;
+use embassy_stm32::pac;
+use embassy_stm32::usart::{BufferedUart, Config as UartConfig};
+use embassy_stm32::{bind_interrupts, peripherals, usart, Config};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex;
+use embedded_io_async::{Read, Write};
+use sequential_storage::cache::Cache;
+use sequential_storage::map::{MapConfig, MapStorage};
+use static_cell::StaticCell;
+use {defmt_rtt as _, panic_probe as _};
+
+/// Timer kernel clock of TIM6/TIM4/TIM8 (APB1/APB2 prescaler 1 at 170 MHz).
+const TIMER_CLOCK_HZ: u32 = 170_000_000;
+/// Settings flash: the last four 4 KiB pages (single-bank mode) of the 512 KiB flash,
+/// excluded from `FLASH` in `memory.x`.
+const SETTINGS_FLASH: core::ops::Range<u32> = (512 - 16) * 1024..512 * 1024;
+
+/// The interrupt-owned state, shared with the console through a critical section.
+static RUNTIME: Mutex<CriticalSectionRawMutex, RefCell<Runtime>> = Mutex::new(RefCell::new(Runtime::new()));
+
+/// The console's handle on [`RUNTIME`].
+struct Shared;
+
+impl RuntimeAccess for Shared {
+    fn with<T>(&mut self, f: impl FnOnce(&mut Runtime) -> T) -> T {
+        RUNTIME.lock(|r| f(&mut r.borrow_mut()))
+    }
+}
+
+bind_interrupts!(struct Irqs {
+    LPUART1 => usart::BufferedInterruptHandler<peripherals::LPUART1>;
+});
+
+/// Programs TIM6 to update at `rate_hz`.
+fn set_tick_rate(rate_hz: u32) {
+    let t = pac::TIM6;
+    // 170 MHz / (PSC+1) / (ARR+1); PSC = 16 gives 10 MHz counts, exact for 0.5–10 kHz.
+    t.psc().write_value(16);
+    t.arr().write(|w| w.set_arr((10_000_000 / rate_hz.max(1)).saturating_sub(1) as u16));
+}
+
+/// Emits `out.step` during the next tick: DIR first, then N pulses on TIM8_CH1 in one-pulse
+/// mode with the repetition counter (N ≤ 65536), spaced to fill 80 % of the tick.
+fn emit(out: &TickOutput, dir: &mut Output<'static>, tick_hz: u32) {
+    dir.set_level(if out.step.forward { Level::High } else { Level::Low });
+    pac::DAC1.dhr12r(0).write(|w| w.set_dhr(out.dac_code));
+    let n = out.step.pulses.min(65_536);
+    if n == 0 {
+        return;
+    }
+    let t = pac::TIM8;
+    let period = ((TIMER_CLOCK_HZ / tick_hz.max(1)) * 4 / 5 / n).clamp(4, 65_535);
+    t.arr().write(|w| w.set_arr(period as u16 - 1));
+    t.ccr(0).write(|w| w.set_ccr(period as u16 / 2));
+    t.rcr().write(|w| w.set_rep((n - 1) as u16));
+    t.egr().write(|w| w.set_ug(true));
+    t.cr1().modify(|w| {
+        w.set_opm(true);
+        w.set_cen(true)
+    });
+}
+
+static DIR_PIN: Mutex<CriticalSectionRawMutex, RefCell<Option<Output<'static>>>> = Mutex::new(RefCell::new(None));
+
+#[interrupt]
+fn TIM6_DAC() {
+    pac::TIM6.sr().modify(|w| w.set_uif(false));
+    let input = TickInput { stepdir_count: pac::TIM4.cnt().read().cnt() as u16 };
+    RUNTIME.lock(|r| {
+        let mut rt = r.borrow_mut();
+        let before = rt.tick_rate_hz();
+        let out = rt.tick(&input);
+        let after = rt.tick_rate_hz();
+        DIR_PIN.lock(|d| {
+            if let Some(d) = d.borrow_mut().as_mut() {
+                emit(&out, d, after);
+            }
+        });
+        if after != before {
+            set_tick_rate(after);
+        }
+    });
+}
+
+fn init_timers() {
+    // TIM4: clock + direction input (SMS = 0b1011, "clock plus direction, x1").
+    let t4 = pac::TIM4;
+    t4.arr().write(|w| w.set_arr(0xffff));
+    t4.smcr().modify(|w| w.set_sms(pac::timer::vals::Sms::from_bits(0b1011)));
+    t4.cr1().modify(|w| w.set_cen(true));
+    // TIM8_CH1: PWM mode 1, main output enabled; started per tick by `emit`.
+    let t8 = pac::TIM8;
+    t8.ccmr_output(0).modify(|w| w.set_ocm(0, pac::timer::vals::Ocm::PWM_MODE1));
+    t8.ccer().modify(|w| w.set_cce(0, true));
+    t8.bdtr().modify(|w| w.set_moe(true));
+    // TIM6: the tick.
+    set_tick_rate(1000);
+    pac::TIM6.dier().modify(|w| w.set_uie(true));
+    pac::TIM6.cr1().modify(|w| w.set_cen(true));
+}
+
+#[embassy_executor::main]
+async fn main(_spawner: Spawner) {
+    let mut config = Config::default();
+    {
+        use embassy_stm32::rcc::*;
+        config.rcc.hsi = true;
+        config.rcc.pll = Some(Pll {
+            source: PllSource::HSI,
+            prediv: PllPreDiv::DIV4,
+            mul: PllMul::MUL85,
+            divp: None,
+            divq: None,
+            divr: Some(PllRDiv::DIV2),
+        });
+        config.rcc.sys = Sysclk::PLL1_R;
+    }
+    let p = embassy_stm32::init(config);
+
+    // Peripheral clocks and pin functions for the raw timers and the DAC.
+    pac::RCC.apb1enr1().modify(|w| {
+        w.set_tim6en(true);
+        w.set_tim4en(true)
+    });
+    pac::RCC.apb2enr().modify(|w| w.set_tim8en(true));
+    pac::RCC.ahb2enr().modify(|w| w.set_dac1en(true));
+    pac::DAC1.cr().modify(|w| w.set_en(0, true));
+    let _step_in = embassy_stm32::gpio::Flex::new(p.PB6);
+    let _dir_in = embassy_stm32::gpio::Flex::new(p.PB7);
+    pac::GPIOB.moder().modify(|w| {
+        w.set_moder(6, pac::gpio::vals::Moder::ALTERNATE);
+        w.set_moder(7, pac::gpio::vals::Moder::ALTERNATE)
+    });
+    pac::GPIOB.afr(0).modify(|w| {
+        w.set_afr(6, 2);
+        w.set_afr(7, 2)
+    });
+    pac::GPIOC.moder().modify(|w| w.set_moder(6, pac::gpio::vals::Moder::ALTERNATE));
+    pac::GPIOC.afr(0).modify(|w| w.set_afr(6, 4));
+    pac::GPIOA.moder().modify(|w| w.set_moder(4, pac::gpio::vals::Moder::ANALOG));
+    let dir = Output::new(p.PC7, Level::Low, Speed::VeryHigh);
+    DIR_PIN.lock(|d| *d.borrow_mut() = Some(dir));
+
+    // Console UART.
+    static TX_BUF: StaticCell<[u8; 2048]> = StaticCell::new();
+    static RX_BUF: StaticCell<[u8; 256]> = StaticCell::new();
+    let mut ucfg = UartConfig::default();
+    ucfg.baudrate = 115_200;
+    let uart = match BufferedUart::new(
+        p.LPUART1,
+        p.PA3,
+        p.PA2,
+        TX_BUF.init([0; 2048]),
+        RX_BUF.init([0; 256]),
+        Irqs,
+        ucfg,
+    ) {
+        Ok(u) => u,
+        Err(_) => defmt::panic!("LPUART1 configuration refused"),
+    };
+    let (mut tx, mut rx) = uart.split();
+
+    // Settings from flash, then the tick.
+    let flash = Flash::new_blocking(p.FLASH);
+    let mut map: MapStorage<u8, BlockingAsync<Flash<'static, Blocking>>, _> =
+        MapStorage::new(BlockingAsync::new(flash), const { MapConfig::new(SETTINGS_FLASH) }, Cache::new_uncached());
+    let mut sbuf = [0u8; STORAGE_BUFFER_BYTES];
+    let loaded = load_settings(&mut map, &mut sbuf).await;
+    let mut reply: heapless::String<2048> = heapless::String::new();
+    let stepdir_now = pac::TIM4.cnt().read().cnt() as u16;
+    let mut console = Console::boot(loaded, &mut Shared, stepdir_now, &mut reply);
+    init_timers();
+    set_tick_rate(RUNTIME.lock(|r| r.borrow().tick_rate_hz()));
+    // SAFETY: the handler only touches RUNTIME/DIR_PIN through critical-section mutexes.
+    unsafe {
+        let mut nvic = cortex_m::Peripherals::steal().NVIC;
+        nvic.set_priority(interrupt::TIM6_DAC, 0);
+        cortex_m::peripheral::NVIC::unmask(interrupt::TIM6_DAC);
+    }
+    let _ = tx.write_all(reply.as_bytes()).await;
+    defmt::info!("beamshaper firmware up");
+
+    let mut lines = LineBuffer::new();
+    let mut byte = [0u8; 1];
+    loop {
+        if rx.read_exact(&mut byte).await.is_err() {
+            continue;
+        }
+        let Some(line) = lines.push(byte[0]) else { continue };
+        reply.clear();
+        match line {
+            Err(_) => {
+                let _ = writeln!(reply, "err line-too-long: line longer than 200 bytes discarded");
+            }
+            Ok(line) => match console.handle_line(&line, &mut Shared, &mut reply) {
+                Action::None => {}
+                Action::Save => {
+                    let r = save_settings(&mut map, &mut sbuf, console.settings()).await;
+                    console.finish_save(r, &mut reply);
+                }
+                Action::Load => {
+                    let r = load_settings(&mut map, &mut sbuf).await;
+                    console.finish_load(r, &mut Shared, &mut reply);
+                }
+            },
+        }
+        let _ = tx.write_all(reply.as_bytes()).await;
+    }
+}
