@@ -5,6 +5,10 @@ fn main() {
         let out = std::path::PathBuf::from(std::env::var("OUT_DIR").unwrap());
         std::fs::copy("memory.x", out.join("memory.x")).expect("copy memory.x");
         println!("cargo:rustc-link-search={}", out.display());
+        // Only the firmware binary links with cortex-m-rt's and defmt's scripts.
+        println!("cargo:rustc-link-arg-bins=--nmagic");
+        println!("cargo:rustc-link-arg-bins=-Tlink.x");
+        println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
     }
     println!("cargo:rerun-if-changed=memory.x");
     println!("cargo:rerun-if-changed=build.rs");

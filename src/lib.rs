@@ -16,3 +16,4 @@ pub mod config;
 pub mod runtime;
 pub mod console;
 pub mod storage;
+pub mod golden;
