@@ -8,4 +8,7 @@
 //! - [`tune`]: the main job end to end.
 
 pub mod board;
+pub mod measures;
+pub mod model;
+pub mod plot;
 pub mod recording;

@@ -21,6 +21,12 @@ enum Command {
     Console(ConsoleArgs),
     /// Design a (multi-mode) input shaper and print its impulse table and sensitivity.
     Shaper(ShaperArgs),
+    /// Simulate the beam on its moving base for a move or a command CSV (paper §2).
+    Simulate(beamtools::model::cli::SimulateArgs),
+    /// Natural frequencies, damping, participation and mode shapes of a rig.
+    Modes(beamtools::model::cli::ModesArgs),
+    /// Reproduce the paper's Table 2 and Figs. 6-9 in simulation.
+    Table2(beamtools::model::cli::Table2Args),
 }
 
 #[derive(Args)]
@@ -73,6 +79,9 @@ fn main() -> Result<()> {
         Command::Vboard(a) => vboard(a),
         Command::Console(a) => console(a),
         Command::Shaper(a) => shaper(a),
+        Command::Simulate(a) => beamtools::model::cli::simulate(a),
+        Command::Modes(a) => beamtools::model::cli::modes(a),
+        Command::Table2(a) => beamtools::model::cli::table2(a),
     }
 }
 

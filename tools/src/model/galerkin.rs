@@ -1,0 +1,316 @@
+//! Galerkin reduction of the beam on a moving base (paper eqs. 9–20) with the structural
+//! extensions the diagnosis needs, and the modal analysis (eq. 24).
+//!
+//! Generalised coordinates `[y, (θ), q_1 … q_n]`: base position y (m), optionally the rigid
+//! rotation θ (rad) of a compliant clamp (`root_stiffness_nm_per_rad`), and the modal
+//! amplitudes q_i of the basis ([`super::basis`]); the deflection is
+//! `w(x) = x·θ + Σ q_i φ_i(x)`.
+//!
+//! Mass (eqs. 13, 17–19) and stiffness (eq. 20) by Gauss–Legendre quadrature over A(x), I(x).
+//! Eq. (20) is evaluated in its symmetric weak form `k_ij = E∫ I φ_i'' φ_j'' dx`: integrating the
+//! printed strong form by parts twice gives it, because the boundary terms vanish for
+//! φ(0) = φ'(0) = 0 and φ''(l) = φ'''(l) = 0. Extensions: a lumped tip mass adds to J, h_i and
+//! m_ij; an axial load N(x) (gravity on a hanging (+, tension) or upright (−) beam) adds the
+//! geometric stiffness `∫ N φ_i' φ_j' dx`, `N(x) = ±g(ρ∫_x^l A ds + m_tip)`.
+
+use super::basis::BasisFn;
+use super::rig::{Rig, SectionProfile};
+use anyhow::{bail, Context, Result};
+use nalgebra::{DMatrix, DVector, SymmetricEigen};
+
+/// Gravity (m/s²).
+pub const G_M_S2: f64 = 9.80665;
+
+/// Orientation of the beam for the gravity axial load.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Orientation {
+    /// Beam hangs below the clamp: tension, frequencies rise.
+    Hanging,
+    /// Beam stands above the clamp: compression, frequencies fall.
+    Upright,
+}
+
+/// Model options; `Default` is the paper's nominal model with 4 basis functions.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModelOptions {
+    /// Number of basis functions n.
+    pub n_modes: usize,
+    /// Multiplies E (calibration).
+    pub stiffness_scale: f64,
+    /// Added to the carriage mass (kg, calibration).
+    pub base_mass_delta_kg: f64,
+    /// Lumped mass at the tip (kg).
+    pub tip_mass_kg: f64,
+    /// Rotational spring at the clamp (N·m/rad); `None` = rigid clamp.
+    pub root_stiffness_nm_per_rad: Option<f64>,
+    /// Gravity axial load; `None` = horizontal beam.
+    pub axial_load: Option<Orientation>,
+    /// Damping ratios of the first two flexible modes (→ Rayleigh α1, α2); `None` = the rig's.
+    pub damping_ratios: Option<(f64, f64)>,
+}
+
+impl Default for ModelOptions {
+    fn default() -> Self {
+        ModelOptions {
+            n_modes: 4,
+            stiffness_scale: 1.0,
+            base_mass_delta_kg: 0.0,
+            tip_mass_kg: 0.0,
+            root_stiffness_nm_per_rad: None,
+            axial_load: None,
+            damping_ratios: None,
+        }
+    }
+}
+
+/// The assembled model.
+#[derive(Clone, Debug)]
+pub struct BeamModel {
+    /// Mass matrix M, (1 + r + n)², coordinates `[y, (θ), q]` (kg, kg·m, …).
+    pub mass: DMatrix<f64>,
+    /// Stiffness matrix K (N/m, …); row/column 0 (the base) is zero.
+    pub stiffness: DMatrix<f64>,
+    /// w(l) = tip · coordinates (the entry for y is 0: deflection is relative to the base).
+    pub tip: DVector<f64>,
+    /// Beam length (m).
+    pub length_m: f64,
+    /// Beam mass (kg).
+    pub beam_mass_kg: f64,
+    /// Carriage mass incl. correction (kg).
+    pub base_mass_kg: f64,
+    /// Rayleigh α1 (1/s) and α2 (s) (eqs. 21–22).
+    pub rayleigh: (f64, f64),
+    /// Damping ratios they were computed from.
+    pub damping_ratios: (f64, f64),
+}
+
+/// Modes of the beam on a clamped (immobile) base: natural frequencies and mass-normalised
+/// shapes of the beam block, with their participation in base acceleration.
+#[derive(Clone, Debug)]
+pub struct ClampedModes {
+    /// Natural angular frequencies ω_r (rad/s), ascending.
+    pub omega_rad_s: Vec<f64>,
+    /// Mass-normalised mode shapes (columns) in the beam coordinates `[(θ), q]`.
+    pub shapes: DMatrix<f64>,
+    /// Modal participation factors Γ_r = Φ_rᵀ h (kg^½): the modal force is −Γ_r ÿ.
+    pub participation: Vec<f64>,
+    /// Tip deflection per unit modal coordinate (m / kg^½).
+    pub tip: Vec<f64>,
+    /// Damping ratio of each mode (Rayleigh, eq. 22).
+    pub zeta: Vec<f64>,
+}
+
+/// Nodes and weights of 5-point Gauss–Legendre on [−1, 1].
+const GL5: [(f64, f64); 5] = [
+    (0.0, 0.568_888_888_888_888_9),
+    (-0.538_469_310_105_683, 0.478_628_670_499_366_5),
+    (0.538_469_310_105_683, 0.478_628_670_499_366_5),
+    (-0.906_179_845_938_664, 0.236_926_885_056_189_1),
+    (0.906_179_845_938_664, 0.236_926_885_056_189_1),
+];
+
+/// Quadrature points (x, weight) over [0, l]: `intervals` × 5-point Gauss–Legendre.
+pub fn quadrature(length_m: f64, intervals: usize) -> Vec<(f64, f64)> {
+    let h = length_m / intervals as f64;
+    let mut pts = Vec::with_capacity(intervals * 5);
+    for k in 0..intervals {
+        let c = (k as f64 + 0.5) * h;
+        for &(xi, w) in GL5.iter() {
+            pts.push((c + 0.5 * h * xi, 0.5 * h * w));
+        }
+    }
+    pts
+}
+
+/// Rayleigh coefficients (α1, α2) giving damping ratios ζ1, ζ2 at ω1, ω2 (rad/s), eq. (22):
+/// ζ_r = ½(α1/ω_r + α2 ω_r).
+pub fn rayleigh_coefficients(omega1: f64, zeta1: f64, omega2: f64, zeta2: f64) -> (f64, f64) {
+    if (omega2 - omega1).abs() < 1e-12 * omega1 {
+        return (2.0 * zeta1 * omega1, 0.0);
+    }
+    let det = omega2 / omega1 - omega1 / omega2;
+    let a1 = 2.0 * (zeta1 * omega2 - zeta2 * omega1) / det;
+    let a2 = 2.0 * (zeta2 / omega1 - zeta1 / omega2) / det;
+    (a1, a2)
+}
+
+impl BeamModel {
+    /// Assembles the model of `rig` with `opts`.
+    ///
+    /// Errors: no `[beam]`, invalid profile, `n_modes` outside 1..=12, non-positive options,
+    /// an upright beam that buckles under its own weight.
+    pub fn new(rig: &Rig, opts: &ModelOptions) -> Result<BeamModel> {
+        let beam = rig.beam.as_ref().context("the rig has no [beam] section: no beam model")?;
+        let profile: SectionProfile = rig.profile()?;
+        if !(1..=12).contains(&opts.n_modes) {
+            bail!("number of basis functions must be 1..12 (got {})", opts.n_modes);
+        }
+        if !(opts.stiffness_scale > 0.0) || !(opts.tip_mass_kg >= 0.0) {
+            bail!("stiffness scale must be > 0 and tip mass >= 0");
+        }
+        let l = beam.length_m;
+        let rho = beam.density_kg_m3;
+        let e = beam.youngs_modulus_pa * opts.stiffness_scale;
+        let n = opts.n_modes;
+        let r = usize::from(opts.root_stiffness_nm_per_rad.is_some());
+        let dim = 1 + r + n;
+        let basis: Vec<BasisFn> = (1..=n).map(|i| BasisFn::new(i, l)).collect();
+        let pts = quadrature(l, 40 + 20 * n);
+        let mut mass = DMatrix::zeros(dim, dim);
+        let mut stiff = DMatrix::zeros(dim, dim);
+        let beam_mass: f64 = pts.iter().map(|&(x, w)| w * rho * profile.area(x)).sum();
+        // Axial force N(x) (positive = tension) at the quadrature points.
+        let axial = |x: f64| -> f64 {
+            match opts.axial_load {
+                None => 0.0,
+                Some(o) => {
+                    let below: f64 = pts.iter().filter(|p| p.0 > x).map(|&(s, w)| w * rho * profile.area(s)).sum();
+                    let sign = if o == Orientation::Hanging { 1.0 } else { -1.0 };
+                    sign * G_M_S2 * (below + opts.tip_mass_kg)
+                }
+            }
+        };
+        // Shape vectors at a point: [0 (y), (x), φ_i] for w, and their derivatives.
+        let mut vals = vec![0.0; dim];
+        let mut d1 = vec![0.0; dim];
+        let mut d2 = vec![0.0; dim];
+        let shape = |x: f64, vals: &mut [f64], d1: &mut [f64], d2: &mut [f64]| {
+            if r == 1 {
+                vals[1] = x;
+                d1[1] = 1.0;
+                d2[1] = 0.0;
+            }
+            for (i, b) in basis.iter().enumerate() {
+                let (p, p1, p2) = b.eval(x);
+                vals[1 + r + i] = p;
+                d1[1 + r + i] = p1;
+                d2[1 + r + i] = p2;
+            }
+        };
+        for &(x, w) in &pts {
+            shape(x, &mut vals, &mut d1, &mut d2);
+            let ma = w * rho * profile.area(x);
+            let ei = w * e * profile.inertia(x);
+            let nn = if opts.axial_load.is_some() { w * axial(x) } else { 0.0 };
+            for i in 1..dim {
+                mass[(0, i)] += ma * vals[i]; // h_i (eq. 18)
+                for j in i..dim {
+                    mass[(i, j)] += ma * vals[i] * vals[j]; // m_ij (eq. 19)
+                    stiff[(i, j)] += ei * d2[i] * d2[j] + nn * d1[i] * d1[j]; // k_ij (eq. 20) + geometric
+                }
+            }
+        }
+        let base_mass = rig.base.mass_kg + opts.base_mass_delta_kg;
+        if !(base_mass > 0.0) {
+            bail!("carriage mass must stay > 0 (got {base_mass} kg)");
+        }
+        mass[(0, 0)] = base_mass + beam_mass + opts.tip_mass_kg; // J (eq. 17)
+        // Tip mass.
+        let mut tip = DVector::zeros(dim);
+        shape(l, &mut vals, &mut d1, &mut d2);
+        for i in 1..dim {
+            tip[i] = vals[i];
+            mass[(0, i)] += opts.tip_mass_kg * vals[i];
+            for j in i..dim {
+                mass[(i, j)] += opts.tip_mass_kg * vals[i] * vals[j];
+            }
+        }
+        if let Some(kr) = opts.root_stiffness_nm_per_rad {
+            if !(kr > 0.0) {
+                bail!("root stiffness must be > 0 N·m/rad (got {kr})");
+            }
+            stiff[(1, 1)] += kr;
+        }
+        for i in 0..dim {
+            for j in 0..i {
+                mass[(i, j)] = mass[(j, i)];
+                stiff[(i, j)] = stiff[(j, i)];
+            }
+        }
+        let zetas = opts.damping_ratios.unwrap_or_else(|| rig.damping_ratios());
+        let mut model = BeamModel {
+            mass,
+            stiffness: stiff,
+            tip,
+            length_m: l,
+            beam_mass_kg: beam_mass,
+            base_mass_kg: base_mass,
+            rayleigh: (0.0, 0.0),
+            damping_ratios: zetas,
+        };
+        let w = model.clamped_omegas()?;
+        if w.len() >= 2 {
+            model.rayleigh = rayleigh_coefficients(w[0], zetas.0, w[1], zetas.1);
+        } else {
+            model.rayleigh = (2.0 * zetas.0 * w[0], 0.0);
+        }
+        Ok(model)
+    }
+
+    /// Number of beam coordinates (excluding y).
+    pub fn n_beam(&self) -> usize {
+        self.mass.nrows() - 1
+    }
+
+    fn clamped_omegas(&self) -> Result<Vec<f64>> {
+        let nb = self.n_beam();
+        let m = self.mass.view((1, 1), (nb, nb)).into_owned();
+        let k = self.stiffness.view((1, 1), (nb, nb)).into_owned();
+        let (w2, _) = generalized_eigen(&k, &m)?;
+        if w2[0] <= 0.0 {
+            bail!("the beam buckles under the axial load (lowest eigenvalue {:.3e} <= 0)", w2[0]);
+        }
+        Ok(w2.iter().map(|v| v.sqrt()).collect())
+    }
+
+    /// Modes with the base clamped (eq. 24 on the beam block).
+    pub fn clamped_modes(&self) -> Result<ClampedModes> {
+        let nb = self.n_beam();
+        let m = self.mass.view((1, 1), (nb, nb)).into_owned();
+        let k = self.stiffness.view((1, 1), (nb, nb)).into_owned();
+        let (w2, shapes) = generalized_eigen(&k, &m)?;
+        if w2[0] <= 0.0 {
+            bail!("the beam buckles under the axial load");
+        }
+        let h = self.mass.view((1, 0), (nb, 1)).into_owned();
+        let tipb = self.tip.rows(1, nb).into_owned();
+        let omega: Vec<f64> = w2.iter().map(|v| v.sqrt()).collect();
+        let (a1, a2) = self.rayleigh;
+        Ok(ClampedModes {
+            participation: (0..nb).map(|r| shapes.column(r).dot(&h.column(0))).collect(),
+            tip: (0..nb).map(|r| shapes.column(r).dot(&tipb)).collect(),
+            zeta: omega.iter().map(|w| 0.5 * (a1 / w + a2 * w)).collect(),
+            omega_rad_s: omega,
+            shapes,
+        })
+    }
+
+    /// Natural frequencies (Hz) of the free-base system (base force-driven, eq. 12): the
+    /// non-zero roots of det(K − ω²M) = 0 over all coordinates (the rigid-body mode at 0 is
+    /// dropped).
+    pub fn free_base_freqs_hz(&self) -> Result<Vec<f64>> {
+        let (w2, _) = generalized_eigen(&self.stiffness, &self.mass)?;
+        Ok(w2.iter().skip(1).map(|v| v.max(0.0).sqrt() / (2.0 * std::f64::consts::PI)).collect())
+    }
+}
+
+/// Solves K v = λ M v for symmetric K and symmetric positive-definite M: eigenvalues ascending
+/// and M-orthonormal eigenvectors (columns), via Cholesky M = L Lᵀ.
+pub fn generalized_eigen(k: &DMatrix<f64>, m: &DMatrix<f64>) -> Result<(Vec<f64>, DMatrix<f64>)> {
+    let chol = m.clone().cholesky().context("mass matrix is not positive definite")?;
+    let l = chol.l();
+    let linv = l.clone().try_inverse().context("mass matrix is singular")?;
+    let c = &linv * k * linv.transpose();
+    let c = 0.5 * (&c + c.transpose());
+    let eig = SymmetricEigen::new(c);
+    let mut idx: Vec<usize> = (0..eig.eigenvalues.len()).collect();
+    idx.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
+    let vals: Vec<f64> = idx.iter().map(|&i| eig.eigenvalues[i]).collect();
+    let mut vecs = DMatrix::zeros(k.nrows(), idx.len());
+    let lt_inv = linv.transpose();
+    for (c_out, &i) in idx.iter().enumerate() {
+        let v = &lt_inv * eig.eigenvectors.column(i);
+        vecs.set_column(c_out, &v);
+    }
+    Ok((vals, vecs))
+}
