@@ -27,6 +27,8 @@ enum Command {
     Modes(beamtools::model::cli::ModesArgs),
     /// Reproduce the paper's Table 2 and Figs. 6-9 in simulation.
     Table2(beamtools::model::cli::Table2Args),
+    /// Identify natural frequencies and damping ratios from a free decay (.npy or CSV).
+    Identify(beamtools::ident::cli::IdentifyArgs),
 }
 
 #[derive(Args)]
@@ -82,6 +84,7 @@ fn main() -> Result<()> {
         Command::Simulate(a) => beamtools::model::cli::simulate(a),
         Command::Modes(a) => beamtools::model::cli::modes(a),
         Command::Table2(a) => beamtools::model::cli::table2(a),
+        Command::Identify(a) => beamtools::ident::cli::identify(a),
     }
 }
 
