@@ -13,3 +13,4 @@ pub mod measures;
 pub mod model;
 pub mod plot;
 pub mod recording;
+pub mod tune;

@@ -15,6 +15,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The main job: recording -> modes -> shaper -> board -> verified move (generates a
+    /// recording from the reference rig and uses a virtual board when given nothing).
+    Tune(beamtools::tune::TuneArgs),
     /// Run the virtual board (the firmware core on the host) on a pseudo-terminal.
     Vboard(VboardArgs),
     /// Send console commands to a board (real or virtual) and print the replies.
@@ -78,6 +81,7 @@ struct ShaperArgs {
 fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
+        Command::Tune(a) => beamtools::tune::tune(a),
         Command::Vboard(a) => vboard(a),
         Command::Console(a) => console(a),
         Command::Shaper(a) => shaper(a),

@@ -29,13 +29,18 @@ pub struct FreeDecayOptions {
     pub f_min_hz: f64,
     /// Highest frequency considered (Hz; capped at 0.45 × sample rate).
     pub f_max_hz: f64,
-    /// A peak counts as a mode if at least this fraction of the strongest peak.
+    /// The first mode is the lowest peak of at least this fraction of the strongest peak.
     pub mode_fraction: f64,
+    /// Higher modes: peaks above 1.5 f1 of at least this fraction of the strongest peak
+    /// (a displacement record's second mode decays ~6× faster and starts ~1 % as large,
+    /// so its spectral peak can be 0.2 % of the first's). Candidates must also decay clearly
+    /// above the noise floor to count.
+    pub higher_mode_fraction: f64,
 }
 
 impl Default for FreeDecayOptions {
     fn default() -> Self {
-        FreeDecayOptions { f_min_hz: 0.2, f_max_hz: 500.0, mode_fraction: 0.1 }
+        FreeDecayOptions { f_min_hz: 0.2, f_max_hz: 500.0, mode_fraction: 0.1, higher_mode_fraction: 0.001 }
     }
 }
 
@@ -195,7 +200,7 @@ pub fn identify_free_decay(time_s: &[f64], signal: &[f64], opts: &FreeDecayOptio
     let pk = peaks(&f, &mag, opts.f_min_hz, f_max);
     let strongest = pk.first().map(|p| p.1).ok_or_else(|| anyhow::anyhow!("no spectral peak between {} and {f_max} Hz", opts.f_min_hz))?;
     let f1 = pk.iter().filter(|p| p.1 >= opts.mode_fraction * strongest).map(|p| p.0).fold(f64::INFINITY, f64::min);
-    let other: Vec<f64> = pk.iter().filter(|p| p.1 >= opts.mode_fraction * strongest && p.0 > 1.5 * f1).map(|p| p.0).take(4).collect();
+    let other: Vec<f64> = pk.iter().filter(|p| p.1 >= opts.higher_mode_fraction * strongest && p.0 > 1.5 * f1).map(|p| p.0).take(8).collect();
     let first = analyse_mode(&x, rate, f1, &mut warnings)?;
     let mut modes = vec![first.mode.clone()];
     for &fo in &other {
@@ -234,9 +239,14 @@ fn analyse_mode(x: &[f64], rate: f64, f1: f64, warnings: &mut Vec<String>) -> Re
         bail!("fewer than 6 cycles of the {f1:.3} Hz mode in the record");
     }
     let (i0, a0) = all.iter().enumerate().fold((0, 0.0), |(bi, bv), (i, p)| if p.1 > bv { (i, p.1) } else { (bi, bv) });
-    // Noise floor: band-passed level in the last 5 % of the record.
-    let tail = &xb[xb.len() * 19 / 20..];
-    let noise = (tail.iter().map(|v| v * v).sum::<f64>() / tail.len() as f64).sqrt() * 2f64.sqrt();
+    // Noise floor inside the band, from a band near Nyquist (0.35–0.45 × rate, assumed
+    // free of modes) scaled by the bandwidth ratio (white noise); as a peak amplitude (×√2).
+    let hb = band_pass(x, rate, 0.35 * rate, 0.45 * rate);
+    let hb_rms = (hb.iter().map(|v| v * v).sum::<f64>() / hb.len() as f64).sqrt();
+    let noise = hb_rms * ((0.6 * f1) / (0.1 * rate)).sqrt() * 2f64.sqrt();
+    if a0 < 10.0 * noise {
+        bail!("the {f1:.3} Hz peak never rises 10x above the in-band noise");
+    }
     let start = i0 + 1;
     let mut end = start;
     while end + 1 < all.len() && all[end + 1].1 > (0.05 * a0).max(3.0 * noise) {
