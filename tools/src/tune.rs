@@ -250,12 +250,30 @@ pub fn tune(a: TuneArgs) -> Result<()> {
     println!("2. identified from {what}:");
     crate::ident::cli::print_result("   ", &id);
     let modes: Vec<ModeEstimate> = id.modes.iter().take(2).cloned().collect();
+    // The board: its step resolution and maximum step rate bound the shaped speed.
+    let port = match &a.port {
+        Some(p) => p.clone(),
+        None => {
+            let flash = a.out.join("vboard-flash.bin");
+            let p = crate::board::spawn_on_pty(Some(flash), 10.0)?;
+            println!("   no --port: virtual board on {p} (flash {}, 10x real time)", a.out.join("vboard-flash.bin").display());
+            p
+        }
+    };
+    let mut board = BoardClient::open(&port)?;
+    let cfg = board.command("config").context("reading the board's configuration")?;
+    let step_nm = cfg.number("step_nm")?;
+    let max_rate = cfg.number("maxrate")?;
+    let max_abs_sum = max_rate * step_nm * 1e-6 / a.speed_mm_s;
     // 3. Design.
     let tol = a.tolerance_pct;
     let all = candidates(&modes, tol / 100.0, a.min_band_pct / 100.0);
-    let feasible: Vec<&Candidate> = all.iter().filter(|c| c.worst_pct <= tol && c.shaper.duration_s() * 1000.0 < 16_000.0).collect();
+    let feasible: Vec<&Candidate> = all
+        .iter()
+        .filter(|c| c.worst_pct <= tol && c.shaper.duration_s() * 1000.0 < 16_000.0 && c.shaper.abs_amplitude_sum() <= max_abs_sum)
+        .collect();
     let Some(best) = feasible.first().copied() else {
-        bail!("no shaper keeps the percentage vibration under {tol} % over the band; loosen --tolerance-pct");
+        bail!("no shaper keeps the percentage vibration under {tol} % over the band within the board's step rate ({max_rate} steps/s of {step_nm} nm at {} mm/s); loosen --tolerance-pct", a.speed_mm_s);
     };
     println!("3. shaper: {} — {} impulses, duration {:.4} s, worst-case V {:.2} % (tolerance {tol} % over f +-max(2 sd, {} %), zeta +-2 sd of {} mode(s))",
         best.name, best.shaper.len(), best.shaper.duration_s(), best.worst_pct, a.min_band_pct, modes.len());
@@ -272,17 +290,7 @@ pub fn tune(a: TuneArgs) -> Result<()> {
         curves.push(Series { label: r.name.clone(), x: &plot_f, y: &v_runner });
     }
     lines(&a.out.join("sensitivity.svg"), "percentage vibration vs frequency", "frequency (Hz)", "V (%)", &curves, false)?;
-    // 4. Program.
-    let port = match &a.port {
-        Some(p) => p.clone(),
-        None => {
-            let flash = a.out.join("vboard-flash.bin");
-            let p = crate::board::spawn_on_pty(Some(flash), 10.0)?;
-            println!("4. no --port: virtual board on {p} (flash {}, 10x real time)", a.out.join("vboard-flash.bin").display());
-            p
-        }
-    };
-    let mut board = BoardClient::open(&port)?;
+    println!("4. programming the board on {port}");
     program(&mut board, best).context("programming the board")?;
     println!("   programmed {} and read the table back: {} impulses identical to the design", port, best.shaper.len());
     // 5. Verify.

@@ -31,7 +31,7 @@ pub struct FreeDecayOptions {
     pub f_max_hz: f64,
     /// The first mode is the lowest peak of at least this fraction of the strongest peak.
     pub mode_fraction: f64,
-    /// Higher modes: peaks above 1.5 f1 of at least this fraction of the strongest peak
+    /// Higher modes: peaks above 2 f1 (a cantilever's second mode is ~6 f1) of at least this fraction of the strongest peak
     /// (a displacement record's second mode decays ~6× faster and starts ~1 % as large,
     /// so its spectral peak can be 0.2 % of the first's). Candidates must also decay clearly
     /// above the noise floor to count.
@@ -200,12 +200,26 @@ pub fn identify_free_decay(time_s: &[f64], signal: &[f64], opts: &FreeDecayOptio
     let pk = peaks(&f, &mag, opts.f_min_hz, f_max);
     let strongest = pk.first().map(|p| p.1).ok_or_else(|| anyhow::anyhow!("no spectral peak between {} and {f_max} Hz", opts.f_min_hz))?;
     let f1 = pk.iter().filter(|p| p.1 >= opts.mode_fraction * strongest).map(|p| p.0).fold(f64::INFINITY, f64::min);
-    let other: Vec<f64> = pk.iter().filter(|p| p.1 >= opts.higher_mode_fraction * strongest && p.0 > 1.5 * f1).map(|p| p.0).take(8).collect();
+    // Higher-mode candidates must stand out of the spectrum around them (×3 over the level
+    // at ±15 %): wiggles on the skirt of a strong mode and filter ringing do not.
+    let df = f[1] - f[0];
+    let level = |fq: f64| mag.get((fq / df).round() as usize).copied().unwrap_or(0.0);
+    let other: Vec<f64> = pk
+        .iter()
+        .filter(|p| p.1 >= opts.higher_mode_fraction * strongest && p.0 > 2.0 * f1)
+        .filter(|p| p.1 > 3.0 * level(0.85 * p.0).max(level(1.15 * p.0)))
+        .map(|p| p.0)
+        .take(16)
+        .collect();
     let first = analyse_mode(&x, rate, f1, &mut warnings)?;
     let mut modes = vec![first.mode.clone()];
     for &fo in &other {
         match analyse_mode(&x, rate, fo, &mut Vec::new()) {
-            Ok(m) if modes.iter().all(|e| (e.freq_hz / m.mode.freq_hz - 1.0).abs() > 0.2) => modes.push(m.mode),
+            // A genuine mode decays at the frequency of its own peak; a sidelobe or noise
+            // peak analysed in its band locks onto leakage of a stronger mode instead.
+            Ok(m) if (m.mode.freq_hz / fo - 1.0).abs() < 0.03
+                && m.r2 > 0.5
+                && modes.iter().all(|e| (e.freq_hz / m.mode.freq_hz - 1.0).abs() > 0.2) => modes.push(m.mode),
             Ok(_) => {}
             Err(e) => warnings.push(format!("peak at {fo:.3} Hz: {e}")),
         }
@@ -226,6 +240,8 @@ pub fn identify_free_decay(time_s: &[f64], signal: &[f64], opts: &FreeDecayOptio
 
 struct ModeAnalysis {
     mode: ModeEstimate,
+    /// Fraction of the band-passed segment's energy the damped sinusoid explains.
+    r2: f64,
     log_decrement: (f64, f64, usize),
     sinusoid_fit: (f64, f64),
     segment_s: (f64, f64),
@@ -275,6 +291,8 @@ fn analyse_mode(x: &[f64], rate: f64, f1: f64, warnings: &mut Vec<String>) -> Re
     let (sigma, wd) = (fit.p[1], fit.p[2]);
     let wn = (wd * wd + sigma * sigma).sqrt();
     let (fn_fit, zeta_fit) = (wn / (2.0 * PI), sigma / wn);
+    let ss: f64 = xs.iter().map(|v| v * v).sum();
+    let r2 = 1.0 - 2.0 * report.objective_function / ss.max(1e-300);
     let fit_ok = report.termination.was_successful() && zeta_fit.is_finite() && zeta_fit >= 0.0 && (fn_fit / fn_ld - 1.0).abs() < 0.05;
     if !fit_ok {
         warnings.push(format!("damped-sinusoid fit did not converge ({:?}); log decrement only", report.termination));
@@ -284,6 +302,7 @@ fn analyse_mode(x: &[f64], rate: f64, f1: f64, warnings: &mut Vec<String>) -> Re
     let f_std = (if fit_ok { (fn_ld - fn_fit).abs() / 2f64.sqrt() } else { 0.0 }).max(fd * 0.1 / (seg.len() as f64 * period));
     let z_std = (if fit_ok { (zeta_ld - zeta_fit).abs() / 2f64.sqrt() } else { 0.0 }).hypot(std_dev(&thirds));
     Ok(ModeAnalysis {
+        r2,
         mode: ModeEstimate { freq_hz: freq, zeta, freq_hz_std: f_std, zeta_std: z_std, method: "free decay: log decrement + damped-sinusoid fit".into() },
         log_decrement: (fn_ld, zeta_ld, seg.len()),
         sinusoid_fit: (fn_fit, zeta_fit),
