@@ -121,9 +121,13 @@ impl core::fmt::Display for ConfigError {
                 "shaper lasts {duration_s:.4} s, the buffer holds {max_s:.4} s at this tick rate"
             ),
             ConfigError::Taps(TapError::TickRate) => f.write_str("tick rate invalid"),
-            ConfigError::Taps(TapError::AmplitudeRange) => f.write_str("sum of |amplitudes| above 3.9"),
+            ConfigError::Taps(TapError::AmplitudeRange) => {
+                f.write_str("sum of |amplitudes| above 3.9")
+            }
             ConfigError::Range(field) => write!(f, "{field} out of range"),
-            ConfigError::Corrupt => f.write_str("stored settings corrupt (magic, version or checksum)"),
+            ConfigError::Corrupt => {
+                f.write_str("stored settings corrupt (magic, version or checksum)")
+            }
             ConfigError::Buffer => f.write_str("buffer too small"),
         }
     }
@@ -267,12 +271,19 @@ impl Settings {
             if code != 0 {
                 let v_tol = r.f64()?;
                 let kind = kind_from_code(code, v_tol).ok_or(ConfigError::Corrupt)?;
-                *slot = Some(ModeSetting { kind, freq_hz: r.f64()?, zeta: r.f64()? });
+                *slot = Some(ModeSetting {
+                    kind,
+                    freq_hz: r.f64()?,
+                    zeta: r.f64()?,
+                });
             }
         }
         let n = r.u8()? as usize;
         for _ in 0..n {
-            let imp = Impulse { amplitude: r.f64()?, time_s: r.f64()? };
+            let imp = Impulse {
+                amplitude: r.f64()?,
+                time_s: r.f64()?,
+            };
             s.custom.push(imp).map_err(|_| ConfigError::Corrupt)?;
         }
         s.shaping_enabled = r.u8()? != 0;
@@ -343,7 +354,10 @@ struct Writer<'a> {
 impl Writer<'_> {
     fn bytes(&mut self, b: &[u8]) -> Result<(), ConfigError> {
         let end = self.pos + b.len();
-        self.buf.get_mut(self.pos..end).ok_or(ConfigError::Buffer)?.copy_from_slice(b);
+        self.buf
+            .get_mut(self.pos..end)
+            .ok_or(ConfigError::Buffer)?
+            .copy_from_slice(b);
         self.pos = end;
         Ok(())
     }
@@ -368,7 +382,10 @@ struct Reader<'a> {
 
 impl<'a> Reader<'a> {
     fn take(&mut self, n: usize) -> Result<&'a [u8], ConfigError> {
-        let s = self.buf.get(self.pos..self.pos + n).ok_or(ConfigError::Corrupt)?;
+        let s = self
+            .buf
+            .get(self.pos..self.pos + n)
+            .ok_or(ConfigError::Corrupt)?;
         self.pos += n;
         Ok(s)
     }

@@ -39,7 +39,10 @@ pub struct LineBuffer {
 impl LineBuffer {
     /// An empty buffer.
     pub const fn new() -> Self {
-        LineBuffer { buf: heapless::Vec::new(), overflow: false }
+        LineBuffer {
+            buf: heapless::Vec::new(),
+            overflow: false,
+        }
     }
 
     /// Feeds one byte; returns a complete line (or an over-long-line error) at a terminator.
@@ -50,7 +53,11 @@ impl LineBuffer {
             if overflow {
                 return Some(Err(LineError::TooLong));
             }
-            return if line.is_empty() { None } else { Some(Ok(line)) };
+            return if line.is_empty() {
+                None
+            } else {
+                Some(Ok(line))
+            };
         }
         if !self.overflow && self.buf.push(byte).is_err() {
             self.overflow = true;
@@ -147,11 +154,19 @@ impl Console {
     }
 
     /// Executes one line and writes the reply. Never panics; on `err` nothing changes.
-    pub fn handle_line(&mut self, line: &[u8], rt: &mut impl RuntimeAccess, out: &mut impl Write) -> Action {
+    pub fn handle_line(
+        &mut self,
+        line: &[u8],
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> Action {
         let text = match core::str::from_utf8(line) {
             Ok(t) if t.bytes().all(|b| b == b'\t' || (0x20..0x7f).contains(&b)) => t,
             _ => {
-                let _ = writeln!(out, "err garbage: line contains non-printable or non-ASCII bytes");
+                let _ = writeln!(
+                    out,
+                    "err garbage: line contains non-printable or non-ASCII bytes"
+                );
                 return Action::None;
             }
         };
@@ -183,15 +198,22 @@ impl Console {
             "move" => self.cmd_move(&args, rt, out),
             "capture" => self.cmd_capture(&args, rt, out),
             "dump" => self.cmd_dump(&args, rt, out),
-            "zero" => rt.with(|r| r.zero()).map_err(|e| CmdErr(e.code(), e.message())).map(|_| {
-                let _ = writeln!(out, "ok zero");
-            }),
+            "zero" => rt
+                .with(|r| r.zero())
+                .map_err(|e| CmdErr(e.code(), e.message()))
+                .map(|_| {
+                    let _ = writeln!(out, "ok zero");
+                }),
             "defaults" => self.commit(Settings::DEFAULT, rt, out, "defaults"),
             "save" | "load" => {
                 if !args.is_empty() {
                     Err(CmdErr("syntax", "save/load take no arguments"))
                 } else {
-                    action = if cmd == "save" { Action::Save } else { Action::Load };
+                    action = if cmd == "save" {
+                        Action::Save
+                    } else {
+                        Action::Load
+                    };
                     Ok(())
                 }
             }
@@ -224,7 +246,10 @@ impl Console {
             Ok(None) => Err(CmdErr("storage", "no saved settings")),
             Err(e) => {
                 let _ = writeln!(out, "# load: {e}");
-                Err(CmdErr("corrupt", "stored settings unusable; settings unchanged"))
+                Err(CmdErr(
+                    "corrupt",
+                    "stored settings unusable; settings unchanged",
+                ))
             }
         };
         if let Err(CmdErr(code, msg)) = r {
@@ -233,7 +258,13 @@ impl Console {
     }
 
     /// Validates `new`, designs its taps and hands them to the runtime; then adopts `new`.
-    fn commit(&mut self, new: Settings, rt: &mut impl RuntimeAccess, out: &mut impl Write, what: &str) -> CmdResult {
+    fn commit(
+        &mut self,
+        new: Settings,
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+        what: &str,
+    ) -> CmdResult {
         let params = RunParams::from_settings(&new).map_err(|e| {
             if let crate::config::ConfigError::Taps(_) = e {
                 let _ = writeln!(out, "# {e} ({} Hz)", new.tick_rate_hz);
@@ -244,7 +275,10 @@ impl Console {
         let dur = params.taps.duration_ticks();
         rt.with(|r| r.request(params));
         self.settings = new;
-        let _ = writeln!(out, "ok {what} taps={taps} duration_ticks={dur} applies=when-still");
+        let _ = writeln!(
+            out,
+            "ok {what} taps={taps} duration_ticks={dur} applies=when-still"
+        );
         Ok(())
     }
 
@@ -284,9 +318,18 @@ impl Console {
 
     /// `shaper`: the configured impulse table, its duration and V at ±10 % of each mode.
     fn show_shaper(&self, rt: &mut impl RuntimeAccess, out: &mut impl Write) -> CmdResult {
-        let shaper = self.settings.shaper().map_err(|e| CmdErr(e.code(), config_message(&e)))?;
+        let shaper = self
+            .settings
+            .shaper()
+            .map_err(|e| CmdErr(e.code(), config_message(&e)))?;
         for (i, imp) in shaper.impulses().iter().enumerate() {
-            let _ = writeln!(out, "# impulse {} amplitude={} time_s={}", i + 1, imp.amplitude, imp.time_s);
+            let _ = writeln!(
+                out,
+                "# impulse {} amplitude={} time_s={}",
+                i + 1,
+                imp.amplitude,
+                imp.time_s
+            );
         }
         for (slot, m) in self.settings.modes.iter().enumerate() {
             if let Some(m) = m {
@@ -304,9 +347,21 @@ impl Console {
             }
         }
         let pending = rt.with(|r| r.pending().is_some());
-        let _ = write!(out, "ok shaper n={} duration_s={} pending={} impulses=", shaper.len(), shaper.duration_s(), pending as u8);
+        let _ = write!(
+            out,
+            "ok shaper n={} duration_s={} pending={} impulses=",
+            shaper.len(),
+            shaper.duration_s(),
+            pending as u8
+        );
         for (i, imp) in shaper.impulses().iter().enumerate() {
-            let _ = write!(out, "{}{}@{}", if i == 0 { "" } else { "," }, imp.amplitude, imp.time_s);
+            let _ = write!(
+                out,
+                "{}{}@{}",
+                if i == 0 { "" } else { "," },
+                imp.amplitude,
+                imp.time_s
+            );
         }
         let _ = writeln!(out);
         Ok(())
@@ -317,7 +372,14 @@ impl Console {
         for (slot, m) in s.modes.iter().enumerate() {
             match m {
                 Some(m) => {
-                    let _ = write!(out, "# mode {} {} {} {}", slot + 1, m.kind.name(), m.freq_hz, m.zeta);
+                    let _ = write!(
+                        out,
+                        "# mode {} {} {} {}",
+                        slot + 1,
+                        m.kind.name(),
+                        m.freq_hz,
+                        m.zeta
+                    );
                     if let Some(v) = m.kind.v_tol() {
                         let _ = write!(out, " {v}");
                     }
@@ -346,16 +408,25 @@ impl Console {
         Ok(())
     }
 
-    fn cmd_mode(&mut self, args: &[&str], rt: &mut impl RuntimeAccess, out: &mut impl Write) -> CmdResult {
+    fn cmd_mode(
+        &mut self,
+        args: &[&str],
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
         if !(4..=5).contains(&args.len()) {
-            return Err(CmdErr("syntax", "mode <1-4> <kind> <freq_hz> <zeta> [v_tol]"));
+            return Err(CmdErr(
+                "syntax",
+                "mode <1-4> <kind> <freq_hz> <zeta> [v_tol]",
+            ));
         }
         let slot = parse_slot(args[0])?;
         let v_tol = match args.get(4) {
             Some(v) => parse_f64(v)?,
             None => crate::shaper::design::DEFAULT_V_TOL,
         };
-        let kind = ShaperKind::from_name(args[1], v_tol).ok_or(CmdErr("syntax", "unknown shaper kind"))?;
+        let kind =
+            ShaperKind::from_name(args[1], v_tol).ok_or(CmdErr("syntax", "unknown shaper kind"))?;
         if args.len() == 5 && kind.v_tol().is_none() {
             return Err(CmdErr("syntax", "v_tol only applies to ei, 2hei, 3hei"));
         }
@@ -364,11 +435,20 @@ impl Console {
         // Design once here for a precise error before the combined shaper is checked.
         crate::shaper::design(kind, freq_hz, zeta).map_err(|e| CmdErr("range", e.message()))?;
         let mut new = self.settings.clone();
-        new.modes[slot] = Some(ModeSetting { kind, freq_hz, zeta });
+        new.modes[slot] = Some(ModeSetting {
+            kind,
+            freq_hz,
+            zeta,
+        });
         self.commit(new, rt, out, "mode")
     }
 
-    fn cmd_clear(&mut self, args: &[&str], rt: &mut impl RuntimeAccess, out: &mut impl Write) -> CmdResult {
+    fn cmd_clear(
+        &mut self,
+        args: &[&str],
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
         let mut new = self.settings.clone();
         match args {
             ["all"] => new.modes = [None; MAX_MODES],
@@ -378,16 +458,29 @@ impl Console {
         self.commit(new, rt, out, "clear")
     }
 
-    fn cmd_custom(&mut self, args: &[&str], rt: &mut impl RuntimeAccess, out: &mut impl Write) -> CmdResult {
+    fn cmd_custom(
+        &mut self,
+        args: &[&str],
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
         let mut new = self.settings.clone();
         new.custom.clear();
         if args != ["clear"] {
             if args.is_empty() || args.len() > MAX_CUSTOM_IMPULSES {
-                return Err(CmdErr("syntax", "custom <a>@<t_s> ... (1 to 16 impulses) | custom clear"));
+                return Err(CmdErr(
+                    "syntax",
+                    "custom <a>@<t_s> ... (1 to 16 impulses) | custom clear",
+                ));
             }
             for a in args {
-                let (amp, t) = a.split_once('@').ok_or(CmdErr("syntax", "impulse must be <amplitude>@<time_s>"))?;
-                let imp = Impulse { amplitude: parse_f64(amp)?, time_s: parse_f64(t)? };
+                let (amp, t) = a
+                    .split_once('@')
+                    .ok_or(CmdErr("syntax", "impulse must be <amplitude>@<time_s>"))?;
+                let imp = Impulse {
+                    amplitude: parse_f64(amp)?,
+                    time_s: parse_f64(t)?,
+                };
                 if imp.time_s < 0.0 {
                     return Err(CmdErr("range", "impulse time must be >= 0"));
                 }
@@ -397,7 +490,12 @@ impl Console {
         self.commit(new, rt, out, "custom")
     }
 
-    fn cmd_shaping(&mut self, args: &[&str], rt: &mut impl RuntimeAccess, out: &mut impl Write) -> CmdResult {
+    fn cmd_shaping(
+        &mut self,
+        args: &[&str],
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
         let mut new = self.settings.clone();
         new.shaping_enabled = match args {
             ["on"] => true,
@@ -407,7 +505,12 @@ impl Console {
         self.commit(new, rt, out, "shaping")
     }
 
-    fn cmd_path(&mut self, args: &[&str], rt: &mut impl RuntimeAccess, out: &mut impl Write) -> CmdResult {
+    fn cmd_path(
+        &mut self,
+        args: &[&str],
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
         let mut new = self.settings.clone();
         new.path = match args {
             ["fixed"] => NumericPath::Fixed,
@@ -417,7 +520,12 @@ impl Console {
         self.commit(new, rt, out, "path")
     }
 
-    fn cmd_source(&mut self, args: &[&str], rt: &mut impl RuntimeAccess, out: &mut impl Write) -> CmdResult {
+    fn cmd_source(
+        &mut self,
+        args: &[&str],
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
         let mut new = self.settings.clone();
         new.source = match args {
             ["internal"] => Source::Internal,
@@ -427,11 +535,19 @@ impl Console {
         self.commit(new, rt, out, "source")
     }
 
-    fn cmd_uint(&mut self, cmd: &str, args: &[&str], rt: &mut impl RuntimeAccess, out: &mut impl Write) -> CmdResult {
+    fn cmd_uint(
+        &mut self,
+        cmd: &str,
+        args: &[&str],
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
         let [v] = args else {
             return Err(CmdErr("syntax", "expected one integer argument"));
         };
-        let v: u32 = v.parse().map_err(|_| CmdErr("syntax", "expected a non-negative integer"))?;
+        let v: u32 = v
+            .parse()
+            .map_err(|_| CmdErr("syntax", "expected a non-negative integer"))?;
         let mut new = self.settings.clone();
         match cmd {
             "rate" => new.tick_rate_hz = v,
@@ -453,17 +569,25 @@ impl Console {
         } else {
             new.move_accel_mm_s2 = v;
         }
-        new.validate().map_err(|e| CmdErr(e.code(), config_message(&e)))?;
+        new.validate()
+            .map_err(|e| CmdErr(e.code(), config_message(&e)))?;
         self.settings = new;
         let _ = writeln!(out, "ok {cmd}");
         Ok(())
     }
 
-    fn cmd_capture(&mut self, args: &[&str], rt: &mut impl RuntimeAccess, out: &mut impl Write) -> CmdResult {
+    fn cmd_capture(
+        &mut self,
+        args: &[&str],
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
         let [d] = args else {
             return Err(CmdErr("syntax", "capture <every_n_ticks>"));
         };
-        let d: u32 = d.parse().map_err(|_| CmdErr("syntax", "expected a positive integer"))?;
+        let d: u32 = d
+            .parse()
+            .map_err(|_| CmdErr("syntax", "expected a positive integer"))?;
         if !(1..=10_000).contains(&d) {
             return Err(CmdErr("range", "decimation must be 1..10000 ticks"));
         }
@@ -480,12 +604,21 @@ impl Console {
         Ok(())
     }
 
-    fn cmd_dump(&mut self, args: &[&str], rt: &mut impl RuntimeAccess, out: &mut impl Write) -> CmdResult {
+    fn cmd_dump(
+        &mut self,
+        args: &[&str],
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
         let [first, count] = args else {
             return Err(CmdErr("syntax", "dump <first> <count>"));
         };
-        let first: usize = first.parse().map_err(|_| CmdErr("syntax", "expected an integer"))?;
-        let count: usize = count.parse().map_err(|_| CmdErr("syntax", "expected an integer"))?;
+        let first: usize = first
+            .parse()
+            .map_err(|_| CmdErr("syntax", "expected an integer"))?;
+        let count: usize = count
+            .parse()
+            .map_err(|_| CmdErr("syntax", "expected an integer"))?;
         if count > 32 {
             return Err(CmdErr("range", "count must be <= 32"));
         }
@@ -499,7 +632,11 @@ impl Console {
             }
             (s.len(), c.armed(), n)
         });
-        let _ = write!(out, "ok dump first={first} n={n} total={total} armed={} values=", armed as u8);
+        let _ = write!(
+            out,
+            "ok dump first={first} n={n} total={total} armed={} values=",
+            armed as u8
+        );
         for (i, v) in vals.iter().take(n).enumerate() {
             let _ = write!(out, "{}{v}", if i == 0 { "" } else { "," });
         }
@@ -507,9 +644,17 @@ impl Console {
         Ok(())
     }
 
-    fn cmd_move(&mut self, args: &[&str], rt: &mut impl RuntimeAccess, out: &mut impl Write) -> CmdResult {
+    fn cmd_move(
+        &mut self,
+        args: &[&str],
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
         if args.is_empty() || args.len() > 3 {
-            return Err(CmdErr("syntax", "move <target_mm> [speed_mm_s] [accel_mm_s2]"));
+            return Err(CmdErr(
+                "syntax",
+                "move <target_mm> [speed_mm_s] [accel_mm_s2]",
+            ));
         }
         let target_mm = parse_f64(args[0])?;
         let speed = match args.get(1) {
@@ -524,7 +669,10 @@ impl Console {
             return Err(CmdErr("range", "target outside +-1000 mm"));
         }
         if !(speed > 0.0 && speed <= 10_000.0 && accel > 0.0 && accel <= 1.0e6) {
-            return Err(CmdErr("range", "speed (0..10000 mm/s) and accel (0..1e6 mm/s^2) must be > 0"));
+            return Err(CmdErr(
+                "range",
+                "speed (0..10000 mm/s) and accel (0..1e6 mm/s^2) must be > 0",
+            ));
         }
         let target = libm::round(target_mm * 1e6) as i32;
         let ticks = rt
@@ -536,7 +684,9 @@ impl Console {
 }
 
 fn parse_f64(s: &str) -> Result<f64, CmdErr> {
-    let v: f64 = s.parse().map_err(|_| CmdErr("syntax", "expected a number"))?;
+    let v: f64 = s
+        .parse()
+        .map_err(|_| CmdErr("syntax", "expected a number"))?;
     if !v.is_finite() {
         return Err(CmdErr("range", "number must be finite"));
     }
@@ -556,7 +706,9 @@ fn config_message(e: &crate::config::ConfigError) -> &'static str {
     use crate::engine::TapError;
     match e {
         C::Shaper(s) => s.message(),
-        C::Taps(TapError::TooLong { .. }) => "shaper longer than the history buffer allows at this tick rate",
+        C::Taps(TapError::TooLong { .. }) => {
+            "shaper longer than the history buffer allows at this tick rate"
+        }
         C::Taps(TapError::TickRate) => "tick rate invalid",
         C::Taps(TapError::AmplitudeRange) => "sum of |amplitudes| above 3.9",
         C::Range(f) => f,

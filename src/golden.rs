@@ -18,7 +18,12 @@ pub const DESIGN_CASES: [(f64, f64); 4] = [(0.2, 0.0074), (1.1, 0.0074), (6.9, 0
 fn shaper_lines(out: &mut impl Write, tag: &str, s: &Shaper, f: f64, z: f64) -> Result {
     write!(out, "{tag} n={}", s.len())?;
     for i in s.impulses() {
-        write!(out, " {:016x}@{:016x}", i.amplitude.to_bits(), i.time_s.to_bits())?;
+        write!(
+            out,
+            " {:016x}@{:016x}",
+            i.amplitude.to_bits(),
+            i.time_s.to_bits()
+        )?;
     }
     writeln!(out)?;
     writeln!(
@@ -50,7 +55,12 @@ pub fn write_golden(out: &mut impl Write) -> Result {
             }
         }
     }
-    let pairs = [(ShaperKind::Zv, 1.1, 6.9), (ShaperKind::Zvd, 1.1, 6.9), (ShaperKind::Zvdd, 1.1, 6.9), (ShaperKind::Zvd, 0.2, 0.6)];
+    let pairs = [
+        (ShaperKind::Zv, 1.1, 6.9),
+        (ShaperKind::Zvd, 1.1, 6.9),
+        (ShaperKind::Zvdd, 1.1, 6.9),
+        (ShaperKind::Zvd, 0.2, 0.6),
+    ];
     for (kind, f1, f2) in pairs {
         let s = design(kind, f1, 0.0074).and_then(|a| a.convolve(&design(kind, f2, 0.0074)?));
         match s {
@@ -58,10 +68,23 @@ pub fn write_golden(out: &mut impl Write) -> Result {
             Err(e) => writeln!(out, "two-mode err {:?}", e)?,
         }
     }
-    for (rate, path) in [(1000u32, NumericPath::Fixed), (1000, NumericPath::F32), (3333, NumericPath::Fixed), (10_000, NumericPath::F32)] {
+    for (rate, path) in [
+        (1000u32, NumericPath::Fixed),
+        (1000, NumericPath::F32),
+        (3333, NumericPath::Fixed),
+        (10_000, NumericPath::F32),
+    ] {
         let mut s = Settings::DEFAULT;
-        s.modes[0] = Some(ModeSetting { kind: ShaperKind::Zvd, freq_hz: 1.1, zeta: 0.0074 });
-        s.modes[1] = Some(ModeSetting { kind: ShaperKind::Zvd, freq_hz: 6.9, zeta: 0.0074 });
+        s.modes[0] = Some(ModeSetting {
+            kind: ShaperKind::Zvd,
+            freq_hz: 1.1,
+            zeta: 0.0074,
+        });
+        s.modes[1] = Some(ModeSetting {
+            kind: ShaperKind::Zvd,
+            freq_hz: 6.9,
+            zeta: 0.0074,
+        });
         s.tick_rate_hz = rate;
         s.path = path;
         s.max_step_rate_hz = 2_000_000;
@@ -82,7 +105,10 @@ pub fn write_golden(out: &mut impl Write) -> Result {
         let mut h = 0xcbf2_9ce4_8422_2325u64;
         write!(out, "move rate={rate} path={}", path.name())?;
         let ticks = (4 * rate) as usize;
-        for (target, speed, accel) in [(50_000_000, 2.0e8f32, 2.0e9f32), (-12_345_678, 3.0e8, 5.0e9)] {
+        for (target, speed, accel) in [
+            (50_000_000, 2.0e8f32, 2.0e9f32),
+            (-12_345_678, 3.0e8, 5.0e9),
+        ] {
             if rt.start_move(target, speed, accel).is_err() {
                 write!(out, " start-err")?;
             }

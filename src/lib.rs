@@ -8,12 +8,12 @@
 #![no_std]
 #![forbid(unsafe_code)]
 
-pub mod shaper;
+pub mod config;
+pub mod console;
 pub mod engine;
+pub mod golden;
 pub mod output;
 pub mod reference;
-pub mod config;
 pub mod runtime;
-pub mod console;
+pub mod shaper;
 pub mod storage;
-pub mod golden;

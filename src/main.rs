@@ -42,7 +42,8 @@ const TIMER_CLOCK_HZ: u32 = 170_000_000;
 const SETTINGS_FLASH: core::ops::Range<u32> = (512 - 16) * 1024..512 * 1024;
 
 /// The interrupt-owned state, shared with the console through a critical section.
-static RUNTIME: Mutex<CriticalSectionRawMutex, RefCell<Runtime>> = Mutex::new(RefCell::new(Runtime::new()));
+static RUNTIME: Mutex<CriticalSectionRawMutex, RefCell<Runtime>> =
+    Mutex::new(RefCell::new(Runtime::new()));
 
 /// The console's handle on [`RUNTIME`].
 struct Shared;
@@ -62,13 +63,18 @@ fn set_tick_rate(rate_hz: u32) {
     let t = pac::TIM6;
     // 170 MHz / (PSC+1) / (ARR+1); PSC = 16 gives 10 MHz counts, exact for 0.5–10 kHz.
     t.psc().write_value(16);
-    t.arr().write(|w| w.set_arr((10_000_000 / rate_hz.max(1)).saturating_sub(1) as u16));
+    t.arr()
+        .write(|w| w.set_arr((10_000_000 / rate_hz.max(1)).saturating_sub(1) as u16));
 }
 
 /// Emits `out.step` during the next tick: DIR first, then N pulses on TIM8_CH1 in one-pulse
 /// mode with the repetition counter (N ≤ 65536), spaced to fill 80 % of the tick.
 fn emit(out: &TickOutput, dir: &mut Output<'static>, tick_hz: u32) {
-    dir.set_level(if out.step.forward { Level::High } else { Level::Low });
+    dir.set_level(if out.step.forward {
+        Level::High
+    } else {
+        Level::Low
+    });
     pac::DAC1.dhr12r(0).write(|w| w.set_dhr(out.dac_code));
     let n = out.step.pulses.min(65_536);
     if n == 0 {
@@ -86,12 +92,15 @@ fn emit(out: &TickOutput, dir: &mut Output<'static>, tick_hz: u32) {
     });
 }
 
-static DIR_PIN: Mutex<CriticalSectionRawMutex, RefCell<Option<Output<'static>>>> = Mutex::new(RefCell::new(None));
+static DIR_PIN: Mutex<CriticalSectionRawMutex, RefCell<Option<Output<'static>>>> =
+    Mutex::new(RefCell::new(None));
 
 #[interrupt]
 fn TIM6_DAC() {
     pac::TIM6.sr().modify(|w| w.set_uif(false));
-    let input = TickInput { stepdir_count: pac::TIM4.cnt().read().cnt() as u16 };
+    let input = TickInput {
+        stepdir_count: pac::TIM4.cnt().read().cnt() as u16,
+    };
     RUNTIME.lock(|r| {
         let mut rt = r.borrow_mut();
         let before = rt.tick_rate_hz();
@@ -112,11 +121,13 @@ fn init_timers() {
     // TIM4: clock + direction input (SMS = 0b1011, "clock plus direction, x1").
     let t4 = pac::TIM4;
     t4.arr().write(|w| w.set_arr(0xffff));
-    t4.smcr().modify(|w| w.set_sms(pac::timer::vals::Sms::from_bits(0b1011)));
+    t4.smcr()
+        .modify(|w| w.set_sms(pac::timer::vals::Sms::from_bits(0b1011)));
     t4.cr1().modify(|w| w.set_cen(true));
     // TIM8_CH1: PWM mode 1, main output enabled; started per tick by `emit`.
     let t8 = pac::TIM8;
-    t8.ccmr_output(0).modify(|w| w.set_ocm(0, pac::timer::vals::Ocm::PWM_MODE1));
+    t8.ccmr_output(0)
+        .modify(|w| w.set_ocm(0, pac::timer::vals::Ocm::PWM_MODE1));
     t8.ccer().modify(|w| w.set_cce(0, true));
     t8.bdtr().modify(|w| w.set_moe(true));
     // TIM6: the tick.
@@ -161,9 +172,13 @@ async fn main(_spawner: Spawner) {
         w.set_afr(6, 2);
         w.set_afr(7, 2)
     });
-    pac::GPIOC.moder().modify(|w| w.set_moder(6, pac::gpio::vals::Moder::ALTERNATE));
+    pac::GPIOC
+        .moder()
+        .modify(|w| w.set_moder(6, pac::gpio::vals::Moder::ALTERNATE));
     pac::GPIOC.afr(0).modify(|w| w.set_afr(6, 4));
-    pac::GPIOA.moder().modify(|w| w.set_moder(4, pac::gpio::vals::Moder::ANALOG));
+    pac::GPIOA
+        .moder()
+        .modify(|w| w.set_moder(4, pac::gpio::vals::Moder::ANALOG));
     let dir = Output::new(p.PC7, Level::Low, Speed::VeryHigh);
     DIR_PIN.lock(|d| *d.borrow_mut() = Some(dir));
 
@@ -188,8 +203,11 @@ async fn main(_spawner: Spawner) {
 
     // Settings from flash, then the tick.
     let flash = Flash::new_blocking(p.FLASH);
-    let mut map: MapStorage<u8, BlockingAsync<Flash<'static, Blocking>>, _> =
-        MapStorage::new(BlockingAsync::new(flash), const { MapConfig::new(SETTINGS_FLASH) }, Cache::new_uncached());
+    let mut map: MapStorage<u8, BlockingAsync<Flash<'static, Blocking>>, _> = MapStorage::new(
+        BlockingAsync::new(flash),
+        const { MapConfig::new(SETTINGS_FLASH) },
+        Cache::new_uncached(),
+    );
     let mut sbuf = [0u8; STORAGE_BUFFER_BYTES];
     let loaded = load_settings(&mut map, &mut sbuf).await;
     let mut reply: heapless::String<2048> = heapless::String::new();
@@ -212,11 +230,16 @@ async fn main(_spawner: Spawner) {
         if rx.read_exact(&mut byte).await.is_err() {
             continue;
         }
-        let Some(line) = lines.push(byte[0]) else { continue };
+        let Some(line) = lines.push(byte[0]) else {
+            continue;
+        };
         reply.clear();
         match line {
             Err(_) => {
-                let _ = writeln!(reply, "err line-too-long: line longer than 200 bytes discarded");
+                let _ = writeln!(
+                    reply,
+                    "err line-too-long: line longer than 200 bytes discarded"
+                );
             }
             Ok(line) => match console.handle_line(&line, &mut Shared, &mut reply) {
                 Action::None => {}

@@ -30,7 +30,11 @@ impl StepOutput {
     /// Output for `counts_per_step` (≥ 1) with at most `max_pulses_per_tick` pulses a tick,
     /// at `position` (counts).
     pub const fn new(counts_per_step: i32, max_pulses_per_tick: u32, position: i32) -> Self {
-        let c = if counts_per_step < 1 { 1 } else { counts_per_step };
+        let c = if counts_per_step < 1 {
+            1
+        } else {
+            counts_per_step
+        };
         StepOutput {
             emitted: (position as i64).div_euclid(c as i64),
             counts_per_step: c,
@@ -55,7 +59,10 @@ impl StepOutput {
         if pulses > self.max_pulses_per_tick {
             self.rate_faults = self.rate_faults.saturating_add(1);
         }
-        StepCommand { pulses, forward: delta >= 0 }
+        StepCommand {
+            pulses,
+            forward: delta >= 0,
+        }
     }
 
     /// Signed steps emitted.
@@ -84,7 +91,9 @@ pub struct DacMirror {
 impl DacMirror {
     /// Mirror with full scale ±`span_counts` (≥ 1).
     pub const fn new(span_counts: i32) -> Self {
-        DacMirror { span_counts: if span_counts < 1 { 1 } else { span_counts } }
+        DacMirror {
+            span_counts: if span_counts < 1 { 1 } else { span_counts },
+        }
     }
 
     /// DAC code (0..=4095) of `setpoint`.

@@ -46,13 +46,21 @@ pub const POSITION_LIMIT: i32 = 1 << 30;
 impl TrapezoidMove {
     /// Plans a move from `start` to `target` (counts) with peak speed `speed` (counts/s)
     /// and acceleration `accel` (counts/s²), sampled at `tick_rate_hz`.
-    pub fn new(start: i32, target: i32, speed: f32, accel: f32, tick_rate_hz: f32) -> Result<Self, MoveError> {
+    pub fn new(
+        start: i32,
+        target: i32,
+        speed: f32,
+        accel: f32,
+        tick_rate_hz: f32,
+    ) -> Result<Self, MoveError> {
         if !(speed.is_finite() && speed > 0.0 && accel.is_finite() && accel > 0.0)
             || !(tick_rate_hz.is_finite() && tick_rate_hz > 0.0)
         {
             return Err(MoveError::Profile);
         }
-        if target.unsigned_abs() > POSITION_LIMIT as u32 || start.unsigned_abs() > POSITION_LIMIT as u32 {
+        if target.unsigned_abs() > POSITION_LIMIT as u32
+            || start.unsigned_abs() > POSITION_LIMIT as u32
+        {
             return Err(MoveError::Range);
         }
         let d = (target as i64 - start as i64).unsigned_abs() as f32;
@@ -111,7 +119,11 @@ impl TrapezoidMove {
         let p = self.start as f32 + self.dir * s;
         let p = libm::roundf(p) as i64;
         // Never overshoot the target because of f32 rounding.
-        let (lo, hi) = if self.target >= self.start { (self.start, self.target) } else { (self.target, self.start) };
+        let (lo, hi) = if self.target >= self.start {
+            (self.start, self.target)
+        } else {
+            (self.target, self.start)
+        };
         p.clamp(lo as i64, hi as i64) as i32
     }
 
@@ -150,7 +162,10 @@ pub struct StepDirCounter {
 impl StepDirCounter {
     /// A counter whose current raw timer value is `raw`.
     pub const fn new(raw: u16) -> Self {
-        StepDirCounter { last_raw: raw, steps: 0 }
+        StepDirCounter {
+            last_raw: raw,
+            steps: 0,
+        }
     }
 
     /// Takes the timer's raw count; returns the input steps accumulated since creation.

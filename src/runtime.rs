@@ -37,7 +37,13 @@ pub struct Capture {
 
 impl Capture {
     const fn new() -> Self {
-        Capture { buf: [0; CAPTURE_LEN], len: 0, decimation: 1, phase: 0, armed: false }
+        Capture {
+            buf: [0; CAPTURE_LEN],
+            len: 0,
+            decimation: 1,
+            phase: 0,
+            armed: false,
+        }
     }
 
     /// Starts a new capture of one sample every `decimation` (≥ 1) ticks.
@@ -188,7 +194,9 @@ impl RuntimeError {
         match self {
             RuntimeError::Busy => "a move is running or the reference is not still",
             RuntimeError::Source => "moves need source internal",
-            RuntimeError::Move(MoveError::Profile) => "speed and acceleration must be finite and > 0",
+            RuntimeError::Move(MoveError::Profile) => {
+                "speed and acceleration must be finite and > 0"
+            }
             RuntimeError::Move(MoveError::Range) => "target outside +-1073 mm",
             RuntimeError::Move(MoveError::TooLong) => "move too long",
             RuntimeError::StepRate => "shaped move would exceed the maximum step rate",
@@ -310,9 +318,16 @@ impl Runtime {
         if self.mover.is_some() {
             return Err(RuntimeError::Busy);
         }
-        let m = TrapezoidMove::new(self.reference, target, speed, accel, self.params.tick_rate_hz as f32)
-            .map_err(RuntimeError::Move)?;
-        let shaped_peak_steps_s = m.peak_speed() * self.engine.taps().abs_weight_sum() / self.params.step_nm as f32;
+        let m = TrapezoidMove::new(
+            self.reference,
+            target,
+            speed,
+            accel,
+            self.params.tick_rate_hz as f32,
+        )
+        .map_err(RuntimeError::Move)?;
+        let shaped_peak_steps_s =
+            m.peak_speed() * self.engine.taps().abs_weight_sum() / self.params.step_nm as f32;
         if shaped_peak_steps_s > self.params.max_step_rate_hz as f32 {
             return Err(RuntimeError::StepRate);
         }
@@ -331,7 +346,11 @@ impl Runtime {
         self.setpoint = 0;
         self.stepdir_offset = -self.stepdir.steps() * self.params.input_nm_per_count as i64;
         self.engine.reset(0);
-        self.steps = StepOutput::new(self.params.step_nm as i32, self.params.max_pulses_per_tick(), 0);
+        self.steps = StepOutput::new(
+            self.params.step_nm as i32,
+            self.params.max_pulses_per_tick(),
+            0,
+        );
         Ok(())
     }
 
@@ -361,7 +380,10 @@ impl Runtime {
             self.still_ticks = 0;
         }
         self.reference = x;
-        if self.pending.is_some() && self.mover.is_none() && self.still_ticks >= self.engine.taps().duration_ticks() {
+        if self.pending.is_some()
+            && self.mover.is_none()
+            && self.still_ticks >= self.engine.taps().duration_ticks()
+        {
             if let Some(p) = self.pending.take() {
                 self.apply(p);
             }

@@ -56,11 +56,15 @@ struct Record(Settings);
 
 impl<'a> Value<'a> for Record {
     fn serialize_into(&self, buffer: &mut [u8]) -> Result<usize, SerializationError> {
-        self.0.encode(buffer).map_err(|_| SerializationError::BufferTooSmall)
+        self.0
+            .encode(buffer)
+            .map_err(|_| SerializationError::BufferTooSmall)
     }
 
     fn deserialize_from(buffer: &'a [u8]) -> Result<(Self, usize), SerializationError> {
-        Settings::decode(buffer).map(|s| (Record(s), buffer.len())).map_err(|_| SerializationError::InvalidFormat)
+        Settings::decode(buffer)
+            .map(|s| (Record(s), buffer.len()))
+            .map_err(|_| SerializationError::InvalidFormat)
     }
 }
 
@@ -71,7 +75,9 @@ pub async fn save_settings<S: NorFlash, C: CacheImpl<u8>>(
     buffer: &mut [u8; STORAGE_BUFFER_BYTES],
     settings: &Settings,
 ) -> Result<(), StorageError> {
-    map.store_item(buffer, &SETTINGS_KEY, &Record(settings.clone())).await.map_err(map_err)
+    map.store_item(buffer, &SETTINGS_KEY, &Record(settings.clone()))
+        .await
+        .map_err(map_err)
 }
 
 /// Loads the settings: `Ok(None)` if none were ever saved, `Err(Corrupt)` if the record is
@@ -80,5 +86,8 @@ pub async fn load_settings<S: NorFlash, C: CacheImpl<u8>>(
     map: &mut MapStorage<u8, S, C>,
     buffer: &mut [u8; STORAGE_BUFFER_BYTES],
 ) -> Result<Option<Settings>, StorageError> {
-    map.fetch_item::<Record>(buffer, &SETTINGS_KEY).await.map(|r| r.map(|r| r.0)).map_err(map_err)
+    map.fetch_item::<Record>(buffer, &SETTINGS_KEY)
+        .await
+        .map(|r| r.map(|r| r.0))
+        .map_err(map_err)
 }

@@ -20,6 +20,12 @@ pub fn shaped_f64(shaper: &Shaper, tick_rate_hz: f64, x: &[i32]) -> Vec<f64> {
         a + frac * (b - a)
     };
     (0..x.len())
-        .map(|n| shaper.impulses().iter().map(|i| i.amplitude * at(n as f64 - i.time_s * tick_rate_hz)).sum())
+        .map(|n| {
+            shaper
+                .impulses()
+                .iter()
+                .map(|i| i.amplitude * at(n as f64 - i.time_s * tick_rate_hz))
+                .sum()
+        })
         .collect()
 }

@@ -21,7 +21,9 @@ impl Board {
 
     fn cmd(&mut self, line: &str) -> (String, Action) {
         let mut out = String::new();
-        let a = self.console.handle_line(line.as_bytes(), &mut *self.rt, &mut out);
+        let a = self
+            .console
+            .handle_line(line.as_bytes(), &mut *self.rt, &mut out);
         (out, a)
     }
 
@@ -33,12 +35,23 @@ impl Board {
     }
 
     fn err(&mut self, line: &str, code: &str) {
-        let before = (self.console.settings().clone(), self.rt.pending().cloned(), self.rt.status());
+        let before = (
+            self.console.settings().clone(),
+            self.rt.pending().cloned(),
+            self.rt.status(),
+        );
         let (out, a) = self.cmd(line);
         let last = out.lines().last().unwrap_or("");
-        assert!(last.starts_with(&format!("err {code}:")), "`{line}` -> {out}");
+        assert!(
+            last.starts_with(&format!("err {code}:")),
+            "`{line}` -> {out}"
+        );
         assert_eq!(a, Action::None);
-        let after = (self.console.settings().clone(), self.rt.pending().cloned(), self.rt.status());
+        let after = (
+            self.console.settings().clone(),
+            self.rt.pending().cloned(),
+            self.rt.status(),
+        );
         assert_eq!(before, after, "state changed on err for `{line}`");
     }
 
@@ -63,7 +76,10 @@ fn set_show_and_move() {
     // Read-back of the table is exact (shortest round-trip formatting of f64).
     let line = out.lines().last().unwrap();
     let imps = line.split("impulses=").nth(1).unwrap();
-    let sum: f64 = imps.split(',').map(|p| p.split('@').next().unwrap().parse::<f64>().unwrap()).sum();
+    let sum: f64 = imps
+        .split(',')
+        .map(|p| p.split('@').next().unwrap().parse::<f64>().unwrap())
+        .sum();
     assert!((sum - 1.0).abs() < 1e-12);
     let out = b.ok("move 50 200 2000");
     assert!(out.contains("ticks="), "{out}");
@@ -119,7 +135,8 @@ fn bad_input_gets_an_error_and_changes_nothing() {
     // Garbage bytes.
     let before = b.console.settings().clone();
     let mut out = String::new();
-    b.console.handle_line(&[0xff, 0xfe, b'x'], &mut *b.rt, &mut out);
+    b.console
+        .handle_line(&[0xff, 0xfe, b'x'], &mut *b.rt, &mut out);
     assert!(out.starts_with("err garbage:"), "{out}");
     assert_eq!(&before, b.console.settings());
 }
@@ -149,11 +166,16 @@ fn save_and_load_are_delegated_to_the_glue() {
     // A corrupt record leaves the settings unchanged.
     let before = b.console.settings().clone();
     let mut out = String::new();
-    b.console.finish_load::<&str>(Err("checksum mismatch"), &mut *b.rt, &mut out);
-    assert!(out.lines().last().unwrap().starts_with("err corrupt:"), "{out}");
+    b.console
+        .finish_load::<&str>(Err("checksum mismatch"), &mut *b.rt, &mut out);
+    assert!(
+        out.lines().last().unwrap().starts_with("err corrupt:"),
+        "{out}"
+    );
     assert_eq!(&before, b.console.settings());
     let mut out = String::new();
-    b.console.finish_load::<&str>(Ok(Some(Settings::DEFAULT)), &mut *b.rt, &mut out);
+    b.console
+        .finish_load::<&str>(Ok(Some(Settings::DEFAULT)), &mut *b.rt, &mut out);
     assert!(out.starts_with("ok load"), "{out}");
     assert_eq!(b.console.settings(), &Settings::DEFAULT);
 }
@@ -167,11 +189,17 @@ fn line_buffer_handles_crlf_and_overlong_lines() {
             lines.push(l.map(|l| String::from_utf8(l.to_vec()).unwrap()));
         }
     }
-    assert_eq!(lines, vec![Ok("status".to_string()), Ok("help".to_string())]);
+    assert_eq!(
+        lines,
+        vec![Ok("status".to_string()), Ok("help".to_string())]
+    );
     for _ in 0..LINE_MAX + 10 {
         assert!(lb.push(b'a').is_none());
     }
-    assert_eq!(lb.push(b'\n').map(|r| r.map(|_| ())), Some(Err(LineError::TooLong)));
+    assert_eq!(
+        lb.push(b'\n').map(|r| r.map(|_| ())),
+        Some(Err(LineError::TooLong))
+    );
     // The next line is fine again.
     for &c in b"ok" {
         lb.push(c);
@@ -193,22 +221,27 @@ fn settings_encode_decode_round_trip_and_detect_corruption() {
     for i in 0..n {
         let mut c = buf;
         c[i] ^= 0x10;
-        assert!(Settings::decode(&c[..n]).is_err(), "flip at byte {i} not detected");
+        assert!(
+            Settings::decode(&c[..n]).is_err(),
+            "flip at byte {i} not detected"
+        );
     }
     assert!(Settings::decode(&buf[..n - 1]).is_err());
 }
 
 const WORDS: &[&str] = &[
-    "help", "status", "shaper", "config", "mode", "clear", "custom", "shaping", "path", "rate", "step", "maxrate",
-    "input", "speed", "accel", "source", "move", "zero", "defaults", "save", "load", "zv", "zvd", "zvdd", "ei", "umzv",
-    "on", "off", "fixed", "f32", "all", "1", "2", "4", "5", "0", "-1", "1.1", "0.0074", "nan", "inf", "1e9", "0.5@0",
-    "1@0.01", "stepdir", "internal", "50",
+    "help", "status", "shaper", "config", "mode", "clear", "custom", "shaping", "path", "rate",
+    "step", "maxrate", "input", "speed", "accel", "source", "move", "zero", "defaults", "save",
+    "load", "zv", "zvd", "zvdd", "ei", "umzv", "on", "off", "fixed", "f32", "all", "1", "2", "4",
+    "5", "0", "-1", "1.1", "0.0074", "nan", "inf", "1e9", "0.5@0", "1@0.01", "stepdir", "internal",
+    "50",
 ];
 
 fn line_strategy() -> impl Strategy<Value = Vec<u8>> {
     prop_oneof![
         proptest::collection::vec(any::<u8>(), 0..300),
-        proptest::collection::vec(proptest::sample::select(WORDS), 0..7).prop_map(|w| w.join(" ").into_bytes()),
+        proptest::collection::vec(proptest::sample::select(WORDS), 0..7)
+            .prop_map(|w| w.join(" ").into_bytes()),
     ]
 }
 

@@ -18,7 +18,14 @@ fn engine(shaper: &Shaper, rate: f64, path: NumericPath, x0: i32) -> Box<Engine<
 }
 
 /// A trapezoidal move in nm sampled at `rate`, then held for `hold` ticks.
-fn move_samples(start: i32, target: i32, speed: f32, accel: f32, rate: f32, hold: usize) -> Vec<i32> {
+fn move_samples(
+    start: i32,
+    target: i32,
+    speed: f32,
+    accel: f32,
+    rate: f32,
+    hold: usize,
+) -> Vec<i32> {
     let mut m = TrapezoidMove::new(start, target, speed, accel, rate).unwrap();
     let mut v = vec![start];
     while !m.done() {
@@ -29,8 +36,14 @@ fn move_samples(start: i32, target: i32, speed: f32, accel: f32, rate: f32, hold
 }
 
 fn all_shapers(f: f64, z: f64) -> Vec<Shaper> {
-    let mut v: Vec<Shaper> = ShaperKind::all(0.05).iter().map(|&k| design(k, f, z).unwrap()).collect();
-    let two = design(ShaperKind::Zvdd, 1.1, 0.0074).unwrap().convolve(&design(ShaperKind::Zvdd, 6.9, 0.0074).unwrap()).unwrap();
+    let mut v: Vec<Shaper> = ShaperKind::all(0.05)
+        .iter()
+        .map(|&k| design(k, f, z).unwrap())
+        .collect();
+    let two = design(ShaperKind::Zvdd, 1.1, 0.0074)
+        .unwrap()
+        .convolve(&design(ShaperKind::Zvdd, 6.9, 0.0074).unwrap())
+        .unwrap();
     v.push(two);
     v
 }
@@ -57,8 +70,16 @@ fn fixed_and_f32_paths_stay_within_the_stated_bounds_of_f64() {
             worst_fixed = worst_fixed.max((yf - exact[k]).abs());
             worst_f32 = worst_f32.max((y32 - exact[k]).abs());
         }
-        assert!(worst_fixed <= fixed_bound, "{} taps: fixed error {worst_fixed} > {fixed_bound}", n_taps);
-        assert!(worst_f32 <= f32_bound, "{} taps: f32 error {worst_f32} > {f32_bound}", n_taps);
+        assert!(
+            worst_fixed <= fixed_bound,
+            "{} taps: fixed error {worst_fixed} > {fixed_bound}",
+            n_taps
+        );
+        assert!(
+            worst_f32 <= f32_bound,
+            "{} taps: f32 error {worst_f32} > {f32_bound}",
+            n_taps
+        );
         println!("{} taps: worst |fixed − f64| = {worst_fixed:.4} (bound {fixed_bound:.3}), worst |f32 − f64| = {worst_f32:.4} (bound {f32_bound:.3}) counts", n_taps);
     }
 }
@@ -69,8 +90,14 @@ fn sub_tick_impulse_times_are_interpolated_not_rounded() {
     // 2.3 ticks (linear interpolation is exact on a ramp), not by 2 ticks.
     let rate = 1000.0;
     let s = Shaper::from_impulses(&[
-        Impulse { amplitude: 0.5, time_s: 0.0 },
-        Impulse { amplitude: 0.5, time_s: 2.3e-3 },
+        Impulse {
+            amplitude: 0.5,
+            time_s: 0.0,
+        },
+        Impulse {
+            amplitude: 0.5,
+            time_s: 2.3e-3,
+        },
     ])
     .unwrap();
     let taps = TapTable::from_shaper(&s, rate, HISTORY_LEN).unwrap();
@@ -97,12 +124,21 @@ fn exact_final_position_for_every_shaper_and_both_paths() {
     for rate in [500.0, 1000.0, 3333.0, 10_000.0] {
         for s in all_shapers(3.7, 0.03) {
             let hold = (s.duration_s() * rate) as usize + 3;
-            for (start, target) in [(0, 50_000_000), (123_457, -987_653), (-1_000_000_000, 1_000_000_000)] {
+            for (start, target) in [
+                (0, 50_000_000),
+                (123_457, -987_653),
+                (-1_000_000_000, 1_000_000_000),
+            ] {
                 let x = move_samples(start, target, 3.0e8, 5.0e9, rate as f32, hold);
                 for path in [NumericPath::Fixed, NumericPath::F32] {
                     let mut e = engine(&s, rate, path, start);
                     let y: Vec<i32> = x.iter().map(|&v| e.tick(v)).collect();
-                    assert_eq!(*y.last().unwrap(), target, "rate {rate} path {path:?} shaper {:?}", s.impulses());
+                    assert_eq!(
+                        *y.last().unwrap(),
+                        target,
+                        "rate {rate} path {path:?} shaper {:?}",
+                        s.impulses()
+                    );
                     assert_eq!(y[0], start);
                 }
             }
@@ -114,7 +150,10 @@ fn exact_final_position_for_every_shaper_and_both_paths() {
 fn no_drift_over_a_million_moves() {
     // 10⁶ step moves to random targets, each held for the shaper's duration: the fixed-point
     // setpoint equals the target to the count after every one (FIR + exact unity DC gain).
-    let s = design(ShaperKind::Zvd, 200.0, 0.05).unwrap().convolve(&design(ShaperKind::UmZv, 310.0, 0.02).unwrap()).unwrap();
+    let s = design(ShaperKind::Zvd, 200.0, 0.05)
+        .unwrap()
+        .convolve(&design(ShaperKind::UmZv, 310.0, 0.02).unwrap())
+        .unwrap();
     let rate = 10_000.0;
     let mut e = engine(&s, rate, NumericPath::Fixed, 0);
     let hold = e.taps().duration_ticks() as usize + 1;
@@ -184,9 +223,17 @@ fn step_output_accounting_across_negative_positions() {
 #[test]
 fn shaper_change_while_moving_never_jumps() {
     let mut a = Settings::DEFAULT;
-    a.modes[0] = Some(ModeSetting { kind: ShaperKind::Zvdd, freq_hz: 1.1, zeta: 0.0074 });
+    a.modes[0] = Some(ModeSetting {
+        kind: ShaperKind::Zvdd,
+        freq_hz: 1.1,
+        zeta: 0.0074,
+    });
     let mut b = a.clone();
-    b.modes[1] = Some(ModeSetting { kind: ShaperKind::Ei { v_tol: 0.05 }, freq_hz: 6.9, zeta: 0.0074 });
+    b.modes[1] = Some(ModeSetting {
+        kind: ShaperKind::Ei { v_tol: 0.05 },
+        freq_hz: 6.9,
+        zeta: 0.0074,
+    });
     b.path = NumericPath::F32;
     b.tick_rate_hz = 2000;
     let mut rt = Box::new(Runtime::new());
@@ -211,9 +258,15 @@ fn shaper_change_while_moving_never_jumps() {
     }
     let applied_at = applied_at.expect("pending change applied");
     // Move lasts 0.25 s + 0.1 s = 350 ticks; then still for the old duration.
-    assert!(applied_at >= 350 + old_duration - 2, "applied at {applied_at}");
+    assert!(
+        applied_at >= 350 + old_duration - 2,
+        "applied at {applied_at}"
+    );
     // Largest per-tick change is the shaped velocity, never a jump.
-    assert!(max_step as f32 <= speed / 1000.0 + 2.0, "max per-tick change {max_step}");
+    assert!(
+        max_step as f32 <= speed / 1000.0 + 2.0,
+        "max per-tick change {max_step}"
+    );
     assert_eq!(prev, 50_000_000);
 }
 
@@ -234,7 +287,10 @@ fn q30_weights_sum_exactly_to_one() {
     for rate in [500.0, 977.0, 1000.0, 7919.0] {
         for s in all_shapers(2.3, 0.04) {
             let t = TapTable::from_shaper(&s, rate, HISTORY_LEN).unwrap();
-            assert_eq!(t.taps().iter().map(|t| t.w_q30 as i64).sum::<i64>(), 1 << 30);
+            assert_eq!(
+                t.taps().iter().map(|t| t.w_q30 as i64).sum::<i64>(),
+                1 << 30
+            );
         }
     }
 }

@@ -13,8 +13,14 @@ use sequential_storage::mock_flash::{MockFlashBase, WriteCountCheck};
 
 type Flash = MockFlashBase<4, 8, 256>;
 
-fn map(flash: Flash) -> MapStorage<u8, Flash, sequential_storage::cache::Cache<Uncached, Uncached, Uncached, u8>> {
-    MapStorage::new(flash, const { MapConfig::new(Flash::FULL_FLASH_RANGE) }, Cache::new_uncached())
+fn map(
+    flash: Flash,
+) -> MapStorage<u8, Flash, sequential_storage::cache::Cache<Uncached, Uncached, Uncached, u8>> {
+    MapStorage::new(
+        flash,
+        const { MapConfig::new(Flash::FULL_FLASH_RANGE) },
+        Cache::new_uncached(),
+    )
 }
 
 fn new_flash(shutoff: Option<u32>) -> Flash {
@@ -23,8 +29,16 @@ fn new_flash(shutoff: Option<u32>) -> Flash {
 
 fn tuned(freq_hz: f64) -> Settings {
     let mut s = Settings::DEFAULT;
-    s.modes[0] = Some(ModeSetting { kind: ShaperKind::Zvdd, freq_hz, zeta: 0.0074 });
-    s.modes[1] = Some(ModeSetting { kind: ShaperKind::Ei { v_tol: 0.03 }, freq_hz: 6.9, zeta: 0.0074 });
+    s.modes[0] = Some(ModeSetting {
+        kind: ShaperKind::Zvdd,
+        freq_hz,
+        zeta: 0.0074,
+    });
+    s.modes[1] = Some(ModeSetting {
+        kind: ShaperKind::Ei { v_tol: 0.03 },
+        freq_hz: 6.9,
+        zeta: 0.0074,
+    });
     s.path = NumericPath::F32;
     s.tick_rate_hz = 2000;
     s
@@ -37,12 +51,23 @@ fn missing_record_loads_none_and_round_trip_works() {
     assert_eq!(block_on(load_settings(&mut m, &mut buf)), Ok(None));
     let s = tuned(1.1);
     block_on(save_settings(&mut m, &mut buf, &s)).unwrap();
-    assert_eq!(block_on(load_settings(&mut m, &mut buf)), Ok(Some(s.clone())));
+    assert_eq!(
+        block_on(load_settings(&mut m, &mut buf)),
+        Ok(Some(s.clone()))
+    );
     // Many saves: garbage collection across pages keeps the latest.
     for k in 0..200 {
-        block_on(save_settings(&mut m, &mut buf, &tuned(1.0 + k as f64 * 0.001))).unwrap();
+        block_on(save_settings(
+            &mut m,
+            &mut buf,
+            &tuned(1.0 + k as f64 * 0.001),
+        ))
+        .unwrap();
     }
-    assert_eq!(block_on(load_settings(&mut m, &mut buf)), Ok(Some(tuned(1.199))));
+    assert_eq!(
+        block_on(load_settings(&mut m, &mut buf)),
+        Ok(Some(tuned(1.199)))
+    );
 }
 
 #[test]

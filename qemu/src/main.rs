@@ -10,10 +10,10 @@
 use beamshaper::config::{ModeSetting, Settings};
 use beamshaper::runtime::{RunParams, Runtime, TickInput};
 use beamshaper::shaper::ShaperKind;
+use core::fmt::Write;
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hio};
-use core::fmt::Write;
 
 static mut RT: Runtime = Runtime::new();
 
@@ -23,14 +23,26 @@ fn main() -> ! {
         Ok(o) => o,
         Err(_) => fail(),
     };
-    let mut buf = Buffered { out: &mut out, buf: [0; 512], len: 0 };
+    let mut buf = Buffered {
+        out: &mut out,
+        buf: [0; 512],
+        len: 0,
+    };
     let ok = beamshaper::golden::write_golden(&mut buf).is_ok();
     buf.flush();
 
     // One tick of a two-mode ZVDD (1.1 Hz, 6.9 Hz, ζ = 0.0074) at 1 kHz, fixed point.
     let mut s = Settings::DEFAULT;
-    s.modes[0] = Some(ModeSetting { kind: ShaperKind::Zvdd, freq_hz: 1.1, zeta: 0.0074 });
-    s.modes[1] = Some(ModeSetting { kind: ShaperKind::Zvdd, freq_hz: 6.9, zeta: 0.0074 });
+    s.modes[0] = Some(ModeSetting {
+        kind: ShaperKind::Zvdd,
+        freq_hz: 1.1,
+        zeta: 0.0074,
+    });
+    s.modes[1] = Some(ModeSetting {
+        kind: ShaperKind::Zvdd,
+        freq_hz: 6.9,
+        zeta: 0.0074,
+    });
     // SAFETY: single-threaded bare-metal program, no interrupts touch RT.
     #[allow(static_mut_refs)]
     let rt = unsafe { &mut RT };
@@ -63,7 +75,11 @@ fn main() -> ! {
         );
         buf.flush();
     }
-    debug::exit(if ok { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    debug::exit(if ok {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
+    });
     loop {}
 }
 

@@ -17,13 +17,21 @@ pub struct History<const N: usize> {
 }
 
 impl<const N: usize> History<N> {
-    const POW2: () = assert!(N.is_power_of_two() && N >= 2, "history length must be a power of two");
+    const POW2: () = assert!(
+        N.is_power_of_two() && N >= 2,
+        "history length must be a power of two"
+    );
 
     /// A history that reads `fill` everywhere.
     pub const fn new(fill: i32) -> Self {
         #[allow(clippy::let_unit_value)]
         let _ = Self::POW2;
-        History { buf: [0; N], head: 0, len: 0, fill }
+        History {
+            buf: [0; N],
+            head: 0,
+            len: 0,
+            fill,
+        }
     }
 
     /// Capacity in samples.
@@ -57,7 +65,10 @@ impl<const N: usize> History<N> {
         if d >= self.len {
             return self.fill;
         }
-        self.buf.get((self.head + N - d) & (N - 1)).copied().unwrap_or(self.fill)
+        self.buf
+            .get((self.head + N - d) & (N - 1))
+            .copied()
+            .unwrap_or(self.fill)
     }
 
     /// The newest sample.

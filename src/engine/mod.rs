@@ -53,7 +53,11 @@ pub struct Engine<const N: usize> {
 impl<const N: usize> Engine<N> {
     /// Identity shaping, fixed-point path, history reading `position` everywhere.
     pub const fn new(position: i32) -> Self {
-        Engine { history: History::new(position), taps: TapTable::identity(), path: NumericPath::Fixed }
+        Engine {
+            history: History::new(position),
+            taps: TapTable::identity(),
+            path: NumericPath::Fixed,
+        }
     }
 
     /// Installs a new tap table and numeric path and resets the history to `position`

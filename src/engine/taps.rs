@@ -13,7 +13,6 @@
 
 use crate::shaper::{Shaper, MAX_IMPULSES};
 
-
 /// Fractional bits of the fixed-point weights (Q2.30).
 pub const WEIGHT_FRAC_BITS: u32 = 30;
 /// 1.0 in Q2.30.
@@ -63,13 +62,21 @@ pub struct TapTable {
     len: usize,
 }
 
-const ZERO_TAP: Tap = Tap { delay: 0, w_q30: 0, w_f32: 0.0 };
+const ZERO_TAP: Tap = Tap {
+    delay: 0,
+    w_q30: 0,
+    w_f32: 0.0,
+};
 
 impl TapTable {
     /// The identity table (one tap of weight 1 at delay 0): shaping off.
     pub const fn identity() -> Self {
         let mut taps = [ZERO_TAP; MAX_TAPS];
-        taps[0] = Tap { delay: 0, w_q30: WEIGHT_ONE as i32, w_f32: 1.0 };
+        taps[0] = Tap {
+            delay: 0,
+            w_q30: WEIGHT_ONE as i32,
+            w_f32: 1.0,
+        };
         TapTable { taps, len: 1 }
     }
 
@@ -77,13 +84,20 @@ impl TapTable {
     ///
     /// Errors: [`TapError::TickRate`], [`TapError::TooLong`] if the last tap's delay would be
     /// ≥ `history_len`, [`TapError::AmplitudeRange`].
-    pub fn from_shaper(shaper: &Shaper, tick_rate_hz: f64, history_len: usize) -> Result<Self, TapError> {
+    pub fn from_shaper(
+        shaper: &Shaper,
+        tick_rate_hz: f64,
+        history_len: usize,
+    ) -> Result<Self, TapError> {
         if !tick_rate_hz.is_finite() || tick_rate_hz <= 0.0 {
             return Err(TapError::TickRate);
         }
         let max_s = (history_len as f64 - 2.0) / tick_rate_hz;
         if shaper.duration_s() > max_s {
-            return Err(TapError::TooLong { duration_s: shaper.duration_s(), max_s });
+            return Err(TapError::TooLong {
+                duration_s: shaper.duration_s(),
+                max_s,
+            });
         }
         if shaper.abs_amplitude_sum() > MAX_ABS_AMPLITUDE_SUM {
             return Err(TapError::AmplitudeRange);
@@ -123,7 +137,10 @@ impl TapTable {
                 j -= 1;
             }
         }
-        let mut table = TapTable { taps: [ZERO_TAP; MAX_TAPS], len: w.len() };
+        let mut table = TapTable {
+            taps: [ZERO_TAP; MAX_TAPS],
+            len: w.len(),
+        };
         let taps = &mut table.taps[..w.len()];
         let mut sum_q: i64 = 0;
         for (t, &(delay, a)) in taps.iter_mut().zip(w.iter()) {
@@ -132,7 +149,11 @@ impl TapTable {
                 return Err(TapError::AmplitudeRange);
             }
             sum_q += q;
-            *t = Tap { delay, w_q30: q as i32, w_f32: a as f32 };
+            *t = Tap {
+                delay,
+                w_q30: q as i32,
+                w_f32: a as f32,
+            };
         }
         // Exact unity DC gain: put the rounding residual on the largest tap.
         let residual = WEIGHT_ONE - sum_q;

@@ -120,7 +120,9 @@ impl ShaperKind {
     /// The EI vibration tolerance, if this kind has one.
     pub fn v_tol(&self) -> Option<f64> {
         match *self {
-            ShaperKind::Ei { v_tol } | ShaperKind::Ei2Hump { v_tol } | ShaperKind::Ei3Hump { v_tol } => Some(v_tol),
+            ShaperKind::Ei { v_tol }
+            | ShaperKind::Ei2Hump { v_tol }
+            | ShaperKind::Ei3Hump { v_tol } => Some(v_tol),
             _ => None,
         }
     }
@@ -144,7 +146,12 @@ fn mode(freq_hz: f64, zeta: f64) -> Result<Mode, ShaperError> {
     let w = 2.0 * PI * freq_hz;
     let df = libm::sqrt(1.0 - zeta * zeta);
     let wd = w * df;
-    Ok(Mode { td: 2.0 * PI / wd, k: libm::exp(-zeta * PI / df), sigma: zeta * w, wd })
+    Ok(Mode {
+        td: 2.0 * PI / wd,
+        k: libm::exp(-zeta * PI / df),
+        sigma: zeta * w,
+        wd,
+    })
 }
 
 /// Designs a single-mode shaper for natural frequency `freq_hz` (Hz, > 0) and damping
@@ -212,7 +219,10 @@ pub fn design(kind: ShaperKind, freq_hz: f64, zeta: f64) -> Result<Shaper, Shape
     let sum: f64 = a[..n].iter().sum();
     let mut v: heapless::Vec<Impulse, MAX_IMPULSES> = heapless::Vec::new();
     for i in 0..n {
-        let _ = v.push(Impulse { amplitude: a[i] / sum, time_s: t[i] });
+        let _ = v.push(Impulse {
+            amplitude: a[i] / sum,
+            time_s: t[i],
+        });
     }
     Shaper::from_impulses(&v)
 }
@@ -246,7 +256,11 @@ fn um_zv_times(m: &Mode) -> Result<(f64, f64), ShaperError> {
         let (c3, s3) = e(t3);
         let (rr, ri) = (1.0 - c2 + c3, -s2 + s3);
         if libm::fabs(rr) + libm::fabs(ri) < 1e-14 {
-            return if t2 > 0.0 && t3 > t2 { Ok((t2, t3)) } else { Err(ShaperError::NoConvergence) };
+            return if t2 > 0.0 && t3 > t2 {
+                Ok((t2, t3))
+            } else {
+                Err(ShaperError::NoConvergence)
+            };
         }
         // d/dt e^{s t} = s e^{s t}, s = σ + iω_d
         let d2 = (-(m.sigma * c2 - m.wd * s2), -(m.sigma * s2 + m.wd * c2));

@@ -58,7 +58,9 @@ impl ShaperError {
             ShaperError::Damping => "damping ratio must be finite and in [0, 1)",
             ShaperError::Tolerance => "vibration tolerance must be in (0, 0.5)",
             ShaperError::TooManyImpulses => "too many impulses",
-            ShaperError::BadImpulse => "impulse list invalid (finite, t >= 0, sum of amplitudes = 1)",
+            ShaperError::BadImpulse => {
+                "impulse list invalid (finite, t >= 0, sum of amplitudes = 1)"
+            }
             ShaperError::NoConvergence => "shaper design did not converge",
         }
     }
@@ -81,7 +83,10 @@ impl Shaper {
     /// The identity shaper `[(1, 0)]`.
     pub fn identity() -> Self {
         let mut impulses = heapless::Vec::new();
-        let _ = impulses.push(Impulse { amplitude: 1.0, time_s: 0.0 });
+        let _ = impulses.push(Impulse {
+            amplitude: 1.0,
+            time_s: 0.0,
+        });
         Shaper { impulses }
     }
 
@@ -93,7 +98,11 @@ impl Shaper {
     /// [`ShaperError::TooManyImpulses`] above [`MAX_IMPULSES`].
     pub fn from_impulses(list: &[Impulse]) -> Result<Self, ShaperError> {
         if list.is_empty() || list.len() > MAX_IMPULSES {
-            return Err(if list.is_empty() { ShaperError::BadImpulse } else { ShaperError::TooManyImpulses });
+            return Err(if list.is_empty() {
+                ShaperError::BadImpulse
+            } else {
+                ShaperError::TooManyImpulses
+            });
         }
         let mut v: heapless::Vec<Impulse, MAX_IMPULSES> = heapless::Vec::new();
         for imp in list {
@@ -151,8 +160,14 @@ impl Shaper {
         let mut out: heapless::Vec<Impulse, MAX_IMPULSES> = heapless::Vec::new();
         for a in self.impulses.iter() {
             for b in other.impulses.iter() {
-                let imp = Impulse { amplitude: a.amplitude * b.amplitude, time_s: a.time_s + b.time_s };
-                if let Some(m) = out.iter_mut().find(|m| libm::fabs(m.time_s - imp.time_s) <= MERGE_TOLERANCE_S) {
+                let imp = Impulse {
+                    amplitude: a.amplitude * b.amplitude,
+                    time_s: a.time_s + b.time_s,
+                };
+                if let Some(m) = out
+                    .iter_mut()
+                    .find(|m| libm::fabs(m.time_s - imp.time_s) <= MERGE_TOLERANCE_S)
+                {
                     m.amplitude += imp.amplitude;
                 } else if out.push(imp).is_err() {
                     return Err(ShaperError::TooManyImpulses);
@@ -196,7 +211,9 @@ impl Shaper {
     /// Shaped value at time `t_s` of a reference signal `r(t)` (0 before t = 0):
     /// `Σ A_i r(t − t_i)`. Reference implementation for tests and the host tools.
     pub fn apply_at(&self, t_s: f64, r: impl Fn(f64) -> f64) -> f64 {
-        self.impulses.iter().map(|i| i.amplitude * r(t_s - i.time_s)).sum()
+        self.impulses
+            .iter()
+            .map(|i| i.amplitude * r(t_s - i.time_s))
+            .sum()
     }
 }
-

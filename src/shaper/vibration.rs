@@ -39,7 +39,12 @@ pub fn residual_vibration(shaper: &Shaper, freq_hz: f64, zeta: f64) -> f64 {
 ///
 /// Scans in steps of 0.1 % of `freq_hz` from `freq_hz` outwards (up to ×0.02 … ×3) and
 /// refines each edge by bisection to 1e-6 relative. Returns `None` if `V(freq_hz) > v_tol`.
-pub fn insensitivity_band(shaper: &Shaper, freq_hz: f64, zeta: f64, v_tol: f64) -> Option<(f64, f64)> {
+pub fn insensitivity_band(
+    shaper: &Shaper,
+    freq_hz: f64,
+    zeta: f64,
+    v_tol: f64,
+) -> Option<(f64, f64)> {
     let ok = |f: f64| residual_vibration(shaper, f, zeta) <= v_tol;
     if !ok(freq_hz) {
         return None;

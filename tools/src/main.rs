@@ -1,8 +1,8 @@
 use anyhow::{Context, Result};
-use serialport::SerialPort;
 use beamshaper::shaper::{design, insensitivity_band, residual_vibration, Shaper, ShaperKind};
 use beamtools::board;
 use clap::{Args, Parser, Subcommand};
+use serialport::SerialPort;
 use std::path::PathBuf;
 
 /// beamtool: model, identify, shape and verify a flexible beam on a linear-motor carriage.
@@ -93,13 +93,18 @@ fn main() -> Result<()> {
 }
 
 fn vboard(a: VboardArgs) -> Result<()> {
-    let (mut master, slave) = serialport::TTYPort::pair().context("cannot create a pseudo-terminal")?;
+    let (mut master, slave) =
+        serialport::TTYPort::pair().context("cannot create a pseudo-terminal")?;
     let path = slave.name().context("pseudo-terminal has no name")?;
     if let Some(link) = &a.link {
         let _ = std::fs::remove_file(link);
-        std::os::unix::fs::symlink(&path, link).with_context(|| format!("cannot create {}", link.display()))?;
+        std::os::unix::fs::symlink(&path, link)
+            .with_context(|| format!("cannot create {}", link.display()))?;
     }
-    println!("virtual board console on {path} (115200 8N1); flash file {}; Ctrl-C to stop", a.flash.display());
+    println!(
+        "virtual board console on {path} (115200 8N1); flash file {}; Ctrl-C to stop",
+        a.flash.display()
+    );
     let mut boot = String::new();
     let mut b = board::VirtualBoard::boot(Some(a.flash), &mut boot);
     print!("{boot}");
@@ -119,16 +124,25 @@ fn console(a: ConsoleArgs) -> Result<()> {
 }
 
 fn shaper(a: ShaperArgs) -> Result<()> {
-    let kind = ShaperKind::from_name(&a.kind, a.v_tol).with_context(|| format!("unknown shaper kind `{}`", a.kind))?;
-    let mut s: Shaper = design(kind, a.freq_hz, a.zeta).map_err(|e| anyhow::anyhow!("mode 1: {}", e.message()))?;
+    let kind = ShaperKind::from_name(&a.kind, a.v_tol)
+        .with_context(|| format!("unknown shaper kind `{}`", a.kind))?;
+    let mut s: Shaper =
+        design(kind, a.freq_hz, a.zeta).map_err(|e| anyhow::anyhow!("mode 1: {}", e.message()))?;
     let mut modes = vec![(a.freq_hz, a.zeta)];
     if let Some(f2) = a.freq2_hz {
         let z2 = a.zeta2.unwrap_or(a.zeta);
         let s2 = design(kind, f2, z2).map_err(|e| anyhow::anyhow!("mode 2: {}", e.message()))?;
-        s = s.convolve(&s2).map_err(|e| anyhow::anyhow!("{}", e.message()))?;
+        s = s
+            .convolve(&s2)
+            .map_err(|e| anyhow::anyhow!("{}", e.message()))?;
         modes.push((f2, z2));
     }
-    println!("{} shaper, {} impulses, duration {:.6} s", kind.name().to_uppercase(), s.len(), s.duration_s());
+    println!(
+        "{} shaper, {} impulses, duration {:.6} s",
+        kind.name().to_uppercase(),
+        s.len(),
+        s.duration_s()
+    );
     println!("{:>4} {:>22} {:>22}", "i", "amplitude", "time_s");
     for (i, imp) in s.impulses().iter().enumerate() {
         println!("{:>4} {:>22} {:>22}", i + 1, imp.amplitude, imp.time_s);
@@ -143,7 +157,11 @@ fn shaper(a: ShaperArgs) -> Result<()> {
             v(1.1)
         );
         match insensitivity_band(&s, f, z, a.v_tol) {
-            Some((lo, hi)) => println!(", V <= {} % on {lo:.4}..{hi:.4} Hz (width {:.1} %)", 100.0 * a.v_tol, 100.0 * (hi - lo) / f),
+            Some((lo, hi)) => println!(
+                ", V <= {} % on {lo:.4}..{hi:.4} Hz (width {:.1} %)",
+                100.0 * a.v_tol,
+                100.0 * (hi - lo) / f
+            ),
             None => println!(", V > {} % at the design frequency", 100.0 * a.v_tol),
         }
     }

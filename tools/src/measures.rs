@@ -36,20 +36,30 @@ pub fn measure(
 ) -> MoveMeasures {
     let dist = target_m - start_m;
     let sign = dist.signum();
-    let over = tip_m.iter().map(|&p| (p - target_m) * sign).fold(f64::NEG_INFINITY, f64::max);
+    let over = tip_m
+        .iter()
+        .map(|&p| (p - target_m) * sign)
+        .fold(f64::NEG_INFINITY, f64::max);
     let residual = time_s
         .iter()
         .zip(tip_m)
         .filter(|(t, _)| **t >= command_end_s)
         .map(|(_, p)| (p - target_m).abs())
         .fold(0.0, f64::max);
-    let last_out = time_s.iter().zip(tip_m).rposition(|(_, p)| (p - target_m).abs() > band_m);
+    let last_out = time_s
+        .iter()
+        .zip(tip_m)
+        .rposition(|(_, p)| (p - target_m).abs() > band_m);
     let settling = match last_out {
         None => Some(0.0),
         Some(k) if k + 1 < time_s.len() => Some((time_s[k + 1] - reference_end_s).max(0.0)),
         Some(_) => None,
     };
-    MoveMeasures { overshoot_pct: 100.0 * over.max(0.0) / dist.abs(), residual_m: residual, settling_s: settling }
+    MoveMeasures {
+        overshoot_pct: 100.0 * over.max(0.0) / dist.abs(),
+        residual_m: residual,
+        settling_s: settling,
+    }
 }
 
 /// Percentage vibration (%): shaped residual amplitude relative to the unshaped one.

@@ -40,7 +40,10 @@ pub const CHANNELS: [&str; 4] = ["base_cmd_m", "base_pos_m", "tip_pos_m", "force
 impl Recording {
     /// A recording with only a time base `t_k = k / sample_rate_hz`, k = 0..n.
     pub fn with_uniform_time(n: usize, sample_rate_hz: f64) -> Self {
-        Recording { time_s: (0..n).map(|k| k as f64 / sample_rate_hz).collect(), ..Default::default() }
+        Recording {
+            time_s: (0..n).map(|k| k as f64 / sample_rate_hz).collect(),
+            ..Default::default()
+        }
     }
 
     /// Number of samples.
@@ -106,7 +109,12 @@ impl Recording {
         for (k, w) in self.time_s.windows(2).enumerate() {
             let d = w[1] - w[0];
             if d <= 0.0 {
-                bail!("time_s is not strictly increasing at data row {} ({} -> {})", k + 2, w[0], w[1]);
+                bail!(
+                    "time_s is not strictly increasing at data row {} ({} -> {})",
+                    k + 2,
+                    w[0],
+                    w[1]
+                );
             }
             if (d - dt).abs() > UNIFORM_TOLERANCE * dt {
                 bail!(
@@ -124,7 +132,10 @@ impl Recording {
                     bail!("column {name} has {} samples, time_s has {n}", ch.len());
                 }
                 if let Some(k) = ch.iter().position(|v| !v.is_finite()) {
-                    bail!("column {name} is not finite (NaN or inf) at data row {}", k + 1);
+                    bail!(
+                        "column {name} is not finite (NaN or inf) at data row {}",
+                        k + 1
+                    );
                 }
             }
         }
@@ -142,11 +153,17 @@ impl Recording {
             .comment(Some(b'#'))
             .from_path(path)
             .with_context(|| format!("cannot open recording {}", path.display()))?;
-        let headers = rdr.headers().with_context(|| format!("{}: no header row", path.display()))?.clone();
-        let time_col = headers
-            .iter()
-            .position(|h| h == "time_s")
-            .ok_or_else(|| anyhow!("{}: no `time_s` column (header: {:?})", path.display(), headers))?;
+        let headers = rdr
+            .headers()
+            .with_context(|| format!("{}: no header row", path.display()))?
+            .clone();
+        let time_col = headers.iter().position(|h| h == "time_s").ok_or_else(|| {
+            anyhow!(
+                "{}: no `time_s` column (header: {:?})",
+                path.display(),
+                headers
+            )
+        })?;
         let mut rec = Recording::default();
         let mut cols: Vec<(usize, &'static str)> = Vec::new();
         for (i, h) in headers.iter().enumerate() {
@@ -161,18 +178,28 @@ impl Recording {
             }
         }
         for (row, result) in rdr.records().enumerate() {
-            let record = result.with_context(|| format!("{}: data row {}", path.display(), row + 1))?;
+            let record =
+                result.with_context(|| format!("{}: data row {}", path.display(), row + 1))?;
             let cell = |i: usize, name: &str| -> Result<f64> {
-                let s = record.get(i).ok_or_else(|| anyhow!("data row {}: missing column {name}", row + 1))?;
-                s.parse::<f64>().map_err(|_| anyhow!("data row {}, column {name}: `{s}` is not a number", row + 1))
+                let s = record
+                    .get(i)
+                    .ok_or_else(|| anyhow!("data row {}: missing column {name}", row + 1))?;
+                s.parse::<f64>().map_err(|_| {
+                    anyhow!("data row {}, column {name}: `{s}` is not a number", row + 1)
+                })
             };
-            rec.time_s.push(cell(time_col, "time_s").with_context(|| path.display().to_string())?);
+            rec.time_s
+                .push(cell(time_col, "time_s").with_context(|| path.display().to_string())?);
             for &(i, name) in &cols {
                 let v = cell(i, name).with_context(|| path.display().to_string())?;
-                rec.channel_slot(name).and_then(|c| c.as_mut()).expect("allocated").push(v);
+                rec.channel_slot(name)
+                    .and_then(|c| c.as_mut())
+                    .expect("allocated")
+                    .push(v);
             }
         }
-        rec.validate().with_context(|| format!("{}: invalid recording", path.display()))?;
+        rec.validate()
+            .with_context(|| format!("{}: invalid recording", path.display()))?;
         Ok(rec)
     }
 
@@ -180,9 +207,12 @@ impl Recording {
     /// order), full `f64` precision.
     pub fn write_csv(&self, path: impl AsRef<Path>) -> Result<()> {
         let path = path.as_ref();
-        let mut w = csv::Writer::from_path(path).with_context(|| format!("cannot write {}", path.display()))?;
-        let present: Vec<(&str, &[f64])> =
-            CHANNELS.iter().filter_map(|n| self.channel(n).map(|c| (*n, c))).collect();
+        let mut w = csv::Writer::from_path(path)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        let present: Vec<(&str, &[f64])> = CHANNELS
+            .iter()
+            .filter_map(|n| self.channel(n).map(|c| (*n, c)))
+            .collect();
         let mut header = vec!["time_s"];
         header.extend(present.iter().map(|(n, _)| *n));
         w.write_record(&header)?;
@@ -202,17 +232,23 @@ impl Recording {
     /// Errors: not a float64 array, wrong shape, NaN, non-increasing time.
     pub fn read_npy(path: impl AsRef<Path>) -> Result<(Vec<f64>, Vec<f64>)> {
         let path = path.as_ref();
-        let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-        let npy = npyz::NpyFile::new(&bytes[..]).with_context(|| format!("{}: not a .npy file", path.display()))?;
+        let bytes =
+            std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+        let npy = npyz::NpyFile::new(&bytes[..])
+            .with_context(|| format!("{}: not a .npy file", path.display()))?;
         let shape = npy.shape().to_vec();
         let fortran = npy.order() == npyz::Order::Fortran;
-        let data: Vec<f64> =
-            npy.into_vec::<f64>().with_context(|| format!("{}: expected a float64 array", path.display()))?;
+        let data: Vec<f64> = npy
+            .into_vec::<f64>()
+            .with_context(|| format!("{}: expected a float64 array", path.display()))?;
         let (t, x): (Vec<f64>, Vec<f64>) = match shape.as_slice() {
             [2, n] => {
                 let n = *n as usize;
                 if fortran {
-                    (data.iter().step_by(2).copied().collect(), data.iter().skip(1).step_by(2).copied().collect())
+                    (
+                        data.iter().step_by(2).copied().collect(),
+                        data.iter().skip(1).step_by(2).copied().collect(),
+                    )
                 } else {
                     (data[..n].to_vec(), data[n..].to_vec())
                 }
@@ -222,19 +258,34 @@ impl Recording {
                 if fortran {
                     (data[..n].to_vec(), data[n..].to_vec())
                 } else {
-                    (data.iter().step_by(2).copied().collect(), data.iter().skip(1).step_by(2).copied().collect())
+                    (
+                        data.iter().step_by(2).copied().collect(),
+                        data.iter().skip(1).step_by(2).copied().collect(),
+                    )
                 }
             }
-            s => bail!("{}: expected shape (2, N) [time; signal], got {:?}", path.display(), s),
+            s => bail!(
+                "{}: expected shape (2, N) [time; signal], got {:?}",
+                path.display(),
+                s
+            ),
         };
         if t.len() < 2 {
             bail!("{}: fewer than 2 samples", path.display());
         }
-        if let Some(k) = t.iter().zip(&x).position(|(a, b)| !a.is_finite() || !b.is_finite()) {
+        if let Some(k) = t
+            .iter()
+            .zip(&x)
+            .position(|(a, b)| !a.is_finite() || !b.is_finite())
+        {
             bail!("{}: NaN or inf at sample {k}", path.display());
         }
         if let Some(k) = t.windows(2).position(|w| w[1] <= w[0]) {
-            bail!("{}: time not strictly increasing at sample {}", path.display(), k + 1);
+            bail!(
+                "{}: time not strictly increasing at sample {}",
+                path.display(),
+                k + 1
+            );
         }
         Ok((t, x))
     }

@@ -81,7 +81,10 @@ pub fn worst_case_pct(s: &Shaper, modes: &[ModeEstimate], min_band: f64) -> f64 
     let mut worst = 0.0f64;
     for m in modes {
         let half = (2.0 * m.freq_hz_std / m.freq_hz).max(min_band);
-        let (z0, z1) = ((m.zeta - 2.0 * m.zeta_std).max(0.0), (m.zeta + 2.0 * m.zeta_std).min(0.99));
+        let (z0, z1) = (
+            (m.zeta - 2.0 * m.zeta_std).max(0.0),
+            (m.zeta + 2.0 * m.zeta_std).min(0.99),
+        );
         for i in 0..=60 {
             let f = m.freq_hz * (1.0 - half + 2.0 * half * i as f64 / 60.0);
             for z in [z0, m.zeta, z1] {
@@ -104,15 +107,28 @@ pub fn candidates(modes: &[ModeEstimate], v_tol: f64, min_band: f64) -> Vec<Cand
         l
     };
     for &k1 in &kinds {
-        let Ok(s1) = design(k1, modes[0].freq_hz, modes[0].zeta) else { continue };
+        let Ok(s1) = design(k1, modes[0].freq_hz, modes[0].zeta) else {
+            continue;
+        };
         let name1 = format!("{}({:.3} Hz)", k1.name().to_uppercase(), modes[0].freq_hz);
-        out.push(Candidate { name: name1.clone(), console: vec![line(1, k1, &modes[0])], worst_pct: worst_case_pct(&s1, modes, min_band), shaper: s1.clone() });
+        out.push(Candidate {
+            name: name1.clone(),
+            console: vec![line(1, k1, &modes[0])],
+            worst_pct: worst_case_pct(&s1, modes, min_band),
+            shaper: s1.clone(),
+        });
         if let Some(m2) = modes.get(1) {
             for &k2 in &kinds {
-                let Ok(s2) = design(k2, m2.freq_hz, m2.zeta) else { continue };
+                let Ok(s2) = design(k2, m2.freq_hz, m2.zeta) else {
+                    continue;
+                };
                 let Ok(s) = s1.convolve(&s2) else { continue };
                 out.push(Candidate {
-                    name: format!("{name1} * {}({:.3} Hz)", k2.name().to_uppercase(), m2.freq_hz),
+                    name: format!(
+                        "{name1} * {}({:.3} Hz)",
+                        k2.name().to_uppercase(),
+                        m2.freq_hz
+                    ),
                     console: vec![line(1, k1, &modes[0]), line(2, k2, m2)],
                     worst_pct: worst_case_pct(&s, modes, min_band),
                     shaper: s,
@@ -120,7 +136,12 @@ pub fn candidates(modes: &[ModeEstimate], v_tol: f64, min_band: f64) -> Vec<Cand
             }
         }
     }
-    out.sort_by(|a, b| a.shaper.duration_s().total_cmp(&b.shaper.duration_s()).then(a.worst_pct.total_cmp(&b.worst_pct)));
+    out.sort_by(|a, b| {
+        a.shaper
+            .duration_s()
+            .total_cmp(&b.shaper.duration_s())
+            .then(a.worst_pct.total_cmp(&b.worst_pct))
+    });
     out
 }
 
@@ -141,45 +162,78 @@ pub fn generate_recording(rig: &Rig, path: &Path) -> Result<()> {
 
 fn bar(len: u64, msg: &str) -> ProgressBar {
     let pb = ProgressBar::new(len);
-    pb.set_style(ProgressStyle::with_template("{msg:>28} [{bar:30}] {pos}/{len} {elapsed}").unwrap_or_else(|_| ProgressStyle::default_bar()));
+    pb.set_style(
+        ProgressStyle::with_template("{msg:>28} [{bar:30}] {pos}/{len} {elapsed}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
     pb.set_message(msg.to_string());
     pb
 }
 
 /// Programs `c` on the board and checks the read-back table. Does not save.
 pub fn program(board: &mut BoardClient, c: &Candidate) -> Result<()> {
-    board.command("clear all").context("programming the board")?;
-    board.command("custom clear").context("programming the board")?;
+    board
+        .command("clear all")
+        .context("programming the board")?;
+    board
+        .command("custom clear")
+        .context("programming the board")?;
     for l in &c.console {
-        board.command(l).with_context(|| format!("programming the board (`{l}`)"))?;
+        board
+            .command(l)
+            .with_context(|| format!("programming the board (`{l}`)"))?;
     }
     let reply = board.command("shaper").context("reading the table back")?;
-    let imps = reply.field("impulses").ok_or_else(|| anyhow!("malformed `shaper` reply (no impulses=): {}", reply.ok))?;
+    let imps = reply
+        .field("impulses")
+        .ok_or_else(|| anyhow!("malformed `shaper` reply (no impulses=): {}", reply.ok))?;
     let mut back = Vec::new();
     for p in imps.split(',') {
-        let (a, t) = p.split_once('@').ok_or_else(|| anyhow!("malformed impulse `{p}` in the read-back table"))?;
-        let a: f64 = a.parse().map_err(|_| anyhow!("malformed amplitude `{a}` in the read-back table"))?;
-        let t: f64 = t.parse().map_err(|_| anyhow!("malformed time `{t}` in the read-back table"))?;
+        let (a, t) = p
+            .split_once('@')
+            .ok_or_else(|| anyhow!("malformed impulse `{p}` in the read-back table"))?;
+        let a: f64 = a
+            .parse()
+            .map_err(|_| anyhow!("malformed amplitude `{a}` in the read-back table"))?;
+        let t: f64 = t
+            .parse()
+            .map_err(|_| anyhow!("malformed time `{t}` in the read-back table"))?;
         back.push((a, t));
     }
     if back.len() != c.shaper.len() {
-        bail!("read-back table has {} impulses, designed {}", back.len(), c.shaper.len());
+        bail!(
+            "read-back table has {} impulses, designed {}",
+            back.len(),
+            c.shaper.len()
+        );
     }
     for ((a, t), i) in back.iter().zip(c.shaper.impulses()) {
         if (a - i.amplitude).abs() > 1e-12 || (t - i.time_s).abs() > 1e-12 {
-            bail!("read-back impulse {a}@{t} differs from the designed {}@{}", i.amplitude, i.time_s);
+            bail!(
+                "read-back impulse {a}@{t} differs from the designed {}@{}",
+                i.amplitude,
+                i.time_s
+            );
         }
     }
     Ok(())
 }
 
 /// Runs the move on the board and reads back the setpoints (m) captured every tick.
-pub fn verification_move(board: &mut BoardClient, target_mm: f64, speed: f64, accel: f64, duration_s: f64) -> Result<(Vec<f64>, f64)> {
+pub fn verification_move(
+    board: &mut BoardClient,
+    target_mm: f64,
+    speed: f64,
+    accel: f64,
+    duration_s: f64,
+) -> Result<(Vec<f64>, f64)> {
     let st = board.command("status")?;
     let tick_hz = st.number("tick_hz")?;
     let start_mm = st.number("setpoint_mm")?;
     if start_mm.abs() > 1e-6 {
-        board.command("move 0").context("returning to 0 before the verification move")?;
+        board
+            .command("move 0")
+            .context("returning to 0 before the verification move")?;
         wait_still(board, duration_s + 2.0, None)?;
         board.command("zero")?;
     }
@@ -199,9 +253,16 @@ pub fn verification_move(board: &mut BoardClient, target_mm: f64, speed: f64, ac
         if n == 0 {
             break;
         }
-        let vals = r.field("values").ok_or_else(|| anyhow!("malformed `dump` reply: {}", r.ok))?;
+        let vals = r
+            .field("values")
+            .ok_or_else(|| anyhow!("malformed `dump` reply: {}", r.ok))?;
         for v in vals.split(',') {
-            sp.push(v.parse::<i64>().map_err(|_| anyhow!("malformed setpoint `{v}` in `dump` reply"))? as f64 * 1e-9);
+            sp.push(
+                v.parse::<i64>()
+                    .map_err(|_| anyhow!("malformed setpoint `{v}` in `dump` reply"))?
+                    as f64
+                    * 1e-9,
+            );
         }
         pb.set_position(sp.len() as u64);
     }
@@ -213,7 +274,8 @@ fn wait_still(board: &mut BoardClient, timeout_s: f64, capture_full: Option<usiz
     let end = std::time::Instant::now() + Duration::from_secs_f64(timeout_s);
     loop {
         let s = board.command("status")?;
-        let still = s.number("moving")? == 0.0 && s.number("still_ticks")? > s.number("duration_ticks")? + 5.0;
+        let still = s.number("moving")? == 0.0
+            && s.number("still_ticks")? > s.number("duration_ticks")? + 5.0;
         let full = match capture_full {
             Some(c) => board.command("dump 0 0")?.number("total")? as usize >= c,
             None => true,
@@ -231,8 +293,11 @@ fn wait_still(board: &mut BoardClient, timeout_s: f64, capture_full: Option<usiz
 /// `beamtool tune`.
 pub fn tune(a: TuneArgs) -> Result<()> {
     let t0 = std::time::Instant::now();
-    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
-    let rig_path = a.rig.clone().unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../rigs/paper.toml")));
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
+    let rig_path = a.rig.clone().unwrap_or_else(|| {
+        PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../rigs/paper.toml"))
+    });
     // 1. Recording.
     let rec_path = match &a.recording {
         Some(p) => p.clone(),
@@ -256,12 +321,17 @@ pub fn tune(a: TuneArgs) -> Result<()> {
         None => {
             let flash = a.out.join("vboard-flash.bin");
             let p = crate::board::spawn_on_pty(Some(flash), 10.0)?;
-            println!("   no --port: virtual board on {p} (flash {}, 10x real time)", a.out.join("vboard-flash.bin").display());
+            println!(
+                "   no --port: virtual board on {p} (flash {}, 10x real time)",
+                a.out.join("vboard-flash.bin").display()
+            );
             p
         }
     };
     let mut board = BoardClient::open(&port)?;
-    let cfg = board.command("config").context("reading the board's configuration")?;
+    let cfg = board
+        .command("config")
+        .context("reading the board's configuration")?;
     let step_nm = cfg.number("step_nm")?;
     let max_rate = cfg.number("maxrate")?;
     let max_abs_sum = max_rate * step_nm * 1e-6 / a.speed_mm_s;
@@ -270,7 +340,11 @@ pub fn tune(a: TuneArgs) -> Result<()> {
     let all = candidates(&modes, tol / 100.0, a.min_band_pct / 100.0);
     let feasible: Vec<&Candidate> = all
         .iter()
-        .filter(|c| c.worst_pct <= tol && c.shaper.duration_s() * 1000.0 < 16_000.0 && c.shaper.abs_amplitude_sum() <= max_abs_sum)
+        .filter(|c| {
+            c.worst_pct <= tol
+                && c.shaper.duration_s() * 1000.0 < 16_000.0
+                && c.shaper.abs_amplitude_sum() <= max_abs_sum
+        })
         .collect();
     let Some(best) = feasible.first().copied() else {
         bail!("no shaper keeps the percentage vibration under {tol} % over the band within the board's step rate ({max_rate} steps/s of {step_nm} nm at {} mm/s); loosen --tolerance-pct", a.speed_mm_s);
@@ -279,56 +353,179 @@ pub fn tune(a: TuneArgs) -> Result<()> {
         best.name, best.shaper.len(), best.shaper.duration_s(), best.worst_pct, a.min_band_pct, modes.len());
     println!("   runner-ups (feasible, by duration):");
     for c in feasible.iter().skip(1).take(5) {
-        println!("     {:<40} duration {:.4} s, worst V {:.2} %", c.name, c.shaper.duration_s(), c.worst_pct);
+        println!(
+            "     {:<40} duration {:.4} s, worst V {:.2} %",
+            c.name,
+            c.shaper.duration_s(),
+            c.worst_pct
+        );
     }
-    let plot_f: Vec<f64> = (0..400).map(|i| 0.02 + i as f64 * 0.005 * modes.iter().map(|m| m.freq_hz).fold(0.0, f64::max) * 1.5 / 2.0).collect();
-    let v_best: Vec<f64> = plot_f.iter().map(|&f| 100.0 * residual_vibration(&best.shaper, f, modes[0].zeta)).collect();
-    let mut curves = vec![Series { label: best.name.clone(), x: &plot_f, y: &v_best }];
+    let plot_f: Vec<f64> = (0..400)
+        .map(|i| {
+            0.02 + i as f64 * 0.005 * modes.iter().map(|m| m.freq_hz).fold(0.0, f64::max) * 1.5
+                / 2.0
+        })
+        .collect();
+    let v_best: Vec<f64> = plot_f
+        .iter()
+        .map(|&f| 100.0 * residual_vibration(&best.shaper, f, modes[0].zeta))
+        .collect();
+    let mut curves = vec![Series {
+        label: best.name.clone(),
+        x: &plot_f,
+        y: &v_best,
+    }];
     let v_runner: Vec<f64>;
     if let Some(r) = feasible.get(1) {
-        v_runner = plot_f.iter().map(|&f| 100.0 * residual_vibration(&r.shaper, f, modes[0].zeta)).collect();
-        curves.push(Series { label: r.name.clone(), x: &plot_f, y: &v_runner });
+        v_runner = plot_f
+            .iter()
+            .map(|&f| 100.0 * residual_vibration(&r.shaper, f, modes[0].zeta))
+            .collect();
+        curves.push(Series {
+            label: r.name.clone(),
+            x: &plot_f,
+            y: &v_runner,
+        });
     }
-    lines(&a.out.join("sensitivity.svg"), "percentage vibration vs frequency", "frequency (Hz)", "V (%)", &curves, false)?;
+    lines(
+        &a.out.join("sensitivity.svg"),
+        "percentage vibration vs frequency",
+        "frequency (Hz)",
+        "V (%)",
+        &curves,
+        false,
+    )?;
     println!("4. programming the board on {port}");
     program(&mut board, best).context("programming the board")?;
-    println!("   programmed {} and read the table back: {} impulses identical to the design", port, best.shaper.len());
+    println!(
+        "   programmed {} and read the table back: {} impulses identical to the design",
+        port,
+        best.shaper.len()
+    );
     // 5. Verify.
-    let (sp, tick_hz) = verification_move(&mut board, a.move_mm, a.speed_mm_s, a.accel_mm_s2, best.shaper.duration_s())?;
+    let (sp, tick_hz) = verification_move(
+        &mut board,
+        a.move_mm,
+        a.speed_mm_s,
+        a.accel_mm_s2,
+        best.shaper.duration_s(),
+    )?;
     let target = a.move_mm * 1e-3;
-    let (reference, ref_end) = trapezoid_reference(0.0, target, a.speed_mm_s * 1e-3, a.accel_mm_s2 * 1e-3, tick_hz, 12.0)?;
+    let (reference, ref_end) = trapezoid_reference(
+        0.0,
+        target,
+        a.speed_mm_s * 1e-3,
+        a.accel_mm_s2 * 1e-3,
+        tick_hz,
+        12.0,
+    )?;
     let mut shaped = sp.clone();
     shaped.resize(reference.len(), target);
-    let (tip_u, tip_s, sim_what) = simulate_pair(&rig_path, a.rig.is_some() || a.recording.is_none(), &modes, &reference, &shaped, tick_hz)?;
+    let (tip_u, tip_s, sim_what) = simulate_pair(
+        &rig_path,
+        a.rig.is_some() || a.recording.is_none(),
+        &modes,
+        &reference,
+        &shaped,
+        tick_hz,
+    )?;
     let tt: Vec<f64> = (0..reference.len()).map(|k| k as f64 / tick_hz).collect();
-    let cmd_end = |y: &[f64]| y.iter().rposition(|v| (v - target).abs() > 1e-9).map_or(0.0, |k| (k + 1) as f64 / tick_hz);
+    let cmd_end = |y: &[f64]| {
+        y.iter()
+            .rposition(|v| (v - target).abs() > 1e-9)
+            .map_or(0.0, |k| (k + 1) as f64 / tick_hz)
+    };
     let band = 0.02 * target.abs();
-    let mu = measure(&tt, &tip_u, 0.0, target, cmd_end(&reference), ref_end as f64 / tick_hz, band);
-    let ms = measure(&tt, &tip_s, 0.0, target, cmd_end(&shaped), ref_end as f64 / tick_hz, band);
+    let mu = measure(
+        &tt,
+        &tip_u,
+        0.0,
+        target,
+        cmd_end(&reference),
+        ref_end as f64 / tick_hz,
+        band,
+    );
+    let ms = measure(
+        &tt,
+        &tip_s,
+        0.0,
+        target,
+        cmd_end(&shaped),
+        ref_end as f64 / tick_hz,
+        band,
+    );
     let pv = percentage_vibration(&ms, &mu);
     let fmt_settle = |s: Option<f64>| s.map_or("> 12 s".to_string(), |v| format!("{v:.2} s"));
     println!("5. verification move 0 -> {} mm on the board ({} setpoints read back), simulated with {sim_what}:", a.move_mm, sp.len());
-    println!("   {:<10} {:>14} {:>14} {:>24}", "", "settling", "overshoot", "percentage vibration");
-    println!("   {:<10} {:>14} {:>13.2}% {:>23.2}%", "unshaped", fmt_settle(mu.settling_s), mu.overshoot_pct, 100.0);
-    println!("   {:<10} {:>14} {:>13.2}% {:>23.2}%", "shaped", fmt_settle(ms.settling_s), ms.overshoot_pct, pv);
+    println!(
+        "   {:<10} {:>14} {:>14} {:>24}",
+        "", "settling", "overshoot", "percentage vibration"
+    );
+    println!(
+        "   {:<10} {:>14} {:>13.2}% {:>23.2}%",
+        "unshaped",
+        fmt_settle(mu.settling_s),
+        mu.overshoot_pct,
+        100.0
+    );
+    println!(
+        "   {:<10} {:>14} {:>13.2}% {:>23.2}%",
+        "shaped",
+        fmt_settle(ms.settling_s),
+        ms.overshoot_pct,
+        pv
+    );
     let mm = |v: &[f64]| v.iter().map(|x| x * 1e3).collect::<Vec<_>>();
     let (a1, a2, a3) = (mm(&tip_u), mm(&tip_s), mm(&shaped));
     let n = tt.len().min((8.0 * tick_hz) as usize);
-    lines(&a.out.join("verification.svg"), "verification move: tip position", "time (s)", "position (mm)", &[
-        Series { label: "tip, unshaped".into(), x: &tt[..n], y: &a1[..n] },
-        Series { label: "tip, shaped (board setpoints)".into(), x: &tt[..n], y: &a2[..n] },
-        Series { label: "board setpoint".into(), x: &tt[..n], y: &a3[..n] },
-    ], false)?;
-    let saved = board.command("save").context("saving the configuration on the board")?;
-    println!("   saved on the board ({}); plots {}/sensitivity.svg, {}/verification.svg", saved.ok, a.out.display(), a.out.display());
+    lines(
+        &a.out.join("verification.svg"),
+        "verification move: tip position",
+        "time (s)",
+        "position (mm)",
+        &[
+            Series {
+                label: "tip, unshaped".into(),
+                x: &tt[..n],
+                y: &a1[..n],
+            },
+            Series {
+                label: "tip, shaped (board setpoints)".into(),
+                x: &tt[..n],
+                y: &a2[..n],
+            },
+            Series {
+                label: "board setpoint".into(),
+                x: &tt[..n],
+                y: &a3[..n],
+            },
+        ],
+        false,
+    )?;
+    let saved = board
+        .command("save")
+        .context("saving the configuration on the board")?;
+    println!(
+        "   saved on the board ({}); plots {}/sensitivity.svg, {}/verification.svg",
+        saved.ok,
+        a.out.display(),
+        a.out.display()
+    );
     let report = serde_json::json!({
         "modes": modes, "shaper": best.name, "console": best.console, "duration_s": best.shaper.duration_s(),
         "worst_case_vibration_pct": best.worst_pct, "tolerance_pct": tol,
         "verification": {"percentage_vibration_pct": pv, "overshoot_pct_shaped": ms.overshoot_pct, "overshoot_pct_unshaped": mu.overshoot_pct,
             "settling_s_shaped": ms.settling_s, "settling_s_unshaped": mu.settling_s},
     });
-    std::fs::write(a.out.join("tune.json"), serde_json::to_string_pretty(&report)?)?;
-    println!("done in {:.1} s; report {}", t0.elapsed().as_secs_f64(), a.out.join("tune.json").display());
+    std::fs::write(
+        a.out.join("tune.json"),
+        serde_json::to_string_pretty(&report)?,
+    )?;
+    println!(
+        "done in {:.1} s; report {}",
+        t0.elapsed().as_secs_f64(),
+        a.out.join("tune.json").display()
+    );
     if pv > tol * 1.5 {
         println!("WARNING: simulated percentage vibration {pv:.2} % exceeds the tolerance: the model and the identified modes disagree");
     }
@@ -339,14 +536,25 @@ pub fn tune(a: TuneArgs) -> Result<()> {
 /// or (`use_rig == false`) a modal model of the identified modes with the participation of a
 /// uniform cantilever's modes (only the ratio shaped/unshaped is reported, so the absolute
 /// scale does not matter).
-fn simulate_pair(rig_path: &Path, use_rig: bool, modes: &[ModeEstimate], reference: &[f64], shaped: &[f64], tick_hz: f64) -> Result<(Vec<f64>, Vec<f64>, String)> {
+fn simulate_pair(
+    rig_path: &Path,
+    use_rig: bool,
+    modes: &[ModeEstimate],
+    reference: &[f64],
+    shaped: &[f64],
+    tick_hz: f64,
+) -> Result<(Vec<f64>, Vec<f64>, String)> {
     let dt = 1.0 / tick_hz;
     let tip = |y: &[f64], w: Vec<f64>| y.iter().zip(w).map(|(y, w)| y + w).collect::<Vec<f64>>();
     if use_rig {
         let rig = Rig::from_toml_file(rig_path)?;
         let model = BeamModel::new(&rig, &ModelOptions::default())?;
         let sim = BaseMotionSim::new(&model, dt)?;
-        return Ok((tip(reference, sim.run(reference).0), tip(shaped, sim.run(shaped).0), format!("the rig model {}", rig_path.display())));
+        return Ok((
+            tip(reference, sim.run(reference).0),
+            tip(shaped, sim.run(shaped).0),
+            format!("the rig model {}", rig_path.display()),
+        ));
     }
     // Uniform cantilever: Γ_r·φ_r(l) per unit beam mass = 1.566, −0.867, 0.509 (effective tip participation).
     let weights = [1.566, -0.867, 0.509];
@@ -358,7 +566,11 @@ fn simulate_pair(rig_path: &Path, use_rig: bool, modes: &[ModeEstimate], referen
             let mut x = nalgebra::Vector2::zeros();
             for k in 0..y.len() {
                 let vb = if k == 0 { 0.0 } else { (y[k] - y[k - 1]) / dt };
-                let va = if k + 1 < y.len() { (y[k + 1] - y[k]) / dt } else { 0.0 };
+                let va = if k + 1 < y.len() {
+                    (y[k + 1] - y[k]) / dt
+                } else {
+                    0.0
+                };
                 out[k] += x[0];
                 x[1] -= weights[r] * (va - vb);
                 x = phi * x;
@@ -366,5 +578,9 @@ fn simulate_pair(rig_path: &Path, use_rig: bool, modes: &[ModeEstimate], referen
         }
         out
     };
-    Ok((tip(reference, run(reference)), tip(shaped, run(shaped)), "a modal model of the identified modes".into()))
+    Ok((
+        tip(reference, run(reference)),
+        tip(shaped, run(shaped)),
+        "a modal model of the identified modes".into(),
+    ))
 }

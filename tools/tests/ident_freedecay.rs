@@ -12,10 +12,14 @@ fn decay(t: &[f64], modes: &[(f64, f64, f64)], noise: f64, seed: u64) -> Vec<f64
     let n = Normal::new(0.0, noise.max(1e-300)).unwrap();
     t.iter()
         .map(|&t| {
-            modes.iter().map(|&(f, z, a)| {
-                let w = 2.0 * PI * f;
-                a * (-z * w * t).exp() * (w * (1.0 - z * z).sqrt() * t).cos()
-            }).sum::<f64>() + n.sample(&mut rng)
+            modes
+                .iter()
+                .map(|&(f, z, a)| {
+                    let w = 2.0 * PI * f;
+                    a * (-z * w * t).exp() * (w * (1.0 - z * z).sqrt() * t).cos()
+                })
+                .sum::<f64>()
+                + n.sample(&mut rng)
         })
         .collect()
 }
@@ -29,15 +33,36 @@ fn recovers_frequency_and_damping_of_two_modes_with_noise() {
         (0.35, 0.03, 2.4, 0.02, 50.0, 0.005, 120.0),
         (12.0, 0.002, 75.0, 0.003, 1000.0, 0.002, 30.0),
     ] {
-        let t: Vec<f64> = (0..(rate * secs) as usize).map(|k| k as f64 / rate).collect();
+        let t: Vec<f64> = (0..(rate * secs) as usize)
+            .map(|k| k as f64 / rate)
+            .collect();
         let x = decay(&t, &[(f1, z1, 1.0), (f2, z2, 0.05)], noise, 1);
         let r = identify_free_decay(&t, &x, &FreeDecayOptions::default()).unwrap();
         let m = &r.modes[0];
-        assert!((m.freq_hz / f1 - 1.0).abs() < 2e-3, "f1 {} vs {f1}", m.freq_hz);
-        assert!((m.zeta / z1 - 1.0).abs() < 0.15, "zeta1 {} vs {z1} (f1 {f1})", m.zeta);
-        let m2 = r.modes.get(1).unwrap_or_else(|| panic!("mode 2 at {f2} Hz not found: {:?}", r.other_peaks_hz));
-        assert!((m2.freq_hz / f2 - 1.0).abs() < 5e-3, "f2 {} vs {f2}", m2.freq_hz);
-        assert!((m2.zeta / z2 - 1.0).abs() < 0.25, "zeta2 {} vs {z2}", m2.zeta);
+        assert!(
+            (m.freq_hz / f1 - 1.0).abs() < 2e-3,
+            "f1 {} vs {f1}",
+            m.freq_hz
+        );
+        assert!(
+            (m.zeta / z1 - 1.0).abs() < 0.15,
+            "zeta1 {} vs {z1} (f1 {f1})",
+            m.zeta
+        );
+        let m2 = r
+            .modes
+            .get(1)
+            .unwrap_or_else(|| panic!("mode 2 at {f2} Hz not found: {:?}", r.other_peaks_hz));
+        assert!(
+            (m2.freq_hz / f2 - 1.0).abs() < 5e-3,
+            "f2 {} vs {f2}",
+            m2.freq_hz
+        );
+        assert!(
+            (m2.zeta / z2 - 1.0).abs() < 0.25,
+            "zeta2 {} vs {z2}",
+            m2.zeta
+        );
     }
 }
 
@@ -52,20 +77,35 @@ fn non_uniform_time_is_resampled_with_a_warning() {
     let x = decay(&t, &[(6.05, 0.004, 1.0)], 0.001, 2);
     let r = identify_free_decay(&t, &x, &FreeDecayOptions::default()).unwrap();
     assert!(r.warnings.iter().any(|w| w.contains("non-uniform")));
-    assert!((r.mode.freq_hz / 6.05 - 1.0).abs() < 2e-3 && (r.mode.zeta / 0.004 - 1.0).abs() < 0.15, "{:?}", r.mode);
+    assert!(
+        (r.mode.freq_hz / 6.05 - 1.0).abs() < 2e-3 && (r.mode.zeta / 0.004 - 1.0).abs() < 0.15,
+        "{:?}",
+        r.mode
+    );
 }
 
 #[test]
 fn bad_input_is_a_clear_error() {
     let t: Vec<f64> = (0..1000).map(|k| k as f64 * 0.01).collect();
     let mut x = decay(&t, &[(2.0, 0.01, 1.0)], 0.0, 3);
-    assert!(identify_free_decay(&t[..10], &x[..10], &FreeDecayOptions::default()).unwrap_err().to_string().contains("at least 64"));
+    assert!(
+        identify_free_decay(&t[..10], &x[..10], &FreeDecayOptions::default())
+            .unwrap_err()
+            .to_string()
+            .contains("at least 64")
+    );
     x[500] = f64::NAN;
-    assert!(identify_free_decay(&t, &x, &FreeDecayOptions::default()).unwrap_err().to_string().contains("NaN"));
+    assert!(identify_free_decay(&t, &x, &FreeDecayOptions::default())
+        .unwrap_err()
+        .to_string()
+        .contains("NaN"));
     let mut t2 = t.clone();
     t2[300] = t2[299];
     let x2 = decay(&t, &[(2.0, 0.01, 1.0)], 0.0, 3);
-    assert!(identify_free_decay(&t2, &x2, &FreeDecayOptions::default()).unwrap_err().to_string().contains("not strictly increasing"));
+    assert!(identify_free_decay(&t2, &x2, &FreeDecayOptions::default())
+        .unwrap_err()
+        .to_string()
+        .contains("not strictly increasing"));
     let flat = vec![0.0; 1000];
     assert!(identify_free_decay(&t, &flat, &FreeDecayOptions::default()).is_err());
 }
@@ -74,10 +114,17 @@ fn bad_input_is_a_clear_error() {
 fn real_aluminium_free_decays() {
     let dir = "../../shared/data/real/aluminium-cantilever";
     let mut f = Vec::new();
-    for (name, lo, hi) in [("40cm_adxl_08-12_11-42-08_adxl6cmfromtip2cmID.npy", 9.2, 9.6), ("50cm_adxl_08-12_11-47-59_adxl6cmfromtip2cmID.npy", 5.9, 6.2), ("60cm_adxl_08-12_21-22-38_4cmID.npy", 4.1, 4.4)] {
+    for (name, lo, hi) in [
+        ("40cm_adxl_08-12_11-42-08_adxl6cmfromtip2cmID.npy", 9.2, 9.6),
+        ("50cm_adxl_08-12_11-47-59_adxl6cmfromtip2cmID.npy", 5.9, 6.2),
+        ("60cm_adxl_08-12_21-22-38_4cmID.npy", 4.1, 4.4),
+    ] {
         let (t, x) = Recording::read_npy(format!("{dir}/{name}")).unwrap();
         let r = identify_free_decay(&t, &x, &FreeDecayOptions::default()).unwrap();
-        println!("{name}: f1 = {:.4} Hz +- {:.4}, zeta1 = {:.5} +- {:.5}", r.mode.freq_hz, r.mode.freq_hz_std, r.mode.zeta, r.mode.zeta_std);
+        println!(
+            "{name}: f1 = {:.4} Hz +- {:.4}, zeta1 = {:.5} +- {:.5}",
+            r.mode.freq_hz, r.mode.freq_hz_std, r.mode.zeta, r.mode.zeta_std
+        );
         assert!((lo..hi).contains(&r.mode.freq_hz));
         assert!(r.mode.zeta > 0.0005 && r.mode.zeta < 0.05);
         f.push(r.mode.freq_hz);

@@ -9,7 +9,12 @@ use beamtools::model::{BeamModel, ModelOptions, Rig};
 use nalgebra::{DMatrix, DVector, Vector2};
 use std::f64::consts::PI;
 
-const BETA_L: [f64; 4] = [1.875_104_068_711_961, 4.694_091_132_974_175, 7.854_757_438_237_613, 10.995_540_734_875_467];
+const BETA_L: [f64; 4] = [
+    1.875_104_068_711_961,
+    4.694_091_132_974_175,
+    7.854_757_438_237_613,
+    10.995_540_734_875_467,
+];
 
 fn rig(width_root: f64, width_tip: f64) -> Rig {
     Rig::from_toml_str(&format!(
@@ -21,8 +26,20 @@ fn rig(width_root: f64, width_tip: f64) -> Rig {
 }
 
 fn clamped_hz(r: &Rig, n: usize) -> Vec<f64> {
-    let m = BeamModel::new(r, &ModelOptions { n_modes: n, ..Default::default() }).unwrap();
-    m.clamped_modes().unwrap().omega_rad_s.iter().map(|w| w / (2.0 * PI)).collect()
+    let m = BeamModel::new(
+        r,
+        &ModelOptions {
+            n_modes: n,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    m.clamped_modes()
+        .unwrap()
+        .omega_rad_s
+        .iter()
+        .map(|w| w / (2.0 * PI))
+        .collect()
 }
 
 fn euler_bernoulli_hz(i: usize) -> f64 {
@@ -35,21 +52,45 @@ fn euler_bernoulli_hz(i: usize) -> f64 {
 fn uniform_beam_matches_euler_bernoulli_and_converges() {
     let r = rig(0.025, 0.025);
     println!("convergence of the clamped-base frequencies (relative error vs Euler-Bernoulli):");
-    println!("{:>3} {:>12} {:>12} {:>12} {:>12}", "n", "mode 1", "mode 2", "mode 3", "mode 4");
+    println!(
+        "{:>3} {:>12} {:>12} {:>12} {:>12}",
+        "n", "mode 1", "mode 2", "mode 3", "mode 4"
+    );
     for n in [1, 2, 3, 4, 6, 8] {
         let f = clamped_hz(&r, n);
-        let errs: Vec<String> = (0..4).map(|i| f.get(i).map_or("-".into(), |v| format!("{:.2e}", v / euler_bernoulli_hz(i) - 1.0))).collect();
-        println!("{n:>3} {:>12} {:>12} {:>12} {:>12}", errs[0], errs[1], errs[2], errs[3]);
+        let errs: Vec<String> = (0..4)
+            .map(|i| {
+                f.get(i).map_or("-".into(), |v| {
+                    format!("{:.2e}", v / euler_bernoulli_hz(i) - 1.0)
+                })
+            })
+            .collect();
+        println!(
+            "{n:>3} {:>12} {:>12} {:>12} {:>12}",
+            errs[0], errs[1], errs[2], errs[3]
+        );
     }
     // With the exact eigenfunctions as basis a uniform beam is exact for every n ≥ mode.
     let f = clamped_hz(&r, 4);
     for i in 0..3 {
         let rel = (f[i] / euler_bernoulli_hz(i) - 1.0).abs();
-        assert!(rel < 1e-3, "mode {}: {} Hz vs {} Hz", i + 1, f[i], euler_bernoulli_hz(i));
-        assert!(rel < 1e-8, "uniform beam should be exact with its own eigenfunctions: {rel}");
+        assert!(
+            rel < 1e-3,
+            "mode {}: {} Hz vs {} Hz",
+            i + 1,
+            f[i],
+            euler_bernoulli_hz(i)
+        );
+        assert!(
+            rel < 1e-8,
+            "uniform beam should be exact with its own eigenfunctions: {rel}"
+        );
     }
     // The shipped reference rig: 1.105 / 6.92 Hz.
-    assert!((f[0] - 1.105).abs() < 0.001 && (f[1] - 6.92).abs() < 0.01, "{f:?}");
+    assert!(
+        (f[0] - 1.105).abs() < 0.001 && (f[1] - 6.92).abs() < 0.01,
+        "{f:?}"
+    );
 }
 
 /// Independent method: Hermite-cubic Euler–Bernoulli elements, A(x) and I(x) integrated with
@@ -61,8 +102,12 @@ fn fe_clamped_hz(width_root: f64, width_tip: f64, elements: usize) -> Vec<f64> {
     let mut k = DMatrix::zeros(ndof, ndof);
     let mut m = DMatrix::zeros(ndof, ndof);
     let le = l / elements as f64;
-    let gp = [(-0.861_136_311_594_053, 0.347_854_845_137_454), (-0.339_981_043_584_856, 0.652_145_154_862_546),
-              (0.339_981_043_584_856, 0.652_145_154_862_546), (0.861_136_311_594_053, 0.347_854_845_137_454)];
+    let gp = [
+        (-0.861_136_311_594_053, 0.347_854_845_137_454),
+        (-0.339_981_043_584_856, 0.652_145_154_862_546),
+        (0.339_981_043_584_856, 0.652_145_154_862_546),
+        (0.861_136_311_594_053, 0.347_854_845_137_454),
+    ];
     for el in 0..elements {
         let x0 = el as f64 * le;
         let mut ke = [[0.0; 4]; 4];
@@ -72,8 +117,18 @@ fn fe_clamped_hz(width_root: f64, width_tip: f64, elements: usize) -> Vec<f64> {
             let x = x0 + s * le;
             let b = width(x);
             let (a, ii) = (b * h, b * h.powi(3) / 12.0);
-            let n = [1.0 - 3.0 * s * s + 2.0 * s.powi(3), le * (s - 2.0 * s * s + s.powi(3)), 3.0 * s * s - 2.0 * s.powi(3), le * (-s * s + s.powi(3))];
-            let d2 = [(-6.0 + 12.0 * s) / (le * le), (-4.0 + 6.0 * s) / le, (6.0 - 12.0 * s) / (le * le), (-2.0 + 6.0 * s) / le];
+            let n = [
+                1.0 - 3.0 * s * s + 2.0 * s.powi(3),
+                le * (s - 2.0 * s * s + s.powi(3)),
+                3.0 * s * s - 2.0 * s.powi(3),
+                le * (-s * s + s.powi(3)),
+            ];
+            let d2 = [
+                (-6.0 + 12.0 * s) / (le * le),
+                (-4.0 + 6.0 * s) / le,
+                (6.0 - 12.0 * s) / (le * le),
+                (-2.0 + 6.0 * s) / le,
+            ];
             let jw = 0.5 * le * w;
             for i in 0..4 {
                 for j in 0..4 {
@@ -119,9 +174,17 @@ fn tapered_beam_matches_an_independent_finite_element_model() {
 #[test]
 fn free_base_frequencies_satisfy_the_frequency_equation_11() {
     let r = rig(0.025, 0.025);
-    let model = BeamModel::new(&r, &ModelOptions { n_modes: 8, ..Default::default() }).unwrap();
+    let model = BeamModel::new(
+        &r,
+        &ModelOptions {
+            n_modes: 8,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let ratio = model.beam_mass_kg / 2.5;
-    let g = |x: f64| 1.0 + x.cos() * x.cosh() + ratio / x * (x.sin() * x.cosh() + x.cos() * x.sinh());
+    let g =
+        |x: f64| 1.0 + x.cos() * x.cosh() + ratio / x * (x.sin() * x.cosh() + x.cos() * x.sinh());
     let f_free = model.free_base_freqs_hz().unwrap();
     for i in 0..3 {
         // x = β_i L of the free-base mode, from its frequency relative to the clamped one.
@@ -131,19 +194,38 @@ fn free_base_frequencies_satisfy_the_frequency_equation_11() {
         assert!(g(a).signum() != g(b).signum());
         for _ in 0..100 {
             let m = 0.5 * (a + b);
-            if g(m).signum() == g(a).signum() { a = m } else { b = m }
+            if g(m).signum() == g(a).signum() {
+                a = m
+            } else {
+                b = m
+            }
         }
         let f_eq11 = euler_bernoulli_hz(i) * (a / BETA_L[i]).powi(2);
-        println!("free base, mode {}: model {:.5} Hz, eq. (11) {:.5} Hz", i + 1, f_free[i], f_eq11);
+        println!(
+            "free base, mode {}: model {:.5} Hz, eq. (11) {:.5} Hz",
+            i + 1,
+            f_free[i],
+            f_eq11
+        );
         assert!((f_free[i] / f_eq11 - 1.0).abs() < 1e-3, "mode {}", i + 1);
-        assert!(f_free[i] > euler_bernoulli_hz(i), "a free carriage raises the frequency");
+        assert!(
+            f_free[i] > euler_bernoulli_hz(i),
+            "a free carriage raises the frequency"
+        );
     }
 }
 
 #[test]
 fn undamped_free_motion_conserves_energy_and_momentum() {
     let r = rig(0.030, 0.020);
-    let model = BeamModel::new(&r, &ModelOptions { n_modes: 4, ..Default::default() }).unwrap();
+    let model = BeamModel::new(
+        &r,
+        &ModelOptions {
+            n_modes: 4,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let dt = 1e-3;
     let sim = ForceSim::new(&model, dt, true).unwrap();
     let dim = model.mass.nrows();
@@ -153,7 +235,9 @@ fn undamped_free_motion_conserves_energy_and_momentum() {
     let mut qd0 = DVector::zeros(dim);
     qd0[0] = 0.01; // carriage drifting at 10 mm/s
     let mut eta: Vec<Vector2<f64>> = sim.modal(&model, &q0, &qd0);
-    let energy = |q: &DVector<f64>, qd: &DVector<f64>| 0.5 * qd.dot(&(&model.mass * qd)) + 0.5 * q.dot(&(&model.stiffness * q));
+    let energy = |q: &DVector<f64>, qd: &DVector<f64>| {
+        0.5 * qd.dot(&(&model.mass * qd)) + 0.5 * q.dot(&(&model.stiffness * q))
+    };
     let momentum = |qd: &DVector<f64>| (model.mass.row(0) * qd)[0];
     let (e0, p0) = (energy(&q0, &qd0), momentum(&qd0));
     let (mut worst_e, mut worst_p) = (0.0f64, 0.0f64);
@@ -173,19 +257,39 @@ fn base_motion_response_is_consistent_with_modal_statics() {
     // piecewise-linear base position turns ÿ into velocity kicks once per sample; the sampled
     // steady state then carries an O((ω_r·dt)²/12) error, 1.6e-4 for mode 2 at 1 kHz.)
     let r = rig(0.025, 0.025);
-    let model = BeamModel::new(&r, &ModelOptions { n_modes: 2, damping_ratios: Some((0.3, 0.3)), ..Default::default() }).unwrap();
+    let model = BeamModel::new(
+        &r,
+        &ModelOptions {
+            n_modes: 2,
+            damping_ratios: Some((0.3, 0.3)),
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let dt = 1e-3;
     let sim = BaseMotionSim::new(&model, dt).unwrap();
     let acc = 0.5;
-    let y: Vec<f64> = (0..20_000).map(|k| 0.5 * acc * (k as f64 * dt).powi(2)).collect();
+    let y: Vec<f64> = (0..20_000)
+        .map(|k| 0.5 * acc * (k as f64 * dt).powi(2))
+        .collect();
     let (w, u) = sim.run(&y);
     let m = sim.modes();
-    let w_static: f64 = (0..m.omega_rad_s.len()).map(|i| -m.participation[i] * m.tip[i] / m.omega_rad_s[i].powi(2) * acc).sum();
+    let w_static: f64 = (0..m.omega_rad_s.len())
+        .map(|i| -m.participation[i] * m.tip[i] / m.omega_rad_s[i].powi(2) * acc)
+        .sum();
     let w_end = *w.last().unwrap();
-    assert!((w_end / w_static - 1.0).abs() < 5e-4, "{w_end} vs {w_static}");
+    assert!(
+        (w_end / w_static - 1.0).abs() < 5e-4,
+        "{w_end} vs {w_static}"
+    );
     // Steady force = total mass × acceleration (eq. 5).
     let total = model.mass[(0, 0)];
-    assert!((u[19_000] / (total * acc) - 1.0).abs() < 1e-3, "{} vs {}", u[19_000], total * acc);
+    assert!(
+        (u[19_000] / (total * acc) - 1.0).abs() < 1e-3,
+        "{} vs {}",
+        u[19_000],
+        total * acc
+    );
 }
 
 #[test]
@@ -196,12 +300,27 @@ fn rig_file_errors_name_the_key() {
     };
     let ok = "[beam]\nlength_m = 0.9\ndensity_kg_m3 = 8190.0\nyoungs_modulus_pa = 1.9e11\nstations = [ { x_m = 0.0, width_m = 0.025, thickness_m = 0.00115 }, { x_m = 0.9, width_m = 0.025, thickness_m = 0.00115 } ]\n[base]\nmass_kg = 2.5\n";
     assert!(Rig::from_toml_str(ok).is_ok());
-    bad(&ok.replace("mass_kg = 2.5", "mass_kg = 2.5\ncolour = 1"), "colour");
+    bad(
+        &ok.replace("mass_kg = 2.5", "mass_kg = 2.5\ncolour = 1"),
+        "colour",
+    );
     bad(&ok.replace("mass_kg = 2.5", ""), "mass_kg");
-    bad(&ok.replace("length_m = 0.9", "length_m = -0.9"), "beam.length_m");
-    bad(&ok.replace("width_m = 0.025, thickness_m = 0.00115 }, {", "width_m = 0.0, thickness_m = 0.00115 }, {"), "beam.stations[0].width_m");
+    bad(
+        &ok.replace("length_m = 0.9", "length_m = -0.9"),
+        "beam.length_m",
+    );
+    bad(
+        &ok.replace(
+            "width_m = 0.025, thickness_m = 0.00115 }, {",
+            "width_m = 0.0, thickness_m = 0.00115 }, {",
+        ),
+        "beam.stations[0].width_m",
+    );
     bad(&ok.replace("{ x_m = 0.9,", "{ x_m = 0.0,"), "sorted");
-    bad(&ok.replace("youngs_modulus_pa = 1.9e11\n", ""), "youngs_modulus_pa");
+    bad(
+        &ok.replace("youngs_modulus_pa = 1.9e11\n", ""),
+        "youngs_modulus_pa",
+    );
     // Carriage-only rigs are valid.
     assert!(Rig::from_toml_str("[base]\nmass_kg = 3.0\n").is_ok());
 }
@@ -211,11 +330,26 @@ fn structural_extensions_shift_frequency_ratios() {
     let r = rig(0.025, 0.025);
     let f = |o: ModelOptions| clamped_hz_opts(&r, o);
     let nominal = f(ModelOptions::default());
-    let tip = f(ModelOptions { tip_mass_kg: 0.01, ..Default::default() });
-    let hang = f(ModelOptions { axial_load: Some(beamtools::model::Orientation::Hanging), ..Default::default() });
-    let up = f(ModelOptions { axial_load: Some(beamtools::model::Orientation::Upright), ..Default::default() });
-    let root = f(ModelOptions { root_stiffness_nm_per_rad: Some(5.0), ..Default::default() });
-    let stiff = f(ModelOptions { stiffness_scale: 1.21, ..Default::default() });
+    let tip = f(ModelOptions {
+        tip_mass_kg: 0.01,
+        ..Default::default()
+    });
+    let hang = f(ModelOptions {
+        axial_load: Some(beamtools::model::Orientation::Hanging),
+        ..Default::default()
+    });
+    let up = f(ModelOptions {
+        axial_load: Some(beamtools::model::Orientation::Upright),
+        ..Default::default()
+    });
+    let root = f(ModelOptions {
+        root_stiffness_nm_per_rad: Some(5.0),
+        ..Default::default()
+    });
+    let stiff = f(ModelOptions {
+        stiffness_scale: 1.21,
+        ..Default::default()
+    });
     let ratio = |v: &[f64]| v[1] / v[0];
     // A stiffness scale keeps the ratio; the physical effects change it.
     assert!((ratio(&stiff) / ratio(&nominal) - 1.0).abs() < 1e-9);
@@ -227,5 +361,10 @@ fn structural_extensions_shift_frequency_ratios() {
 
 fn clamped_hz_opts(r: &Rig, o: ModelOptions) -> Vec<f64> {
     let m = BeamModel::new(r, &o).unwrap();
-    m.clamped_modes().unwrap().omega_rad_s.iter().map(|w| w / (2.0 * PI)).collect()
+    m.clamped_modes()
+        .unwrap()
+        .omega_rad_s
+        .iter()
+        .map(|w| w / (2.0 * PI))
+        .collect()
 }

@@ -32,13 +32,18 @@ fn tune_generates_identifies_programs_and_verifies_on_the_virtual_board() {
         out: out.clone(),
     })
     .unwrap();
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("tune.json")).unwrap()).unwrap();
-    let pv = report["verification"]["percentage_vibration_pct"].as_f64().unwrap();
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("tune.json")).unwrap()).unwrap();
+    let pv = report["verification"]["percentage_vibration_pct"]
+        .as_f64()
+        .unwrap();
     assert!(pv < 2.0, "verified percentage vibration {pv} %");
     let f1 = report["modes"][0]["freq_hz"].as_f64().unwrap();
     assert!((f1 / 1.10466 - 1.0).abs() < 0.002, "identified f1 {f1}");
     // The board saved what was programmed.
-    let saved = load_flash(&out.join("vboard-flash.bin")).unwrap().expect("saved settings");
+    let saved = load_flash(&out.join("vboard-flash.bin"))
+        .unwrap()
+        .expect("saved settings");
     assert!(saved.modes[0].is_some());
     assert!(out.join("verification.svg").exists() && out.join("sensitivity.svg").exists());
 }
@@ -62,10 +67,16 @@ fn tune_runs_on_a_real_aluminium_free_decay() {
         out: out.clone(),
     })
     .unwrap();
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("tune.json")).unwrap()).unwrap();
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("tune.json")).unwrap()).unwrap();
     let f1 = report["modes"][0]["freq_hz"].as_f64().unwrap();
     assert!((5.9..6.2).contains(&f1), "f1 {f1}");
-    assert!(report["verification"]["percentage_vibration_pct"].as_f64().unwrap() < 2.0);
+    assert!(
+        report["verification"]["percentage_vibration_pct"]
+            .as_f64()
+            .unwrap()
+            < 2.0
+    );
 }
 
 /// A board on a PTY that behaves like the virtual board for `good_lines` command lines, then
@@ -100,8 +111,20 @@ fn faulty_board(flash: PathBuf, good_lines: usize, garbage: bool) -> String {
 
 fn modes() -> Vec<ModeEstimate> {
     vec![
-        ModeEstimate { freq_hz: 1.1, zeta: 0.0074, freq_hz_std: 0.001, zeta_std: 0.0005, method: "test".into() },
-        ModeEstimate { freq_hz: 6.9, zeta: 0.0074, freq_hz_std: 0.01, zeta_std: 0.0005, method: "test".into() },
+        ModeEstimate {
+            freq_hz: 1.1,
+            zeta: 0.0074,
+            freq_hz_std: 0.001,
+            zeta_std: 0.0005,
+            method: "test".into(),
+        },
+        ModeEstimate {
+            freq_hz: 6.9,
+            zeta: 0.0074,
+            freq_hz_std: 0.01,
+            zeta_std: 0.0005,
+            method: "test".into(),
+        },
     ]
 }
 

@@ -20,13 +20,18 @@ pub struct Reply {
 impl Reply {
     /// Value of `key=` in the `ok` line.
     pub fn field(&self, key: &str) -> Option<&str> {
-        self.ok.split_whitespace().find_map(|w| w.strip_prefix(key).and_then(|r| r.strip_prefix('=')))
+        self.ok
+            .split_whitespace()
+            .find_map(|w| w.strip_prefix(key).and_then(|r| r.strip_prefix('=')))
     }
 
     /// Numeric value of `key=` in the `ok` line.
     pub fn number(&self, key: &str) -> Result<f64> {
-        let v = self.field(key).ok_or_else(|| anyhow!("reply has no `{key}=`: {}", self.ok))?;
-        v.parse().map_err(|_| anyhow!("reply field {key}=`{v}` is not a number: {}", self.ok))
+        let v = self
+            .field(key)
+            .ok_or_else(|| anyhow!("reply has no `{key}=`: {}", self.ok))?;
+        v.parse()
+            .map_err(|_| anyhow!("reply field {key}=`{v}` is not a number: {}", self.ok))
     }
 }
 
@@ -44,7 +49,11 @@ impl BoardClient {
             .timeout(Duration::from_millis(20))
             .open()
             .with_context(|| format!("cannot open serial port {path}"))?;
-        let mut c = BoardClient { port, pending: Vec::new(), timeout: Duration::from_secs(3) };
+        let mut c = BoardClient {
+            port,
+            pending: Vec::new(),
+            timeout: Duration::from_secs(3),
+        };
         c.drain(Duration::from_millis(100));
         Ok(c)
     }
@@ -72,11 +81,15 @@ impl BoardClient {
         loop {
             if let Some(i) = self.pending.iter().position(|&b| b == b'\n') {
                 let line: Vec<u8> = self.pending.drain(..=i).collect();
-                let s = String::from_utf8(line).map_err(|_| anyhow!("board sent non-UTF-8 bytes"))?;
+                let s =
+                    String::from_utf8(line).map_err(|_| anyhow!("board sent non-UTF-8 bytes"))?;
                 return Ok(s.trim_end_matches(['\r', '\n']).to_string());
             }
             if Instant::now() > deadline {
-                bail!("board stopped answering (no complete reply within {:?})", self.timeout);
+                bail!(
+                    "board stopped answering (no complete reply within {:?})",
+                    self.timeout
+                );
             }
             match self.port.read(&mut buf) {
                 Ok(n) => self.pending.extend_from_slice(&buf[..n]),
@@ -89,12 +102,16 @@ impl BoardClient {
     /// Sends one command line and waits for its reply. Errors: an `err` reply (code and
     /// message in the error), a malformed reply line, or no reply within the timeout.
     pub fn command(&mut self, line: &str) -> Result<Reply> {
-        self.port.write_all(format!("{line}\n").as_bytes()).context("serial write")?;
+        self.port
+            .write_all(format!("{line}\n").as_bytes())
+            .context("serial write")?;
         self.port.flush().ok();
         let deadline = Instant::now() + self.timeout;
         let mut info = Vec::new();
         loop {
-            let l = self.read_line(deadline).with_context(|| format!("waiting for the reply to `{line}`"))?;
+            let l = self
+                .read_line(deadline)
+                .with_context(|| format!("waiting for the reply to `{line}`"))?;
             if let Some(rest) = l.strip_prefix("# ") {
                 info.push(rest.to_string());
             } else if l.starts_with("ok ") || l == "ok" {

@@ -30,7 +30,9 @@ pub fn load_flash(path: &Path) -> std::result::Result<Option<Settings>, String> 
     match std::fs::read(path) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
         Err(e) => Err(format!("cannot read {}: {e}", path.display())),
-        Ok(bytes) => Settings::decode(&bytes).map(Some).map_err(|e| e.to_string()),
+        Ok(bytes) => Settings::decode(&bytes)
+            .map(Some)
+            .map_err(|e| e.to_string()),
     }
 }
 
@@ -51,7 +53,12 @@ impl VirtualBoard {
             None => Ok(None),
         };
         let console = Console::boot(loaded, &mut *rt, 0, out);
-        VirtualBoard { rt, console, flash, lines: LineBuffer::new() }
+        VirtualBoard {
+            rt,
+            console,
+            flash,
+            lines: LineBuffer::new(),
+        }
     }
 
     /// Feeds received bytes; returns the reply text of every completed line.
@@ -83,7 +90,9 @@ impl VirtualBoard {
                 let r = load_flash(p);
                 self.console.finish_load(r, &mut *self.rt, out);
             }
-            (_, None) => out.push_str("err storage: this virtual board has no flash file (--flash)\n"),
+            (_, None) => {
+                out.push_str("err storage: this virtual board has no flash file (--flash)\n")
+            }
         }
     }
 
@@ -120,7 +129,8 @@ impl VirtualBoard {
                 Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
                 Err(e) => return Err(e).context("virtual board: serial read"),
             }
-            let due = (start.elapsed().as_secs_f64() * time_scale * self.rt.tick_rate_hz() as f64) as u64;
+            let due =
+                (start.elapsed().as_secs_f64() * time_scale * self.rt.tick_rate_hz() as f64) as u64;
             // Bounded catch-up so a stalled host does not freeze the console.
             let n = due.saturating_sub(ticks_done).min(200_000);
             self.tick(n);
@@ -136,7 +146,8 @@ impl VirtualBoard {
 /// background thread. Returns the slave device path (e.g. `/dev/pts/5`) to open with
 /// [`client::BoardClient::open`], exactly like a real board's `/dev/ttyACM0`.
 pub fn spawn_on_pty(flash: Option<PathBuf>, time_scale: f64) -> Result<String> {
-    let (mut master, slave) = serialport::TTYPort::pair().context("cannot create a pseudo-terminal")?;
+    let (mut master, slave) =
+        serialport::TTYPort::pair().context("cannot create a pseudo-terminal")?;
     let path = slave.name().context("pseudo-terminal has no name")?;
     // Keep the slave side open for the lifetime of the thread so the master never sees EOF
     // between client connections.

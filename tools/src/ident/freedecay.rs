@@ -40,7 +40,12 @@ pub struct FreeDecayOptions {
 
 impl Default for FreeDecayOptions {
     fn default() -> Self {
-        FreeDecayOptions { f_min_hz: 0.2, f_max_hz: 500.0, mode_fraction: 0.1, higher_mode_fraction: 0.001 }
+        FreeDecayOptions {
+            f_min_hz: 0.2,
+            f_max_hz: 500.0,
+            mode_fraction: 0.1,
+            higher_mode_fraction: 0.001,
+        }
     }
 }
 
@@ -118,7 +123,13 @@ impl LeastSquaresProblem<f64, Dyn, U4> for SinusoidFit<'_> {
     }
     fn residuals(&self) -> Option<DVector<f64>> {
         let (a, s, w, ph) = (self.p[0], self.p[1], self.p[2], self.p[3]);
-        Some(DVector::from_iterator(self.t.len(), self.t.iter().zip(self.x).map(|(&t, &x)| a * (-s * t).exp() * (w * t + ph).cos() - x)))
+        Some(DVector::from_iterator(
+            self.t.len(),
+            self.t
+                .iter()
+                .zip(self.x)
+                .map(|(&t, &x)| a * (-s * t).exp() * (w * t + ph).cos() - x),
+        ))
     }
     fn jacobian(&self) -> Option<OMatrix<f64, Dyn, U4>> {
         let (a, s, w, ph) = (self.p[0], self.p[1], self.p[2], self.p[3]);
@@ -141,7 +152,11 @@ fn positive_peaks(x: &[f64]) -> Vec<(f64, f64)> {
     for k in 1..x.len().saturating_sub(1) {
         if x[k] > 0.0 && x[k] > x[k - 1] && x[k] >= x[k + 1] {
             let d = x[k - 1] - 2.0 * x[k] + x[k + 1];
-            let p = if d != 0.0 { (0.5 * (x[k - 1] - x[k + 1]) / d).clamp(-0.5, 0.5) } else { 0.0 };
+            let p = if d != 0.0 {
+                (0.5 * (x[k - 1] - x[k + 1]) / d).clamp(-0.5, 0.5)
+            } else {
+                0.0
+            };
             v.push((k as f64 + p, x[k] - 0.25 * (x[k - 1] - x[k + 1]) * p));
         }
     }
@@ -170,11 +185,23 @@ fn log_decrement(pk: &[(f64, f64)]) -> (f64, f64) {
 ///
 /// Errors: fewer than 64 samples, non-finite values, no spectral peak in the band, a decay
 /// with fewer than 4 cycles.
-pub fn identify_free_decay(time_s: &[f64], signal: &[f64], opts: &FreeDecayOptions) -> Result<FreeDecayResult> {
+pub fn identify_free_decay(
+    time_s: &[f64],
+    signal: &[f64],
+    opts: &FreeDecayOptions,
+) -> Result<FreeDecayResult> {
     if time_s.len() != signal.len() || time_s.len() < 64 {
-        bail!("a free decay needs at least 64 samples of time and signal (got {} and {})", time_s.len(), signal.len());
+        bail!(
+            "a free decay needs at least 64 samples of time and signal (got {} and {})",
+            time_s.len(),
+            signal.len()
+        );
     }
-    if let Some(k) = time_s.iter().zip(signal).position(|(t, x)| !t.is_finite() || !x.is_finite()) {
+    if let Some(k) = time_s
+        .iter()
+        .zip(signal)
+        .position(|(t, x)| !t.is_finite() || !x.is_finite())
+    {
         bail!("NaN or inf at sample {k}");
     }
     if let Some(k) = time_s.windows(2).position(|w| w[1] <= w[0]) {
@@ -198,8 +225,14 @@ pub fn identify_free_decay(time_s: &[f64], signal: &[f64], opts: &FreeDecayOptio
     let f_max = opts.f_max_hz.min(0.45 * rate);
     let (f, mag) = amplitude_spectrum(&x, rate);
     let pk = peaks(&f, &mag, opts.f_min_hz, f_max);
-    let strongest = pk.first().map(|p| p.1).ok_or_else(|| anyhow::anyhow!("no spectral peak between {} and {f_max} Hz", opts.f_min_hz))?;
-    let f1 = pk.iter().filter(|p| p.1 >= opts.mode_fraction * strongest).map(|p| p.0).fold(f64::INFINITY, f64::min);
+    let strongest = pk.first().map(|p| p.1).ok_or_else(|| {
+        anyhow::anyhow!("no spectral peak between {} and {f_max} Hz", opts.f_min_hz)
+    })?;
+    let f1 = pk
+        .iter()
+        .filter(|p| p.1 >= opts.mode_fraction * strongest)
+        .map(|p| p.0)
+        .fold(f64::INFINITY, f64::min);
     // Higher-mode candidates must stand out of the spectrum around them (×3 over the level
     // at ±15 %): wiggles on the skirt of a strong mode and filter ringing do not.
     let df = f[1] - f[0];
@@ -217,15 +250,25 @@ pub fn identify_free_decay(time_s: &[f64], signal: &[f64], opts: &FreeDecayOptio
         match analyse_mode(&x, rate, fo, &mut Vec::new()) {
             // A genuine mode decays at the frequency of its own peak; a sidelobe or noise
             // peak analysed in its band locks onto leakage of a stronger mode instead.
-            Ok(m) if (m.mode.freq_hz / fo - 1.0).abs() < 0.03
-                && m.r2 > 0.5
-                && modes.iter().all(|e| (e.freq_hz / m.mode.freq_hz - 1.0).abs() > 0.2) => modes.push(m.mode),
+            Ok(m)
+                if (m.mode.freq_hz / fo - 1.0).abs() < 0.03
+                    && m.r2 > 0.5
+                    && modes
+                        .iter()
+                        .all(|e| (e.freq_hz / m.mode.freq_hz - 1.0).abs() > 0.2) =>
+            {
+                modes.push(m.mode)
+            }
             Ok(_) => {}
             Err(e) => warnings.push(format!("peak at {fo:.3} Hz: {e}")),
         }
     }
     modes.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
-    let (log_decrement, sinusoid_fit, segment_s) = (first.log_decrement, first.sinusoid_fit, (t[0] + first.segment_s.0, t[0] + first.segment_s.1));
+    let (log_decrement, sinusoid_fit, segment_s) = (
+        first.log_decrement,
+        first.sinusoid_fit,
+        (t[0] + first.segment_s.0, t[0] + first.segment_s.1),
+    );
     Ok(FreeDecayResult {
         mode: first.mode,
         modes,
@@ -254,7 +297,11 @@ fn analyse_mode(x: &[f64], rate: f64, f1: f64, warnings: &mut Vec<String>) -> Re
     if all.len() < 6 {
         bail!("fewer than 6 cycles of the {f1:.3} Hz mode in the record");
     }
-    let (i0, a0) = all.iter().enumerate().fold((0, 0.0), |(bi, bv), (i, p)| if p.1 > bv { (i, p.1) } else { (bi, bv) });
+    let (i0, a0) =
+        all.iter().enumerate().fold(
+            (0, 0.0),
+            |(bi, bv), (i, p)| if p.1 > bv { (i, p.1) } else { (bi, bv) },
+        );
     // Noise floor inside the band, from a band near Nyquist (0.35–0.45 × rate, assumed
     // free of modes) scaled by the bandwidth ratio (white noise); as a peak amplitude (×√2).
     let hb = band_pass(x, rate, 0.35 * rate, 0.45 * rate);
@@ -279,31 +326,68 @@ fn analyse_mode(x: &[f64], rate: f64, f1: f64, warnings: &mut Vec<String>) -> Re
     let zeta_ld = zeta_from_log_decrement(delta.max(1e-9));
     let fd = rate / period;
     let fn_ld = fd / (1.0 - zeta_ld * zeta_ld).sqrt();
-    let thirds: Vec<f64> = seg.chunks((seg.len() / 3).max(3)).filter(|c| c.len() >= 3).map(|c| zeta_from_log_decrement(log_decrement(c).0.max(1e-9))).collect();
+    let thirds: Vec<f64> = seg
+        .chunks((seg.len() / 3).max(3))
+        .filter(|c| c.len() >= 3)
+        .map(|c| zeta_from_log_decrement(log_decrement(c).0.max(1e-9)))
+        .collect();
     // Damped-sinusoid fit on the band-passed segment, ≤ 40 points per period.
     let (k0, k1) = (seg[0].0 as usize, seg[seg.len() - 1].0 as usize);
     let step = ((period / 40.0) as usize).max(1);
-    let ts: Vec<f64> = (k0..=k1).step_by(step).map(|k| (k - k0) as f64 / rate).collect();
+    let ts: Vec<f64> = (k0..=k1)
+        .step_by(step)
+        .map(|k| (k - k0) as f64 / rate)
+        .collect();
     let xs: Vec<f64> = (k0..=k1).step_by(step).map(|k| xb[k]).collect();
     let wd0 = 2.0 * PI * fd;
-    let problem = SinusoidFit { t: &ts, x: &xs, p: Vector4::new(seg[0].1, zeta_ld * 2.0 * PI * fn_ld, wd0, 0.0) };
+    let problem = SinusoidFit {
+        t: &ts,
+        x: &xs,
+        p: Vector4::new(seg[0].1, zeta_ld * 2.0 * PI * fn_ld, wd0, 0.0),
+    };
     let (fit, report) = LevenbergMarquardt::new().minimize(problem);
     let (sigma, wd) = (fit.p[1], fit.p[2]);
     let wn = (wd * wd + sigma * sigma).sqrt();
     let (fn_fit, zeta_fit) = (wn / (2.0 * PI), sigma / wn);
     let ss: f64 = xs.iter().map(|v| v * v).sum();
     let r2 = 1.0 - 2.0 * report.objective_function / ss.max(1e-300);
-    let fit_ok = report.termination.was_successful() && zeta_fit.is_finite() && zeta_fit >= 0.0 && (fn_fit / fn_ld - 1.0).abs() < 0.05;
+    let fit_ok = report.termination.was_successful()
+        && zeta_fit.is_finite()
+        && zeta_fit >= 0.0
+        && (fn_fit / fn_ld - 1.0).abs() < 0.05;
     if !fit_ok {
-        warnings.push(format!("damped-sinusoid fit did not converge ({:?}); log decrement only", report.termination));
+        warnings.push(format!(
+            "damped-sinusoid fit did not converge ({:?}); log decrement only",
+            report.termination
+        ));
     }
-    let (freq, zeta) = if fit_ok { (0.5 * (fn_ld + fn_fit), 0.5 * (zeta_ld + zeta_fit)) } else { (fn_ld, zeta_ld) };
+    let (freq, zeta) = if fit_ok {
+        (0.5 * (fn_ld + fn_fit), 0.5 * (zeta_ld + zeta_fit))
+    } else {
+        (fn_ld, zeta_ld)
+    };
     // Floor: a 0.1-sample error of the first and last peak times over the segment.
-    let f_std = (if fit_ok { (fn_ld - fn_fit).abs() / 2f64.sqrt() } else { 0.0 }).max(fd * 0.1 / (seg.len() as f64 * period));
-    let z_std = (if fit_ok { (zeta_ld - zeta_fit).abs() / 2f64.sqrt() } else { 0.0 }).hypot(std_dev(&thirds));
+    let f_std = (if fit_ok {
+        (fn_ld - fn_fit).abs() / 2f64.sqrt()
+    } else {
+        0.0
+    })
+    .max(fd * 0.1 / (seg.len() as f64 * period));
+    let z_std = (if fit_ok {
+        (zeta_ld - zeta_fit).abs() / 2f64.sqrt()
+    } else {
+        0.0
+    })
+    .hypot(std_dev(&thirds));
     Ok(ModeAnalysis {
         r2,
-        mode: ModeEstimate { freq_hz: freq, zeta, freq_hz_std: f_std, zeta_std: z_std, method: "free decay: log decrement + damped-sinusoid fit".into() },
+        mode: ModeEstimate {
+            freq_hz: freq,
+            zeta,
+            freq_hz_std: f_std,
+            zeta_std: z_std,
+            method: "free decay: log decrement + damped-sinusoid fit".into(),
+        },
         log_decrement: (fn_ld, zeta_ld, seg.len()),
         sinusoid_fit: (fn_fit, zeta_fit),
         segment_s: (seg[0].0 / rate, seg[seg.len() - 1].0 / rate),

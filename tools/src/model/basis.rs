@@ -19,7 +19,10 @@
 /// λ_i·l of the i-th clamped–free mode (i ≥ 1): root of 1 + cos x cosh x = 0 in ((i−1)π, iπ).
 pub fn lambda_l(i: usize) -> f64 {
     let g = |x: f64| x.cos() + 1.0 / x.cosh();
-    let (mut a, mut b) = ((i as f64 - 1.0) * std::f64::consts::PI + 0.01, i as f64 * std::f64::consts::PI);
+    let (mut a, mut b) = (
+        (i as f64 - 1.0) * std::f64::consts::PI + 0.01,
+        i as f64 * std::f64::consts::PI,
+    );
     let ga = g(a);
     for _ in 0..200 {
         let m = 0.5 * (a + b);
@@ -49,7 +52,12 @@ impl BasisFn {
         let sigma = (big_l.sinh() - big_l.sin()) / (big_l.cosh() + big_l.cos());
         let e = (-big_l).exp();
         let a = (e + big_l.cos() + big_l.sin()) / (1.0 + e * e + 2.0 * e * big_l.cos());
-        BasisFn { lambda: big_l / length_m, l_lambda: big_l, sigma, a }
+        BasisFn {
+            lambda: big_l / length_m,
+            l_lambda: big_l,
+            sigma,
+            a,
+        }
     }
 
     /// φ(x), φ'(x) (1/m), φ''(x) (1/m²).

@@ -84,10 +84,13 @@ pub struct Table2Args {
 }
 
 fn shaper_for(kind: &str, f1: f64, f2: Option<f64>, zeta: f64) -> Result<Shaper> {
-    let k = ShaperKind::from_name(kind, 0.05).with_context(|| format!("unknown shaper kind `{kind}`"))?;
+    let k = ShaperKind::from_name(kind, 0.05)
+        .with_context(|| format!("unknown shaper kind `{kind}`"))?;
     let mut s = design(k, f1, zeta).map_err(|e| anyhow::anyhow!("{}", e.message()))?;
     if let Some(f2) = f2 {
-        s = s.convolve(&design(k, f2, zeta).map_err(|e| anyhow::anyhow!("{}", e.message()))?).map_err(|e| anyhow::anyhow!("{}", e.message()))?;
+        s = s
+            .convolve(&design(k, f2, zeta).map_err(|e| anyhow::anyhow!("{}", e.message()))?)
+            .map_err(|e| anyhow::anyhow!("{}", e.message()))?;
     }
     Ok(s)
 }
@@ -109,11 +112,20 @@ pub fn decimate(rec: &Recording, rate_hz: f64) -> Recording {
 /// `beamtool simulate`.
 pub fn simulate(a: SimulateArgs) -> Result<()> {
     let rig = Rig::from_toml_file(&a.rig)?;
-    let model = BeamModel::new(&rig, &ModelOptions { n_modes: a.modes, ..Default::default() })?;
+    let model = BeamModel::new(
+        &rig,
+        &ModelOptions {
+            n_modes: a.modes,
+            ..Default::default()
+        },
+    )?;
     let (y, what) = match &a.command {
         Some(p) => {
             let rec = Recording::read_csv(p)?;
-            let cmd = rec.base_cmd_m.clone().with_context(|| format!("{}: no base_cmd_m column", p.display()))?;
+            let cmd = rec
+                .base_cmd_m
+                .clone()
+                .with_context(|| format!("{}: no base_cmd_m column", p.display()))?;
             // Resample to the internal rate by linear interpolation.
             let rate = rec.sample_rate_hz();
             let n = ((rec.len() - 1) as f64 * SIM_RATE_HZ / rate) as usize + 1;
@@ -128,23 +140,52 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
             (y, format!("command {}", p.display()))
         }
         None => {
-            let (r, _) = trapezoid_reference(0.0, a.to_mm * 1e-3, a.speed_mm_s * 1e-3, a.accel_mm_s2 * 1e-3, SIM_RATE_HZ, a.hold_s)?;
-            (r, format!("move 0 -> {} mm at {} mm/s, {} mm/s^2", a.to_mm, a.speed_mm_s, a.accel_mm_s2))
+            let (r, _) = trapezoid_reference(
+                0.0,
+                a.to_mm * 1e-3,
+                a.speed_mm_s * 1e-3,
+                a.accel_mm_s2 * 1e-3,
+                SIM_RATE_HZ,
+                a.hold_s,
+            )?;
+            (
+                r,
+                format!(
+                    "move 0 -> {} mm at {} mm/s, {} mm/s^2",
+                    a.to_mm, a.speed_mm_s, a.accel_mm_s2
+                ),
+            )
         }
     };
     let (y, shaped) = match &a.shaper {
         Some(kind) => {
             let s = shaper_for(kind, a.freq_hz, a.freq2_hz, a.zeta)?;
             let mut y = y;
-            y.extend(std::iter::repeat(*y.last().unwrap_or(&0.0)).take((s.duration_s() * SIM_RATE_HZ) as usize + 1));
-            (shape_with_engine(&s, SIM_RATE_HZ, &y, NumericPath::Fixed)?, format!(", shaped by {} ({} impulses, {:.3} s)", kind.to_uppercase(), s.len(), s.duration_s()))
+            y.extend(
+                std::iter::repeat(*y.last().unwrap_or(&0.0))
+                    .take((s.duration_s() * SIM_RATE_HZ) as usize + 1),
+            );
+            (
+                shape_with_engine(&s, SIM_RATE_HZ, &y, NumericPath::Fixed)?,
+                format!(
+                    ", shaped by {} ({} impulses, {:.3} s)",
+                    kind.to_uppercase(),
+                    s.len(),
+                    s.duration_s()
+                ),
+            )
         }
         None => (y, String::from(", unshaped")),
     };
     let sim = BaseMotionSim::new(&model, 1.0 / SIM_RATE_HZ)?;
     let rec = decimate(&sim.recording(&y, 0.0), rig.sample_rate_hz());
     rec.write_csv(&a.out)?;
-    println!("simulated {what}{shaped}: {} samples at {} Hz -> {}", rec.len(), rig.sample_rate_hz(), a.out.display());
+    println!(
+        "simulated {what}{shaped}: {} samples at {} Hz -> {}",
+        rec.len(),
+        rig.sample_rate_hz(),
+        a.out.display()
+    );
     let tip = rec.tip_pos_m.as_ref().unwrap();
     let target = *y.last().unwrap();
     let peak = tip.iter().map(|p| (p - target).abs()).fold(0.0, f64::max);
@@ -153,10 +194,25 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         let base = rec.base_pos_m.as_ref().unwrap();
         let mm = |v: &[f64]| v.iter().map(|x| x * 1e3).collect::<Vec<_>>();
         let (b, t) = (mm(base), mm(tip));
-        lines(p, &format!("{what}{shaped}"), "time (s)", "position (mm)", &[
-            Series { label: "base".into(), x: &rec.time_s, y: &b },
-            Series { label: "tip (absolute)".into(), x: &rec.time_s, y: &t },
-        ], false)?;
+        lines(
+            p,
+            &format!("{what}{shaped}"),
+            "time (s)",
+            "position (mm)",
+            &[
+                Series {
+                    label: "base".into(),
+                    x: &rec.time_s,
+                    y: &b,
+                },
+                Series {
+                    label: "tip (absolute)".into(),
+                    x: &rec.time_s,
+                    y: &t,
+                },
+            ],
+            false,
+        )?;
         println!("plot -> {}", p.display());
     }
     Ok(())
@@ -165,37 +221,59 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
 /// `beamtool modes`.
 pub fn modes(a: ModesArgs) -> Result<()> {
     let rig = Rig::from_toml_file(&a.rig)?;
-    let model = BeamModel::new(&rig, &ModelOptions { n_modes: a.modes, ..Default::default() })?;
+    let model = BeamModel::new(
+        &rig,
+        &ModelOptions {
+            n_modes: a.modes,
+            ..Default::default()
+        },
+    )?;
     let cm = model.clamped_modes()?;
     let free = model.free_base_freqs_hz()?;
     let two_pi = 2.0 * std::f64::consts::PI;
     if a.json {
         let v: Vec<_> = (0..cm.omega_rad_s.len())
-            .map(|r| serde_json::json!({
-                "mode": r + 1,
-                "freq_hz_clamped_base": cm.omega_rad_s[r] / two_pi,
-                "freq_hz_free_base": free.get(r),
-                "damping_ratio": cm.zeta[r],
-                "participation_kg_sqrt": cm.participation[r],
-                "tip_per_modal_coordinate": cm.tip[r],
-            }))
+            .map(|r| {
+                serde_json::json!({
+                    "mode": r + 1,
+                    "freq_hz_clamped_base": cm.omega_rad_s[r] / two_pi,
+                    "freq_hz_free_base": free.get(r),
+                    "damping_ratio": cm.zeta[r],
+                    "participation_kg_sqrt": cm.participation[r],
+                    "tip_per_modal_coordinate": cm.tip[r],
+                })
+            })
             .collect();
-        println!("{}", serde_json::to_string_pretty(&serde_json::json!({
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({
             "beam_mass_kg": model.beam_mass_kg, "rayleigh_alpha1_per_s": model.rayleigh.0,
-            "rayleigh_alpha2_s": model.rayleigh.1, "modes": v }))?);
+            "rayleigh_alpha2_s": model.rayleigh.1, "modes": v }))?
+        );
         return Ok(());
     }
     println!("beam mass {:.4} kg, carriage {:.3} kg, {} basis functions; Rayleigh alpha1 = {:.4e} 1/s, alpha2 = {:.4e} s",
         model.beam_mass_kg, model.base_mass_kg, a.modes, model.rayleigh.0, model.rayleigh.1);
-    println!("{:>4} {:>16} {:>16} {:>10} {:>14} {:>14}", "mode", "f clamped (Hz)", "f free base (Hz)", "zeta", "participation", "eff. mass (%)");
+    println!(
+        "{:>4} {:>16} {:>16} {:>10} {:>14} {:>14}",
+        "mode", "f clamped (Hz)", "f free base (Hz)", "zeta", "participation", "eff. mass (%)"
+    );
     for r in 0..cm.omega_rad_s.len() {
-        println!("{:>4} {:>16.5} {:>16.5} {:>10.5} {:>14.5} {:>14.2}", r + 1, cm.omega_rad_s[r] / two_pi,
-            free.get(r).copied().unwrap_or(f64::NAN), cm.zeta[r], cm.participation[r],
-            100.0 * cm.participation[r].powi(2) / model.beam_mass_kg);
+        println!(
+            "{:>4} {:>16.5} {:>16.5} {:>10.5} {:>14.5} {:>14.2}",
+            r + 1,
+            cm.omega_rad_s[r] / two_pi,
+            free.get(r).copied().unwrap_or(f64::NAN),
+            cm.zeta[r],
+            cm.participation[r],
+            100.0 * cm.participation[r].powi(2) / model.beam_mass_kg
+        );
     }
     println!("mode shapes w(x)/w(l) at x/l = 0, 0.25, 0.5, 0.75, 1:");
     let l = model.length_m;
-    let basis: Vec<_> = (1..=a.modes).map(|i| super::basis::BasisFn::new(i, l)).collect();
+    let basis: Vec<_> = (1..=a.modes)
+        .map(|i| super::basis::BasisFn::new(i, l))
+        .collect();
     let off = model.n_beam() - a.modes;
     for r in 0..cm.omega_rad_s.len().min(4) {
         let w = |x: f64| -> f64 {
@@ -206,7 +284,10 @@ pub fn modes(a: ModesArgs) -> Result<()> {
             s
         };
         let tip = w(l);
-        let pts: Vec<String> = [0.0, 0.25, 0.5, 0.75, 1.0].iter().map(|f| format!("{:+.4}", w(f * l) / tip)).collect();
+        let pts: Vec<String> = [0.0, 0.25, 0.5, 0.75, 1.0]
+            .iter()
+            .map(|f| format!("{:+.4}", w(f * l) / tip))
+            .collect();
         println!("  mode {}: {}", r + 1, pts.join("  "));
     }
     Ok(())
@@ -225,23 +306,49 @@ pub const PAPER_TABLE2: [(&str, bool, f64, f64, f64); 6] = [
 /// `beamtool table2`: the §5.3 experiment in simulation.
 pub fn table2(a: Table2Args) -> Result<()> {
     let rig = Rig::from_toml_file(&a.rig)?;
-    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
-    let model = BeamModel::new(&rig, &ModelOptions { n_modes: 4, ..Default::default() })?;
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
+    let model = BeamModel::new(
+        &rig,
+        &ModelOptions {
+            n_modes: 4,
+            ..Default::default()
+        },
+    )?;
     let sim = BaseMotionSim::new(&model, 1.0 / SIM_RATE_HZ)?;
     let (target, speed, accel) = (0.05, 0.2, 2.0);
     let hold = 10.0;
     let (reference, ref_end) = trapezoid_reference(0.0, target, speed, accel, SIM_RATE_HZ, hold)?;
-    let t: Vec<f64> = (0..reference.len()).map(|k| k as f64 / SIM_RATE_HZ).collect();
+    let t: Vec<f64> = (0..reference.len())
+        .map(|k| k as f64 / SIM_RATE_HZ)
+        .collect();
     let ref_end_s = ref_end as f64 / SIM_RATE_HZ;
     let band = 0.02 * target;
     let run = |y: &[f64]| -> Vec<f64> { sim.run(y).0.iter().zip(y).map(|(w, y)| w + y).collect() };
-    let cmd_end = |y: &[f64]| -> f64 { y.iter().rposition(|v| (v - target).abs() > 1e-9).map_or(0.0, |k| (k + 1) as f64 / SIM_RATE_HZ) };
+    let cmd_end = |y: &[f64]| -> f64 {
+        y.iter()
+            .rposition(|v| (v - target).abs() > 1e-9)
+            .map_or(0.0, |k| (k + 1) as f64 / SIM_RATE_HZ)
+    };
     let tip_u = run(&reference);
-    let unshaped = measure(&t, &tip_u, 0.0, target, cmd_end(&reference), ref_end_s, band);
+    let unshaped = measure(
+        &t,
+        &tip_u,
+        0.0,
+        target,
+        cmd_end(&reference),
+        ref_end_s,
+        band,
+    );
     let mut md = String::new();
     md.push_str("| shaper | settling (s) sim | paper | overshoot (%) sim | paper | percentage vibration (%) sim | paper | predicted V(f1) (%) |\n|---|---|---|---|---|---|---|---|\n");
-    md.push_str(&format!("| unshaped | {} | – | {:.2} | – | 100 | 100 | 100 |\n",
-        unshaped.settling_s.map_or("> 10".into(), |s| format!("{s:.2}")), unshaped.overshoot_pct));
+    md.push_str(&format!(
+        "| unshaped | {} | – | {:.2} | – | 100 | 100 | 100 |\n",
+        unshaped
+            .settling_s
+            .map_or("> 10".into(), |s| format!("{s:.2}")),
+        unshaped.overshoot_pct
+    ));
     let mut plots: Vec<(String, Vec<f64>)> = vec![("unshaped".into(), tip_u.clone())];
     for (name, two, p_settle, p_over, p_pv) in PAPER_TABLE2 {
         let s = shaper_for(name, 1.1, if two { Some(6.9) } else { None }, 0.0074)?;
@@ -252,9 +359,12 @@ pub fn table2(a: Table2Args) -> Result<()> {
         let cms = model.clamped_modes()?;
         let f1 = cms.omega_rad_s[0] / (2.0 * std::f64::consts::PI);
         let label = format!("{}{}", if two { "two-mode " } else { "" }, name);
-        md.push_str(&format!("| {label} | {} | {p_settle} | {:.2} | {p_over} | {pv:.2} | {p_pv} | {:.2} |\n",
-            m.settling_s.map_or("> 10".into(), |s| format!("{s:.2}")), m.overshoot_pct,
-            100.0 * beamshaper::shaper::residual_vibration(&s, f1, cms.zeta[0])));
+        md.push_str(&format!(
+            "| {label} | {} | {p_settle} | {:.2} | {p_over} | {pv:.2} | {p_pv} | {:.2} |\n",
+            m.settling_s.map_or("> 10".into(), |s| format!("{s:.2}")),
+            m.overshoot_pct,
+            100.0 * beamshaper::shaper::residual_vibration(&s, f1, cms.zeta[0])
+        ));
         plots.push((label, tip));
     }
     let path = a.out.join("table2.md");
@@ -267,13 +377,39 @@ pub fn table2(a: Table2Args) -> Result<()> {
         a.rig.display(), 4, cms.omega_rad_s[0] / (2.0 * std::f64::consts::PI), cms.omega_rad_s[1] / (2.0 * std::f64::consts::PI), model.damping_ratios);
     std::fs::write(&path, format!("{header}{md}"))?;
     print!("{header}{md}");
-    let mm: Vec<Vec<f64>> = plots.iter().map(|(_, v)| v.iter().map(|x| x * 1e3).collect()).collect();
-    let figs = [("fig6_single_zv.svg", vec![0, 1]), ("fig7_single_zvd_zvdd.svg", vec![0, 2, 3]), ("fig8_two_mode_zv.svg", vec![0, 4]), ("fig9_two_mode_zvd_zvdd.svg", vec![0, 5, 6])];
+    let mm: Vec<Vec<f64>> = plots
+        .iter()
+        .map(|(_, v)| v.iter().map(|x| x * 1e3).collect())
+        .collect();
+    let figs = [
+        ("fig6_single_zv.svg", vec![0, 1]),
+        ("fig7_single_zvd_zvdd.svg", vec![0, 2, 3]),
+        ("fig8_two_mode_zv.svg", vec![0, 4]),
+        ("fig9_two_mode_zvd_zvdd.svg", vec![0, 5, 6]),
+    ];
     for (file, idx) in figs {
-        let series: Vec<Series> = idx.iter().map(|&i| Series { label: plots[i].0.clone(), x: &t[..6000], y: &mm[i][..6000] }).collect();
-        lines(&a.out.join(file), &format!("tip position, {}", file.trim_end_matches(".svg")), "time (s)", "tip position (mm)", &series, false)?;
+        let series: Vec<Series> = idx
+            .iter()
+            .map(|&i| Series {
+                label: plots[i].0.clone(),
+                x: &t[..6000],
+                y: &mm[i][..6000],
+            })
+            .collect();
+        lines(
+            &a.out.join(file),
+            &format!("tip position, {}", file.trim_end_matches(".svg")),
+            "time (s)",
+            "tip position (mm)",
+            &series,
+            false,
+        )?;
     }
-    println!("table -> {}, plots -> {}/fig6..fig9*.svg", path.display(), a.out.display());
+    println!(
+        "table -> {}, plots -> {}/fig6..fig9*.svg",
+        path.display(),
+        a.out.display()
+    );
     if plots.len() != 7 {
         bail!("internal: expected 7 responses");
     }

@@ -140,10 +140,16 @@ impl BeamModel {
     /// Errors: no `[beam]`, invalid profile, `n_modes` outside 1..=12, non-positive options,
     /// an upright beam that buckles under its own weight.
     pub fn new(rig: &Rig, opts: &ModelOptions) -> Result<BeamModel> {
-        let beam = rig.beam.as_ref().context("the rig has no [beam] section: no beam model")?;
+        let beam = rig
+            .beam
+            .as_ref()
+            .context("the rig has no [beam] section: no beam model")?;
         let profile: SectionProfile = rig.profile()?;
         if !(1..=12).contains(&opts.n_modes) {
-            bail!("number of basis functions must be 1..12 (got {})", opts.n_modes);
+            bail!(
+                "number of basis functions must be 1..12 (got {})",
+                opts.n_modes
+            );
         }
         if !(opts.stiffness_scale > 0.0) || !(opts.tip_mass_kg >= 0.0) {
             bail!("stiffness scale must be > 0 and tip mass >= 0");
@@ -164,7 +170,11 @@ impl BeamModel {
             match opts.axial_load {
                 None => 0.0,
                 Some(o) => {
-                    let below: f64 = pts.iter().filter(|p| p.0 > x).map(|&(s, w)| w * rho * profile.area(s)).sum();
+                    let below: f64 = pts
+                        .iter()
+                        .filter(|p| p.0 > x)
+                        .map(|&(s, w)| w * rho * profile.area(s))
+                        .sum();
                     let sign = if o == Orientation::Hanging { 1.0 } else { -1.0 };
                     sign * G_M_S2 * (below + opts.tip_mass_kg)
                 }
@@ -191,7 +201,11 @@ impl BeamModel {
             shape(x, &mut vals, &mut d1, &mut d2);
             let ma = w * rho * profile.area(x);
             let ei = w * e * profile.inertia(x);
-            let nn = if opts.axial_load.is_some() { w * axial(x) } else { 0.0 };
+            let nn = if opts.axial_load.is_some() {
+                w * axial(x)
+            } else {
+                0.0
+            };
             for i in 1..dim {
                 mass[(0, i)] += ma * vals[i]; // h_i (eq. 18)
                 for j in i..dim {
@@ -205,7 +219,7 @@ impl BeamModel {
             bail!("carriage mass must stay > 0 (got {base_mass} kg)");
         }
         mass[(0, 0)] = base_mass + beam_mass + opts.tip_mass_kg; // J (eq. 17)
-        // Tip mass.
+                                                                 // Tip mass.
         let mut tip = DVector::zeros(dim);
         shape(l, &mut vals, &mut d1, &mut d2);
         for i in 1..dim {
@@ -258,7 +272,10 @@ impl BeamModel {
         let k = self.stiffness.view((1, 1), (nb, nb)).into_owned();
         let (w2, _) = generalized_eigen(&k, &m)?;
         if w2[0] <= 0.0 {
-            bail!("the beam buckles under the axial load (lowest eigenvalue {:.3e} <= 0)", w2[0]);
+            bail!(
+                "the beam buckles under the axial load (lowest eigenvalue {:.3e} <= 0)",
+                w2[0]
+            );
         }
         Ok(w2.iter().map(|v| v.sqrt()).collect())
     }
@@ -277,7 +294,9 @@ impl BeamModel {
         let omega: Vec<f64> = w2.iter().map(|v| v.sqrt()).collect();
         let (a1, a2) = self.rayleigh;
         Ok(ClampedModes {
-            participation: (0..nb).map(|r| shapes.column(r).dot(&h.column(0))).collect(),
+            participation: (0..nb)
+                .map(|r| shapes.column(r).dot(&h.column(0)))
+                .collect(),
             tip: (0..nb).map(|r| shapes.column(r).dot(&tipb)).collect(),
             zeta: omega.iter().map(|w| 0.5 * (a1 / w + a2 * w)).collect(),
             omega_rad_s: omega,
@@ -290,14 +309,21 @@ impl BeamModel {
     /// dropped).
     pub fn free_base_freqs_hz(&self) -> Result<Vec<f64>> {
         let (w2, _) = generalized_eigen(&self.stiffness, &self.mass)?;
-        Ok(w2.iter().skip(1).map(|v| v.max(0.0).sqrt() / (2.0 * std::f64::consts::PI)).collect())
+        Ok(w2
+            .iter()
+            .skip(1)
+            .map(|v| v.max(0.0).sqrt() / (2.0 * std::f64::consts::PI))
+            .collect())
     }
 }
 
 /// Solves K v = λ M v for symmetric K and symmetric positive-definite M: eigenvalues ascending
 /// and M-orthonormal eigenvectors (columns), via Cholesky M = L Lᵀ.
 pub fn generalized_eigen(k: &DMatrix<f64>, m: &DMatrix<f64>) -> Result<(Vec<f64>, DMatrix<f64>)> {
-    let chol = m.clone().cholesky().context("mass matrix is not positive definite")?;
+    let chol = m
+        .clone()
+        .cholesky()
+        .context("mass matrix is not positive definite")?;
     let l = chol.l();
     let linv = l.clone().try_inverse().context("mass matrix is singular")?;
     let c = &linv * k * linv.transpose();

@@ -34,8 +34,14 @@ pub fn trapezoid_reference(
     hold_s: f64,
 ) -> Result<(Vec<f64>, usize)> {
     let nm = |m: f64| (m * 1e9).round() as i32;
-    let mut mv = TrapezoidMove::new(nm(start_m), nm(target_m), (speed_m_s * 1e9) as f32, (accel_m_s2 * 1e9) as f32, tick_hz as f32)
-        .map_err(|e| anyhow!("move profile refused: {e:?}"))?;
+    let mut mv = TrapezoidMove::new(
+        nm(start_m),
+        nm(target_m),
+        (speed_m_s * 1e9) as f32,
+        (accel_m_s2 * 1e9) as f32,
+        tick_hz as f32,
+    )
+    .map_err(|e| anyhow!("move profile refused: {e:?}"))?;
     let mut v = vec![start_m];
     while !mv.done() {
         v.push(mv.next() as f64 * 1e-9);
@@ -47,15 +53,26 @@ pub fn trapezoid_reference(
 
 /// Shapes reference positions (m, one per tick at `tick_hz`) with the firmware core's run-time
 /// engine (`beamshaper::engine`, the code the timer interrupt runs), on `path`.
-pub fn shape_with_engine(shaper: &Shaper, tick_hz: f64, reference_m: &[f64], path: NumericPath) -> Result<Vec<f64>> {
-    let n = ((shaper.duration_s() * tick_hz) as usize + 4).next_power_of_two().max(2);
+pub fn shape_with_engine(
+    shaper: &Shaper,
+    tick_hz: f64,
+    reference_m: &[f64],
+    path: NumericPath,
+) -> Result<Vec<f64>> {
+    let n = ((shaper.duration_s() * tick_hz) as usize + 4)
+        .next_power_of_two()
+        .max(2);
     macro_rules! run {
         ($n:expr) => {{
-            let taps = TapTable::from_shaper(shaper, tick_hz, $n).map_err(|e| anyhow!("shaper does not fit: {e:?}"))?;
+            let taps = TapTable::from_shaper(shaper, tick_hz, $n)
+                .map_err(|e| anyhow!("shaper does not fit: {e:?}"))?;
             let x0 = (reference_m[0] * 1e9).round() as i32;
             let mut e: Box<Engine<$n>> = Box::new(Engine::new(x0));
             e.install(taps, path, x0);
-            Ok(reference_m.iter().map(|&r| e.tick((r * 1e9).round() as i32) as f64 * 1e-9).collect())
+            Ok(reference_m
+                .iter()
+                .map(|&r| e.tick((r * 1e9).round() as i32) as f64 * 1e-9)
+                .collect())
         }};
     }
     match n {

@@ -151,13 +151,15 @@ impl Rig {
     /// Parses and validates a rig file. Errors name the offending key.
     pub fn from_toml_file(path: impl AsRef<Path>) -> Result<Rig> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read rig file {}", path.display()))?;
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read rig file {}", path.display()))?;
         Rig::from_toml_str(&text).with_context(|| format!("rig file {}", path.display()))
     }
 
     /// Parses and validates a rig from TOML text.
     pub fn from_toml_str(text: &str) -> Result<Rig> {
-        let rig: Rig = toml::from_str(text).map_err(|e| anyhow::anyhow!("{}", e.to_string().trim_end()))?;
+        let rig: Rig =
+            toml::from_str(text).map_err(|e| anyhow::anyhow!("{}", e.to_string().trim_end()))?;
         rig.validate()?;
         Ok(rig)
     }
@@ -190,7 +192,10 @@ impl Rig {
     /// The beam's A(x), I(x). Errors: no or both of `stations`/`profile`, fewer than 2
     /// stations, non-positive sizes, unsorted stations, a profile not spanning [0, l].
     pub fn profile(&self) -> Result<SectionProfile> {
-        let b = self.beam.as_ref().context("the rig has no [beam] section")?;
+        let b = self
+            .beam
+            .as_ref()
+            .context("the rig has no [beam] section")?;
         let p = match (b.stations.is_empty(), b.profile.is_empty()) {
             (false, true) => {
                 for (i, s) in b.stations.iter().enumerate() {
@@ -199,8 +204,16 @@ impl Rig {
                 }
                 SectionProfile {
                     x_m: b.stations.iter().map(|s| s.x_m).collect(),
-                    area_m2: b.stations.iter().map(|s| s.width_m * s.thickness_m).collect(),
-                    inertia_m4: b.stations.iter().map(|s| s.width_m * s.thickness_m.powi(3) / 12.0).collect(),
+                    area_m2: b
+                        .stations
+                        .iter()
+                        .map(|s| s.width_m * s.thickness_m)
+                        .collect(),
+                    inertia_m4: b
+                        .stations
+                        .iter()
+                        .map(|s| s.width_m * s.thickness_m.powi(3) / 12.0)
+                        .collect(),
                 }
             }
             (true, false) => {
@@ -214,18 +227,29 @@ impl Rig {
                     inertia_m4: b.profile.iter().map(|s| s.inertia_m4).collect(),
                 }
             }
-            (true, true) => bail!("`beam` needs `stations` (rectangular) or `profile` (tabulated A, I)"),
+            (true, true) => {
+                bail!("`beam` needs `stations` (rectangular) or `profile` (tabulated A, I)")
+            }
             (false, false) => bail!("`beam` has both `stations` and `profile`; give one"),
         };
-        let key = if b.stations.is_empty() { "beam.profile" } else { "beam.stations" };
+        let key = if b.stations.is_empty() {
+            "beam.profile"
+        } else {
+            "beam.stations"
+        };
         if p.x_m.len() < 2 {
             bail!("`{key}` needs at least 2 entries (root and tip)");
         }
         if p.x_m.windows(2).any(|w| !(w[1] > w[0])) {
             bail!("`{key}` must be sorted by strictly increasing x_m");
         }
-        if p.x_m[0].abs() > 1e-9 || (p.x_m[p.x_m.len() - 1] - b.length_m).abs() > 1e-9 * b.length_m.max(1.0) {
-            bail!("`{key}` must run from x_m = 0 to x_m = beam.length_m = {}", b.length_m);
+        if p.x_m[0].abs() > 1e-9
+            || (p.x_m[p.x_m.len() - 1] - b.length_m).abs() > 1e-9 * b.length_m.max(1.0)
+        {
+            bail!(
+                "`{key}` must run from x_m = 0 to x_m = beam.length_m = {}",
+                b.length_m
+            );
         }
         Ok(p)
     }

@@ -18,9 +18,22 @@ use nalgebra::{DVector, Matrix2, Matrix3, Vector2};
 /// Exact discretisation of `ẍ + 2ζω ẋ + ω² x = f` over `dt`: the free propagator Φ (2×2) and
 /// the zero-order-hold input vector Γ (response to a unit f held for dt).
 pub fn mode_zoh(omega: f64, zeta: f64, dt: f64) -> (Matrix2<f64>, Vector2<f64>) {
-    let a = Matrix3::new(0.0, 1.0, 0.0, -omega * omega, -2.0 * zeta * omega, 1.0, 0.0, 0.0, 0.0);
+    let a = Matrix3::new(
+        0.0,
+        1.0,
+        0.0,
+        -omega * omega,
+        -2.0 * zeta * omega,
+        1.0,
+        0.0,
+        0.0,
+        0.0,
+    );
     let e = (a * dt).exp();
-    (Matrix2::new(e[(0, 0)], e[(0, 1)], e[(1, 0)], e[(1, 1)]), Vector2::new(e[(0, 2)], e[(1, 2)]))
+    (
+        Matrix2::new(e[(0, 0)], e[(0, 1)], e[(1, 0)], e[(1, 1)]),
+        Vector2::new(e[(0, 2)], e[(1, 2)]),
+    )
 }
 
 /// A simulator of the beam on a position-controlled base, precomputed for one sample interval.
@@ -39,8 +52,18 @@ impl BaseMotionSim {
             bail!("sample interval must be > 0 (got {dt})");
         }
         let modes = model.clamped_modes()?;
-        let phi = modes.omega_rad_s.iter().zip(&modes.zeta).map(|(&w, &z)| mode_zoh(w, z, dt).0).collect();
-        Ok(BaseMotionSim { modes, phi, dt, total_mass_kg: model.mass[(0, 0)] })
+        let phi = modes
+            .omega_rad_s
+            .iter()
+            .zip(&modes.zeta)
+            .map(|(&w, &z)| mode_zoh(w, z, dt).0)
+            .collect();
+        Ok(BaseMotionSim {
+            modes,
+            phi,
+            dt,
+            total_mass_kg: model.mass[(0, 0)],
+        })
     }
 
     /// The clamped-base modes used.
@@ -59,8 +82,16 @@ impl BaseMotionSim {
         let g = &self.modes.participation;
         let sum_g2: f64 = g.iter().map(|v| v * v).sum();
         for k in 0..n {
-            let v_before = if k == 0 { 0.0 } else { (y_m[k] - y_m[k - 1]) / self.dt };
-            let v_after = if k + 1 < n { (y_m[k + 1] - y_m[k]) / self.dt } else { 0.0 };
+            let v_before = if k == 0 {
+                0.0
+            } else {
+                (y_m[k] - y_m[k - 1]) / self.dt
+            };
+            let v_after = if k + 1 < n {
+                (y_m[k + 1] - y_m[k]) / self.dt
+            } else {
+                0.0
+            };
             let dv = v_after - v_before;
             let acc = dv / self.dt;
             let mut tip = 0.0;
@@ -116,10 +147,27 @@ impl ForceSim {
         let zeta: Vec<f64> = omega
             .iter()
             .enumerate()
-            .map(|(i, &w)| if i == 0 || undamped { 0.0 } else { 0.5 * (a1 / w + a2 * w) })
+            .map(|(i, &w)| {
+                if i == 0 || undamped {
+                    0.0
+                } else {
+                    0.5 * (a1 / w + a2 * w)
+                }
+            })
             .collect();
-        let (phi, gam) = omega.iter().zip(&zeta).map(|(&w, &z)| mode_zoh(w, z, dt)).unzip();
-        Ok(ForceSim { omega_rad_s: omega, zeta, shapes, phi, gam, tip: model.tip.clone() })
+        let (phi, gam) = omega
+            .iter()
+            .zip(&zeta)
+            .map(|(&w, &z)| mode_zoh(w, z, dt))
+            .unzip();
+        Ok(ForceSim {
+            omega_rad_s: omega,
+            zeta,
+            shapes,
+            phi,
+            gam,
+            tip: model.tip.clone(),
+        })
     }
 
     /// Propagates the modal state `eta` (per mode [η, η̇]) one step with force `u` (N) held.
@@ -138,7 +186,12 @@ impl ForceSim {
     }
 
     /// Modal state of physical coordinates/velocities (Φᵀ M x, since Φᵀ M Φ = I).
-    pub fn modal(&self, model: &BeamModel, q: &DVector<f64>, qd: &DVector<f64>) -> Vec<Vector2<f64>> {
+    pub fn modal(
+        &self,
+        model: &BeamModel,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+    ) -> Vec<Vector2<f64>> {
         let a = self.shapes.transpose() * &model.mass * q;
         let b = self.shapes.transpose() * &model.mass * qd;
         (0..a.len()).map(|r| Vector2::new(a[r], b[r])).collect()
