@@ -294,3 +294,40 @@ fn q30_weights_sum_exactly_to_one() {
         }
     }
 }
+
+/// Pass-through of the upstream step/direction stream: the 16-bit encoder count wraps, the
+/// reference follows it in nm, is shaped, and ends exactly at the upstream position.
+#[test]
+fn stepdir_pass_through_unwraps_the_16_bit_counter_and_shapes_it() {
+    let mut s = Settings::DEFAULT;
+    s.modes[0] = Some(ModeSetting {
+        kind: ShaperKind::Zvd,
+        freq_hz: 5.0,
+        zeta: 0.02,
+    });
+    s.source = beamshaper::config::Source::StepDir;
+    s.input_nm_per_count = 1000;
+    s.max_step_rate_hz = 10_000_000;
+    let mut rt = Box::new(Runtime::new());
+    rt.configure_at_boot(RunParams::from_settings(&s).unwrap(), 65_000);
+    // Upstream controller: 150 000 steps forward at 300 steps/tick, wrapping the counter twice.
+    let mut raw: u16 = 65_000;
+    let mut upstream: i64 = 0;
+    let mut signed_pulses: i64 = rt.step_output().emitted();
+    for k in 0..2000 {
+        if k < 500 {
+            raw = raw.wrapping_add(300);
+            upstream += 300;
+        }
+        let out = rt.tick(&TickInput { stepdir_count: raw });
+        assert_eq!(out.reference_counts as i64, upstream * 1000);
+        signed_pulses += if out.step.forward {
+            out.step.pulses as i64
+        } else {
+            -(out.step.pulses as i64)
+        };
+        assert_eq!(signed_pulses, (out.setpoint_counts as i64).div_euclid(1000));
+    }
+    assert_eq!(rt.status().setpoint_counts, 150_000_000);
+    assert_eq!(rt.step_output().emitted(), 150_000);
+}
