@@ -30,6 +30,8 @@ enum Command {
     Modes(beamtools::model::cli::ModesArgs),
     /// Reproduce the paper's Table 2 and Figs. 6-9 in simulation.
     Table2(beamtools::model::cli::Table2Args),
+    /// Benchmark the simulator against scipy.signal.lsim (needs python3 with scipy).
+    BenchSim(beamtools::model::bench::BenchArgs),
     /// Identify natural frequencies and damping ratios from a free decay (.npy or CSV).
     Identify(beamtools::ident::cli::IdentifyArgs),
 }
@@ -89,6 +91,7 @@ fn main() -> Result<()> {
         Command::Modes(a) => beamtools::model::cli::modes(a),
         Command::Table2(a) => beamtools::model::cli::table2(a),
         Command::Identify(a) => beamtools::ident::cli::identify(a),
+        Command::BenchSim(a) => beamtools::model::bench::bench_sim(a),
     }
 }
 

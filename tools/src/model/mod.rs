@@ -8,6 +8,7 @@
 //! - [`cli`]: `simulate`, `modes`, `table2`.
 
 pub mod basis;
+pub mod bench;
 pub mod cli;
 pub mod galerkin;
 pub mod rig;
