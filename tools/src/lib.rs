@@ -8,6 +8,7 @@
 //! - [`tune`]: the main job end to end.
 
 pub mod board;
+pub mod fe;
 pub mod ident;
 pub mod measures;
 pub mod model;
