@@ -1,7 +1,15 @@
 #!/usr/bin/env bash
 # The project's test command: the no_std core under std (host-tests/) and the host tools (tools/).
 # Each crate is built for the machine running cargo (their .cargo/config.toml sets host-tuple).
+# Ends with one summary line over both crates: "tests: N passed, M failed".
 set -euo pipefail
 cd "$(dirname "$0")"
-(cd host-tests && cargo test --locked)
-(cd tools && cargo test --locked)
+log=$(mktemp)
+trap 'rm -f "$log"' EXIT
+status=0
+(cd host-tests && cargo test --locked) 2>&1 | tee -a "$log" || status=1
+(cd tools && cargo test --locked) 2>&1 | tee -a "$log" || status=1
+passed=$(grep -oE 'test result: [a-zA-Z]+\. [0-9]+ passed' "$log" | awk '{s += $4} END {print s + 0}')
+failed=$(grep -oE '[0-9]+ failed;' "$log" | awk '{s += $1} END {print s + 0}')
+echo "tests: ${passed} passed, ${failed} failed"
+exit $status
