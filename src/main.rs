@@ -9,8 +9,13 @@
 //! - **Settings** in the last 16 KiB of flash via `sequential-storage` (see `memory.x`).
 //!
 //! Pins: PC6 = STEP (TIM8_CH1, one-pulse train of N pulses per tick using the repetition
-//! counter), PC7 = DIR, PB6/PB7 = upstream STEP/DIR in (TIM4 CH1/CH2, clock + direction
-//! encoder mode), PA4 = DAC1_OUT1 (setpoint mirror), PA2/PA3 = console.
+//! counter), PC7 = DIR, PB6 = upstream DIR in (TIM4_CH1 = direction input of the timer's
+//! clock + direction encoder mode), PB7 = upstream STEP in (TIM4_CH2 = clock input),
+//! PA4 = DAC1_OUT1 (setpoint mirror), PA2/PA3 = console.
+//!
+//! Timers: TIM6 = tick, TIM4 = step/dir input counter, TIM8 = step pulse train, TIM15 = the
+//! embassy time driver (feature `time-driver-tim15`, pinned so it can never take TIM4/TIM8).
+//! Interrupt priorities: TIM6 at P0 (pre-empts everything else), LPUART1 and TIM15 at P1.
 #![no_std]
 #![no_main]
 
@@ -22,23 +27,24 @@ use core::fmt::Write as _;
 use embassy_embedded_hal::adapter::BlockingAsync;
 use embassy_executor::Spawner;
 use embassy_stm32::flash::{Blocking, Flash};
+use embassy_stm32::dac::{DacChannel, Value};
 use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::interrupt;
+use embassy_stm32::interrupt::{InterruptExt, Priority};
+use embassy_stm32::mode::Blocking as BlockingMode;
 use embassy_stm32::pac;
 use embassy_stm32::usart::{BufferedUart, Config as UartConfig};
 use embassy_stm32::{bind_interrupts, peripherals, usart, Config};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embedded_io_async::{Read, Write};
-use sequential_storage::cache::Cache;
-use sequential_storage::map::{MapConfig, MapStorage};
 use static_cell::StaticCell;
 use {defmt_rtt as _, panic_probe as _};
 
 /// Timer kernel clock of TIM6/TIM4/TIM8 (APB1/APB2 prescaler 1 at 170 MHz).
 const TIMER_CLOCK_HZ: u32 = 170_000_000;
-/// Settings flash: the last four 4 KiB pages (single-bank mode) of the 512 KiB flash,
-/// excluded from `FLASH` in `memory.x`.
+/// Settings flash (offsets from the flash base): the last four 4 KiB pages (single-bank
+/// mode) of the 512 KiB flash, 0x0807C000..0x08080000, excluded from `FLASH` in `memory.x`.
 const SETTINGS_FLASH: core::ops::Range<u32> = (512 - 16) * 1024..512 * 1024;
 
 /// The interrupt-owned state, shared with the console through a critical section.
@@ -68,14 +74,23 @@ fn set_tick_rate(rate_hz: u32) {
 }
 
 /// Emits `out.step` during the next tick: DIR first, then N pulses on TIM8_CH1 in one-pulse
-/// mode with the repetition counter (N ≤ 65536), spaced to fill 80 % of the tick.
-fn emit(out: &TickOutput, dir: &mut Output<'static>, tick_hz: u32) {
+/// mode with the repetition counter (REP = N − 1, N ≤ 65536), period P = 80 % of the tick / N
+/// (≥ 4 timer counts). PWM mode 2: each pulse is low for the first P/2 and high for the
+/// second, so DIR is set up at least P/2 before the first rising STEP edge, and the train
+/// ends (counter stopped by OPM, output low) before the next tick programs another.
+/// The core's step-rate check keeps N within the drive's maximum step rate.
+fn emit(
+    out: &TickOutput,
+    dir: &mut Output<'static>,
+    dac: &mut DacChannel<'static, BlockingMode>,
+    tick_hz: u32,
+) {
     dir.set_level(if out.step.forward {
         Level::High
     } else {
         Level::Low
     });
-    pac::DAC1.dhr12r(0).write(|w| w.set_dhr(out.dac_code));
+    dac.set(Value::Bit12Right(out.dac_code));
     let n = out.step.pulses.min(65_536);
     if n == 0 {
         return;
@@ -92,7 +107,13 @@ fn emit(out: &TickOutput, dir: &mut Output<'static>, tick_hz: u32) {
     });
 }
 
-static DIR_PIN: Mutex<CriticalSectionRawMutex, RefCell<Option<Output<'static>>>> =
+/// The outputs the interrupt drives (moved here once at boot).
+struct Outputs {
+    dir: Output<'static>,
+    dac: DacChannel<'static, BlockingMode>,
+}
+
+static OUTPUTS: Mutex<CriticalSectionRawMutex, RefCell<Option<Outputs>>> =
     Mutex::new(RefCell::new(None));
 
 #[interrupt]
@@ -106,9 +127,9 @@ fn TIM6_DAC() {
         let before = rt.tick_rate_hz();
         let out = rt.tick(&input);
         let after = rt.tick_rate_hz();
-        DIR_PIN.lock(|d| {
-            if let Some(d) = d.borrow_mut().as_mut() {
-                emit(&out, d, after);
+        OUTPUTS.lock(|o| {
+            if let Some(o) = o.borrow_mut().as_mut() {
+                emit(&out, &mut o.dir, &mut o.dac, after);
             }
         });
         if after != before {
@@ -118,16 +139,24 @@ fn TIM6_DAC() {
 }
 
 fn init_timers() {
-    // TIM4: clock + direction input (SMS = 0b1011, "clock plus direction, x1").
+    // TIM4: clock + direction encoder mode, x1 (SMS = 0b1011, RM0440 "clock plus direction"):
+    // clock on TI2 (PB7), direction on TI1 (PB6, high = up). Both channels as inputs on their
+    // own pins, filtered over 8 samples at 170 MHz (47 ns).
     let t4 = pac::TIM4;
     t4.arr().write(|w| w.set_arr(0xffff));
+    t4.ccmr_input(0).modify(|w| {
+        for ch in 0..2 {
+            w.set_ccs(ch, pac::timer::vals::CcmrInputCcs::TI4);
+            w.set_icf(ch, pac::timer::vals::FilterValue::FCK_INT_N8);
+        }
+    });
     t4.smcr()
         .modify(|w| w.set_sms(pac::timer::vals::Sms::from_bits(0b1011)));
     t4.cr1().modify(|w| w.set_cen(true));
-    // TIM8_CH1: PWM mode 1, main output enabled; started per tick by `emit`.
+    // TIM8_CH1: PWM mode 2, main output enabled; started per tick by `emit`.
     let t8 = pac::TIM8;
     t8.ccmr_output(0)
-        .modify(|w| w.set_ocm(0, pac::timer::vals::Ocm::PWM_MODE1));
+        .modify(|w| w.set_ocm(0, pac::timer::vals::Ocm::PWM_MODE2));
     t8.ccer().modify(|w| w.set_cce(0, true));
     t8.bdtr().modify(|w| w.set_moe(true));
     // TIM6: the tick.
@@ -160,10 +189,9 @@ async fn main(_spawner: Spawner) {
         w.set_tim4en(true)
     });
     pac::RCC.apb2enr().modify(|w| w.set_tim8en(true));
-    pac::RCC.ahb2enr().modify(|w| w.set_dac1en(true));
-    pac::DAC1.cr().modify(|w| w.set_en(0, true));
-    let _step_in = embassy_stm32::gpio::Flex::new(p.PB6);
-    let _dir_in = embassy_stm32::gpio::Flex::new(p.PB7);
+    // Claim the upstream DIR (PB6) and STEP (PB7) pins, then hand them to TIM4 (AF2).
+    let _dir_in = embassy_stm32::gpio::Flex::new(p.PB6);
+    let _step_in = embassy_stm32::gpio::Flex::new(p.PB7);
     pac::GPIOB.moder().modify(|w| {
         w.set_moder(6, pac::gpio::vals::Moder::ALTERNATE);
         w.set_moder(7, pac::gpio::vals::Moder::ALTERNATE)
@@ -176,11 +204,11 @@ async fn main(_spawner: Spawner) {
         .moder()
         .modify(|w| w.set_moder(6, pac::gpio::vals::Moder::ALTERNATE));
     pac::GPIOC.afr(0).modify(|w| w.set_afr(6, 4));
-    pac::GPIOA
-        .moder()
-        .modify(|w| w.set_moder(4, pac::gpio::vals::Moder::ANALOG));
     let dir = Output::new(p.PC7, Level::Low, Speed::VeryHigh);
-    DIR_PIN.lock(|d| *d.borrow_mut() = Some(dir));
+    // DAC1 channel 1 on PA4: embassy enables its clock, sets HFSEL for the 170 MHz bus and
+    // makes the pin analog; the interrupt then only writes DHR12R1.
+    let dac = DacChannel::new_blocking(p.DAC1, p.PA4);
+    OUTPUTS.lock(|o| *o.borrow_mut() = Some(Outputs { dir, dac }));
 
     // Console UART.
     static TX_BUF: StaticCell<[u8; 2048]> = StaticCell::new();
@@ -202,25 +230,22 @@ async fn main(_spawner: Spawner) {
     let (mut tx, mut rx) = uart.split();
 
     // Settings from flash, then the tick.
-    let flash = Flash::new_blocking(p.FLASH);
-    let mut map: MapStorage<u8, BlockingAsync<Flash<'static, Blocking>>, _> = MapStorage::new(
-        BlockingAsync::new(flash),
-        const { MapConfig::new(SETTINGS_FLASH) },
-        Cache::new_uncached(),
-    );
+    let mut flash: BlockingAsync<Flash<'static, Blocking>> =
+        BlockingAsync::new(Flash::new_blocking(p.FLASH));
     let mut sbuf = [0u8; STORAGE_BUFFER_BYTES];
-    let loaded = load_settings(&mut map, &mut sbuf).await;
+    let loaded = load_settings(&mut flash, SETTINGS_FLASH, &mut sbuf).await;
     let mut reply: heapless::String<2048> = heapless::String::new();
     let stepdir_now = pac::TIM4.cnt().read().cnt() as u16;
     let mut console = Console::boot(loaded, &mut Shared, stepdir_now, &mut reply);
     init_timers();
     set_tick_rate(RUNTIME.lock(|r| r.borrow().tick_rate_hz()));
-    // SAFETY: the handler only touches RUNTIME/DIR_PIN through critical-section mutexes.
-    unsafe {
-        let mut nvic = cortex_m::Peripherals::steal().NVIC;
-        nvic.set_priority(interrupt::TIM6_DAC, 0);
-        cortex_m::peripheral::NVIC::unmask(interrupt::TIM6_DAC);
-    }
+    // The tick pre-empts the console UART and the embassy time driver (TIM15).
+    interrupt::LPUART1.set_priority(Priority::P1);
+    interrupt::TIM1_BRK_TIM15.set_priority(Priority::P1);
+    interrupt::TIM6_DAC.set_priority(Priority::P0);
+    interrupt::TIM6_DAC.unpend();
+    // SAFETY: the handler only touches RUNTIME/OUTPUTS through critical-section mutexes.
+    unsafe { interrupt::TIM6_DAC.enable() };
     let _ = tx.write_all(reply.as_bytes()).await;
     defmt::info!("beamshaper firmware up");
 
@@ -244,11 +269,11 @@ async fn main(_spawner: Spawner) {
             Ok(line) => match console.handle_line(&line, &mut Shared, &mut reply) {
                 Action::None => {}
                 Action::Save => {
-                    let r = save_settings(&mut map, &mut sbuf, console.settings()).await;
+                    let r = save_settings(&mut flash, SETTINGS_FLASH, &mut sbuf, console.settings()).await;
                     console.finish_save(r, &mut reply);
                 }
                 Action::Load => {
-                    let r = load_settings(&mut map, &mut sbuf).await;
+                    let r = load_settings(&mut flash, SETTINGS_FLASH, &mut sbuf).await;
                     console.finish_load(r, &mut Shared, &mut reply);
                 }
             },

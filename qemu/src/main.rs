@@ -1,13 +1,17 @@
 //! Runs the beamshaper core on an emulated Cortex-M4F and prints, over semihosting:
 //! 1. the golden vectors (`beamshaper::golden`), which CI compares byte for byte with the
 //!    host's output of the same function;
-//! 2. after the `end` line, the cost of one run-time tick (two-mode ZVDD, fixed point, during
-//!    a move) measured with SysTick under `-icount shift=0` (1 instruction = 1 ns of virtual
-//!    time; SysTick runs at the 25 MHz system clock, so one count = 40 instructions).
+//! 2. after the `end` line, `tick-cost` lines: the instructions of one run-time tick during a
+//!    move (two-mode ZVDD as in the host benchmark, and the interrupt's worst case, a
+//!    three-mode ZVDD with 128 taps), both numeric paths, measured with SysTick under
+//!    `-icount shift=0` (1 instruction = 1 ns of virtual time; SysTick runs at the 25 MHz
+//!    system clock, so one count = 40 instructions, checked by a calibration loop of a known
+//!    instruction count).
 #![no_std]
 #![no_main]
 
 use beamshaper::config::{ModeSetting, Settings};
+use beamshaper::engine::NumericPath;
 use beamshaper::runtime::{RunParams, Runtime, TickInput};
 use beamshaper::shaper::ShaperKind;
 use core::fmt::Write;
@@ -31,49 +35,49 @@ fn main() -> ! {
     let ok = beamshaper::golden::write_golden(&mut buf).is_ok();
     buf.flush();
 
-    // One tick of a two-mode ZVDD (1.1 Hz, 6.9 Hz, ζ = 0.0074) at 1 kHz, fixed point.
-    let mut s = Settings::DEFAULT;
-    s.modes[0] = Some(ModeSetting {
-        kind: ShaperKind::Zvdd,
-        freq_hz: 1.1,
-        zeta: 0.0074,
-    });
-    s.modes[1] = Some(ModeSetting {
-        kind: ShaperKind::Zvdd,
-        freq_hz: 6.9,
-        zeta: 0.0074,
-    });
-    // SAFETY: single-threaded bare-metal program, no interrupts touch RT.
-    #[allow(static_mut_refs)]
-    let rt = unsafe { &mut RT };
-    if let Ok(p) = RunParams::from_settings(&s) {
-        let taps = p.taps.taps().len();
-        rt.configure_at_boot(p, 0);
-        let _ = rt.start_move(50_000_000, 2.0e8, 2.0e9);
-        for _ in 0..2000 {
-            rt.tick(&TickInput::default());
-        }
-        let mut cp = match cortex_m::Peripherals::take() {
-            Some(cp) => cp,
-            None => fail(),
-        };
-        cp.SYST.set_clock_source(SystClkSource::Core);
-        cp.SYST.set_reload(0x00ff_ffff);
-        cp.SYST.clear_current();
-        cp.SYST.enable_counter();
-        let n = 1000u32;
-        let t0 = cortex_m::peripheral::SYST::get_current();
-        for _ in 0..n {
-            core::hint::black_box(rt.tick(core::hint::black_box(&TickInput::default())));
-        }
-        let t1 = cortex_m::peripheral::SYST::get_current();
-        let counts = t0.wrapping_sub(t1) & 0x00ff_ffff;
-        let _ = writeln!(
-            buf,
-            "tick-cost taps={taps} ticks={n} systick_counts={counts} instructions_per_tick~{}",
-            counts as u64 * 40 / n as u64
+    // The cost of one run-time tick during a move, for the benchmark's two-mode ZVDD and for
+    // the interrupt's worst case (a three-mode ZVDD: 64 impulses, each split over two ticks).
+    let mut cp = match cortex_m::Peripherals::take() {
+        Some(cp) => cp,
+        None => fail(),
+    };
+    cp.SYST.set_clock_source(SystClkSource::Core);
+    cp.SYST.set_reload(0x00ff_ffff);
+    cp.SYST.clear_current();
+    cp.SYST.enable_counter();
+    // Calibration: a loop of exactly 12 instructions × 10 000 iterations (10 nop, subs, bne).
+    let t0 = cortex_m::peripheral::SYST::get_current();
+    // SAFETY: register-only loop, no memory access.
+    unsafe {
+        core::arch::asm!(
+            "2:",
+            "nop", "nop", "nop", "nop", "nop", "nop", "nop", "nop", "nop", "nop",
+            "subs {n}, {n}, #1",
+            "bne 2b",
+            n = inout(reg) 10_000u32 => _,
+            options(nomem, nostack),
         );
-        buf.flush();
+    }
+    let t1 = cortex_m::peripheral::SYST::get_current();
+    let _ = writeln!(
+        buf,
+        "tick-cost calibration instructions=120000 systick_counts={} instructions_per_count~{}",
+        t0.wrapping_sub(t1) & 0x00ff_ffff,
+        120_000 / (t0.wrapping_sub(t1) & 0x00ff_ffff).max(1)
+    );
+    let zvdd = |f: f64| Some(ModeSetting { kind: ShaperKind::Zvdd, freq_hz: f, zeta: 0.0074 });
+    let two_mode = [zvdd(1.1), zvdd(6.9), None, None];
+    let three_mode = [zvdd(1.1), zvdd(6.9), zvdd(17.3), None];
+    for (label, modes, path) in [
+        ("2-mode-zvdd", two_mode, NumericPath::Fixed),
+        ("2-mode-zvdd", two_mode, NumericPath::F32),
+        ("3-mode-zvdd", three_mode, NumericPath::Fixed),
+        ("3-mode-zvdd", three_mode, NumericPath::F32),
+    ] {
+        let mut s = Settings::DEFAULT;
+        s.modes = modes;
+        s.path = path;
+        tick_cost(&mut buf, label, &s);
     }
     debug::exit(if ok {
         debug::EXIT_SUCCESS
@@ -81,6 +85,46 @@ fn main() -> ! {
         debug::EXIT_FAILURE
     });
     loop {}
+}
+
+/// Prints the mean instructions per tick over 1000 ticks of a 0 → 50 mm move (50 mm/s,
+/// 500 mm/s²: the reference and the shaped setpoint both move during all of them).
+fn tick_cost(buf: &mut Buffered<'_>, label: &str, s: &Settings) {
+    let p = match RunParams::from_settings(s) {
+        Ok(p) => p,
+        Err(_) => {
+            let _ = writeln!(buf, "tick-cost {label} err");
+            return;
+        }
+    };
+    let taps = p.taps.taps().len();
+    // SAFETY: single-threaded bare-metal program, no interrupts touch RT.
+    #[allow(static_mut_refs)]
+    let rt = unsafe { &mut RT };
+    *rt = Runtime::new();
+    rt.configure_at_boot(p, 0);
+    if rt.start_move(50_000_000, 5.0e7, 5.0e8).is_err() {
+        let _ = writeln!(buf, "tick-cost {label} move-err");
+        return;
+    }
+    for _ in 0..50 {
+        rt.tick(&TickInput::default());
+    }
+    let n = 1000u32;
+    let t0 = cortex_m::peripheral::SYST::get_current();
+    for _ in 0..n {
+        core::hint::black_box(rt.tick(core::hint::black_box(&TickInput::default())));
+    }
+    let t1 = cortex_m::peripheral::SYST::get_current();
+    let moving = rt.status().moving;
+    let counts = t0.wrapping_sub(t1) & 0x00ff_ffff;
+    let _ = writeln!(
+        buf,
+        "tick-cost {label} path={} taps={taps} ticks={n} moving={moving} systick_counts={counts} instructions_per_tick~{}",
+        s.path.name(),
+        counts as u64 * 40 / n as u64
+    );
+    buf.flush();
 }
 
 fn fail() -> ! {
