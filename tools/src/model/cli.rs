@@ -32,6 +32,10 @@ pub struct SimulateArgs {
     /// Instead of a move: a CSV with `time_s,base_cmd_m` (uniform), played as the base position.
     #[arg(long)]
     pub command: Option<PathBuf>,
+    /// Instead of a position command: a CSV with `time_s,force_n` (uniform), applied as the
+    /// motor force to the FREE carriage (paper eqs. 12/23, zero-order hold).
+    #[arg(long, conflicts_with_all = ["command", "shaper"])]
+    pub force: Option<PathBuf>,
     /// Shaper kind for the move (zv, zvd, zvdd, …); none = unshaped.
     #[arg(long)]
     pub shaper: Option<String>,
@@ -119,6 +123,9 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
             ..Default::default()
         },
     )?;
+    if let Some(p) = &a.force {
+        return simulate_force(&a, &rig, &model, p);
+    }
     let (y, what) = match &a.command {
         Some(p) => {
             let rec = Recording::read_csv(p)?;
@@ -128,7 +135,7 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
                 .with_context(|| format!("{}: no base_cmd_m column", p.display()))?;
             // Resample to the internal rate by linear interpolation.
             let rate = rec.sample_rate_hz();
-            let n = ((rec.len() - 1) as f64 * SIM_RATE_HZ / rate) as usize + 1;
+            let n = ((rec.len() - 1) as f64 * SIM_RATE_HZ / rate).round() as usize + 1;
             let y: Vec<f64> = (0..n)
                 .map(|k| {
                     let pos = k as f64 * rate / SIM_RATE_HZ;
@@ -186,10 +193,26 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         rig.sample_rate_hz(),
         a.out.display()
     );
-    let tip = rec.tip_pos_m.as_ref().unwrap();
-    let target = *y.last().unwrap();
-    let peak = tip.iter().map(|p| (p - target).abs()).fold(0.0, f64::max);
-    println!("largest |tip - final base position| = {:.3} mm", peak * 1e3);
+    let tip = rec.tip_pos_m.as_ref().context("internal: no tip channel")?;
+    let (start, target) = (y.first().copied().unwrap_or(0.0), y.last().copied().unwrap_or(0.0));
+    if (target - start).abs() > 1e-9 {
+        // The command's last change (the shaped command's end).
+        let end_s = y.iter().rposition(|v| (v - target).abs() > 1e-12).map_or(0.0, |k| (k + 1) as f64 / SIM_RATE_HZ);
+        let band = 0.02 * (target - start).abs();
+        let m = crate::measures::measure(&rec.time_s, tip, start, target, end_s, end_s, band);
+        println!(
+            "tip: overshoot {:.2} % of the {:.1} mm move, residual vibration after the command ends {:.3} mm, \
+             settling to +-{:.2} mm (2 %) {} after the command ends at {end_s:.3} s",
+            m.overshoot_pct,
+            (target - start).abs() * 1e3,
+            m.residual_m * 1e3,
+            band * 1e3,
+            m.settling_s.map_or("not within the record".into(), |s| format!("{s:.2} s"))
+        );
+    } else {
+        let peak = tip.iter().map(|p| (p - target).abs()).fold(0.0, f64::max);
+        println!("largest tip excursion from the final base position {:.3} mm", peak * 1e3);
+    }
     if let Some(p) = &a.plot {
         let base = rec.base_pos_m.as_ref().unwrap();
         let mm = |v: &[f64]| v.iter().map(|x| x * 1e3).collect::<Vec<_>>();
@@ -214,6 +237,58 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
             false,
         )?;
         println!("plot -> {}", p.display());
+    }
+    Ok(())
+}
+
+/// `simulate --force`: the force-driven free carriage.
+fn simulate_force(a: &SimulateArgs, rig: &Rig, model: &BeamModel, p: &std::path::Path) -> Result<()> {
+    let rec = Recording::read_csv(p)?;
+    let u = rec.force_n.clone().with_context(|| format!("{}: no force_n column", p.display()))?;
+    if u.len() < 2 {
+        bail!("{}: needs at least 2 samples of force_n", p.display());
+    }
+    // Zero-order hold of the recorded force at the internal rate.
+    let rate = rec.sample_rate_hz();
+    let n = ((rec.len() - 1) as f64 * SIM_RATE_HZ / rate).round() as usize + 1;
+    let u_fine: Vec<f64> = (0..n)
+        .map(|k| u[((k as f64 * rate / SIM_RATE_HZ + 1e-9).floor() as usize).min(u.len() - 1)])
+        .collect();
+    let sim = super::sim::ForceSim::new(model, 1.0 / SIM_RATE_HZ, false)?;
+    let out = decimate(&sim.recording(&u_fine, 1.0 / SIM_RATE_HZ), rig.sample_rate_hz());
+    out.write_csv(&a.out)?;
+    let base = out.base_pos_m.as_ref().context("internal: no base channel")?;
+    let tip = out.tip_pos_m.as_ref().context("internal: no tip channel")?;
+    let defl = tip.iter().zip(base).map(|(t, b)| (t - b).abs()).fold(0.0, f64::max);
+    println!(
+        "simulated the free carriage under the motor force of {} ({} samples at {rate:.1} Hz, zero-order hold): \
+         {} samples at {} Hz -> {}",
+        p.display(),
+        u.len(),
+        out.len(),
+        rig.sample_rate_hz(),
+        a.out.display()
+    );
+    println!(
+        "final carriage position {:.3} mm, largest tip deflection relative to the carriage {:.3} mm",
+        base.last().copied().unwrap_or(0.0) * 1e3,
+        defl * 1e3
+    );
+    if let Some(plot) = &a.plot {
+        let mm = |v: &[f64]| v.iter().map(|x| x * 1e3).collect::<Vec<_>>();
+        let (b, t) = (mm(base), mm(tip));
+        lines(
+            plot,
+            &format!("free carriage driven by {}", p.display()),
+            "time (s)",
+            "position (mm)",
+            &[
+                Series { label: "base".into(), x: &out.time_s, y: &b },
+                Series { label: "tip (absolute)".into(), x: &out.time_s, y: &t },
+            ],
+            false,
+        )?;
+        println!("plot -> {}", plot.display());
     }
     Ok(())
 }

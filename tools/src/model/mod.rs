@@ -5,6 +5,7 @@
 //! - [`basis`]: the clamped–free basis functions and λ_i (eqs. 10–11).
 //! - [`galerkin`]: M, K (eqs. 12–20), extensions, Rayleigh damping (eqs. 21–22), modes (eq. 24).
 //! - [`sim`]: exact modal time integration, base-motion and base-force driven.
+//! - [`statespace`]: continuous and ZOH-discrete state-space forms (both drives).
 //! - [`cli`]: `simulate`, `modes`, `table2`.
 
 pub mod basis;
@@ -13,9 +14,11 @@ pub mod cli;
 pub mod galerkin;
 pub mod rig;
 pub mod sim;
+pub mod statespace;
 
 pub use galerkin::{BeamModel, ModelOptions, Orientation};
 pub use rig::Rig;
+pub use statespace::StateSpace;
 
 use anyhow::{anyhow, Result};
 use beamshaper::engine::{Engine, NumericPath, TapTable};

@@ -197,6 +197,18 @@ impl ForceSim {
         (0..a.len()).map(|r| Vector2::new(a[r], b[r])).collect()
     }
 
+    /// Simulates a force history `u_n` (N, ZOH, uniform dt, from rest) and packs a
+    /// [`Recording`] at `1/dt`: `base_pos_m` = y, `tip_pos_m` = y + w(l), `force_n` = u;
+    /// no `base_cmd_m` (the carriage is not position-controlled here).
+    pub fn recording(&self, u_n: &[f64], dt: f64) -> Recording {
+        let (y, w) = self.run(u_n);
+        let mut rec = Recording::with_uniform_time(u_n.len(), 1.0 / dt);
+        rec.tip_pos_m = Some(y.iter().zip(&w).map(|(y, w)| y + w).collect());
+        rec.base_pos_m = Some(y);
+        rec.force_n = Some(u_n.to_vec());
+        rec
+    }
+
     /// Simulates a force history (ZOH, uniform dt) from rest: (base position, tip deflection).
     pub fn run(&self, u_n: &[f64]) -> (Vec<f64>, Vec<f64>) {
         let mut eta = vec![Vector2::zeros(); self.omega_rad_s.len()];
