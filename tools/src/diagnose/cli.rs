@@ -1,0 +1,255 @@
+//! `diagnose` and `diagnose-proof` subcommands.
+
+use super::report::{to_json, validation_summary, words, write_report};
+use super::sim::Prepared;
+use super::{diagnose as run_diagnosis, Diagnosis};
+use crate::model::Rig;
+use crate::recording::Recording;
+use crate::truth::{generate, TruthOptions, EFFECTS};
+use anyhow::{Context, Result};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use serde_json::json;
+use std::path::{Path, PathBuf};
+
+/// `diagnose` arguments.
+#[derive(Args, Debug)]
+pub struct DiagnoseArgs {
+    /// Rig file (TOML).
+    #[arg(long)]
+    pub rig: PathBuf,
+    /// Fit recording(s) (CSV), repeatable.
+    #[arg(long = "fit", required = true)]
+    pub fit: Vec<PathBuf>,
+    /// Validation recording (CSV), never fitted.
+    #[arg(long)]
+    pub validate: PathBuf,
+    /// Write the JSON result here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write report.md, diagnosis.json and SVG plots into this directory.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+}
+
+fn bar(len: u64) -> ProgressBar {
+    let b = ProgressBar::new(len);
+    b.set_style(ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} {msg}").unwrap_or_else(|_| ProgressStyle::default_bar()));
+    b
+}
+
+/// Reads and prepares one recording.
+pub fn load(path: &Path) -> Result<Prepared> {
+    let rec = Recording::read_csv(path)?;
+    Prepared::new(&path.display().to_string(), &rec)
+}
+
+/// Runs a diagnosis on files, with a progress bar.
+pub fn diagnose_files(rig: &Path, fit: &[PathBuf], validate: &Path, show: bool) -> Result<Diagnosis> {
+    let rig = Rig::from_toml_file(rig)?;
+    let fit: Vec<Prepared> = fit.iter().map(|p| load(p)).collect::<Result<_>>()?;
+    let val = load(validate)?;
+    let pb = bar(1);
+    if !show {
+        pb.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    let d = run_diagnosis(&rig, &fit, &val, &mut |i, n, m| {
+        pb.set_length(n as u64);
+        pb.set_position(i as u64);
+        pb.set_message(m.to_string());
+    })?;
+    pb.finish_and_clear();
+    Ok(d)
+}
+
+/// Runs `diagnose`.
+pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
+    let t0 = std::time::Instant::now();
+    let d = diagnose_files(&a.rig, &a.fit, &a.validate, true)?;
+    print!("{}", words(&d));
+    println!("({} model evaluations, {:.1} s)", d.evaluations, t0.elapsed().as_secs_f64());
+    if let Some(j) = &a.json {
+        std::fs::write(j, serde_json::to_string_pretty(&to_json(&d))?).with_context(|| format!("cannot write {}", j.display()))?;
+    }
+    if let Some(r) = &a.report {
+        write_report(&d, r)?;
+        println!("report in {}", r.display());
+    }
+    Ok(())
+}
+
+/// `diagnose-proof` arguments.
+#[derive(Args, Debug)]
+pub struct ProofArgs {
+    /// Concealed cases per effect.
+    #[arg(long, default_value_t = 2)]
+    pub cases: usize,
+    /// Null cases (no effect); at least 4.
+    #[arg(long, default_value_t = 4)]
+    pub nulls: usize,
+    /// First seed.
+    #[arg(long, default_value_t = 1000)]
+    pub seed: u64,
+    /// Duration of each recording (s).
+    #[arg(long, default_value_t = 60.0)]
+    pub duration_s: f64,
+    /// Only these effects (comma-separated ids).
+    #[arg(long)]
+    pub only: Option<String>,
+    /// Output directory (cases, per-case reports, proof.json, proof.md).
+    #[arg(long, default_value = "diagnose-proof")]
+    pub out: PathBuf,
+}
+
+/// One proof row.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ProofRow {
+    /// Hidden effect.
+    pub truth: String,
+    /// Seed.
+    pub seed: u64,
+    /// Named effect.
+    pub named: String,
+    /// Correct.
+    pub correct: bool,
+    /// Main parameter: name, true, fitted, relative error.
+    pub parameter: Option<(String, f64, f64, f64)>,
+    /// Orientation correct (gravity cases).
+    pub orientation_ok: Option<bool>,
+    /// Validation NRMSE before/after, channel.
+    pub nrmse: (f64, f64, String),
+    /// Seconds.
+    pub seconds: f64,
+}
+
+/// Runs the proof over generated cases; returns the rows.
+pub fn run_proof(effects: &[&str], cases: usize, nulls: usize, seed0: u64, duration_s: f64, out: Option<&Path>, show: bool) -> Result<Vec<ProofRow>> {
+    let mut jobs: Vec<(String, u64)> = Vec::new();
+    for (i, e) in effects.iter().enumerate() {
+        for k in 0..cases {
+            jobs.push((e.to_string(), seed0 + 100 * i as u64 + k as u64));
+        }
+    }
+    for k in 0..nulls {
+        jobs.push(("none".into(), seed0 + 5000 + k as u64));
+    }
+    let pb = bar(jobs.len() as u64);
+    if !show {
+        pb.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    let opts = TruthOptions { duration_s, ..Default::default() };
+    let mut rows = Vec::new();
+    for (effect, seed) in jobs {
+        pb.set_message(format!("{effect} seed {seed}"));
+        let t0 = std::time::Instant::now();
+        let case = generate(&effect, seed, &opts)?;
+        let rig = Rig::from_toml_str(&case.rig_toml)?;
+        let fit: Vec<Prepared> = case.fit.iter().enumerate().map(|(i, r)| Prepared::new(&format!("fit{}", i + 1), r)).collect::<Result<_>>()?;
+        let val = Prepared::new("validate", &case.validate)?;
+        let d = run_diagnosis(&rig, &fit, &val, &mut |_, _, _| {})?;
+        let (c, before, after) = validation_summary(&d);
+        let json = to_json(&d);
+        let mut parameter = None;
+        let mut orientation_ok = None;
+        for (k, v) in &case.truth {
+            if let (Some(tv), Some(fv)) = (v.as_f64(), json["parameters"][k].as_f64()) {
+                if parameter.is_none() {
+                    parameter = Some((k.clone(), tv, fv, (fv - tv).abs() / tv.abs().max(1e-300)));
+                }
+            }
+            if k == "orientation" {
+                orientation_ok = Some(json["parameters"]["orientation"].as_str() == v.as_str());
+            }
+        }
+        let named = d.effect.clone();
+        let correct = named == effect && orientation_ok.unwrap_or(true);
+        if let Some(o) = out {
+            let dir = o.join(format!("{effect}-{seed}"));
+            case.write(&dir)?;
+            write_report(&d, &dir.join("report"))?;
+        }
+        rows.push(ProofRow { truth: effect, seed, named, correct, parameter, orientation_ok, nrmse: (before, after, super::fit::CHANNEL_NAMES[c].to_string()), seconds: t0.elapsed().as_secs_f64() });
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    Ok(rows)
+}
+
+/// The confusion table and summary of proof rows.
+pub fn proof_table(rows: &[ProofRow]) -> String {
+    let mut s = String::new();
+    s += &format!("{:<20} {:>6} {:<20} {:>4} {:>30} {:>10} {:>10} {:>7} {:>6}\n", "truth", "seed", "named", "ok", "parameter (true → fitted)", "NRMSE0", "NRMSE1", "red %", "s");
+    for r in rows {
+        let p = r.parameter.as_ref().map_or_else(
+            || r.orientation_ok.map_or(String::from("-"), |o| format!("orientation {}", if o { "ok" } else { "WRONG" })),
+            |(n, t, f, e)| format!("{n} {t:.3e}→{f:.3e} ({:.0}%)", 100.0 * e),
+        );
+        s += &format!(
+            "{:<20} {:>6} {:<20} {:>4} {:>30} {:>10.4} {:>10.4} {:>7.1} {:>6.1}\n",
+            r.truth,
+            r.seed,
+            r.named,
+            if r.correct { "yes" } else { "NO" },
+            p,
+            r.nrmse.0,
+            r.nrmse.1,
+            100.0 * (1.0 - r.nrmse.1 / r.nrmse.0),
+            r.seconds
+        );
+    }
+    // confusion matrix
+    let mut labels: Vec<&str> = EFFECTS.to_vec();
+    labels.push("none");
+    s += "\nconfusion (rows: hidden effect, columns: named)\n";
+    s += &format!("{:<20}", "");
+    for (j, _) in labels.iter().enumerate() {
+        s += &format!("{:>4}", j);
+    }
+    s += "\n";
+    for (i, t) in labels.iter().enumerate() {
+        if !rows.iter().any(|r| r.truth == *t) {
+            continue;
+        }
+        s += &format!("{:<16}{:>4}", t, i);
+        for n in &labels {
+            let k = rows.iter().filter(|r| r.truth == *t && r.named == *n).count();
+            s += &format!("{:>4}", if k == 0 { ".".to_string() } else { k.to_string() });
+        }
+        s += "\n";
+    }
+    let effect_rows: Vec<&ProofRow> = rows.iter().filter(|r| r.truth != "none").collect();
+    let nulls: Vec<&ProofRow> = rows.iter().filter(|r| r.truth == "none").collect();
+    let correct = rows.iter().filter(|r| r.correct).count();
+    let false_disc = nulls.iter().filter(|r| r.named != "none").count();
+    let mut red: Vec<f64> = effect_rows.iter().map(|r| 1.0 - r.nrmse.1 / r.nrmse.0).collect();
+    red.sort_by(|a, b| a.total_cmp(b));
+    let med = if red.is_empty() { f64::NAN } else { red[red.len() / 2] };
+    let mut perr: Vec<f64> = effect_rows.iter().filter(|r| r.correct).filter_map(|r| r.parameter.as_ref().map(|p| p.3)).collect();
+    perr.sort_by(|a, b| a.total_cmp(b));
+    s += &format!(
+        "\ncorrect {}/{} ({:.0} %); false discoveries on nulls {}/{}; median validation NRMSE reduction where an effect exists {:.1} %; median parameter error (correct cases) {:.0} %\n",
+        correct,
+        rows.len(),
+        100.0 * correct as f64 / rows.len().max(1) as f64,
+        false_disc,
+        nulls.len(),
+        100.0 * med,
+        100.0 * perr.get(perr.len() / 2).copied().unwrap_or(f64::NAN)
+    );
+    s
+}
+
+/// Runs `diagnose-proof`.
+pub fn proof(a: ProofArgs) -> Result<()> {
+    let effects: Vec<&str> = match &a.only {
+        Some(o) => o.split(',').map(|s| s.trim()).filter(|s| !s.is_empty()).collect(),
+        None => EFFECTS.to_vec(),
+    };
+    let rows = run_proof(&effects, a.cases, a.nulls.max(if a.only.is_some() { 0 } else { 4 }), a.seed, a.duration_s, Some(&a.out), true)?;
+    let table = proof_table(&rows);
+    print!("{table}");
+    std::fs::create_dir_all(&a.out)?;
+    std::fs::write(a.out.join("proof.md"), format!("```\n{table}```\n"))?;
+    std::fs::write(a.out.join("proof.json"), serde_json::to_string_pretty(&json!(rows))?)?;
+    Ok(())
+}

@@ -1,0 +1,253 @@
+//! The catalogue of candidate physics: each an extension of the nominal model with physical
+//! parameters, mapped onto [`Params`] of the augmented simulator ([`super::sim`]).
+//!
+//! Every candidate is fitted *together with* the calibration parameters (stiffness scale,
+//! damping ratios, carriage-mass correction; [`calibration_defs`]) so that the first-order
+//! mismatch a recalibration absorbs is never credited to an effect.
+
+use super::sim::Params;
+use crate::model::{Orientation, Rig};
+
+/// How a parameter is represented in the least-squares vector.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Transform {
+    /// x = value.
+    Linear,
+    /// x = ln(value), value > 0.
+    Log,
+}
+
+/// One fitted parameter.
+#[derive(Clone, Debug)]
+pub struct ParamDef {
+    /// Name with unit, as in the JSON report (e.g. `friction_n`).
+    pub name: &'static str,
+    /// Representation.
+    pub transform: Transform,
+    /// Starting values (physical units); the fit starts from each and keeps the best.
+    pub starts: Vec<f64>,
+    /// Typical magnitude (physical units) for finite differences of linear parameters.
+    pub scale: f64,
+    /// True if the effect vanishes at value 0 (tested for significance).
+    pub zero_is_null: bool,
+}
+
+impl ParamDef {
+    /// Physical value of the representation x.
+    pub fn value(&self, x: f64) -> f64 {
+        match self.transform {
+            Transform::Linear => x,
+            Transform::Log => x.exp(),
+        }
+    }
+    /// Representation of a physical value.
+    pub fn repr(&self, v: f64) -> f64 {
+        match self.transform {
+            Transform::Linear => v,
+            Transform::Log => v.max(1e-300).ln(),
+        }
+    }
+    /// d value / d x.
+    pub fn dvalue(&self, x: f64) -> f64 {
+        match self.transform {
+            Transform::Linear => 1.0,
+            Transform::Log => x.exp(),
+        }
+    }
+}
+
+/// A candidate extension.
+#[derive(Clone, Debug)]
+pub struct Candidate {
+    /// Effect id (issue list).
+    pub id: &'static str,
+    /// Plain-words name.
+    pub words: &'static str,
+    /// Orientation (gravity candidates only).
+    pub orientation: Option<Orientation>,
+    /// Effect parameters.
+    pub params: Vec<ParamDef>,
+}
+
+/// What the recordings contain (decides which candidates are testable).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Channels {
+    /// Any recording has a base-position channel compared against its command.
+    pub base: bool,
+    /// Any tip channel.
+    pub tip: bool,
+    /// Any force channel.
+    pub force: bool,
+    /// Any recording drives the beam by its command (no measured base).
+    pub cmd_drives_beam: bool,
+}
+
+/// Features of the data used to start the nonlinear fits.
+#[derive(Clone, Copy, Debug)]
+pub struct StartHints {
+    /// Beam mass (kg) (0 without a beam).
+    pub beam_mass_kg: f64,
+    /// EI at the root / length (N·m/rad).
+    pub ei_over_l: f64,
+    /// Second clamped frequency (Hz) of the nominal model (or 10 Hz).
+    pub f2_hz: f64,
+    /// Sample rate (Hz).
+    pub rate_hz: f64,
+    /// Peak tip deflection in the fit data (m).
+    pub peak_deflection_m: f64,
+    /// Initial friction estimate (N, N·s/m) from linear least squares on the force residual.
+    pub friction: (f64, f64),
+    /// Initial cogging estimate (sin, cos amplitude N, pitch m) from a pitch scan.
+    pub cogging: (f64, f64, f64),
+    /// Typical base speed (m/s).
+    pub speed_m_s: f64,
+    /// Damping ratio of mode 1 in the rig.
+    pub zeta1: f64,
+    /// Beam length (m) (0 without a beam).
+    pub length_m: f64,
+}
+
+fn def(name: &'static str, transform: Transform, starts: Vec<f64>, scale: f64, zero_is_null: bool) -> ParamDef {
+    ParamDef { name, transform, starts, scale, zero_is_null }
+}
+
+/// The calibration parameters: ln stiffness scale, ln ζ1, ln ζ2 (with a beam), carriage-mass
+/// correction (kg, when a force is recorded).
+pub fn calibration_defs(rig: &Rig, ch: &Channels) -> Vec<ParamDef> {
+    let mut v = Vec::new();
+    if rig.beam.is_some() {
+        let (z1, z2) = rig.damping_ratios();
+        v.push(def("stiffness_scale", Transform::Log, vec![1.0], 1.0, false));
+        v.push(def("zeta1", Transform::Log, vec![z1.max(1e-4)], 1.0, false));
+        v.push(def("zeta2", Transform::Log, vec![z2.max(1e-4)], 1.0, false));
+    }
+    if ch.force {
+        v.push(def("base_mass_delta_kg", Transform::Linear, vec![0.0], 0.1 * rig.base.mass_kg, false));
+    }
+    v
+}
+
+/// Applies the calibration vector (physical values, in [`calibration_defs`] order).
+pub fn apply_calibration(defs: &[ParamDef], values: &[f64], p: &mut Params) {
+    let mut z = (0.0, 0.0);
+    let mut has_z = false;
+    for (d, &v) in defs.iter().zip(values) {
+        match d.name {
+            "stiffness_scale" => p.stiffness_scale = v,
+            "zeta1" => {
+                z.0 = v.min(0.5);
+                has_z = true
+            }
+            "zeta2" => z.1 = v.min(0.5),
+            "base_mass_delta_kg" => p.base_mass_delta_kg = v,
+            _ => {}
+        }
+    }
+    if has_z {
+        p.zeta = Some(z);
+    }
+}
+
+/// The candidates testable on data with channels `ch`.
+pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
+    let mut c = Vec::new();
+    let beam = rig.beam.is_some();
+    if ch.force {
+        c.push(Candidate {
+            id: "base_friction",
+            words: "friction on the carriage (Coulomb + viscous)",
+            orientation: None,
+            params: vec![
+                def("friction_n", Transform::Linear, vec![h.friction.0], 0.1, true),
+                def("viscous_n_s_per_m", Transform::Linear, vec![h.friction.1], 1.0, true),
+            ],
+        });
+        c.push(Candidate {
+            id: "cogging_ripple",
+            words: "force ripple periodic in the carriage position (cogging)",
+            orientation: None,
+            params: vec![
+                def("cogging_sin_n", Transform::Linear, vec![h.cogging.0], 0.1, true),
+                def("cogging_cos_n", Transform::Linear, vec![h.cogging.1], 0.1, true),
+                def("cogging_pitch_m", Transform::Log, vec![h.cogging.2], 1.0, false),
+            ],
+        });
+    }
+    if ch.base || (ch.cmd_drives_beam && (ch.tip || ch.force)) {
+        let f0 = h.rate_hz;
+        c.push(Candidate {
+            id: "servo_lag",
+            words: "finite-bandwidth position loop: the carriage does not follow its command",
+            orientation: None,
+            params: vec![
+                def("servo_bandwidth_hz", Transform::Log, vec![0.05 * f0, 0.3 * f0, 2.0 * f0], 1.0, false),
+                def("servo_damping_ratio", Transform::Log, vec![0.7], 1.0, false),
+            ],
+        });
+    }
+    if beam && ch.tip {
+        c.push(Candidate {
+            id: "tip_mass",
+            words: "a lumped mass at the tip (marker, sensor)",
+            orientation: None,
+            params: vec![def("tip_mass_kg", Transform::Linear, vec![0.03 * h.beam_mass_kg], 0.05 * h.beam_mass_kg, true)],
+        });
+        c.push(Candidate {
+            id: "root_compliance",
+            words: "a compliant clamp (rotational spring at the root)",
+            orientation: None,
+            params: vec![def("root_stiffness_nm_per_rad", Transform::Log, vec![10.0 * h.ei_over_l, 40.0 * h.ei_over_l], 1.0, false)],
+        });
+        // ζ_eq = (4/3π) c A ∫u³/(m/l ∫u²) for the first mode shape u (∫u² ≈ 0.25 l, ∫u³ ≈ 0.16 l):
+        // the drag that doubles ζ1 at the peak deflection A
+        let c0 = h.zeta1 * 3.7 * h.beam_mass_kg / (h.peak_deflection_m.max(1e-4) * h.length_m.max(1e-3));
+        let c0 = if c0.is_finite() && c0 > 0.0 { c0.min(1e6) } else { 1.0 };
+        c.push(Candidate {
+            id: "quadratic_damping",
+            words: "amplitude-dependent (quadratic, aerodynamic) damping",
+            orientation: None,
+            params: vec![def("drag_coefficient_kg_per_m2", Transform::Linear, vec![0.3 * c0, c0], c0 * 0.1, true)],
+        });
+        c.push(Candidate {
+            id: "sensor_delay",
+            words: "latency of the tip measurement",
+            orientation: None,
+            params: vec![def("sensor_delay_s", Transform::Linear, vec![0.2 / h.rate_hz, 2.0 / h.rate_hz], 0.1 / h.rate_hz, true)],
+        });
+        c.push(Candidate { id: "gravity_axial_load", words: "gravity axial load: the beam hangs (tension)", orientation: Some(Orientation::Hanging), params: vec![] });
+        c.push(Candidate { id: "gravity_axial_load", words: "gravity axial load: the beam stands upright (compression)", orientation: Some(Orientation::Upright), params: vec![] });
+        let fmax = 0.4 * h.rate_hz;
+        c.push(Candidate {
+            id: "mount_resonance",
+            words: "a resonance of the carriage/mount between motor and beam root",
+            orientation: None,
+            params: vec![
+                def("mount_frequency_hz", Transform::Log, vec![(1.5 * h.f2_hz).min(fmax), (3.0 * h.f2_hz).min(fmax), fmax], 1.0, false),
+                def("mount_damping_ratio", Transform::Log, vec![0.05], 1.0, false),
+            ],
+        });
+    }
+    c
+}
+
+/// Applies a candidate's effect values (physical units, in `cand.params` order).
+pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
+    p.orientation = cand.orientation;
+    let get = |name: &str| cand.params.iter().position(|d| d.name == name).map(|i| values[i]);
+    match cand.id {
+        "base_friction" => {
+            p.friction_n = get("friction_n").unwrap_or(0.0);
+            p.viscous_n_s_per_m = get("viscous_n_s_per_m").unwrap_or(0.0);
+        }
+        "cogging_ripple" => {
+            p.cogging = Some((get("cogging_sin_n").unwrap_or(0.0), get("cogging_cos_n").unwrap_or(0.0), get("cogging_pitch_m").unwrap_or(0.01)));
+        }
+        "servo_lag" => p.servo = Some((get("servo_bandwidth_hz").unwrap_or(1e3), get("servo_damping_ratio").unwrap_or(0.7).clamp(0.05, 5.0))),
+        "tip_mass" => p.tip_mass_kg = get("tip_mass_kg").unwrap_or(0.0).abs(),
+        "root_compliance" => p.root_stiffness_nm_per_rad = get("root_stiffness_nm_per_rad"),
+        "quadratic_damping" => p.drag_kg_per_m2 = get("drag_coefficient_kg_per_m2").unwrap_or(0.0).abs(),
+        "sensor_delay" => p.sensor_delay_s = get("sensor_delay_s").unwrap_or(0.0),
+        "mount_resonance" => p.mount = Some((get("mount_frequency_hz").unwrap_or(100.0), get("mount_damping_ratio").unwrap_or(0.05).clamp(0.005, 2.0))),
+        _ => {}
+    }
+}

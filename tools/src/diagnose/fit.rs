@@ -1,0 +1,222 @@
+//! Nonlinear least squares of a candidate (calibration + effect parameters) on the fit
+//! recordings: Levenberg–Marquardt (`levenberg-marquardt` crate, MINPACK's algorithm) on the
+//! noise-whitened residuals of every recorded channel, forward-difference Jacobian, and the
+//! linearised covariance `s² (JᵀJ)⁻¹` for the parameter uncertainties.
+
+use super::effects::{apply_calibration, apply_effect, Candidate, ParamDef};
+use super::sim::{predict, BeamCache, Params, Prediction, Prepared};
+use crate::model::Rig;
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use std::cell::RefCell;
+
+/// Channel order used everywhere in the diagnosis.
+pub const CHANNEL_NAMES: [&str; 3] = ["base_pos_m", "tip_pos_m", "force_n"];
+
+/// Per-channel residuals (recording − prediction) of one recording; `None` where not recorded.
+pub fn residuals(d: &Prepared, pred: &Prediction) -> [Option<Vec<f64>>; 3] {
+    let diff = |a: &Option<Vec<f64>>, b: &Option<Vec<f64>>| match (a, b) {
+        (Some(a), Some(b)) => Some(a.iter().zip(b).map(|(x, y)| x - y).collect()),
+        _ => None,
+    };
+    [diff(&d.base_m, &pred.base_m), diff(&d.tip_m, &pred.tip_m), diff(&d.force_n, &pred.force_n)]
+}
+
+/// Sum of squares and count per channel over several recordings.
+pub fn channel_rss(res: &[[Option<Vec<f64>>; 3]]) -> ([f64; 3], [usize; 3]) {
+    let mut rss = [0.0; 3];
+    let mut n = [0usize; 3];
+    for r in res {
+        for c in 0..3 {
+            if let Some(v) = &r[c] {
+                rss[c] += v.iter().map(|x| x * x).sum::<f64>();
+                n[c] += v.len();
+            }
+        }
+    }
+    (rss, n)
+}
+
+/// A candidate bound to data: the least-squares problem.
+pub struct Problem<'a> {
+    rig: &'a Rig,
+    data: &'a [Prepared],
+    /// Channel noise scales σ (whitening).
+    sigma: [f64; 3],
+    calib: &'a [ParamDef],
+    cand: Option<&'a Candidate>,
+    x: DVector<f64>,
+    caches: RefCell<Vec<Option<BeamCache>>>,
+    /// Samples skipped at the start of each recording (model start-up transients).
+    pub evaluations: RefCell<usize>,
+}
+
+impl<'a> Problem<'a> {
+    /// A problem over `calib` (+ `cand`'s parameters) starting at representation `x0`.
+    pub fn new(rig: &'a Rig, data: &'a [Prepared], sigma: [f64; 3], calib: &'a [ParamDef], cand: Option<&'a Candidate>, x0: DVector<f64>) -> Self {
+        Problem { rig, data, sigma, calib, cand, x: x0, caches: RefCell::new(vec![None; data.len()]), evaluations: RefCell::new(0) }
+    }
+
+    /// All parameter definitions in vector order.
+    pub fn defs(&self) -> Vec<&ParamDef> {
+        self.calib.iter().chain(self.cand.map(|c| c.params.iter()).into_iter().flatten()).collect()
+    }
+
+    /// Physical parameters of representation `x`.
+    pub fn params_of(&self, x: &DVector<f64>) -> Params {
+        let defs = self.defs();
+        let vals: Vec<f64> = defs.iter().enumerate().map(|(i, d)| d.value(x[i])).collect();
+        let nc = self.calib.len();
+        let mut p = Params::default();
+        apply_calibration(self.calib, &vals[..nc], &mut p);
+        if let Some(c) = self.cand {
+            apply_effect(c, &vals[nc..], &mut p);
+        }
+        p
+    }
+
+    /// Predictions for every recording at `x` (`None` if the model refuses the parameters).
+    pub fn predictions(&self, x: &DVector<f64>) -> Option<Vec<Prediction>> {
+        let p = self.params_of(x);
+        let mut caches = self.caches.borrow_mut();
+        *self.evaluations.borrow_mut() += 1;
+        self.data.iter().zip(caches.iter_mut()).map(|(d, c)| predict(self.rig, &p, d, c).ok()).collect()
+    }
+
+    fn whitened(&self, x: &DVector<f64>) -> DVector<f64> {
+        let total: usize = self.data.iter().map(|d| self.len_of(d)).sum();
+        match self.predictions(x) {
+            Some(preds) => {
+                let mut v = Vec::with_capacity(total);
+                for (d, pr) in self.data.iter().zip(&preds) {
+                    let r = residuals(d, pr);
+                    for c in 0..3 {
+                        if let Some(r) = &r[c] {
+                            v.extend(r.iter().map(|e| e / self.sigma[c]));
+                        }
+                    }
+                }
+                if v.iter().all(|e| e.is_finite()) {
+                    DVector::from_vec(v)
+                } else {
+                    DVector::from_element(total, 1e3)
+                }
+            }
+            None => DVector::from_element(total, 1e3),
+        }
+    }
+
+    fn len_of(&self, d: &Prepared) -> usize {
+        let n = d.cmd_m.len();
+        n * (usize::from(d.base_m.is_some()) + usize::from(d.tip_m.is_some()) + usize::from(d.force_n.is_some()))
+    }
+
+    fn steps(&self) -> Vec<f64> {
+        self.defs()
+            .iter()
+            .enumerate()
+            .map(|(i, d)| match d.transform {
+                super::effects::Transform::Log => 1e-4,
+                super::effects::Transform::Linear => 1e-4 * d.scale.max(self.x[i].abs()),
+            })
+            .collect()
+    }
+}
+
+impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+    type ParameterStorage = Owned<f64, Dyn>;
+
+    fn set_params(&mut self, x: &DVector<f64>) {
+        self.x = x.clone();
+    }
+
+    fn params(&self) -> DVector<f64> {
+        self.x.clone()
+    }
+
+    fn residuals(&self) -> Option<DVector<f64>> {
+        Some(self.whitened(&self.x))
+    }
+
+    fn jacobian(&self) -> Option<DMatrix<f64>> {
+        let r0 = self.whitened(&self.x);
+        let steps = self.steps();
+        let mut j = DMatrix::zeros(r0.len(), self.x.len());
+        for (i, h) in steps.iter().enumerate() {
+            let mut x = self.x.clone();
+            x[i] += h;
+            let r = self.whitened(&x);
+            j.set_column(i, &((r - &r0) / *h));
+        }
+        Some(j)
+    }
+}
+
+/// Result of one fit.
+#[derive(Clone, Debug)]
+pub struct FitResult {
+    /// Representation vector at the optimum.
+    pub x: DVector<f64>,
+    /// Physical values (definition order: calibration, then effect).
+    pub values: Vec<f64>,
+    /// 1-σ uncertainties (physical units).
+    pub std: Vec<f64>,
+    /// Parameter names.
+    pub names: Vec<&'static str>,
+    /// Whitened residual sum of squares.
+    pub cost: f64,
+    /// Model evaluations used.
+    pub evaluations: usize,
+}
+
+/// Fits `cand` (or the calibration alone) from every combination of starting values (at most
+/// 6) plus `warm` (a previous calibration, representation), keeping the lowest cost.
+pub fn fit(rig: &Rig, data: &[Prepared], sigma: [f64; 3], calib: &[ParamDef], cand: Option<&Candidate>, warm: Option<&DVector<f64>>) -> FitResult {
+    let defs: Vec<&ParamDef> = calib.iter().chain(cand.map(|c| c.params.iter()).into_iter().flatten()).collect();
+    let nc = calib.len();
+    // starting points: warm calibration × the effect's start grid
+    let mut starts: Vec<DVector<f64>> = vec![DVector::from_iterator(defs.len(), defs.iter().map(|d| d.repr(d.starts[0])))];
+    for (i, d) in defs.iter().enumerate() {
+        let mut more = Vec::new();
+        for s in &starts {
+            for v in d.starts.iter().skip(1) {
+                let mut x = s.clone();
+                x[i] = d.repr(*v);
+                more.push(x);
+            }
+        }
+        starts.extend(more);
+        starts.truncate(6);
+    }
+    if let Some(w) = warm {
+        for s in starts.iter_mut() {
+            for i in 0..nc.min(w.len()) {
+                s[i] = w[i];
+            }
+        }
+    }
+    let mut best: Option<(f64, DVector<f64>)> = None;
+    let mut evals = 0;
+    for x0 in starts {
+        let problem = Problem::new(rig, data, sigma, calib, cand, x0);
+        let (problem, _report) = LevenbergMarquardt::new().with_patience(30).with_ftol(1e-8).with_xtol(1e-8).minimize(problem);
+        let r = problem.whitened(&problem.x);
+        let cost = r.norm_squared();
+        evals += *problem.evaluations.borrow();
+        if best.as_ref().map_or(true, |b| cost < b.0) {
+            best = Some((cost, problem.x.clone()));
+        }
+    }
+    let (cost, x) = best.expect("at least one start");
+    let problem = Problem::new(rig, data, sigma, calib, cand, x.clone());
+    let j = problem.jacobian().expect("jacobian");
+    let m = j.nrows() as f64;
+    let s2 = cost / (m - x.len() as f64).max(1.0);
+    let cov = (j.transpose() * &j).try_inverse().unwrap_or_else(|| DMatrix::from_element(x.len(), x.len(), f64::NAN));
+    let values: Vec<f64> = defs.iter().enumerate().map(|(i, d)| d.value(x[i])).collect();
+    let std: Vec<f64> = defs.iter().enumerate().map(|(i, d)| (s2 * cov[(i, i)]).max(0.0).sqrt() * d.dvalue(x[i]).abs()).collect();
+    let evaluations = evals + *problem.evaluations.borrow();
+    FitResult { x, values, std, names: defs.iter().map(|d| d.name).collect(), cost, evaluations }
+}

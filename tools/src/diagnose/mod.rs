@@ -1,0 +1,320 @@
+//! Model-discrepancy diagnosis: calibrate the nominal model, locate the residual, fit a
+//! catalogue of candidate physics, select with a guard against false discovery, report.
+//!
+//! - [`sim`]: the augmented simulator (nominal model of paper §2 + every extension);
+//! - [`effects`]: the candidate catalogue with physical parameters;
+//! - [`fit`]: Levenberg–Marquardt on whitened residuals, parameter uncertainties;
+//! - [`locate`]: where/when/at which frequency the residual is structured;
+//! - [`select`]: BIC + validation + whiteness + significance guard;
+//! - [`report`]: JSON, words, SVG plots; [`cli`]: `diagnose`, `diagnose-proof`;
+
+pub mod cli;
+pub mod effects;
+pub mod fit;
+pub mod locate;
+pub mod report;
+pub mod select;
+pub mod sim;
+
+use crate::model::{BeamModel, ModelOptions, Rig};
+use anyhow::{bail, Result};
+use effects::{calibration_defs, catalogue, Candidate, Channels, StartHints};
+use fit::{channel_rss, fit, residuals, FitResult};
+use select::*;
+use sim::{Prediction, Prepared};
+
+/// Outcome of one candidate.
+#[derive(Clone, Debug)]
+pub struct CandidateOutcome {
+    /// Effect id.
+    pub id: String,
+    /// Words (incl. orientation).
+    pub words: String,
+    /// The fit (calibration + effect).
+    pub fit: FitResult,
+    /// Number of effect parameters (k of the BIC; 1 for an orientation).
+    pub k: usize,
+    /// ΔBIC on the fit recordings vs the calibrated nominal model.
+    pub delta_bic: f64,
+    /// Δ(−2 ln L) on the validation recording.
+    pub delta_val: f64,
+    /// Validation NRMSE per channel (NaN where absent).
+    pub val_nrmse: [f64; 3],
+    /// Channel helped most on validation.
+    pub best_channel: usize,
+    /// Relative NRMSE reduction on that channel.
+    pub reduction: f64,
+    /// Ljung–Box Q before/after on that channel's validation residual.
+    pub whiteness: (f64, f64),
+    /// Largest |value|/σ over null-at-zero parameters (∞ if none).
+    pub significance: f64,
+    /// Passed the guard.
+    pub passed: bool,
+    /// Why it lost or passed.
+    pub reason: String,
+    /// Validation predictions.
+    pub val_pred: Prediction,
+}
+
+/// The diagnosis.
+#[derive(Clone, Debug)]
+pub struct Diagnosis {
+    /// Selected effect id or `none`.
+    pub effect: String,
+    /// Index into `candidates` of the selected one.
+    pub selected: Option<usize>,
+    /// Calibration of the nominal model (names, values, σ).
+    pub calibration: FitResult,
+    /// Channel noise scales σ used for whitening.
+    pub sigma: [f64; 3],
+    /// Location of the discrepancy.
+    pub location: locate::Location,
+    /// Validation NRMSE per channel of the calibrated nominal model.
+    pub val_nrmse_nominal: [f64; 3],
+    /// Nominal validation prediction.
+    pub val_pred_nominal: Prediction,
+    /// Candidates (best first by validation gain).
+    pub candidates: Vec<CandidateOutcome>,
+    /// The validation recording (prepared).
+    pub validate: Prepared,
+    /// Model evaluations in total.
+    pub evaluations: usize,
+}
+
+/// Per-channel NRMSE of a prediction: rms(residual) / rms(signal − mean); the tip signal is the
+/// deflection tip − base.
+pub fn nrmse(d: &Prepared, pred: &Prediction) -> [f64; 3] {
+    let r = residuals(d, pred);
+    let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
+    let mut out = [f64::NAN; 3];
+    for c in 0..3 {
+        let Some(res) = &r[c] else { continue };
+        let sig: Vec<f64> = match c {
+            0 => d.base_m.clone().unwrap_or_default(),
+            1 => d.tip_m.as_ref().map(|t| t.iter().zip(drive).map(|(a, b)| a - b).collect()).unwrap_or_default(),
+            _ => d.force_n.clone().unwrap_or_default(),
+        };
+        let m = sig.iter().sum::<f64>() / sig.len() as f64;
+        let s = (sig.iter().map(|x| (x - m).powi(2)).sum::<f64>() / sig.len() as f64).sqrt();
+        let e = (res.iter().map(|x| x * x).sum::<f64>() / res.len() as f64).sqrt();
+        out[c] = e / s.max(1e-300);
+    }
+    out
+}
+
+fn channels_of(data: &[Prepared]) -> Channels {
+    Channels {
+        base: data.iter().any(|d| d.base_m.is_some()),
+        tip: data.iter().any(|d| d.tip_m.is_some()),
+        force: data.iter().any(|d| d.force_n.is_some()),
+        cmd_drives_beam: data.iter().any(|d| d.drive_m.is_none()),
+    }
+}
+
+fn rms(v: &[f64]) -> f64 {
+    (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
+}
+
+/// Runs the whole diagnosis. `progress` is called with (step, total, message).
+///
+/// Errors: recordings the rig cannot simulate (tip channel without a beam, …), a rig the model
+/// refuses, a validation recording whose channels differ from every fit recording's.
+pub fn diagnose(rig: &Rig, fit_data: &[Prepared], validate: &Prepared, progress: &mut dyn FnMut(usize, usize, &str)) -> Result<Diagnosis> {
+    if fit_data.is_empty() {
+        bail!("at least one --fit recording is needed");
+    }
+    let ch = channels_of(fit_data);
+    let calib = calibration_defs(rig, &ch);
+    // initial whitening: a fraction of each channel's signal scale
+    let mut sigma = [1e-6, 1e-4, 0.1];
+    {
+        let mut acc: [Vec<f64>; 3] = [vec![], vec![], vec![]];
+        for d in fit_data {
+            if let Some(b) = &d.base_m {
+                acc[0].extend(b.iter().zip(&d.cmd_m).map(|(a, c)| a - c));
+            }
+            if let Some(t) = &d.tip_m {
+                let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
+                acc[1].extend(t.iter().zip(drive).map(|(a, c)| a - c));
+            }
+            if let Some(f) = &d.force_n {
+                acc[2].extend(f.iter().copied());
+            }
+        }
+        for c in 0..3 {
+            if !acc[c].is_empty() {
+                sigma[c] = (0.1 * rms(&acc[c])).max(1e-12);
+            }
+        }
+    }
+    let n_cand_est = 12;
+    let total_steps = n_cand_est + 3;
+    progress(0, total_steps, "calibrating the nominal model");
+    let mut cal = fit(rig, fit_data, sigma, &calib, None, None);
+    let problem = fit::Problem::new(rig, fit_data, sigma, &calib, None, cal.x.clone());
+    let preds0 = problem.predictions(&cal.x).ok_or_else(|| anyhow::anyhow!("the calibrated nominal model cannot be simulated"))?;
+    let res0: Vec<_> = fit_data.iter().zip(&preds0).map(|(d, p)| residuals(d, p)).collect();
+    let (rss0, n0) = channel_rss(&res0);
+    for c in 0..3 {
+        if n0[c] > 0 {
+            sigma[c] = (rss0[c] / n0[c] as f64).sqrt().max(1e-12);
+        }
+    }
+    progress(1, total_steps, "recalibrating with the residual noise scales");
+    cal = fit(rig, fit_data, sigma, &calib, None, Some(&cal.x));
+    let mut evaluations = cal.evaluations;
+    let problem = fit::Problem::new(rig, fit_data, sigma, &calib, None, cal.x.clone());
+    let preds0 = problem.predictions(&cal.x).ok_or_else(|| anyhow::anyhow!("the calibrated nominal model cannot be simulated"))?;
+    let res0: Vec<_> = fit_data.iter().zip(&preds0).map(|(d, p)| residuals(d, p)).collect();
+    let (rss0, n0) = channel_rss(&res0);
+    let p_nom = problem.params_of(&cal.x);
+    // model frequencies and hints
+    let (model_freqs, beam_mass, ei_over_l, length_m) = match &rig.beam {
+        Some(b) => {
+            let m = BeamModel::new(rig, &ModelOptions { stiffness_scale: p_nom.stiffness_scale, damping_ratios: p_nom.zeta, ..Default::default() })?;
+            let f: Vec<f64> = m.clamped_modes()?.omega_rad_s.iter().map(|w| w / (2.0 * std::f64::consts::PI)).collect();
+            let prof = rig.profile()?;
+            (f, m.beam_mass_kg, b.youngs_modulus_pa * p_nom.stiffness_scale * prof.inertia(0.0) / b.length_m, b.length_m)
+        }
+        None => (vec![], 0.0, 1.0, 0.0),
+    };
+    let location = locate::locate(fit_data, &preds0, &model_freqs);
+    // friction / cogging starts from the force residual
+    let (mut fr_r, mut fr_v, mut fr_y, mut fr_m) = (vec![], vec![], vec![], vec![]);
+    let mut peak_def: f64 = 0.0;
+    let mut speed: f64 = 0.0;
+    for (d, r) in fit_data.iter().zip(&res0) {
+        let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
+        let v = locate::velocity(drive, d.dt);
+        speed = speed.max(v.iter().fold(0.0f64, |a, x| a.max(x.abs())));
+        if let Some(f) = &r[2] {
+            fr_r.extend(f.iter().copied());
+            fr_m.extend(v.iter().map(|x| x.abs() > 1e-4));
+            fr_v.extend(v);
+            fr_y.extend(drive.iter().copied());
+        }
+        if let Some(t) = &d.tip_m {
+            peak_def = peak_def.max(t.iter().zip(drive).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max));
+        }
+    }
+    let friction = locate::friction_ls(&fr_r, &fr_v);
+    let rip = locate::ripple_scan(&fr_r, &fr_y, &fr_m);
+    let hints = StartHints {
+        beam_mass_kg: beam_mass,
+        ei_over_l,
+        f2_hz: model_freqs.get(1).copied().unwrap_or(10.0),
+        rate_hz: 1.0 / fit_data[0].dt,
+        peak_deflection_m: peak_def,
+        friction,
+        cogging: (rip.1, rip.2, rip.0),
+        speed_m_s: speed,
+        zeta1: p_nom.zeta.map_or(rig.damping_ratios().0, |z| z.0),
+        length_m,
+    };
+    let cands: Vec<Candidate> = catalogue(rig, &ch, &hints);
+    // validation of the calibrated nominal model
+    let vdata = std::slice::from_ref(validate);
+    let vprob = fit::Problem::new(rig, vdata, sigma, &calib, None, cal.x.clone());
+    let vpred0 = vprob.predictions(&cal.x).ok_or_else(|| anyhow::anyhow!("the calibrated nominal model cannot simulate the validation recording"))?.remove(0);
+    let vres0 = [residuals(validate, &vpred0)];
+    let (vrss0, vn) = channel_rss(&vres0);
+    let val_nrmse_nominal = nrmse(validate, &vpred0);
+    let n_total: usize = n0.iter().sum();
+    let mut outcomes = Vec::new();
+    let total_steps = cands.len() + 2;
+    for (i, cand) in cands.iter().enumerate() {
+        progress(2 + i, total_steps, &format!("fitting {}", cand.id));
+        let f = fit(rig, fit_data, sigma, &calib, Some(cand), Some(&cal.x));
+        evaluations += f.evaluations;
+        let prob = fit::Problem::new(rig, fit_data, sigma, &calib, Some(cand), f.x.clone());
+        let Some(preds) = prob.predictions(&f.x) else { continue };
+        let res: Vec<_> = fit_data.iter().zip(&preds).map(|(d, p)| residuals(d, p)).collect();
+        let (rss, _) = channel_rss(&res);
+        let k = cand.params.len().max(1);
+        let delta_bic = delta_neg2ll(&rss, &rss0, &n0) + k as f64 * (n_total as f64).ln();
+        let vprob = fit::Problem::new(rig, vdata, sigma, &calib, Some(cand), f.x.clone());
+        let Some(mut vp) = vprob.predictions(&f.x) else { continue };
+        let vpred = vp.remove(0);
+        let vres = [residuals(validate, &vpred)];
+        let (vrss, _) = channel_rss(&vres);
+        let delta_val = delta_neg2ll(&vrss, &vrss0, &vn);
+        let vnr = nrmse(validate, &vpred);
+        let mut best_channel = 0;
+        let mut reduction = f64::NEG_INFINITY;
+        for c in 0..3 {
+            if vn[c] > 0 {
+                let red = 1.0 - (vrss[c] / vrss0[c].max(1e-300)).sqrt();
+                if red > reduction {
+                    reduction = red;
+                    best_channel = c;
+                }
+            }
+        }
+        let q_before = vres0[0][best_channel].as_ref().map_or(0.0, |r| ljung_box(r, LJUNG_BOX_LAGS));
+        let q_after = vres[0][best_channel].as_ref().map_or(0.0, |r| ljung_box(r, LJUNG_BOX_LAGS));
+        let nc = calib.len();
+        let significance = cand
+            .params
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| d.zero_is_null)
+            .map(|(i, _)| f.values[nc + i].abs() / f.std[nc + i].max(1e-300))
+            .fold(f64::NEG_INFINITY, f64::max);
+        let significance = if significance == f64::NEG_INFINITY { f64::INFINITY } else { significance };
+        let mut fails = Vec::new();
+        if !(delta_bic < -BIC_MARGIN) {
+            fails.push(format!("ΔBIC {delta_bic:+.1} not < −{BIC_MARGIN}"));
+        }
+        if !(delta_val < -VALIDATION_MARGIN) {
+            fails.push(format!("validation Δ(−2lnL) {delta_val:+.1} not < −{VALIDATION_MARGIN}"));
+        }
+        if !(reduction >= MIN_VALIDATION_REDUCTION) {
+            fails.push(format!("validation NRMSE reduction {:.1} % < {:.0} %", 100.0 * reduction, 100.0 * MIN_VALIDATION_REDUCTION));
+        }
+        if !(q_after < q_before) {
+            fails.push(format!("residual not whiter (Ljung–Box {q_before:.0} → {q_after:.0})"));
+        }
+        if !(significance >= MIN_SIGMAS) {
+            fails.push(format!("effect parameter only {significance:.1} σ from zero"));
+        }
+        let passed = fails.is_empty();
+        outcomes.push(CandidateOutcome {
+            id: cand.id.to_string(),
+            words: cand.words.to_string(),
+            k,
+            delta_bic,
+            delta_val,
+            val_nrmse: vnr,
+            best_channel,
+            reduction,
+            whiteness: (q_before, q_after),
+            significance,
+            passed,
+            reason: if passed { "passes every guard".into() } else { fails.join("; ") },
+            val_pred: vpred,
+            fit: f,
+        });
+    }
+    outcomes.sort_by(|a, b| a.delta_val.total_cmp(&b.delta_val));
+    let selected = outcomes.iter().position(|o| o.passed);
+    if let Some(s) = selected {
+        for (i, o) in outcomes.iter_mut().enumerate() {
+            if i != s && o.passed {
+                o.reason = format!("passes the guard but gains less on validation than {}", "the selected effect");
+            }
+        }
+    }
+    progress(total_steps, total_steps, "done");
+    Ok(Diagnosis {
+        effect: selected.map_or_else(|| "none".to_string(), |s| outcomes[s].id.clone()),
+        selected,
+        calibration: cal,
+        sigma,
+        location,
+        val_nrmse_nominal,
+        val_pred_nominal: vpred0,
+        candidates: outcomes,
+        validate: validate.clone(),
+        evaluations,
+    })
+}

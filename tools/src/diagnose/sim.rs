@@ -1,0 +1,409 @@
+//! The augmented simulator: the nominal Galerkin model (`crate::model`, paper §2) with every
+//! candidate extension switchable, predicting the recorded channels of one recording.
+//!
+//! Chain (each block off unless its parameters are set):
+//! 1. servo: the base follows its command through a finite-bandwidth position loop,
+//!    `ÿ + 2ζ_sω_s ẏ + ω_s² y = ω_s² r` (`servo_lag`); predicted `base_pos_m`;
+//! 2. the beam is driven by the *measured* base position when recorded (so carriage effects do
+//!    not leak into the tip channel), else by the predicted one;
+//! 3. mount: the beam root follows the carriage through a spring–damper resonance,
+//!    `ÿ_r + 2ζ_mω_m (ẏ_r − ẏ) + ω_m² (y_r − y) = 0` (`mount_resonance`);
+//! 4. beam: clamped-base modes of [`BeamModel`] (M, K of eqs. 13–20 with tip mass, root spring,
+//!    gravity axial load and the calibration scale), `η̈_r + 2ζ_rω_r η̇_r + ω_r² η_r = −Γ_r ÿ_r + f_r`,
+//!    integrated exactly between samples for a piecewise-linear base (as `model::sim`), with the
+//!    distributed quadratic drag `f_r = −c_d ∫ φ_r |v| v dx` applied as a per-sample impulse
+//!    (`quadratic_damping`); motor force from eq. (5), `u = J ÿ + hᵀ q̈ − ∫ drag`;
+//! 5. carriage forces: `+ F_c sign(ẏ) + c_v ẏ` (`base_friction`, smoothed over 1 mm/s) and
+//!    `+ a sin(2πy/p) + b cos(2πy/p)` (`cogging_ripple`);
+//! 6. tip sensor latency τ: `tip(t − τ)` by linear interpolation (`sensor_delay`).
+
+use crate::model::basis::BasisFn;
+use crate::model::sim::mode_zoh;
+use crate::model::{BeamModel, ModelOptions, Orientation, Rig};
+use anyhow::{bail, Result};
+use nalgebra::Vector2;
+
+/// Every physical parameter of the augmented model. `Default` = the rig's nominal model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Params {
+    /// Multiplies E (calibration).
+    pub stiffness_scale: f64,
+    /// Damping ratios of modes 1, 2 (calibration); `None` = the rig's.
+    pub zeta: Option<(f64, f64)>,
+    /// Carriage-mass correction (kg, calibration).
+    pub base_mass_delta_kg: f64,
+    /// Coulomb friction (N).
+    pub friction_n: f64,
+    /// Viscous friction (N·s/m).
+    pub viscous_n_s_per_m: f64,
+    /// Servo bandwidth (Hz) and damping ratio.
+    pub servo: Option<(f64, f64)>,
+    /// Tip mass (kg).
+    pub tip_mass_kg: f64,
+    /// Root rotational stiffness (N·m/rad).
+    pub root_stiffness_nm_per_rad: Option<f64>,
+    /// Distributed quadratic drag (kg/m²: force per unit length = c |v| v).
+    pub drag_kg_per_m2: f64,
+    /// Tip sensor latency (s).
+    pub sensor_delay_s: f64,
+    /// Gravity axial load.
+    pub orientation: Option<Orientation>,
+    /// Mount resonance (Hz, damping ratio).
+    pub mount: Option<(f64, f64)>,
+    /// Cogging: sine and cosine amplitudes (N) and pitch (m).
+    pub cogging: Option<(f64, f64, f64)>,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Params {
+            stiffness_scale: 1.0,
+            zeta: None,
+            base_mass_delta_kg: 0.0,
+            friction_n: 0.0,
+            viscous_n_s_per_m: 0.0,
+            servo: None,
+            tip_mass_kg: 0.0,
+            root_stiffness_nm_per_rad: None,
+            drag_kg_per_m2: 0.0,
+            sensor_delay_s: 0.0,
+            orientation: None,
+            mount: None,
+            cogging: None,
+        }
+    }
+}
+
+/// One recording prepared for simulation: uniform dt, the command (or the measured base when
+/// no command was recorded) and the measured channels.
+#[derive(Clone, Debug)]
+pub struct Prepared {
+    /// Name (file).
+    pub name: String,
+    /// Sample interval (s).
+    pub dt: f64,
+    /// Time (s).
+    pub time_s: Vec<f64>,
+    /// Base command (m).
+    pub cmd_m: Vec<f64>,
+    /// Measured base position (m), if recorded *and* a command exists.
+    pub base_m: Option<Vec<f64>>,
+    /// Measured base used to drive the beam (= `base_m`, or the base when it is the only one).
+    pub drive_m: Option<Vec<f64>>,
+    /// Tip position (m).
+    pub tip_m: Option<Vec<f64>>,
+    /// Force (N).
+    pub force_n: Option<Vec<f64>>,
+}
+
+impl Prepared {
+    /// Prepares a validated recording. Errors: no `base_cmd_m` and no `base_pos_m`, or no
+    /// channel to compare with.
+    pub fn new(name: &str, rec: &crate::recording::Recording) -> Result<Prepared> {
+        rec.validate()?;
+        let (cmd, base, drive) = match (&rec.base_cmd_m, &rec.base_pos_m) {
+            (Some(c), b) => (c.clone(), b.clone(), b.clone()),
+            (None, Some(b)) => (b.clone(), None, Some(b.clone())),
+            (None, None) => bail!("{name}: needs `base_cmd_m` or `base_pos_m` (the base motion that drives the model)"),
+        };
+        if base.is_none() && rec.tip_pos_m.is_none() && rec.force_n.is_none() {
+            bail!("{name}: nothing to compare: record at least one of `base_pos_m` (with `base_cmd_m`), `tip_pos_m`, `force_n`");
+        }
+        Ok(Prepared {
+            name: name.to_string(),
+            dt: rec.sample_interval_s(),
+            time_s: rec.time_s.clone(),
+            cmd_m: cmd,
+            base_m: base,
+            drive_m: drive,
+            tip_m: rec.tip_pos_m.clone(),
+            force_n: rec.force_n.clone(),
+        })
+    }
+}
+
+/// Predicted channels (present where the recording has them).
+#[derive(Clone, Debug, Default)]
+pub struct Prediction {
+    /// Base position (m).
+    pub base_m: Option<Vec<f64>>,
+    /// Absolute tip position (m).
+    pub tip_m: Option<Vec<f64>>,
+    /// Motor force (N).
+    pub force_n: Option<Vec<f64>>,
+}
+
+/// Response e = y − u of `ë + 2ζωė + ω²e = −ü − (lowpass ? 2ζω u̇ : 0)` for a piecewise-linear
+/// u: exact (velocity kicks at the samples, constant forcing in between).
+fn second_order(u: &[f64], dt: f64, omega: f64, zeta: f64, lowpass: bool) -> Vec<f64> {
+    let (phi, gam) = mode_zoh(omega, zeta, dt);
+    let n = u.len();
+    let mut x = Vector2::zeros();
+    let mut y = Vec::with_capacity(n);
+    for k in 0..n {
+        let vb = if k == 0 { 0.0 } else { (u[k] - u[k - 1]) / dt };
+        let va = if k + 1 < n { (u[k + 1] - u[k]) / dt } else { 0.0 };
+        y.push(u[k] + x[0]);
+        x[1] -= va - vb;
+        let f = if lowpass { -2.0 * zeta * omega * va } else { 0.0 };
+        x = phi * x + gam * f;
+    }
+    y
+}
+
+/// Cached structural model (rebuilt only when a structural parameter changes).
+#[derive(Clone, Debug)]
+pub struct BeamCache {
+    key: Vec<f64>,
+    omega: Vec<f64>,
+    zeta: Vec<f64>,
+    gamma: Vec<f64>,
+    tip: Vec<f64>,
+    /// mode shapes at the drag points: shape[r][j]
+    shape: Vec<Vec<f64>>,
+    weights: Vec<f64>,
+    total_mass: f64,
+    base_mass: f64,
+    phi: Vec<nalgebra::Matrix2<f64>>,
+}
+
+fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
+    let opts = ModelOptions {
+        n_modes: 4,
+        stiffness_scale: p.stiffness_scale,
+        base_mass_delta_kg: p.base_mass_delta_kg,
+        tip_mass_kg: p.tip_mass_kg,
+        root_stiffness_nm_per_rad: p.root_stiffness_nm_per_rad,
+        axial_load: p.orientation,
+        damping_ratios: p.zeta,
+    };
+    let model = BeamModel::new(rig, &opts)?;
+    let modes = model.clamped_modes()?;
+    // keep modes below 0.45 × the sample rate
+    let nyq = 0.45 * 2.0 * std::f64::consts::PI / (2.0 * dt);
+    let keep = modes.omega_rad_s.iter().take_while(|w| **w < nyq).count().max(1);
+    let l = model.length_m;
+    let npts = 16;
+    let off = usize::from(p.root_stiffness_nm_per_rad.is_some());
+    let basis: Vec<BasisFn> = (0..opts.n_modes).map(|i| BasisFn::new(i + 1, l)).collect();
+    let xs: Vec<f64> = (0..npts).map(|j| (j as f64 + 0.5) * l / npts as f64).collect();
+    let shape: Vec<Vec<f64>> = (0..keep)
+        .map(|r| {
+            xs.iter()
+                .map(|&x| {
+                    let mut v = if off == 1 { modes.shapes[(0, r)] * x } else { 0.0 };
+                    for (i, b) in basis.iter().enumerate() {
+                        v += modes.shapes[(off + i, r)] * b.eval(x).0;
+                    }
+                    v
+                })
+                .collect()
+        })
+        .collect();
+    let zeta: Vec<f64> = modes.zeta[..keep].iter().map(|z| z.clamp(0.0, 0.95)).collect();
+    let phi = (0..keep).map(|r| mode_zoh(modes.omega_rad_s[r], zeta[r], dt).0).collect();
+    Ok(BeamCache {
+        key: structural_key(p, dt),
+        omega: modes.omega_rad_s[..keep].to_vec(),
+        zeta,
+        gamma: modes.participation[..keep].to_vec(),
+        tip: modes.tip[..keep].to_vec(),
+        shape,
+        weights: vec![l / npts as f64; npts],
+        total_mass: model.mass[(0, 0)],
+        base_mass: model.base_mass_kg,
+        phi,
+    })
+}
+
+fn structural_key(p: &Params, dt: f64) -> Vec<f64> {
+    let (z1, z2) = p.zeta.unwrap_or((-1.0, -1.0));
+    vec![
+        p.stiffness_scale,
+        z1,
+        z2,
+        p.base_mass_delta_kg,
+        p.tip_mass_kg,
+        p.root_stiffness_nm_per_rad.unwrap_or(-1.0),
+        match p.orientation {
+            None => 0.0,
+            Some(Orientation::Hanging) => 1.0,
+            Some(Orientation::Upright) => -1.0,
+        },
+        dt,
+    ]
+}
+
+/// Predicts the channels of `d` with parameters `p`. `cache` keeps the last structural model.
+///
+/// Errors: a structural parameter set the model refuses (e.g. buckling), a rig without a beam
+/// when the recording has a tip channel.
+pub fn predict(rig: &Rig, p: &Params, d: &Prepared, cache: &mut Option<BeamCache>) -> Result<Prediction> {
+    let dt = d.dt;
+    let n = d.cmd_m.len();
+    let mut out = Prediction::default();
+    // 1. servo
+    let y_servo = match p.servo {
+        Some((f, z)) => second_order(&d.cmd_m, dt, 2.0 * std::f64::consts::PI * f, z, true),
+        None => d.cmd_m.clone(),
+    };
+    if d.base_m.is_some() {
+        out.base_m = Some(y_servo.clone());
+    }
+    // 2. drive
+    let drive: &[f64] = d.drive_m.as_deref().unwrap_or(&y_servo);
+    // 3. mount
+    let root: Vec<f64> = match p.mount {
+        Some((f, z)) => second_order(drive, dt, 2.0 * std::f64::consts::PI * f, z, false),
+        None => drive.to_vec(),
+    };
+    let accel = |y: &[f64], k: usize| {
+        let vb = if k == 0 { 0.0 } else { (y[k] - y[k - 1]) / dt };
+        let va = if k + 1 < n { (y[k + 1] - y[k]) / dt } else { 0.0 };
+        (va - vb) / dt
+    };
+    let mut force = vec![0.0; n];
+    if rig.beam.is_some() {
+        let stale = cache.as_ref().map_or(true, |c| c.key != structural_key(p, dt));
+        if stale {
+            *cache = Some(beam_cache(rig, p, dt)?);
+        }
+        let c = cache.as_ref().expect("cache just built");
+        let nm = c.omega.len();
+        let sum_g2: f64 = c.gamma.iter().map(|g| g * g).sum();
+        let mut x = vec![Vector2::<f64>::zeros(); nm];
+        let mut w = Vec::with_capacity(n);
+        let npts = c.weights.len();
+        let mut modal_f = vec![0.0; nm];
+        for k in 0..n {
+            let vb = if k == 0 { 0.0 } else { (root[k] - root[k - 1]) / dt };
+            let va = if k + 1 < n { (root[k + 1] - root[k]) / dt } else { 0.0 };
+            let dv = va - vb;
+            let acc = dv / dt;
+            let mut tip = 0.0;
+            let mut drag_total = 0.0;
+            modal_f.iter_mut().for_each(|f| *f = 0.0);
+            if p.drag_kg_per_m2 > 0.0 {
+                for j in 0..npts {
+                    let mut v = vb;
+                    for r in 0..nm {
+                        v += c.shape[r][j] * x[r][1];
+                    }
+                    let f = -p.drag_kg_per_m2 * c.weights[j] * v.abs() * v;
+                    drag_total += f;
+                    for r in 0..nm {
+                        modal_f[r] += c.shape[r][j] * f;
+                    }
+                }
+            }
+            let mut f = (c.total_mass - sum_g2) * acc - drag_total;
+            for r in 0..nm {
+                let (om, z) = (c.omega[r], c.zeta[r]);
+                tip += c.tip[r] * x[r][0];
+                f += c.gamma[r] * (-2.0 * z * om * x[r][1] - om * om * x[r][0] + modal_f[r]);
+                x[r][1] += -c.gamma[r] * dv + modal_f[r] * dt;
+                x[r] = c.phi[r] * x[r];
+            }
+            w.push(tip);
+            // the carriage itself moves with the drive, not with the mount
+            force[k] = f + c.base_mass * (accel(drive, k) - acc);
+        }
+        if d.tip_m.is_some() {
+            let tip: Vec<f64> = root.iter().zip(&w).map(|(y, w)| y + w).collect();
+            out.tip_m = Some(if p.sensor_delay_s != 0.0 {
+                let s = p.sensor_delay_s / dt;
+                (0..n)
+                    .map(|k| {
+                        let pos = k as f64 - s;
+                        if pos <= 0.0 {
+                            tip[0]
+                        } else if pos >= (n - 1) as f64 {
+                            tip[n - 1]
+                        } else {
+                            let i = pos.floor() as usize;
+                            let a = pos - i as f64;
+                            tip[i] * (1.0 - a) + tip[i + 1] * a
+                        }
+                    })
+                    .collect()
+            } else {
+                tip
+            });
+        }
+    } else {
+        if d.tip_m.is_some() {
+            bail!("{}: the recording has `tip_pos_m` but the rig has no [beam]", d.name);
+        }
+        let m = rig.base.mass_kg + p.base_mass_delta_kg;
+        for (k, fk) in force.iter_mut().enumerate() {
+            *fk = m * accel(drive, k);
+        }
+    }
+    if d.force_n.is_some() {
+        if p.friction_n != 0.0 || p.viscous_n_s_per_m != 0.0 {
+            for k in 0..n {
+                let v = if k + 1 < n { (drive[k + 1] - drive[k.saturating_sub(1)]) / (dt * (k + 1 - k.saturating_sub(1)) as f64) } else { 0.0 };
+                force[k] += p.friction_n * (v / 1e-3).tanh() + p.viscous_n_s_per_m * v;
+            }
+        }
+        if let Some((a, b, pitch)) = p.cogging {
+            let kw = 2.0 * std::f64::consts::PI / pitch;
+            for k in 0..n {
+                let (s, co) = (kw * drive[k]).sin_cos();
+                force[k] += a * s + b * co;
+            }
+        }
+        out.force_n = Some(force);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::sim::BaseMotionSim;
+
+    fn rig() -> Rig {
+        Rig::from_toml_str(
+            "[beam]\nlength_m = 0.9\ndensity_kg_m3 = 8190.0\nyoungs_modulus_pa = 1.9e11\nstations = [ { x_m = 0.0, width_m = 0.025, thickness_m = 0.00115 }, { x_m = 0.9, width_m = 0.025, thickness_m = 0.00115 } ]\n[base]\nmass_kg = 2.5\n",
+        )
+        .unwrap()
+    }
+
+    fn move_rec() -> crate::recording::Recording {
+        let (y, _) = crate::model::trapezoid_reference(0.0, 0.05, 0.2, 2.0, 100.0, 5.0).unwrap();
+        let mut r = crate::recording::Recording::with_uniform_time(y.len(), 100.0);
+        r.base_cmd_m = Some(y.clone());
+        r.tip_pos_m = Some(y.clone());
+        r.force_n = Some(vec![0.0; y.len()]);
+        r
+    }
+
+    #[test]
+    fn nominal_matches_the_model_simulator() {
+        let rig = rig();
+        let rec = move_rec();
+        let d = Prepared::new("t", &rec).unwrap();
+        let p = Params::default();
+        let pred = predict(&rig, &p, &d, &mut None).unwrap();
+        let model = BeamModel::new(&rig, &ModelOptions::default()).unwrap();
+        let sim = BaseMotionSim::new(&model, 0.01).unwrap();
+        let (w, u) = sim.run(&d.cmd_m);
+        for k in 0..w.len() {
+            assert!((pred.tip_m.as_ref().unwrap()[k] - d.cmd_m[k] - w[k]).abs() < 1e-9);
+            assert!((pred.force_n.as_ref().unwrap()[k] - u[k]).abs() < 1e-6 * (1.0 + u[k].abs()));
+        }
+    }
+
+    #[test]
+    fn fast_filters_are_transparent_and_slow_ones_lag() {
+        let rec = move_rec();
+        let d = Prepared::new("t", &rec).unwrap();
+        let y = second_order(&d.cmd_m, 0.01, 2.0 * std::f64::consts::PI * 1e4, 0.7, true);
+        assert!(y.iter().zip(&d.cmd_m).all(|(a, b)| (a - b).abs() < 1e-6));
+        let y = second_order(&d.cmd_m, 0.01, 2.0 * std::f64::consts::PI * 5.0, 0.7, true);
+        let lag = y.iter().zip(&d.cmd_m).map(|(a, b)| b - a).fold(0.0, f64::max);
+        // following error of a 2nd-order loop at 0.2 m/s: 2ζv/ω = 8.9 mm
+        assert!((lag - 2.0 * 0.7 * 0.2 / (2.0 * std::f64::consts::PI * 5.0)).abs() < 1e-3, "{lag}");
+    }
+}

@@ -1,0 +1,375 @@
+//! The truth generator: an independent, higher-fidelity simulator that writes a rig TOML and
+//! fit/validation recordings with one concealed effect switched on (or none).
+//!
+//! Independent of the nominal Galerkin model (`crate::model`): a 24-element Hermite FE beam
+//! ([`fe`]) with its modes below 0.1 × the fine rate, a carriage with a digital cascaded servo,
+//! Coulomb + viscous friction, cogging, a mount resonance, distributed quadratic air drag
+//! ([`plant`]), integrated by RK4 at 40 steps per output sample, and sensor models (tip camera
+//! latency, noise and quantisation; encoder and force noise and quantisation).
+//!
+//! Concealment: the rig file handed to the diagnosis is *wrong* in the first-order way a user's
+//! rig file is (Young's modulus ±6 %, carriage mass ±12 %, damping ratios ×0.6…1.7), and each
+//! effect's strength is drawn relative to the noise of the channel it shows in (residual of the
+//! order of 1–4 noise σ) or as a few-percent frequency change that a stiffness recalibration
+//! largely absorbs. Geometry, material, damping, noise, channels and move profiles are drawn
+//! widely at random from the seed.
+
+pub mod cli;
+pub mod fe;
+pub mod plant;
+pub mod profile;
+
+use crate::recording::Recording;
+use anyhow::{bail, Context, Result};
+use fe::FeBeam;
+use plant::{Friction, Mount, Plant, Sensors, Servo};
+use profile::{random_profile, ProfileSpec};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use rand_distr::{Distribution, Normal};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// The effect ids of the issue (and `none`).
+pub const EFFECTS: [&str; 9] = [
+    "base_friction",
+    "servo_lag",
+    "tip_mass",
+    "root_compliance",
+    "quadratic_damping",
+    "sensor_delay",
+    "gravity_axial_load",
+    "mount_resonance",
+    "cogging_ripple",
+];
+
+/// Fine integration steps per output sample.
+pub const FINE_STEPS: usize = 40;
+
+/// A generated case.
+#[derive(Clone, Debug)]
+pub struct TruthCase {
+    /// Effect id or `none`.
+    pub effect: String,
+    /// Seed.
+    pub seed: u64,
+    /// The rig file as handed to the diagnosis (nominal, first-order wrong).
+    pub rig_toml: String,
+    /// True effect parameters (names as in the diagnosis JSON) and nominal truths.
+    pub truth: BTreeMap<String, serde_json::Value>,
+    /// Fit recordings.
+    pub fit: Vec<Recording>,
+    /// Validation recording.
+    pub validate: Recording,
+}
+
+/// Options of the generator.
+#[derive(Clone, Copy, Debug)]
+pub struct TruthOptions {
+    /// Duration of each recording (s).
+    pub duration_s: f64,
+    /// Number of fit recordings.
+    pub n_fit: usize,
+    /// Output sample rate (Hz).
+    pub rate_hz: f64,
+}
+
+impl Default for TruthOptions {
+    fn default() -> Self {
+        TruthOptions { duration_s: 60.0, n_fit: 2, rate_hz: 100.0 }
+    }
+}
+
+fn log_uniform(rng: &mut StdRng, lo: f64, hi: f64) -> f64 {
+    (rng.gen_range(lo.ln()..hi.ln())).exp()
+}
+
+#[derive(Clone, Debug, Serialize)]
+struct Geometry {
+    length_m: f64,
+    density: f64,
+    youngs: f64,
+    width: (f64, f64),
+    thickness: f64,
+}
+
+fn fe_of(g: &Geometry) -> FeBeam {
+    FeBeam {
+        length_m: g.length_m,
+        density_kg_m3: g.density,
+        youngs_modulus_pa: g.youngs,
+        width_m: g.width,
+        thickness_m: (g.thickness, g.thickness),
+        tip_mass_kg: 0.0,
+        root_stiffness_nm_per_rad: None,
+        gravity_sign: 0.0,
+        elements: 24,
+    }
+}
+
+fn f1_hz(b: &FeBeam) -> Result<f64> {
+    Ok(b.modes(1)?.omega_rad_s[0] / (2.0 * std::f64::consts::PI))
+}
+
+/// Generates one case. `effect` is one of [`EFFECTS`] or `none`.
+///
+/// Errors: an unknown effect id.
+pub fn generate(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCase> {
+    if effect != "none" && !EFFECTS.contains(&effect) {
+        bail!("unknown effect `{effect}` (one of none, {})", EFFECTS.join(", "));
+    }
+    let mut rng = StdRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0x5eed);
+    let rate = opts.rate_hz;
+    let pi2 = 2.0 * std::f64::consts::PI;
+    let mut truth: BTreeMap<String, serde_json::Value> = BTreeMap::new();
+    // carriage-only for some base-side cases
+    let base_side = matches!(effect, "base_friction" | "cogging_ripple" | "servo_lag" | "none");
+    let with_beam = !(base_side && rng.gen_bool(0.25));
+    // geometry with f1 in 0.6..5 Hz
+    let mut geo;
+    loop {
+        let steel = rng.gen_bool(0.5);
+        let (density, youngs) = if steel { (rng.gen_range(7800.0..8200.0), rng.gen_range(1.9e11..2.1e11)) } else { (2700.0, rng.gen_range(6.8e10..7.2e10)) };
+        let w0 = rng.gen_range(0.012..0.04);
+        let taper = if rng.gen_bool(0.5) { 1.0 } else { rng.gen_range(0.5..1.0) };
+        geo = Geometry {
+            length_m: rng.gen_range(0.35..1.0),
+            density,
+            youngs,
+            width: (w0, w0 * taper),
+            thickness: rng.gen_range(0.0008..0.003),
+        };
+        let f1 = f1_hz(&fe_of(&geo))?;
+        if (0.6..5.0).contains(&f1) {
+            break;
+        }
+    }
+    let mut beam = fe_of(&geo);
+    // gravity: rescale thickness so the load shifts f1 by 2..8 %
+    if effect == "gravity_axial_load" {
+        let sign = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+        let target = rng.gen_range(0.02..0.08);
+        for _ in 0..30 {
+            let f0 = f1_hz(&beam)?;
+            let fg = f1_hz(&FeBeam { gravity_sign: sign, ..beam.clone() }).unwrap_or(0.0);
+            let shift = (fg / f0 - 1.0).abs();
+            if (shift / target - 1.0).abs() < 0.05 {
+                break;
+            }
+            let h = (beam.thickness_m.0 * (shift / target).powf(0.5)).clamp(2e-4, 5e-3);
+            beam.thickness_m = (h, h);
+        }
+        geo.thickness = beam.thickness_m.0;
+        beam.gravity_sign = sign;
+        truth.insert("orientation".into(), (if sign > 0.0 { "hanging" } else { "upright" }).into());
+    }
+    let beam_mass = geo.density * 0.5 * (geo.width.0 + geo.width.1) * geo.thickness * geo.length_m;
+    let carriage = rng.gen_range(1.0..6.0);
+    let zeta = (log_uniform(&mut rng, 0.003, 0.03), log_uniform(&mut rng, 0.003, 0.03));
+    // sensors
+    let sensors = Sensors {
+        tip_noise_m: log_uniform(&mut rng, 2e-5, 3e-4),
+        tip_quantum_m: if rng.gen_bool(0.5) { 1e-5 } else { 1e-4 },
+        tip_delay_s: 0.0,
+        encoder_noise_m: log_uniform(&mut rng, 2e-7, 2e-6),
+        encoder_quantum_m: 1e-6,
+        force_noise_n: log_uniform(&mut rng, 0.01, 0.2),
+        force_quantum_n: 0.01,
+    };
+    let mut plant = Plant {
+        beam: None,
+        zeta,
+        carriage_mass_kg: carriage,
+        feedforward_mass_kg: carriage + if with_beam { beam_mass } else { 0.0 },
+        servo: Servo { position_bandwidth_hz: rng.gen_range(30.0..60.0), velocity_bandwidth_hz: 0.0, feedforward: true },
+        friction: Friction::default(),
+        cogging: None,
+        mount: None,
+        drag_kg_per_m2: 0.0,
+        sensors,
+    };
+    plant.servo.velocity_bandwidth_hz = 4.0 * plant.servo.position_bandwidth_hz;
+    let spec = ProfileSpec {
+        duration_s: opts.duration_s,
+        span_m: rng.gen_range(0.06..0.3),
+        speed_m_s: (0.05, rng.gen_range(0.1..0.4)),
+        accel_m_s2: (0.5, rng.gen_range(1.0..5.0)),
+        dwell_s: (rng.gen_range(1.0..2.0), rng.gen_range(2.5..6.0)),
+    };
+    let v_typ = 0.5 * (spec.speed_m_s.0 + spec.speed_m_s.1);
+    // channels
+    let mut has_base = rng.gen_bool(0.6);
+    let mut has_force = rng.gen_bool(0.6);
+    let has_tip = with_beam;
+    match effect {
+        "base_friction" | "cogging_ripple" => has_force = true,
+        "servo_lag" => has_base = rng.gen_bool(0.3),
+        "mount_resonance" => {}
+        _ => {}
+    }
+    if !with_beam {
+        has_base = true;
+    }
+    // effect strengths
+    match effect {
+        "base_friction" => {
+            let fc = rng.gen_range(1.5..4.0) * sensors.force_noise_n;
+            let visc = rng.gen_range(0.0..1.0) * fc / v_typ;
+            plant.friction = Friction { coulomb_n: fc, viscous_n_s_per_m: visc, stribeck_m_s: 2e-3 };
+            truth.insert("friction_n".into(), fc.into());
+            truth.insert("viscous_n_s_per_m".into(), visc.into());
+        }
+        "cogging_ripple" => {
+            let a = rng.gen_range(1.5..4.0) * sensors.force_noise_n * std::f64::consts::SQRT_2;
+            let p = rng.gen_range(0.008..0.04);
+            plant.cogging = Some((a, p, rng.gen_range(0.0..pi2)));
+            truth.insert("cogging_amplitude_n".into(), a.into());
+            truth.insert("cogging_pitch_m".into(), p.into());
+        }
+        "servo_lag" => {
+            let sigma = if has_base { 50.0 * sensors.encoder_noise_m } else { sensors.tip_noise_m };
+            let wp = spec.speed_m_s.1 / (rng.gen_range(2.0..6.0) * sigma);
+            let f = (wp / pi2).clamp(3.0, 60.0);
+            plant.servo = Servo { position_bandwidth_hz: f, velocity_bandwidth_hz: 4.0 * f, feedforward: false };
+            truth.insert("servo_bandwidth_hz".into(), f.into());
+        }
+        "tip_mass" => {
+            let m = rng.gen_range(0.03..0.12) * beam_mass;
+            beam.tip_mass_kg = m;
+            truth.insert("tip_mass_kg".into(), m.into());
+        }
+        "root_compliance" => {
+            let target = 1.0 - rng.gen_range(0.02..0.06);
+            let f0 = f1_hz(&beam)?;
+            let (mut lo, mut hi) = (1e-3f64.ln(), 1e6f64.ln());
+            for _ in 0..50 {
+                let mid = 0.5 * (lo + hi);
+                let f = f1_hz(&FeBeam { root_stiffness_nm_per_rad: Some(mid.exp()), ..beam.clone() })?;
+                if f / f0 < target {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            let kr = (0.5 * (lo + hi)).exp();
+            beam.root_stiffness_nm_per_rad = Some(kr);
+            truth.insert("root_stiffness_nm_per_rad".into(), kr.into());
+        }
+        "sensor_delay" => {
+            let tau = (rng.gen_range(2.0..6.0) * sensors.tip_noise_m / spec.speed_m_s.1).clamp(0.002, 0.03);
+            plant.sensors.tip_delay_s = tau;
+            truth.insert("sensor_delay_s".into(), tau.into());
+        }
+        "mount_resonance" => {
+            let f2 = beam.modes(2)?.omega_rad_s[1] / pi2;
+            let fm = (rng.gen_range(1.3..3.0) * f2).clamp(8.0, 0.4 * rate);
+            plant.mount = Some(Mount { mass_kg: rng.gen_range(0.15..0.4) * carriage, freq_hz: fm, zeta: rng.gen_range(0.02..0.1) });
+            truth.insert("mount_frequency_hz".into(), fm.into());
+        }
+        _ => {}
+    }
+    let fine_dt = 1.0 / (rate * FINE_STEPS as f64);
+    if with_beam {
+        let n_keep = 8;
+        let mut modes = beam.modes(n_keep)?;
+        let limit = pi2 * (0.1 / fine_dt).min(250.0);
+        let keep = modes.omega_rad_s.iter().take_while(|w| **w < limit).count().max(1);
+        modes.omega_rad_s.truncate(keep);
+        modes.participation.truncate(keep);
+        modes.node_w.truncate(keep);
+        plant.beam = Some((modes, geo.length_m / beam.elements as f64));
+    }
+    let mut rng_profiles: Vec<StdRng> = (0..=opts.n_fit).map(|i| StdRng::seed_from_u64(seed ^ (0xABCD + i as u64 * 7919))).collect();
+    let cmds: Vec<Vec<(f64, f64, f64)>> = rng_profiles.iter_mut().map(|r| random_profile(&spec, fine_dt, r)).collect();
+    if effect == "quadratic_damping" {
+        // drag giving an equivalent linear damping of 0.4..1.0 ζ1 at the peak tip deflection
+        let (modes, h) = plant.beam.as_ref().context("beam")?;
+        let run = plant.run(&cmds[0], fine_dt);
+        let peak = run.tip_m.iter().zip(&run.y_motor_m).map(|(t, y)| (t - y).abs()).fold(0.0, f64::max);
+        let phi = &modes.node_w[0];
+        let nn = phi.len();
+        let cube: f64 = (1..nn).map(|j| if j + 1 == nn { 0.5 * h } else { *h } * phi[j].abs().powi(3)).sum();
+        let c = rng.gen_range(0.4..1.0) * zeta.0 * 3.0 * std::f64::consts::PI / 4.0 * phi[nn - 1].abs() / (peak.max(1e-4) * cube);
+        plant.drag_kg_per_m2 = c;
+        truth.insert("drag_coefficient_kg_per_m2".into(), c.into());
+    }
+    // simulate and sample
+    let mut noise_rng = StdRng::seed_from_u64(seed ^ 0x00C0_FFEE);
+    let mut recs = Vec::new();
+    for cmd in &cmds {
+        let run = plant.run(cmd, fine_dt);
+        let n = cmd.len() / FINE_STEPS;
+        let mut rec = Recording::with_uniform_time(n, rate);
+        let q = |v: f64, qn: f64| if qn > 0.0 { (v / qn).round() * qn } else { v };
+        let mut gauss = |s: f64| Normal::new(0.0, s).map(|d| d.sample(&mut noise_rng)).unwrap_or(0.0);
+        rec.base_cmd_m = Some((0..n).map(|k| cmd[k * FINE_STEPS].0).collect());
+        if has_base {
+            rec.base_pos_m = Some((0..n).map(|k| q(run.y_motor_m[k * FINE_STEPS] + gauss(sensors.encoder_noise_m), sensors.encoder_quantum_m)).collect());
+        }
+        if has_tip {
+            let d = plant.sensors.tip_delay_s / fine_dt;
+            rec.tip_pos_m = Some(
+                (0..n)
+                    .map(|k| {
+                        let pos = k as f64 * FINE_STEPS as f64 - d;
+                        let v = if pos <= 0.0 {
+                            run.tip_m[0]
+                        } else {
+                            let i = pos.floor() as usize;
+                            let a = pos - i as f64;
+                            run.tip_m[i] * (1.0 - a) + run.tip_m[(i + 1).min(run.tip_m.len() - 1)] * a
+                        };
+                        q(v + gauss(sensors.tip_noise_m), sensors.tip_quantum_m)
+                    })
+                    .collect(),
+            );
+        }
+        if has_force {
+            // the drive reports the mean force over each sample period
+            rec.force_n = Some(
+                (0..n)
+                    .map(|k| {
+                        let s = &run.force_n[k * FINE_STEPS..(k + 1) * FINE_STEPS];
+                        q(s.iter().sum::<f64>() / s.len() as f64 + gauss(sensors.force_noise_n), sensors.force_quantum_n)
+                    })
+                    .collect(),
+            );
+        }
+        recs.push(rec);
+    }
+    // the user's rig file: first-order wrong
+    let e_rig = geo.youngs * (1.0 + rng.gen_range(-0.06..0.06));
+    let m_rig = carriage * (1.0 + rng.gen_range(-0.12..0.12));
+    let z_rig = (zeta.0 * rng.gen_range(0.6..1.7), zeta.1 * rng.gen_range(0.6..1.7));
+    let mut toml = format!("# truth case: effect hidden; seed {seed}\n");
+    if with_beam {
+        toml += &format!(
+            "[beam]\nlength_m = {}\ndensity_kg_m3 = {}\nyoungs_modulus_pa = {}\nstations = [\n  {{ x_m = 0.0, width_m = {}, thickness_m = {} }},\n  {{ x_m = {}, width_m = {}, thickness_m = {} }},\n]\n",
+            geo.length_m, geo.density, e_rig, geo.width.0, geo.thickness, geo.length_m, geo.width.1, geo.thickness
+        );
+    }
+    toml += &format!("[base]\nmass_kg = {m_rig}\n[damping]\nratios = [{}, {}]\n[sensors]\nsample_rate_hz = {rate}\n", z_rig.0, z_rig.1);
+    truth.insert("true_youngs_modulus_pa".into(), geo.youngs.into());
+    truth.insert("true_carriage_mass_kg".into(), carriage.into());
+    truth.insert("true_damping_ratios".into(), vec![zeta.0, zeta.1].into());
+    truth.insert("tip_noise_m".into(), sensors.tip_noise_m.into());
+    truth.insert("force_noise_n".into(), sensors.force_noise_n.into());
+    let validate = recs.pop().context("no recordings")?;
+    Ok(TruthCase { effect: effect.to_string(), seed, rig_toml: toml, truth, fit: recs, validate })
+}
+
+impl TruthCase {
+    /// Writes `rig.toml`, `fit1.csv` …, `validate.csv` and `truth.json` into `dir`.
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        std::fs::write(dir.join("rig.toml"), &self.rig_toml)?;
+        for (i, r) in self.fit.iter().enumerate() {
+            r.write_csv(dir.join(format!("fit{}.csv", i + 1)))?;
+        }
+        self.validate.write_csv(dir.join("validate.csv"))?;
+        let j = serde_json::json!({"effect": self.effect, "seed": self.seed, "truth": self.truth});
+        std::fs::write(dir.join("truth.json"), serde_json::to_string_pretty(&j)?)?;
+        Ok(())
+    }
+}

@@ -1,0 +1,255 @@
+//! The truth plant: carriage + digital servo + optional mount + FE beam + sensors, integrated
+//! with classical RK4 at a fine step (default 40 steps per output sample).
+//!
+//! Equations (coordinates: motor/carriage position y_m, beam-root position y_r, FE modal
+//! coordinates η_r of [`super::fe::FeModes`], Rayleigh damping from ζ1, ζ2):
+//! - beam (FE form of the paper's eq. 12 in the moving frame):
+//!   `η̈_r + 2ζ_rω_r η̇_r + ω_r² η_r = −Γ_r ÿ_r + Σ_j φ_r(x_j) F_j`, with the distributed quadratic
+//!   air drag `F_j = −c_d L_j |v_j| v_j` on node j (tributary length L_j, absolute velocity v_j);
+//! - beam root (mass m_root, the whole carriage without a mount):
+//!   `(m_root + m_b − ΣΓ_r²) ÿ_r = F_root + ΣF_j − Σ Γ_r (Σ_j φ_r(x_j)F_j − 2ζ_rω_rη̇_r − ω_r²η_r)`;
+//! - without a mount F_root = F_motor − F_friction(ẏ) − F_cogging(y) and y_m = y_r; with a mount
+//!   the motor mass m₁ obeys `m₁ÿ_m = F_motor − F_friction − F_cogging − k(y_m − y_r) − c(ẏ_m − ẏ_r)`
+//!   and F_root = k(y_m − y_r) + c(ẏ_m − ẏ_r);
+//! - friction: Coulomb (tanh-smoothed over `stribeck_m_s`) + viscous; cogging `A sin(2π y/p + φ)`;
+//! - servo: cascaded position P / velocity PI loop evaluated once per fine step (zero-order
+//!   hold), with velocity and acceleration feed-forward (off when the concealed effect is a slow
+//!   servo), the standard industrial drive structure (Ellis, *Control System Design Guide*,
+//!   ch. 17).
+
+use super::fe::FeModes;
+
+/// Friction on the carriage.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Friction {
+    /// Coulomb level (N).
+    pub coulomb_n: f64,
+    /// Viscous coefficient (N·s/m).
+    pub viscous_n_s_per_m: f64,
+    /// Velocity over which the Coulomb term is smoothed (m/s).
+    pub stribeck_m_s: f64,
+}
+
+/// Carriage–beam mount resonance.
+#[derive(Clone, Copy, Debug)]
+pub struct Mount {
+    /// Mount (beam-side) mass m₂ (kg), part of the carriage mass.
+    pub mass_kg: f64,
+    /// √(k/(m₂ + m_beam))/2π (Hz).
+    pub freq_hz: f64,
+    /// Damping ratio of that resonance.
+    pub zeta: f64,
+}
+
+/// Servo loop.
+#[derive(Clone, Copy, Debug)]
+pub struct Servo {
+    /// Position-loop bandwidth Kp (Hz).
+    pub position_bandwidth_hz: f64,
+    /// Velocity-loop bandwidth (Hz).
+    pub velocity_bandwidth_hz: f64,
+    /// Velocity and acceleration feed-forward on.
+    pub feedforward: bool,
+}
+
+/// Sensor models.
+#[derive(Clone, Copy, Debug)]
+pub struct Sensors {
+    /// Tip camera noise σ (m), quantum (m), latency (s).
+    pub tip_noise_m: f64,
+    /// Tip quantum (m).
+    pub tip_quantum_m: f64,
+    /// Tip latency (s).
+    pub tip_delay_s: f64,
+    /// Encoder noise σ (m).
+    pub encoder_noise_m: f64,
+    /// Encoder quantum (m).
+    pub encoder_quantum_m: f64,
+    /// Force noise σ (N).
+    pub force_noise_n: f64,
+    /// Force quantum (N).
+    pub force_quantum_n: f64,
+}
+
+/// The whole plant.
+#[derive(Clone, Debug)]
+pub struct Plant {
+    /// FE beam modes (None: carriage only) and node spacing (m).
+    pub beam: Option<(FeModes, f64)>,
+    /// Damping ratios of the first two beam modes (Rayleigh for the rest).
+    pub zeta: (f64, f64),
+    /// Carriage mass without the beam (kg), incl. a mount mass.
+    pub carriage_mass_kg: f64,
+    /// Mass the feed-forward assumes (kg).
+    pub feedforward_mass_kg: f64,
+    /// Servo.
+    pub servo: Servo,
+    /// Friction.
+    pub friction: Friction,
+    /// Cogging (amplitude N, pitch m, phase rad).
+    pub cogging: Option<(f64, f64, f64)>,
+    /// Mount.
+    pub mount: Option<Mount>,
+    /// Distributed quadratic drag coefficient (N·s²/m³ = kg/m², force per unit length).
+    pub drag_kg_per_m2: f64,
+    /// Sensors.
+    pub sensors: Sensors,
+}
+
+/// Clean (noise-free) fine-grid output of a run.
+#[derive(Clone, Debug)]
+pub struct FineRun {
+    /// Motor position (m).
+    pub y_motor_m: Vec<f64>,
+    /// Absolute tip position (m) (= root position without beam).
+    pub tip_m: Vec<f64>,
+    /// Motor force (N).
+    pub force_n: Vec<f64>,
+}
+
+impl Plant {
+    /// Runs the command `cmd` = (position m, velocity m/s, acceleration m/s²) per fine step `dt`.
+    pub fn run(&self, cmd: &[(f64, f64, f64)], dt: f64) -> FineRun {
+        let (nm, modes, h) = match &self.beam {
+            Some((m, h)) => (m.omega_rad_s.len(), Some(m), *h),
+            None => (0, None, 0.0),
+        };
+        let m_b = modes.map_or(0.0, |m| m.beam_mass_kg);
+        let sum_g2: f64 = modes.map_or(0.0, |m| m.participation.iter().map(|g| g * g).sum());
+        let zetas: Vec<f64> = match modes {
+            Some(m) => {
+                let (w1, w2) = (m.omega_rad_s[0], *m.omega_rad_s.get(1).unwrap_or(&(m.omega_rad_s[0] * 6.0)));
+                let det = w2 / w1 - w1 / w2;
+                let a1 = 2.0 * (self.zeta.0 * w2 - self.zeta.1 * w1) / det;
+                let a2 = 2.0 * (self.zeta.1 / w1 - self.zeta.0 / w2) / det;
+                m.omega_rad_s.iter().map(|w| 0.5 * (a1 / w + a2 * w)).collect()
+            }
+            None => vec![],
+        };
+        let nodes = modes.map_or(0, |m| m.node_w[0].len());
+        let trib: Vec<f64> = (0..nodes).map(|j| if j == 0 { 0.0 } else if j + 1 == nodes { 0.5 * h } else { h }).collect();
+        let (m1, m_root, k_m, c_m) = match self.mount {
+            Some(mt) => {
+                let w = 2.0 * std::f64::consts::PI * mt.freq_hz;
+                let k = w * w * (mt.mass_kg + m_b);
+                (self.carriage_mass_kg - mt.mass_kg, mt.mass_kg, k, 2.0 * mt.zeta * w * (mt.mass_kg + m_b))
+            }
+            None => (0.0, self.carriage_mass_kg, 0.0, 0.0),
+        };
+        let total = self.carriage_mass_kg + m_b;
+        let wp = 2.0 * std::f64::consts::PI * self.servo.position_bandwidth_hz;
+        let wv = 2.0 * std::f64::consts::PI * self.servo.velocity_bandwidth_hz;
+        let (kv, kiv) = (total * wv, total * wv * wv / 4.0);
+        // state: y_m, v_m, y_r, v_r, eta.., etad..
+        let ns = 4 + 2 * nm;
+        let mut x = vec![0.0; ns];
+        x[0] = cmd[0].0;
+        x[2] = cmd[0].0;
+        let mut integ = 0.0;
+        let mut out = FineRun { y_motor_m: vec![], tip_m: vec![], force_n: vec![] };
+        let fric = |v: f64| {
+            let f = &self.friction;
+            if f.coulomb_n == 0.0 && f.viscous_n_s_per_m == 0.0 {
+                0.0
+            } else {
+                f.coulomb_n * (v / f.stribeck_m_s.max(1e-9)).tanh() + f.viscous_n_s_per_m * v
+            }
+        };
+        let cog = |y: f64| match self.cogging {
+            Some((a, p, ph)) => a * (2.0 * std::f64::consts::PI * y / p + ph).sin(),
+            None => 0.0,
+        };
+        let deriv = |x: &[f64], u: f64, dx: &mut [f64]| {
+            let (ym, vm, yr, vr) = (x[0], x[1], x[2], x[3]);
+            let mut modal_f = [0.0f64; 16];
+            let mut drag_total = 0.0;
+            if let Some(m) = modes {
+                if self.drag_kg_per_m2 > 0.0 {
+                    for j in 1..nodes {
+                        let mut v = vr;
+                        for r in 0..nm {
+                            v += m.node_w[r][j] * x[4 + nm + r];
+                        }
+                        let f = -self.drag_kg_per_m2 * trib[j] * v.abs() * v;
+                        drag_total += f;
+                        for r in 0..nm {
+                            modal_f[r] += m.node_w[r][j] * f;
+                        }
+                    }
+                }
+            }
+            let dist = fric(vm) + cog(ym);
+            let (f_root, a_m) = if self.mount.is_some() {
+                let fs = k_m * (ym - yr) + c_m * (vm - vr);
+                (fs, (u - dist - fs) / m1)
+            } else {
+                (u - dist, f64::NAN)
+            };
+            let mut rhs = f_root + drag_total;
+            if let Some(m) = modes {
+                for r in 0..nm {
+                    let w = m.omega_rad_s[r];
+                    rhs -= m.participation[r] * (modal_f[r] - 2.0 * zetas[r] * w * x[4 + nm + r] - w * w * x[4 + r]);
+                }
+            }
+            let a_r = rhs / (m_root + m_b - sum_g2);
+            dx[2] = vr;
+            dx[3] = a_r;
+            if self.mount.is_some() {
+                dx[0] = vm;
+                dx[1] = a_m;
+            } else {
+                dx[0] = vr;
+                dx[1] = a_r;
+            }
+            if let Some(m) = modes {
+                for r in 0..nm {
+                    let w = m.omega_rad_s[r];
+                    dx[4 + r] = x[4 + nm + r];
+                    dx[4 + nm + r] = -m.participation[r] * a_r + modal_f[r] - 2.0 * zetas[r] * w * x[4 + nm + r] - w * w * x[4 + r];
+                }
+            }
+        };
+        let mut k1 = vec![0.0; ns];
+        let mut k2 = vec![0.0; ns];
+        let mut k3 = vec![0.0; ns];
+        let mut k4 = vec![0.0; ns];
+        let mut tmp = vec![0.0; ns];
+        let ff = if self.servo.feedforward { 1.0 } else { 0.0 };
+        for &(r, rv, ra) in cmd {
+            // digital cascaded servo (ZOH over the step)
+            let (ym, vm) = (x[0], x[1]);
+            let v_ref = wp * (r - ym) + ff * rv;
+            let ev = v_ref - vm;
+            integ += ev * dt;
+            let u = ff * self.feedforward_mass_kg * ra + kv * ev + kiv * integ;
+            // record outputs at the step start
+            let mut tip = x[2];
+            if let Some(m) = modes {
+                for rr in 0..nm {
+                    tip += m.node_w[rr][nodes - 1] * x[4 + rr];
+                }
+            }
+            out.y_motor_m.push(ym);
+            out.tip_m.push(tip);
+            out.force_n.push(u);
+            deriv(&x, u, &mut k1);
+            for i in 0..ns {
+                tmp[i] = x[i] + 0.5 * dt * k1[i];
+            }
+            deriv(&tmp, u, &mut k2);
+            for i in 0..ns {
+                tmp[i] = x[i] + 0.5 * dt * k2[i];
+            }
+            deriv(&tmp, u, &mut k3);
+            for i in 0..ns {
+                tmp[i] = x[i] + dt * k3[i];
+            }
+            deriv(&tmp, u, &mut k4);
+            for i in 0..ns {
+                x[i] += dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            }
+        }
+        out
+    }
+}
