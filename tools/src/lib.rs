@@ -8,10 +8,12 @@
 //! - [`tune`]: the main job end to end.
 
 pub mod board;
+pub mod diagnose;
 pub mod fe;
 pub mod ident;
 pub mod measures;
 pub mod model;
 pub mod plot;
 pub mod recording;
+pub mod truth;
 pub mod tune;

@@ -34,6 +34,12 @@ enum Command {
     BenchSim(beamtools::model::bench::BenchArgs),
     /// Identify natural frequencies and damping ratios from a free decay (.npy or CSV).
     Identify(beamtools::ident::cli::IdentifyArgs),
+    /// Model-discrepancy diagnosis: locate the mismatch, name the missing physics, refit, validate.
+    Diagnose(beamtools::diagnose::cli::DiagnoseArgs),
+    /// Prove the diagnosis on concealed effects from the truth generator (confusion table).
+    DiagnoseProof(beamtools::diagnose::cli::ProofArgs),
+    /// Write one truth-generator case (rig + fit/validation recordings with a hidden effect).
+    Truth(beamtools::truth::cli::TruthArgs),
 }
 
 #[derive(Args)]
@@ -91,6 +97,9 @@ fn main() -> Result<()> {
         Command::Modes(a) => beamtools::model::cli::modes(a),
         Command::Table2(a) => beamtools::model::cli::table2(a),
         Command::Identify(a) => beamtools::ident::cli::identify(a),
+        Command::Diagnose(a) => beamtools::diagnose::cli::diagnose(a),
+        Command::DiagnoseProof(a) => beamtools::diagnose::cli::proof(a),
+        Command::Truth(a) => beamtools::truth::cli::truth(a),
         Command::BenchSim(a) => beamtools::model::bench::bench_sim(a),
     }
 }
