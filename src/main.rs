@@ -6,7 +6,8 @@
 //!   the step pulse train (TIM8), sets the direction pin and the DAC mirror.
 //! - **Console task** (thread mode): LPUART1 on PA2/PA3 (ST-LINK virtual COM port, 115200 8N1),
 //!   lines into the core's [`Console`]; shaper design runs here, outside the interrupt.
-//! - **Settings** in the last 16 KiB of flash via `sequential-storage` (see `memory.x`).
+//! - **Settings** in the last 16 KiB of flash (bank 2) via `sequential-storage` (see
+//!   `memory.x`); loaded at boot, the console says whether defaults were used and why.
 //!
 //! Pins: PC6 = STEP (TIM8_CH1, one-pulse train of N pulses per tick using the repetition
 //! counter), PC7 = DIR, PB6 = upstream DIR in (TIM4_CH1 = direction input of the timer's
@@ -43,8 +44,10 @@ use {defmt_rtt as _, panic_probe as _};
 
 /// Timer kernel clock of TIM6/TIM4/TIM8 (APB1/APB2 prescaler 1 at 170 MHz).
 const TIMER_CLOCK_HZ: u32 = 170_000_000;
-/// Settings flash (offsets from the flash base): the last four 4 KiB pages (single-bank
-/// mode) of the 512 KiB flash, 0x0807C000..0x08080000, excluded from `FLASH` in `memory.x`.
+/// Settings flash (offsets from the flash base): the last eight 2 KiB pages of bank 2
+/// (dual-bank mode, the G474RE's factory setting), 0x0807C000..0x08080000. The image is
+/// confined to bank 1 by `memory.x`, so erasing these pages never stalls the tick
+/// (read-while-write); the whole-flash `Flash` driver erases without a critical section.
 const SETTINGS_FLASH: core::ops::Range<u32> = (512 - 16) * 1024..512 * 1024;
 
 /// The interrupt-owned state, shared with the console through a critical section.
