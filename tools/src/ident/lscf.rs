@@ -1,0 +1,109 @@
+//! Least-squares complex-frequency-domain (LSCF) estimator, single input single output
+//! (Guillaume, Verboven, Vanlanduit 1998; the `lscf` of sdypy-EMA).
+//!
+//! On the lines k of the band [f_lo, f_hi], with Ω_k = e^{iω_kΔt}, Δt = 1/(2 f_hi), the FRF is
+//! modelled as a common-denominator rational function H ≈ B(Ω)/A(Ω) of order n. The linearised
+//! error W_k (B(Ω_k) − H_k A(Ω_k)) is minimised in least squares: with X_k = W_k[Ω_k^j],
+//! Y_k = −W_k H_k [Ω_k^j], R = Re XᴴX, S = Re XᴴY, T = Re YᴴY, the numerator is eliminated,
+//! M = T − Sᵀ R⁻¹ S, and the denominator with a_n = 1 solves M[..n,..n] a = −M[..n, n].
+//! The roots z_r of A are the discrete poles, s_r = ln(z_r)/Δt.
+
+use super::poles::{physical_poles, poly_roots, Pole};
+use anyhow::{bail, Result};
+use nalgebra::{DMatrix, DVector};
+use realfft::num_complex::Complex64;
+
+/// Poles of the order-`order` LSCF model of `h` at `freq_hz` (the lines to use), with
+/// per-line weights `weight` (e.g. 1 or the coherence), keeping physical poles with
+/// 0 < ζ < `zeta_max` inside [f_lo, f_hi] = the first and last line.
+///
+/// Errors: fewer lines than 2·order + 2, an ill-conditioned system.
+pub fn lscf_poles(freq_hz: &[f64], h: &[Complex64], weight: &[f64], order: usize, zeta_max: f64) -> Result<Vec<Pole>> {
+    let nl = freq_hz.len();
+    if nl < 2 * order + 2 || order == 0 {
+        bail!("LSCF order {order} needs at least {} frequency lines in the band (have {nl})", 2 * order + 2);
+    }
+    let f_lo = freq_hz[0];
+    let f_hi = freq_hz[nl - 1];
+    let dt = 1.0 / (2.0 * f_hi);
+    let n1 = order + 1;
+    let mut r = DMatrix::<f64>::zeros(n1, n1);
+    let mut s = DMatrix::<f64>::zeros(n1, n1);
+    let mut t = DMatrix::<f64>::zeros(n1, n1);
+    let mut basis = vec![Complex64::new(0.0, 0.0); n1];
+    for k in 0..nl {
+        let w = weight[k];
+        if !(w > 0.0) || !h[k].re.is_finite() || !h[k].im.is_finite() {
+            continue;
+        }
+        let om = Complex64::new(0.0, 2.0 * std::f64::consts::PI * freq_hz[k] * dt).exp();
+        let mut p = Complex64::new(1.0, 0.0);
+        for b in basis.iter_mut() {
+            *b = p;
+            p *= om;
+        }
+        let w2 = w * w;
+        let hh = h[k];
+        let h2 = hh.norm_sqr();
+        for i in 0..n1 {
+            for j in 0..n1 {
+                // Re(conj(Ω^i) Ω^j) = cos((j − i)θ)
+                let c = (basis[i].conj() * basis[j]).re;
+                r[(i, j)] += w2 * c;
+                t[(i, j)] += w2 * h2 * c;
+                // X^H Y: conj(Ω^i) (−H Ω^j)
+                s[(i, j)] += w2 * (-(basis[i].conj() * hh * basis[j])).re;
+            }
+        }
+    }
+    let rinv_s = match r.clone().cholesky() {
+        Some(c) => c.solve(&s),
+        None => r.clone().pseudo_inverse(1e-12).map_err(|e| anyhow::anyhow!("LSCF: {e}"))? * &s,
+    };
+    let m = &t - s.transpose() * rinv_s;
+    let a = m.view((0, 0), (order, order)).into_owned();
+    let rhs = -DVector::from_iterator(order, (0..order).map(|i| m[(i, order)]));
+    let sol = match a.clone().lu().solve(&rhs) {
+        Some(v) if v.iter().all(|x| x.is_finite()) => v,
+        _ => a.svd(true, true).solve(&rhs, 1e-14).map_err(|e| anyhow::anyhow!("LSCF: singular system at order {order}: {e}"))?,
+    };
+    let mut coef: Vec<f64> = sol.iter().copied().collect();
+    coef.push(1.0);
+    let roots = poly_roots(&coef);
+    Ok(physical_poles(&roots, dt, f_lo, f_hi, zeta_max))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn modal_frf(f: &[f64], modes: &[(f64, f64, f64)]) -> Vec<Complex64> {
+        f.iter()
+            .map(|&fk| {
+                let w = 2.0 * std::f64::consts::PI * fk;
+                modes.iter().map(|&(fr, z, a)| {
+                    let wr = 2.0 * std::f64::consts::PI * fr;
+                    Complex64::new(a, 0.0) / Complex64::new(wr * wr - w * w, 2.0 * z * wr * w)
+                }).sum()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn recovers_two_modes_of_an_exact_frf() {
+        let f: Vec<f64> = (0..800).map(|k| 0.3 + k as f64 * 0.01).collect();
+        let h = modal_frf(&f, &[(1.105, 0.0074, 1.0), (6.92, 0.0074, -0.6)]);
+        let p = lscf_poles(&f, &h, &vec![1.0; f.len()], 8, 0.2).unwrap();
+        let m1 = p.iter().find(|p| (p.freq_hz - 1.105).abs() < 0.01).expect("mode 1");
+        let m2 = p.iter().find(|p| (p.freq_hz - 6.92).abs() < 0.05).expect("mode 2");
+        assert!((m1.freq_hz / 1.105 - 1.0).abs() < 1e-4 && (m1.zeta / 0.0074 - 1.0).abs() < 0.01, "{m1:?}");
+        assert!((m2.freq_hz / 6.92 - 1.0).abs() < 1e-4 && (m2.zeta / 0.0074 - 1.0).abs() < 0.01, "{m2:?}");
+    }
+
+    #[test]
+    fn too_few_lines_is_an_error() {
+        let f = [1.0, 2.0, 3.0];
+        let h = vec![Complex64::new(1.0, 0.0); 3];
+        assert!(lscf_poles(&f, &h, &[1.0; 3], 4, 0.2).is_err());
+    }
+}

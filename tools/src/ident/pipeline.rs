@@ -1,0 +1,415 @@
+//! The identification pipeline: recording → FRF → estimators (LSCF, LSCE, peak picking) with
+//! stabilisation over model orders, plus free decays found automatically → combined modes with
+//! uncertainty and Rayleigh coefficients (eq. 22).
+
+use super::freedecay::{identify_free_decay, FreeDecayOptions};
+use super::frf::{frf_of_recording, Frf, InputChannel, OutputChannel, WelchOptions, Window};
+use super::lsce::{impulse_response, lsce_poles};
+use super::lscf::lscf_poles;
+use super::peak::pick_peaks;
+use super::stabilisation::{diagram, Diagram, StabCriteria, StableMode};
+use super::{std_dev, ModeEstimate};
+use crate::recording::Recording;
+use anyhow::{bail, Result};
+use serde::Serialize;
+
+/// An estimator.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum Method {
+    /// Least-squares complex frequency domain, stabilised over orders (the default).
+    Lscf,
+    /// Least-squares complex exponential (the paper's), stabilised over orders.
+    Lsce,
+    /// Peak picking with half-power damping.
+    Peak,
+    /// Logarithmic decrement + damped-sinusoid fit on the free decays after each move.
+    LogDec,
+}
+
+impl Method {
+    /// `lscf`, `lsce`, `peak`, `logdec`; `all` = every method.
+    pub fn parse_list(s: &str) -> Result<Vec<Method>> {
+        let mut v = Vec::new();
+        for w in s.split(',').map(str::trim).filter(|w| !w.is_empty()) {
+            match w.to_ascii_lowercase().as_str() {
+                "lscf" | "plscf" => v.push(Method::Lscf),
+                "lsce" => v.push(Method::Lsce),
+                "peak" | "pp" | "half-power" => v.push(Method::Peak),
+                "logdec" | "decay" | "free-decay" => v.push(Method::LogDec),
+                "all" => v.extend([Method::Lscf, Method::Lsce, Method::Peak, Method::LogDec]),
+                _ => bail!("unknown method `{w}` (lscf, lsce, peak, logdec, all)"),
+            }
+        }
+        if v.is_empty() {
+            bail!("no identification method given");
+        }
+        v.dedup();
+        Ok(v)
+    }
+
+    /// Short name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Method::Lscf => "lscf",
+            Method::Lsce => "lsce",
+            Method::Peak => "peak",
+            Method::LogDec => "logdec",
+        }
+    }
+}
+
+/// Options of [`identify_recording`].
+#[derive(Clone, Debug, Serialize)]
+pub struct IdentOptions {
+    /// Estimators; the first is the primary one (its modes are the result).
+    pub methods: Vec<Method>,
+    /// FRF input.
+    pub input: InputChannel,
+    /// FRF output.
+    pub output: OutputChannel,
+    /// FRF estimation.
+    pub welch: WelchOptions,
+    /// Band (Hz); `None` = where the input auto-spectrum is within 30 dB of its maximum.
+    pub band_hz: Option<(f64, f64)>,
+    /// Highest LSCF order / LSCE number of poles.
+    pub max_order: usize,
+    /// Damping ratios above this are not physical modes here.
+    pub zeta_max: f64,
+    /// Keep only the this many best-supported modes (by stable poles).
+    pub n_modes: Option<usize>,
+    /// Stabilisation criteria.
+    pub criteria: StabCriteria,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
+impl Default for IdentOptions {
+    /// LSCF on H1 of base acceleration → tip deflection, whole record as one segment with a
+    /// rectangular window (a sweep recorded from rest to rest), orders up to 32.
+    fn default() -> Self {
+        IdentOptions {
+            methods: vec![Method::Lscf],
+            input: InputChannel::BaseAccel,
+            output: OutputChannel::TipDeflection,
+            welch: WelchOptions { nperseg: None, overlap: 0.5, window: Window::Rectangular, detrend: super::frf::Detrend::Mean, pad: 1 },
+            band_hz: None,
+            max_order: 32,
+            zeta_max: 0.2,
+            n_modes: None,
+            criteria: StabCriteria::default(),
+            progress: false,
+        }
+    }
+}
+
+/// Result of one estimator.
+#[derive(Clone, Debug, Serialize)]
+pub struct MethodResult {
+    /// Estimator.
+    pub method: Method,
+    /// Modes, ascending in frequency; uncertainty = spread over model orders (LSCF, LSCE),
+    /// over free-decay segments and sub-windows (logdec), 0 (peak picking: one estimate).
+    pub modes: Vec<ModeEstimate>,
+    /// The stabilisation diagram (LSCF, LSCE).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub diagram: Option<Diagram>,
+}
+
+/// Identification result.
+#[derive(Clone, Debug, Serialize)]
+pub struct IdentResult {
+    /// Modes of the primary method, ascending in frequency. `freq_hz_std`, `zeta_std`: 1-σ,
+    /// the primary method's own spread (over model orders or segments) combined in quadrature
+    /// with the standard deviation of the estimates of the other methods that found the mode
+    /// (within 3 % in frequency).
+    pub modes: Vec<ModeEstimate>,
+    /// Every method's own result.
+    pub methods: Vec<MethodResult>,
+    /// Rayleigh α1 (1/s), α2 (s) from the first two modes (eq. 22).
+    pub rayleigh: Option<(f64, f64)>,
+    /// Band used (Hz).
+    pub band_hz: (f64, f64),
+    /// FRF line spacing (Hz) and segments averaged.
+    pub df_hz: f64,
+    /// Welch averages.
+    pub n_averages: usize,
+    /// FRF input and output.
+    pub input: String,
+    /// FRF output.
+    pub output: String,
+    /// Warnings (clipping, resolution, …).
+    pub warnings: Vec<String>,
+}
+
+/// Band where the smoothed input auto-spectrum is within 30 dB of its maximum, clipped to
+/// [5 Δf, 0.4 fs].
+pub fn auto_band(frf: &Frf) -> (f64, f64) {
+    let n = frf.sxx.len();
+    let w = (n / 200).max(1);
+    let sm: Vec<f64> = (0..n).map(|k| {
+        let (a, b) = (k.saturating_sub(w), (k + w + 1).min(n));
+        frf.sxx[a..b].iter().sum::<f64>() / (b - a) as f64
+    }).collect();
+    let top = sm.iter().skip(1).cloned().fold(0.0, f64::max);
+    let ok: Vec<usize> = (1..n).filter(|&k| sm[k] >= 1e-3 * top).collect();
+    let df = frf.df_hz();
+    let lo = ok.first().map_or(5.0 * df, |&k| frf.freq_hz[k]).max(5.0 * df);
+    let hi = ok.last().map_or(0.4 * frf.sample_rate_hz, |&k| frf.freq_hz[k]).min(0.4 * frf.sample_rate_hz);
+    (lo, hi)
+}
+
+fn to_estimates(modes: &[StableMode], method: &str) -> Vec<ModeEstimate> {
+    modes.iter().map(|m| ModeEstimate { freq_hz: m.freq_hz, zeta: m.zeta, freq_hz_std: m.freq_hz_std, zeta_std: m.zeta_std, method: method.to_string() }).collect()
+}
+
+fn keep_best(mut modes: Vec<StableMode>, n: Option<usize>) -> Vec<StableMode> {
+    if let Some(n) = n {
+        modes.sort_by(|a, b| b.count.cmp(&a.count));
+        modes.truncate(n);
+        modes.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
+    }
+    modes
+}
+
+/// Free-decay segments of a recording: stretches of at least `min_s` seconds over which the
+/// base (command if present, else measured position) does not move, that follow motion.
+/// Returns sample ranges.
+pub fn free_decay_segments(rec: &Recording, min_s: f64) -> Vec<std::ops::Range<usize>> {
+    let Some(b) = rec.base_cmd_m.as_ref().or(rec.base_pos_m.as_ref()) else { return vec![] };
+    let range = b.iter().fold(f64::NEG_INFINITY, |m, v| m.max(*v)) - b.iter().fold(f64::INFINITY, |m, v| m.min(*v));
+    let tol = (1e-9f64).max(1e-7 * range);
+    let min_n = ((min_s * rec.sample_rate_hz()) as usize).max(64);
+    let mut out = Vec::new();
+    let mut k = 1;
+    let n = b.len();
+    let mut moved = false;
+    while k < n {
+        if (b[k] - b[k - 1]).abs() > tol {
+            moved = true;
+            k += 1;
+            continue;
+        }
+        let s = k;
+        while k < n && (b[k] - b[k - 1]).abs() <= tol {
+            k += 1;
+        }
+        if moved && k - s >= min_n {
+            out.push(s..k);
+        }
+    }
+    out
+}
+
+/// Log decrement + damped sinusoid on every free-decay segment of `rec`; modes combined across
+/// segments (mean; 1-σ = hypot(mean per-segment σ, spread across segments)).
+pub fn identify_segments(rec: &Recording, opts: &FreeDecayOptions, warnings: &mut Vec<String>) -> Result<Vec<ModeEstimate>> {
+    let segs = free_decay_segments(rec, 3.0);
+    if segs.is_empty() {
+        bail!("no free-decay segment (base still for >= 3 s after moving) in the recording");
+    }
+    let tip = rec.tip_pos_m.as_ref().ok_or_else(|| anyhow::anyhow!("no tip_pos_m column for the free decays"))?;
+    let base = rec.base_pos_m.as_ref().or(rec.base_cmd_m.as_ref());
+    let mut per: Vec<ModeEstimate> = Vec::new();
+    for s in &segs {
+        let t = &rec.time_s[s.clone()];
+        let x: Vec<f64> = match base {
+            Some(b) => s.clone().map(|k| tip[k] - b[k]).collect(),
+            None => tip[s.clone()].to_vec(),
+        };
+        match identify_free_decay(t, &x, opts) {
+            Ok(r) => per.push(r.mode),
+            Err(e) => warnings.push(format!("free decay {:.2}..{:.2} s: {e}", t[0], t[t.len() - 1])),
+        }
+    }
+    if per.is_empty() {
+        bail!("none of the {} free-decay segments could be analysed", segs.len());
+    }
+    let f: Vec<f64> = per.iter().map(|m| m.freq_hz).collect();
+    let z: Vec<f64> = per.iter().map(|m| m.zeta).collect();
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let fs = mean(&per.iter().map(|m| m.freq_hz_std).collect::<Vec<_>>());
+    let zs = mean(&per.iter().map(|m| m.zeta_std).collect::<Vec<_>>());
+    Ok(vec![ModeEstimate {
+        freq_hz: mean(&f),
+        zeta: mean(&z),
+        freq_hz_std: fs.hypot(std_dev(&f)),
+        zeta_std: zs.hypot(std_dev(&z)),
+        method: format!("logdec ({} free-decay segments)", per.len()),
+    }])
+}
+
+/// Runs the FRF estimators on an existing FRF. `warnings` collects resolution warnings.
+pub fn identify_frf(frf: &Frf, opts: &IdentOptions, warnings: &mut Vec<String>) -> Result<(Vec<MethodResult>, (f64, f64))> {
+    let nyq = 0.5 * frf.sample_rate_hz;
+    let (f_lo, f_hi) = match opts.band_hz {
+        Some((a, b)) => {
+            if !(a >= 0.0 && b > a) {
+                bail!("band {a}..{b} Hz: need 0 <= f_lo < f_hi");
+            }
+            if b > nyq {
+                bail!("band upper limit {b} Hz is beyond the Nyquist frequency {nyq} Hz of the recording");
+            }
+            (a, b)
+        }
+        None => auto_band(frf),
+    };
+    let band = frf.band(f_lo, f_hi);
+    if band.len() < 16 {
+        bail!("only {} FRF lines in the band {f_lo:.3}..{f_hi:.3} Hz (line spacing {:.4} Hz): record longer or widen the band", band.len(), frf.df_hz());
+    }
+    let sigma_w = frf.window_decay_s;
+    let pb = |n: u64| {
+        if opts.progress {
+            let p = indicatif::ProgressBar::new(n);
+            p.set_style(indicatif::ProgressStyle::with_template("{msg:>6} [{bar:30}] {pos}/{len} orders").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
+            Some(p)
+        } else {
+            None
+        }
+    };
+    let mut out = Vec::new();
+    for &m in &opts.methods {
+        match m {
+            Method::Lscf => {
+                let fq = &frf.freq_hz[band.clone()];
+                let h = &frf.h1[band.clone()];
+                let w = vec![1.0; fq.len()];
+                let orders: Vec<usize> = (2..=opts.max_order.max(4)).collect();
+                let bar = pb(orders.len() as u64);
+                if let Some(b) = &bar {
+                    b.set_message("LSCF");
+                }
+                let d = diagram("LSCF", orders, &opts.criteria, |n| {
+                    Ok(lscf_poles(fq, h, &w, n, 1.0)?.into_iter().map(|p| p.remove_decay(sigma_w)).filter(|p| p.zeta > 0.0 && p.zeta < opts.zeta_max).collect())
+                }, bar.as_ref())?;
+                if let Some(b) = bar {
+                    b.finish_and_clear();
+                }
+                let modes = keep_best(d.modes.clone(), opts.n_modes);
+                out.push(MethodResult { method: m, modes: to_estimates(&modes, "lscf"), diagram: Some(d) });
+            }
+            Method::Lsce => {
+                let edge = (0.5 * f_lo).min(0.1 * (f_hi - f_lo)).max(2.0 * frf.df_hz());
+                let irf = impulse_response(frf, f_lo, f_hi, edge)?;
+                let len_s = (irf.h.len() as f64 * irf.dt_s * 0.5).min(60.0);
+                let skip_s = 2.0 * irf.dt_s;
+                let orders: Vec<usize> = (1..=opts.max_order.max(4) / 2).map(|k| 2 * k).collect();
+                let bar = pb(orders.len() as u64);
+                if let Some(b) = &bar {
+                    b.set_message("LSCE");
+                }
+                let d = diagram("LSCE", orders, &opts.criteria, |n| lsce_poles(&irf, n, skip_s, len_s, f_lo, f_hi, opts.zeta_max, sigma_w), bar.as_ref())?;
+                if let Some(b) = bar {
+                    b.finish_and_clear();
+                }
+                let modes = keep_best(d.modes.clone(), opts.n_modes);
+                out.push(MethodResult { method: m, modes: to_estimates(&modes, "lsce"), diagram: Some(d) });
+            }
+            Method::Peak => {
+                let pk = pick_peaks(&frf.freq_hz, &frf.h1, f_lo, f_hi, opts.n_modes.unwrap_or(4), 0.01);
+                for p in &pk {
+                    if p.lines_in_band < 3 {
+                        warnings.push(format!("peak picking at {:.3} Hz: only {} lines inside the half-power band; damping is resolution-limited (record longer)", p.pole.freq_hz, p.lines_in_band));
+                    }
+                }
+                let modes = pk.iter().map(|p| {
+                    let q = p.pole.remove_decay(sigma_w);
+                    ModeEstimate { freq_hz: q.freq_hz, zeta: q.zeta, freq_hz_std: 0.0, zeta_std: 0.0, method: "peak".into() }
+                }).collect();
+                out.push(MethodResult { method: m, modes, diagram: None });
+            }
+            Method::LogDec => {}
+        }
+    }
+    Ok((out, (f_lo, f_hi)))
+}
+
+/// Combines: the primary method's modes, uncertainty widened by the other methods' spread.
+pub fn combine(methods: &[MethodResult]) -> Vec<ModeEstimate> {
+    let Some(primary) = methods.iter().find(|m| !m.modes.is_empty()) else { return vec![] };
+    primary
+        .modes
+        .iter()
+        .map(|m| {
+            let others: Vec<&ModeEstimate> = methods.iter().flat_map(|r| r.modes.iter()).filter(|o| (o.freq_hz / m.freq_hz - 1.0).abs() < 0.03).collect();
+            let f: Vec<f64> = others.iter().map(|o| o.freq_hz).collect();
+            let z: Vec<f64> = others.iter().map(|o| o.zeta).collect();
+            let names: Vec<String> = methods.iter().filter(|r| r.modes.iter().any(|o| (o.freq_hz / m.freq_hz - 1.0).abs() < 0.03)).map(|r| r.method.name().to_string()).collect();
+            ModeEstimate {
+                freq_hz: m.freq_hz,
+                zeta: m.zeta,
+                freq_hz_std: m.freq_hz_std.hypot(std_dev(&f)),
+                zeta_std: m.zeta_std.hypot(std_dev(&z)),
+                method: if names.len() > 1 { format!("{} (spread over {})", m.method, names.join("+")) } else { m.method.clone() },
+            }
+        })
+        .collect()
+}
+
+/// Identifies the modes of a recording (uniform time, validated): FRF of `opts.input` →
+/// `opts.output`, the FRF estimators of `opts.methods`, and the free decays after each move
+/// when `Method::LogDec` is asked for. Returns the FRF too (for plots).
+///
+/// Errors: a missing column, NaN, non-uniform or non-increasing time (from
+/// [`Recording::validate`]), a band beyond Nyquist, too few lines in the band, no method
+/// producing a mode. Clipped signals give warnings.
+pub fn identify_recording(rec: &Recording, opts: &IdentOptions) -> Result<(IdentResult, Frf)> {
+    rec.validate()?;
+    if rec.len() < 256 {
+        bail!("the recording has {} samples; identification needs at least 256", rec.len());
+    }
+    let (frf, mut warnings) = frf_of_recording(rec, opts.input, opts.output, &opts.welch)?;
+    let frf_methods = opts.methods.iter().any(|m| *m != Method::LogDec);
+    let (mut methods, band) = if frf_methods { identify_frf(&frf, opts, &mut warnings)? } else { (vec![], auto_band(&frf)) };
+    if opts.methods.contains(&Method::LogDec) {
+        let fd = FreeDecayOptions { f_min_hz: band.0, f_max_hz: band.1, ..Default::default() };
+        match identify_segments(rec, &fd, &mut warnings) {
+            Ok(m) => {
+                let r = MethodResult { method: Method::LogDec, modes: m, diagram: None };
+                let pos = opts.methods.iter().position(|m| *m == Method::LogDec).unwrap_or(0).min(methods.len());
+                methods.insert(pos, r);
+            }
+            Err(e) => warnings.push(format!("logdec: {e}")),
+        }
+    }
+    let modes = combine(&methods);
+    if modes.is_empty() {
+        bail!("no mode found in {:.3}..{:.3} Hz by {:?}; check the band, the excitation and the channels", band.0, band.1, opts.methods.iter().map(|m| m.name()).collect::<Vec<_>>());
+    }
+    let rayleigh = (modes.len() >= 2).then(|| {
+        let w = |m: &ModeEstimate| 2.0 * std::f64::consts::PI * m.freq_hz;
+        crate::model::galerkin::rayleigh_coefficients(w(&modes[0]), modes[0].zeta, w(&modes[1]), modes[1].zeta)
+    });
+    let res = IdentResult {
+        modes,
+        methods,
+        rayleigh,
+        band_hz: band,
+        df_hz: frf.df_hz(),
+        n_averages: frf.n_averages,
+        input: frf.input.clone(),
+        output: frf.output.clone(),
+        warnings,
+    };
+    Ok((res, frf))
+}
+
+/// [`identify_free_decay`] as an [`IdentResult`] (modes of the free decay; no FRF).
+pub fn identify_decay(time_s: &[f64], signal: &[f64], opts: &FreeDecayOptions) -> Result<IdentResult> {
+    let r = identify_free_decay(time_s, signal, opts)?;
+    let rayleigh = (r.modes.len() >= 2).then(|| {
+        let w = |m: &ModeEstimate| 2.0 * std::f64::consts::PI * m.freq_hz;
+        crate::model::galerkin::rayleigh_coefficients(w(&r.modes[0]), r.modes[0].zeta, w(&r.modes[1]), r.modes[1].zeta)
+    });
+    Ok(IdentResult {
+        modes: r.modes.clone(),
+        methods: vec![MethodResult { method: Method::LogDec, modes: r.modes.clone(), diagram: None }],
+        rayleigh,
+        band_hz: (opts.f_min_hz, opts.f_max_hz.min(0.45 * r.sample_rate_hz)),
+        df_hz: f64::NAN,
+        n_averages: 0,
+        input: "none (free decay)".into(),
+        output: "signal".into(),
+        warnings: r.warnings,
+    })
+}
