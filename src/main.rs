@@ -34,11 +34,11 @@ use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::mode::Blocking as BlockingMode;
 use embassy_stm32::pac;
-use embassy_stm32::usart::{BufferedUart, Config as UartConfig};
+use embassy_stm32::usart::{BufferedUart, BufferedUartTx, Config as UartConfig};
 use embassy_stm32::{bind_interrupts, peripherals, usart, Config};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
-use embedded_io_async::{Read, Write};
+use embedded_io_async::Read;
 use static_cell::StaticCell;
 use {defmt_rtt as _, panic_probe as _};
 
@@ -66,6 +66,22 @@ impl RuntimeAccess for Shared {
 bind_interrupts!(struct Irqs {
     LPUART1 => usart::BufferedInterruptHandler<peripherals::LPUART1>;
 });
+
+/// Console replies, streamed to the UART while they are formatted (blocking while the TX
+/// ring is full; the UART interrupt drains it), so a reply of any length goes out whole
+/// (a 64-impulse `shaper` table is ~7.3 kB) without a reply buffer.
+struct UartOut<'a, 'd>(&'a mut BufferedUartTx<'d>);
+
+impl core::fmt::Write for UartOut<'_, '_> {
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        // Never wait with interrupts masked (inside a critical section): the UART interrupt
+        // could not drain the ring. The console does not write there; this keeps it so.
+        if cortex_m::register::primask::read().is_inactive() {
+            return Err(core::fmt::Error);
+        }
+        embedded_io::Write::write_all(self.0, s.as_bytes()).map_err(|_| core::fmt::Error)
+    }
+}
 
 /// Programs TIM6 to update at `rate_hz`.
 fn set_tick_rate(rate_hz: u32) {
@@ -237,9 +253,8 @@ async fn main(_spawner: Spawner) {
         BlockingAsync::new(Flash::new_blocking(p.FLASH));
     let mut sbuf = [0u8; STORAGE_BUFFER_BYTES];
     let loaded = load_settings(&mut flash, SETTINGS_FLASH, &mut sbuf).await;
-    let mut reply: heapless::String<2048> = heapless::String::new();
     let stepdir_now = pac::TIM4.cnt().read().cnt() as u16;
-    let mut console = Console::boot(loaded, &mut Shared, stepdir_now, &mut reply);
+    let mut console = Console::boot(loaded, &mut Shared, stepdir_now, &mut UartOut(&mut tx));
     init_timers();
     set_tick_rate(RUNTIME.lock(|r| r.borrow().tick_rate_hz()));
     // The tick pre-empts the console UART and the embassy time driver (TIM15).
@@ -249,7 +264,6 @@ async fn main(_spawner: Spawner) {
     interrupt::TIM6_DAC.unpend();
     // SAFETY: the handler only touches RUNTIME/OUTPUTS through critical-section mutexes.
     unsafe { interrupt::TIM6_DAC.enable() };
-    let _ = tx.write_all(reply.as_bytes()).await;
     defmt::info!("beamshaper firmware up");
 
     let mut lines = LineBuffer::new();
@@ -261,26 +275,26 @@ async fn main(_spawner: Spawner) {
         let Some(line) = lines.push(byte[0]) else {
             continue;
         };
-        reply.clear();
+        let mut out = UartOut(&mut tx);
         match line {
             Err(_) => {
                 let _ = writeln!(
-                    reply,
+                    out,
                     "err line-too-long: line longer than 200 bytes discarded"
                 );
             }
-            Ok(line) => match console.handle_line(&line, &mut Shared, &mut reply) {
+            Ok(line) => match console.handle_line(&line, &mut Shared, &mut out) {
                 Action::None => {}
                 Action::Save => {
-                    let r = save_settings(&mut flash, SETTINGS_FLASH, &mut sbuf, console.settings()).await;
-                    console.finish_save(r, &mut reply);
+                    let r = save_settings(&mut flash, SETTINGS_FLASH, &mut sbuf, console.settings())
+                        .await;
+                    console.finish_save(r, &mut out);
                 }
                 Action::Load => {
                     let r = load_settings(&mut flash, SETTINGS_FLASH, &mut sbuf).await;
-                    console.finish_load(r, &mut Shared, &mut reply);
+                    console.finish_load(r, &mut Shared, &mut out);
                 }
             },
         }
-        let _ = tx.write_all(reply.as_bytes()).await;
     }
 }
