@@ -112,7 +112,7 @@ fn def(name: &'static str, transform: Transform, starts: Vec<f64>, scale: f64, z
 }
 
 /// The calibration parameters: ln stiffness scale, ln ζ1, ln ζ2 (with a beam), carriage-mass
-/// correction (kg, when a force is recorded).
+/// correction (kg) and force-channel latency (s) when a force is recorded.
 pub fn calibration_defs(rig: &Rig, ch: &Channels) -> Vec<ParamDef> {
     let mut v = Vec::new();
     if rig.beam.is_some() {
@@ -123,6 +123,7 @@ pub fn calibration_defs(rig: &Rig, ch: &Channels) -> Vec<ParamDef> {
     }
     if ch.force {
         v.push(def("base_mass_delta_kg", Transform::Linear, vec![0.0], 0.1 * rig.base.mass_kg, false));
+        v.push(def("force_delay_s", Transform::Linear, vec![0.0], 0.1 / rig.sample_rate_hz(), false));
     }
     v
 }
@@ -140,6 +141,7 @@ pub fn apply_calibration(defs: &[ParamDef], values: &[f64], p: &mut Params) {
             }
             "zeta2" => z.1 = v.min(0.5),
             "base_mass_delta_kg" => p.base_mass_delta_kg = v,
+            "force_delay_s" => p.force_delay_s = v,
             _ => {}
         }
     }

@@ -37,6 +37,30 @@ pub fn channel_rss(res: &[[Option<Vec<f64>>; 3]]) -> ([f64; 3], [usize; 3]) {
     (rss, n)
 }
 
+/// The factor on the stiffness scale that keeps the first clamped natural frequency of the
+/// structurally extended model (tip mass, root spring, axial load) equal to that of the plain
+/// model: the structural candidates are fitted along the f1-preserving path, so that the first
+/// mode's phase does not drift while their parameters move (a recalibration would absorb f1
+/// anyway; what remains is their signature in frequency ratios and participation).
+pub fn f1_preserving_factor(rig: &Rig, p: &Params) -> Option<f64> {
+    use crate::model::{BeamModel, ModelOptions};
+    let base = ModelOptions { stiffness_scale: p.stiffness_scale, ..Default::default() };
+    let f0 = BeamModel::new(rig, &base).ok()?.clamped_modes().ok()?.omega_rad_s[0];
+    let mut g = 1.0;
+    for _ in 0..3 {
+        let ext = ModelOptions {
+            stiffness_scale: p.stiffness_scale * g,
+            tip_mass_kg: p.tip_mass_kg,
+            root_stiffness_nm_per_rad: p.root_stiffness_nm_per_rad,
+            axial_load: p.orientation,
+            ..Default::default()
+        };
+        let f = BeamModel::new(rig, &ext).ok()?.clamped_modes().ok()?.omega_rad_s[0];
+        g *= (f0 / f).powi(2);
+    }
+    Some(g)
+}
+
 /// A candidate bound to data: the least-squares problem.
 pub struct Problem<'a> {
     rig: &'a Rig,
@@ -71,6 +95,9 @@ impl<'a> Problem<'a> {
         apply_calibration(self.calib, &vals[..nc], &mut p);
         if let Some(c) = self.cand {
             apply_effect(c, &vals[nc..], &mut p);
+            if p.tip_mass_kg > 0.0 || p.root_stiffness_nm_per_rad.is_some() || p.orientation.is_some() {
+                p.stiffness_scale *= f1_preserving_factor(self.rig, &p).unwrap_or(1.0);
+            }
         }
         p
     }
@@ -200,10 +227,16 @@ pub fn fit(rig: &Rig, data: &[Prepared], sigma: [f64; 3], calib: &[ParamDef], ca
     let mut best: Option<(f64, DVector<f64>)> = None;
     let mut evals = 0;
     for x0 in starts {
-        let problem = Problem::new(rig, data, sigma, calib, cand, x0);
+        let problem = Problem::new(rig, data, sigma, calib, cand, x0.clone());
+        if std::env::var_os("DIAG_DEBUG").is_some() {
+            eprintln!("start {:?} x0 {:?} cost {:.4e}", cand.map(|c| c.id), x0.as_slice(), problem.whitened(&x0).norm_squared());
+        }
         let (problem, _report) = LevenbergMarquardt::new().with_patience(30).with_ftol(1e-8).with_xtol(1e-8).minimize(problem);
         let r = problem.whitened(&problem.x);
         let cost = r.norm_squared();
+        if std::env::var_os("DIAG_DEBUG").is_some() {
+            eprintln!("  end x {:?} cost {:.4e} {:?}", problem.x.as_slice(), cost, _report.termination);
+        }
         evals += *problem.evaluations.borrow();
         if best.as_ref().map_or(true, |b| cost < b.0) {
             best = Some((cost, problem.x.clone()));

@@ -35,6 +35,18 @@ pub fn delta_neg2ll(rss: &[f64; 3], rss0: &[f64; 3], n: &[usize; 3]) -> f64 {
     (0..3).filter(|&c| n[c] > 0).map(|c| n[c] as f64 * (rss[c].max(1e-300) / rss0[c].max(1e-300)).ln()).sum()
 }
 
+/// Structured (correlated) power of `r`: Σ_{k=1..lags} c_k² with the autocovariances c_k, i.e.
+/// the Ljung–Box statistic's numerator before normalising by the variance: it falls when a
+/// model removes correlated residual, whatever happens to the white part.
+pub fn structured_power(r: &[f64], lags: usize) -> f64 {
+    let n = r.len();
+    if n <= lags + 1 {
+        return 0.0;
+    }
+    let m = r.iter().sum::<f64>() / n as f64;
+    (1..=lags).map(|k| ((k..n).map(|i| (r[i] - m) * (r[i - k] - m)).sum::<f64>() / n as f64).powi(2)).sum()
+}
+
 /// Ljung–Box Q over `lags` lags of `r`.
 pub fn ljung_box(r: &[f64], lags: usize) -> f64 {
     let n = r.len();

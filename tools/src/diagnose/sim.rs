@@ -52,6 +52,9 @@ pub struct Params {
     pub mount: Option<(f64, f64)>,
     /// Cogging: sine and cosine amplitudes (N) and pitch (m).
     pub cogging: Option<(f64, f64, f64)>,
+    /// Latency of the force channel (s, calibration: drives that average or filter the
+    /// current report it up to a sample late).
+    pub force_delay_s: f64,
 }
 
 impl Default for Params {
@@ -70,8 +73,29 @@ impl Default for Params {
             orientation: None,
             mount: None,
             cogging: None,
+            force_delay_s: 0.0,
         }
     }
+}
+
+/// `x(t − τ)` by linear interpolation between samples (held at the ends).
+pub fn delayed(x: &[f64], delay_s: f64, dt: f64) -> Vec<f64> {
+    let n = x.len();
+    let s = delay_s / dt;
+    (0..n)
+        .map(|k| {
+            let pos = k as f64 - s;
+            if pos <= 0.0 {
+                x[0]
+            } else if pos >= (n - 1) as f64 {
+                x[n - 1]
+            } else {
+                let i = pos.floor() as usize;
+                let a = pos - i as f64;
+                x[i] * (1.0 - a) + x[i + 1] * a
+            }
+        })
+        .collect()
 }
 
 /// One recording prepared for simulation: uniform dt, the command (or the measured base when
@@ -310,25 +334,7 @@ pub fn predict(rig: &Rig, p: &Params, d: &Prepared, cache: &mut Option<BeamCache
         }
         if d.tip_m.is_some() {
             let tip: Vec<f64> = root.iter().zip(&w).map(|(y, w)| y + w).collect();
-            out.tip_m = Some(if p.sensor_delay_s != 0.0 {
-                let s = p.sensor_delay_s / dt;
-                (0..n)
-                    .map(|k| {
-                        let pos = k as f64 - s;
-                        if pos <= 0.0 {
-                            tip[0]
-                        } else if pos >= (n - 1) as f64 {
-                            tip[n - 1]
-                        } else {
-                            let i = pos.floor() as usize;
-                            let a = pos - i as f64;
-                            tip[i] * (1.0 - a) + tip[i + 1] * a
-                        }
-                    })
-                    .collect()
-            } else {
-                tip
-            });
+            out.tip_m = Some(if p.sensor_delay_s != 0.0 { delayed(&tip, p.sensor_delay_s, dt) } else { tip });
         }
     } else {
         if d.tip_m.is_some() {
@@ -353,7 +359,7 @@ pub fn predict(rig: &Rig, p: &Params, d: &Prepared, cache: &mut Option<BeamCache
                 force[k] += a * s + b * co;
             }
         }
-        out.force_n = Some(force);
+        out.force_n = Some(if p.force_delay_s != 0.0 { delayed(&force, p.force_delay_s, dt) } else { force });
     }
     Ok(out)
 }

@@ -149,7 +149,7 @@ pub fn generate(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCas
     // gravity: rescale thickness so the load shifts f1 by 2..8 %
     if effect == "gravity_axial_load" {
         let sign = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-        let target = rng.gen_range(0.02..0.08);
+        let target = rng.gen_range(0.04..0.12);
         for _ in 0..30 {
             let f0 = f1_hz(&beam)?;
             let fg = f1_hz(&FeBeam { gravity_sign: sign, ..beam.clone() }).unwrap_or(0.0);
@@ -222,7 +222,7 @@ pub fn generate(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCas
         }
         "cogging_ripple" => {
             let a = rng.gen_range(1.5..4.0) * sensors.force_noise_n * std::f64::consts::SQRT_2;
-            let p = rng.gen_range(0.008..0.04);
+            let p = rng.gen_range(0.015..0.05);
             plant.cogging = Some((a, p, rng.gen_range(0.0..pi2)));
             truth.insert("cogging_amplitude_n".into(), a.into());
             truth.insert("cogging_pitch_m".into(), p.into());
@@ -235,12 +235,12 @@ pub fn generate(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCas
             truth.insert("servo_bandwidth_hz".into(), f.into());
         }
         "tip_mass" => {
-            let m = rng.gen_range(0.03..0.12) * beam_mass;
+            let m = rng.gen_range(0.05..0.2) * beam_mass;
             beam.tip_mass_kg = m;
             truth.insert("tip_mass_kg".into(), m.into());
         }
         "root_compliance" => {
-            let target = 1.0 - rng.gen_range(0.02..0.06);
+            let target = 1.0 - rng.gen_range(0.06..0.15);
             let f0 = f1_hz(&beam)?;
             let (mut lo, mut hi) = (1e-3f64.ln(), 1e6f64.ln());
             for _ in 0..50 {
