@@ -7,8 +7,8 @@ cd "$(dirname "$0")"
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
 status=0
-(cd host-tests && cargo test --locked) 2>&1 | tee -a "$log" || status=1
-(cd tools && cargo test --locked) 2>&1 | tee -a "$log" || status=1
+(cd host-tests && cargo test --locked --no-fail-fast) 2>&1 | tee -a "$log" || status=1
+(cd tools && cargo test --locked --no-fail-fast) 2>&1 | tee -a "$log" || status=1
 passed=$(grep -oE 'test result: [a-zA-Z]+\. [0-9]+ passed' "$log" | awk '{s += $4} END {print s + 0}')
 failed=$(grep -oE '[0-9]+ failed;' "$log" | awk '{s += $1} END {print s + 0}')
 echo "tests: ${passed} passed, ${failed} failed"
