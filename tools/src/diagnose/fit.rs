@@ -107,7 +107,19 @@ impl<'a> Problem<'a> {
         let p = self.params_of(x);
         let mut caches = self.caches.borrow_mut();
         *self.evaluations.borrow_mut() += 1;
-        self.data.iter().zip(caches.iter_mut()).map(|(d, c)| predict(self.rig, &p, d, c).ok()).collect()
+        self.data
+            .iter()
+            .zip(caches.iter_mut())
+            .map(|(d, c)| match predict(self.rig, &p, d, c) {
+                Ok(v) => Some(v),
+                Err(e) => {
+                    if std::env::var_os("DIAG_DEBUG").is_some() {
+                        eprintln!("prediction failed: {e:#}");
+                    }
+                    None
+                }
+            })
+            .collect()
     }
 
     fn whitened(&self, x: &DVector<f64>) -> DVector<f64> {
@@ -126,6 +138,9 @@ impl<'a> Problem<'a> {
                 if v.iter().all(|e| e.is_finite()) {
                     DVector::from_vec(v)
                 } else {
+                    if std::env::var_os("DIAG_DEBUG").is_some() {
+                        eprintln!("non-finite residual: sigma {:?}, first at {:?} of {}", self.sigma, v.iter().position(|e| !e.is_finite()), v.len());
+                    }
                     DVector::from_element(total, 1e3)
                 }
             }
