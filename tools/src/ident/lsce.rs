@@ -1,7 +1,7 @@
 //! Least-squares complex exponential (LSCE) method (paper §3.1, §5.2; Brown et al. 1979).
 //!
 //! 1. Impulse response h(t) = IFFT of the FRF, band-limited to [f_lo, f_hi] with raised-cosine
-//!    edges (outside the excited band the FRF estimate is noise). The edges spread the
+//!    edges inside the band (outside the excited band the FRF estimate is noise). The edges spread the
 //!    response by about 1/(edge width), so the fit starts after `skip_s`.
 //! 2. The IRF is decimated to a rate of ≈ 5 f_hi (keeps the band, conditions the problem).
 //! 3. Prony / linear prediction: h[k+p] + a₁h[k+p−1] + … + a_p h[k] = 0 for all k, in least
@@ -25,7 +25,7 @@ pub struct ImpulseResponse {
 }
 
 /// Impulse response of `frf.h1` band-limited to [f_lo, f_hi] (raised-cosine edges of width
-/// `edge_hz` outside the band), decimated to ≈ 5 f_hi.
+/// `edge_hz` inside the band), decimated to ≈ 5 f_hi.
 ///
 /// Errors: a band beyond Nyquist or empty.
 pub fn impulse_response(frf: &Frf, f_lo: f64, f_hi: f64, edge_hz: f64) -> Result<ImpulseResponse> {
@@ -38,12 +38,12 @@ pub fn impulse_response(frf: &Frf, f_lo: f64, f_hi: f64, edge_hz: f64) -> Result
     let mut spec: Vec<Complex64> = (0..nf)
         .map(|k| {
             let f = frf.freq_hz[k];
-            let g = if f < f_lo - edge_hz || f > f_hi + edge_hz {
+            let g = if f < f_lo || f > f_hi {
                 0.0
-            } else if f < f_lo {
-                0.5 - 0.5 * (std::f64::consts::PI * (f - f_lo + edge_hz) / edge_hz).cos()
-            } else if f > f_hi {
-                0.5 + 0.5 * (std::f64::consts::PI * (f - f_hi) / edge_hz).cos()
+            } else if f < f_lo + edge_hz {
+                0.5 - 0.5 * (std::f64::consts::PI * (f - f_lo) / edge_hz).cos()
+            } else if f > f_hi - edge_hz {
+                0.5 + 0.5 * (std::f64::consts::PI * (f - f_hi + edge_hz) / edge_hz).cos()
             } else {
                 1.0
             };
@@ -58,7 +58,7 @@ pub fn impulse_response(frf: &Frf, f_lo: f64, f_hi: f64, edge_hz: f64) -> Result
     let mut out = inv.make_output_vec();
     inv.process(&mut spec, &mut out).map_err(|e| anyhow::anyhow!("IFFT: {e}"))?;
     let fs = frf.sample_rate_hz;
-    let stride = ((fs / (5.0 * (f_hi + edge_hz))).floor() as usize).max(1);
+    let stride = ((fs / (5.0 * f_hi)).floor() as usize).max(1);
     let h: Vec<f64> = out.iter().step_by(stride).map(|v| v * fs / nfft as f64).collect();
     Ok(ImpulseResponse { h, dt_s: stride as f64 / fs })
 }

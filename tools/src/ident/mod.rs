@@ -24,6 +24,7 @@
 //! method's estimate of the same mode (within 3 % in frequency).
 
 pub mod cli;
+pub mod denoise;
 pub mod freedecay;
 pub mod frf;
 pub mod lsce;
@@ -31,6 +32,7 @@ pub mod lscf;
 pub mod peak;
 pub mod pipeline;
 pub mod poles;
+pub mod protocol;
 pub mod report;
 pub mod spectrum;
 pub mod stabilisation;

@@ -79,6 +79,10 @@ pub struct IdentOptions {
     pub n_modes: Option<usize>,
     /// Stabilisation criteria.
     pub criteria: StabCriteria,
+    /// Tracking-filter a swept kinematic input (base acceleration/position) before the FRF
+    /// ([`super::denoise`]); skipped with a warning when the input is not a sweep, and never
+    /// applied to the force (it also carries the beam's reaction at its resonances).
+    pub track_input: bool,
     /// Show a progress bar.
     pub progress: bool,
 }
@@ -97,6 +101,7 @@ impl Default for IdentOptions {
             zeta_max: 0.2,
             n_modes: None,
             criteria: StabCriteria::default(),
+            track_input: true,
             progress: false,
         }
     }
@@ -162,7 +167,10 @@ fn to_estimates(modes: &[StableMode], method: &str) -> Vec<ModeEstimate> {
     modes.iter().map(|m| ModeEstimate { freq_hz: m.freq_hz, zeta: m.zeta, freq_hz_std: m.freq_hz_std, zeta_std: m.zeta_std, method: method.to_string() }).collect()
 }
 
-fn keep_best(mut modes: Vec<StableMode>, n: Option<usize>) -> Vec<StableMode> {
+fn keep_best(modes: Vec<StableMode>, n: Option<usize>, band: (f64, f64)) -> Vec<StableMode> {
+    // Poles within 5 % of the band width from an edge model the truncation, not the beam.
+    let e = 0.05 * (band.1 - band.0);
+    let mut modes: Vec<StableMode> = modes.into_iter().filter(|m| m.freq_hz > band.0 + e && m.freq_hz < band.1 - e).collect();
     if let Some(n) = n {
         modes.sort_by(|a, b| b.count.cmp(&a.count));
         modes.truncate(n);
@@ -285,7 +293,7 @@ pub fn identify_frf(frf: &Frf, opts: &IdentOptions, warnings: &mut Vec<String>) 
                 if let Some(b) = bar {
                     b.finish_and_clear();
                 }
-                let modes = keep_best(d.modes.clone(), opts.n_modes);
+                let modes = keep_best(d.modes.clone(), opts.n_modes, (f_lo, f_hi));
                 out.push(MethodResult { method: m, modes: to_estimates(&modes, "lscf"), diagram: Some(d) });
             }
             Method::Lsce => {
@@ -302,7 +310,7 @@ pub fn identify_frf(frf: &Frf, opts: &IdentOptions, warnings: &mut Vec<String>) 
                 if let Some(b) = bar {
                     b.finish_and_clear();
                 }
-                let modes = keep_best(d.modes.clone(), opts.n_modes);
+                let modes = keep_best(d.modes.clone(), opts.n_modes, (f_lo, f_hi));
                 out.push(MethodResult { method: m, modes: to_estimates(&modes, "lsce"), diagram: Some(d) });
             }
             Method::Peak => {
@@ -346,6 +354,30 @@ pub fn combine(methods: &[MethodResult]) -> Vec<ModeEstimate> {
         .collect()
 }
 
+/// The FRF [`identify_recording`] uses: channels, optional tracking filter of the input, Welch.
+pub fn frf_with_options(rec: &Recording, opts: &IdentOptions) -> Result<(Frf, Vec<String>)> {
+    if !opts.track_input || opts.input == InputChannel::Force {
+        return frf_of_recording(rec, opts.input, opts.output, &opts.welch);
+    }
+    let (x, y, xd, yd, mut warnings) = super::frf::channels(rec, opts.input, opts.output)?;
+    let rate = rec.sample_rate_hz();
+    let band = match opts.band_hz {
+        Some(b) => b,
+        None => auto_band(&super::frf::welch(&x, &y, rate, &opts.welch)?),
+    };
+    let tr = super::denoise::track_sweep(&x, rate, 4.0, band)?;
+    let (x, xd) = if tr.is_sweep() {
+        (tr.x, format!("{xd}, sweep-tracking filtered ({:.0} % of its energy in {:.1} % of the bins)", 100.0 * tr.kept_energy, 100.0 * tr.kept_bins))
+    } else {
+        warnings.push(format!("input is not a sweep ({:.0} % of its energy in {:.1} % of the bins): no tracking filter", 100.0 * tr.kept_energy, 100.0 * tr.kept_bins));
+        (x, xd)
+    };
+    let mut f = super::frf::welch(&x, &y, rate, &opts.welch)?;
+    f.input = xd;
+    f.output = yd;
+    Ok((f, warnings))
+}
+
 /// Identifies the modes of a recording (uniform time, validated): FRF of `opts.input` →
 /// `opts.output`, the FRF estimators of `opts.methods`, and the free decays after each move
 /// when `Method::LogDec` is asked for. Returns the FRF too (for plots).
@@ -358,7 +390,7 @@ pub fn identify_recording(rec: &Recording, opts: &IdentOptions) -> Result<(Ident
     if rec.len() < 256 {
         bail!("the recording has {} samples; identification needs at least 256", rec.len());
     }
-    let (frf, mut warnings) = frf_of_recording(rec, opts.input, opts.output, &opts.welch)?;
+    let (frf, mut warnings) = frf_with_options(rec, opts)?;
     let frf_methods = opts.methods.iter().any(|m| *m != Method::LogDec);
     let (mut methods, band) = if frf_methods { identify_frf(&frf, opts, &mut warnings)? } else { (vec![], auto_band(&frf)) };
     if opts.methods.contains(&Method::LogDec) {

@@ -2,9 +2,10 @@
 //!
 //! A pole at order n is *stable* when a pole of order n−1 (the previous order computed) lies
 //! within `df_rel` in frequency and `dzeta_rel` in damping (defaults 1 % and 5 %, the usual
-//! PolyMAX/sdypy-EMA criteria). Stable poles are clustered by frequency (within `df_rel` of the
-//! cluster's running median); a cluster is a mode when it holds stable poles from at least
-//! `min_fraction` of the orders. The mode's estimate is the median of its poles, and its 1-σ
+//! PolyMAX/sdypy-EMA criteria). Poles stable at least in frequency are clustered (within
+//! `df_rel` of the cluster's running median; damping estimates from noisy data wander more
+//! than 5 % between orders, so requiring damping stability too loses real modes); a cluster
+//! is a mode when it holds poles from at least `min_fraction` of the orders. The mode's estimate is the median of its poles, and its 1-σ
 //! uncertainty the spread (1.4826 × MAD) of its poles across model orders.
 
 use super::poles::Pole;
@@ -117,7 +118,7 @@ fn robust_std(v: &[f64]) -> f64 {
 
 /// Selects the modes (clusters of stable poles), sorted by frequency.
 pub fn select(orders: &[OrderPoles], c: &StabCriteria) -> Vec<StableMode> {
-    let mut stable: Vec<Pole> = orders.iter().flat_map(|o| o.poles.iter().filter(|p| p.1 == Stability::Stable).map(|p| p.0)).collect();
+    let mut stable: Vec<Pole> = orders.iter().flat_map(|o| o.poles.iter().filter(|p| p.1 != Stability::New).map(|p| p.0)).collect();
     stable.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
     let mut clusters: Vec<Vec<Pole>> = Vec::new();
     for p in stable {
