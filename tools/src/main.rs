@@ -34,6 +34,12 @@ enum Command {
     BenchSim(beamtools::model::bench::BenchArgs),
     /// Identify natural frequencies and damping ratios from a free decay (.npy or CSV).
     Identify(beamtools::ident::cli::IdentifyArgs),
+    /// Make a sine-sweep excitation (eqs. 33-34) as a command CSV, within stroke/accel/tip limits.
+    Sweep(beamtools::ident::cli::SweepArgs),
+    /// Welch H1/H2/coherence FRF of a recording (paper Step 2).
+    Frf(beamtools::ident::cli::FrfArgs),
+    /// Reproduce the paper's Table 1 (sweep identification) on the simulated rig.
+    Table1(beamtools::ident::cli::Table1Args),
     /// Model-discrepancy diagnosis: locate the mismatch, name the missing physics, refit, validate.
     Diagnose(beamtools::diagnose::cli::DiagnoseArgs),
     /// Prove the diagnosis on concealed effects from the truth generator (confusion table).
@@ -97,6 +103,9 @@ fn main() -> Result<()> {
         Command::Modes(a) => beamtools::model::cli::modes(a),
         Command::Table2(a) => beamtools::model::cli::table2(a),
         Command::Identify(a) => beamtools::ident::cli::identify(a),
+        Command::Sweep(a) => beamtools::ident::cli::sweep(a),
+        Command::Frf(a) => beamtools::ident::cli::frf(a),
+        Command::Table1(a) => beamtools::ident::cli::table1(a),
         Command::Diagnose(a) => beamtools::diagnose::cli::diagnose(a),
         Command::DiagnoseProof(a) => beamtools::diagnose::cli::proof(a),
         Command::Truth(a) => beamtools::truth::cli::truth(a),

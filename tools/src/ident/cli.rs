@@ -1,6 +1,11 @@
 //! `identify`: modes of a free decay in a NumPy `.npy` ([time; signal]) or a recording CSV.
 
 use super::freedecay::{identify_free_decay, FreeDecayOptions, FreeDecayResult};
+use super::frf::{frf_of_recording, InputChannel, OutputChannel, Window, WelchOptions, Detrend};
+use super::protocol;
+use super::report;
+use super::sweep::{generate, SweepKind, SweepSpec, TipMode};
+use super::{identify_recording, IdentOptions, Method};
 use crate::recording::Recording;
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -21,6 +26,41 @@ pub struct IdentifyArgs {
     /// Write the result as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Methods for an input/output recording: lscf (default, the most robust), lsce (the
+    /// paper's), peak, logdec (free decays after each move), all; comma-separated, the first
+    /// is primary. A `.npy` or a recording without an input channel is a free decay.
+    #[arg(long, default_value = "lscf")]
+    pub method: String,
+    /// FRF input: accel (base acceleration from base_pos_m), force (force_n), pos.
+    #[arg(long, default_value = "accel")]
+    pub input: String,
+    /// FRF output: deflection (tip_pos_m - base_pos_m) or tip (absolute).
+    #[arg(long, default_value = "deflection")]
+    pub output: String,
+    /// Band for the FRF methods (Hz), e.g. `0.3,8`; default: where the input has energy.
+    #[arg(long)]
+    pub band: Option<String>,
+    /// Keep the N best-supported modes.
+    #[arg(long)]
+    pub modes: Option<usize>,
+    /// Highest model order (LSCF) / number of poles (LSCE).
+    #[arg(long, default_value_t = 32)]
+    pub max_order: usize,
+    /// FRF window: rect (default: one segment, a sweep from rest to rest), hamming, hann, exp.
+    #[arg(long, default_value = "rect")]
+    pub window: String,
+    /// Welch segment length (samples); default the whole record.
+    #[arg(long)]
+    pub nperseg: Option<usize>,
+    /// No sweep-tracking filter on the input.
+    #[arg(long)]
+    pub no_track: bool,
+    /// Write the stabilisation diagram (SVG) here.
+    #[arg(long)]
+    pub stab_plot: Option<PathBuf>,
+    /// Write the FRF plot (SVG) here (and `<name>-coherence.svg`).
+    #[arg(long)]
+    pub frf_plot: Option<PathBuf>,
 }
 
 /// The free-decay part of a recording: the tip deflection (tip − base, or tip alone) from the
@@ -100,8 +140,74 @@ pub fn print_result(what: &str, r: &FreeDecayResult) {
     }
 }
 
+fn parse_band(s: &str) -> Result<(f64, f64)> {
+    let v: Vec<&str> = s.split(',').collect();
+    if v.len() != 2 {
+        bail!("--band wants `f_lo,f_hi` in Hz (got `{s}`)");
+    }
+    let p = |x: &str| x.trim().parse::<f64>().with_context(|| format!("--band: `{x}` is not a number"));
+    Ok((p(v[0])?, p(v[1])?))
+}
+
+/// The [`IdentOptions`] of the `identify`/`frf` arguments.
+pub fn options_of(a: &IdentifyArgs) -> Result<IdentOptions> {
+    let mut o = IdentOptions {
+        methods: Method::parse_list(&a.method)?,
+        input: InputChannel::from_name(&a.input)?,
+        output: OutputChannel::from_name(&a.output)?,
+        band_hz: a.band.as_deref().map(parse_band).transpose()?,
+        n_modes: a.modes,
+        max_order: a.max_order,
+        track_input: !a.no_track,
+        progress: true,
+        ..Default::default()
+    };
+    o.welch.window = Window::from_name(&a.window)?;
+    o.welch.nperseg = a.nperseg;
+    Ok(o)
+}
+
+/// True when `path` is a recording CSV with an excitation input (force or a moving base).
+fn is_input_output(path: &Path) -> bool {
+    if path.extension().is_some_and(|e| e == "npy") {
+        return false;
+    }
+    match Recording::read_csv(path) {
+        Ok(r) => r.force_n.is_some() || r.base_pos_m.as_ref().or(r.base_cmd_m.as_ref()).is_some_and(|b| b.iter().any(|v| (v - b[0]).abs() > 1e-9)),
+        Err(_) => false,
+    }
+}
+
 /// `beamtool identify`.
 pub fn identify(a: IdentifyArgs) -> Result<()> {
+    if is_input_output(&a.recording) && a.method != "free-decay" {
+        let rec = Recording::read_csv(&a.recording)?;
+        let opts = options_of(&a)?;
+        let (r, frf) = identify_recording(&rec, &opts)?;
+        println!("{}: {} samples at {:.1} Hz", a.recording.display(), rec.len(), rec.sample_rate_hz());
+        print!("{}", report::table(&r));
+        for mr in &r.methods {
+            if let Some(d) = &mr.diagram {
+                print!("{}", d.text(r.band_hz.0, r.band_hz.1, 72));
+            }
+        }
+        if let Some(p) = &a.stab_plot {
+            if let Some(d) = r.methods.iter().find_map(|m| m.diagram.as_ref()) {
+                let mag: Vec<f64> = frf.h1.iter().map(|c| c.norm()).collect();
+                d.plot(p, &frf.freq_hz, &mag, r.band_hz.0, r.band_hz.1)?;
+                println!("stabilisation diagram -> {}", p.display());
+            }
+        }
+        if let Some(p) = &a.frf_plot {
+            report::plot_frf(p, &frf, r.band_hz.0, r.band_hz.1)?;
+            println!("FRF plot -> {}", p.display());
+        }
+        if let Some(j) = &a.json {
+            std::fs::write(j, serde_json::to_string_pretty(&r)?).with_context(|| format!("cannot write {}", j.display()))?;
+            println!("JSON -> {}", j.display());
+        }
+        return Ok(());
+    }
     let (t, x, what) = free_decay_of(&a.recording)?;
     let r = identify_free_decay(
         &t,
@@ -116,6 +222,246 @@ pub fn identify(a: IdentifyArgs) -> Result<()> {
     if let Some(j) = &a.json {
         std::fs::write(j, serde_json::to_string_pretty(&r)?)
             .with_context(|| format!("cannot write {}", j.display()))?;
+        println!("JSON -> {}", j.display());
+    }
+    Ok(())
+}
+
+/// `sweep` arguments.
+#[derive(Args, Debug)]
+pub struct SweepArgs {
+    /// linear (rate in Hz/s, eq. 33) or exponential (octaves/min, eq. 34).
+    #[arg(long, default_value = "exponential")]
+    pub kind: String,
+    /// Sweep rate beta; negative sweeps down from f_b.
+    #[arg(long, allow_hyphen_values = true, default_value_t = 3.0)]
+    pub rate: f64,
+    /// Lower frequency f_a (Hz).
+    #[arg(long, default_value_t = 0.1)]
+    pub f_a_hz: f64,
+    /// Upper frequency f_b (Hz).
+    #[arg(long, default_value_t = 8.0)]
+    pub f_b_hz: f64,
+    /// Command sample rate (Hz).
+    #[arg(long, default_value_t = 1000.0)]
+    pub rate_hz: f64,
+    /// Peak base stroke (mm).
+    #[arg(long, default_value_t = 20.0)]
+    pub stroke_mm: f64,
+    /// Peak base acceleration (m/s²).
+    #[arg(long, default_value_t = 2.0)]
+    pub accel_max: f64,
+    /// Peak tip deflection (mm), from the rig model's modes (--rig) or --mode.
+    #[arg(long)]
+    pub tip_max_mm: Option<f64>,
+    /// Rig file for the tip-deflection limit and the check simulation.
+    #[arg(long)]
+    pub rig: Option<PathBuf>,
+    /// A mode `f_hz:zeta` (repeatable; uniform-cantilever participation) for the tip limit.
+    #[arg(long)]
+    pub mode: Vec<String>,
+    /// Fade in/out (s).
+    #[arg(long, default_value_t = 2.0)]
+    pub fade_s: f64,
+    /// Rest before (s).
+    #[arg(long, default_value_t = 1.0)]
+    pub lead_s: f64,
+    /// Rest after, for the ring-down (s).
+    #[arg(long, default_value_t = 20.0)]
+    pub tail_s: f64,
+    /// Output command CSV (time_s, base_cmd_m).
+    #[arg(long, default_value = "sweep.csv")]
+    pub out: PathBuf,
+}
+
+/// `beamtool sweep`.
+pub fn sweep(a: SweepArgs) -> Result<()> {
+    let mut tip_modes = Vec::new();
+    let mut model = None;
+    if let Some(r) = &a.rig {
+        let rig = crate::model::Rig::from_toml_file(r)?;
+        let m = crate::model::BeamModel::new(&rig, &crate::model::ModelOptions::default())?;
+        let c = m.clamped_modes()?;
+        for i in 0..c.omega_rad_s.len() {
+            tip_modes.push(TipMode { freq_hz: c.omega_rad_s[i] / (2.0 * std::f64::consts::PI), zeta: c.zeta[i], gain: c.participation[i] * c.tip[i] });
+        }
+        model = Some(m);
+    }
+    for (i, s) in a.mode.iter().enumerate() {
+        let v: Vec<&str> = s.split(':').collect();
+        let p = |x: &str| x.trim().parse::<f64>().with_context(|| format!("--mode `{s}`: want f_hz:zeta"));
+        if v.len() != 2 {
+            bail!("--mode `{s}`: want f_hz:zeta");
+        }
+        let gain = *super::sweep::UNIFORM_CANTILEVER_GAINS.get(i).with_context(|| "--mode: at most 3 modes")?;
+        tip_modes.push(TipMode { freq_hz: p(v[0])?, zeta: p(v[1])?, gain });
+    }
+    let spec = SweepSpec {
+        kind: SweepKind::from_name(&a.kind)?,
+        f_a_hz: a.f_a_hz,
+        f_b_hz: a.f_b_hz,
+        rate: a.rate,
+        sample_rate_hz: a.rate_hz,
+        stroke_max_m: a.stroke_mm * 1e-3,
+        accel_max_m_s2: a.accel_max,
+        tip_max_m: a.tip_max_mm.map(|v| v * 1e-3),
+        tip_modes,
+        fade_s: a.fade_s,
+        lead_s: a.lead_s,
+        tail_s: a.tail_s,
+    };
+    let mut spec = spec;
+    let mut s = generate(&spec)?;
+    // The envelope bounds the steady-state tip deflection; a lightly damped mode still rings
+    // when the envelope grows again past its resonance. With a rig, simulate and tighten the
+    // tip limit until the simulated peak respects it.
+    if let (Some(m), Some(limit)) = (&model, a.tip_max_mm.map(|v| v * 1e-3)) {
+        let sim = crate::model::sim::BaseMotionSim::new(m, 1.0 / spec.sample_rate_hz)?;
+        for _ in 0..8 {
+            let peak = sim.run(&s.base_cmd_m).0.iter().fold(0.0f64, |p, v| p.max(v.abs()));
+            if peak <= limit {
+                break;
+            }
+            spec.tip_max_m = spec.tip_max_m.map(|t| t * 0.97 * limit / peak);
+            s = generate(&spec)?;
+        }
+    }
+    let mut rec = Recording { time_s: s.time_s.clone(), base_cmd_m: Some(s.base_cmd_m.clone()), ..Default::default() };
+    rec.notes.clear();
+    rec.write_csv(&a.out)?;
+    println!("{:?} sweep {}..{} Hz, beta = {} ({}), T = {:.2} s (+{} s lead, {} s tail), {} samples at {} Hz -> {}",
+        spec.kind, spec.f_a_hz, spec.f_b_hz, spec.rate, if spec.kind == SweepKind::Linear { "Hz/s" } else { "octaves/min" },
+        s.duration_s, spec.lead_s, spec.tail_s, s.time_s.len(), spec.sample_rate_hz, a.out.display());
+    println!("peak stroke {:.3} mm (limit {}), peak acceleration {:.3} m/s^2 (limit {})", s.peak_stroke_m * 1e3, a.stroke_mm, s.peak_accel_m_s2, a.accel_max);
+    if let Some(m) = model {
+        let sim = crate::model::sim::BaseMotionSim::new(&m, 1.0 / spec.sample_rate_hz)?;
+        let (w, _) = sim.run(&s.base_cmd_m);
+        let peak = w.iter().fold(0.0f64, |p, v| p.max(v.abs()));
+        println!("simulated on the rig: peak tip deflection {:.3} mm{}", peak * 1e3, a.tip_max_mm.map_or(String::new(), |l| format!(" (limit {l} mm; envelope limit tightened to {:.2} mm steady state)", spec.tip_max_m.unwrap_or(0.0) * 1e3)));
+    }
+    Ok(())
+}
+
+/// `frf` arguments.
+#[derive(Args, Debug)]
+pub struct FrfArgs {
+    /// Recording CSV.
+    pub recording: PathBuf,
+    /// Input: force, accel, pos.
+    #[arg(long, default_value = "accel")]
+    pub input: String,
+    /// Output: deflection, tip.
+    #[arg(long, default_value = "deflection")]
+    pub output: String,
+    /// Window: hamming (paper), hann, rect, exp, exp:<end>.
+    #[arg(long, default_value = "hamming")]
+    pub window: String,
+    /// Segment length (samples); default a quarter of the record.
+    #[arg(long)]
+    pub nperseg: Option<usize>,
+    /// Overlap fraction.
+    #[arg(long, default_value_t = 0.5)]
+    pub overlap: f64,
+    /// Detrend: none, mean, linear.
+    #[arg(long, default_value = "mean")]
+    pub detrend: String,
+    /// Band to write and plot (Hz), `f_lo,f_hi`; default 0..Nyquist.
+    #[arg(long)]
+    pub band: Option<String>,
+    /// Output CSV: freq_hz, h1_re, h1_im, h2_re, h2_im, coherence.
+    #[arg(long, default_value = "frf.csv")]
+    pub out: PathBuf,
+    /// Plot (SVG).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// JSON of the whole estimate.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// `beamtool frf`.
+pub fn frf(a: FrfArgs) -> Result<()> {
+    let rec = Recording::read_csv(&a.recording)?;
+    let opts = WelchOptions {
+        nperseg: Some(a.nperseg.unwrap_or(rec.len() / 4)),
+        overlap: a.overlap,
+        window: Window::from_name(&a.window)?,
+        detrend: Detrend::from_name(&a.detrend)?,
+        pad: 1,
+    };
+    let (f, warnings) = frf_of_recording(&rec, InputChannel::from_name(&a.input)?, OutputChannel::from_name(&a.output)?, &opts)?;
+    for w in &warnings {
+        println!("warning: {w}");
+    }
+    let nyq = 0.5 * f.sample_rate_hz;
+    let (lo, hi) = a.band.as_deref().map(parse_band).transpose()?.unwrap_or((0.0, nyq));
+    if hi > nyq * (1.0 + 1e-9) {
+        bail!("--band upper limit {hi} Hz is beyond the Nyquist frequency {nyq} Hz");
+    }
+    let mut w = csv::Writer::from_path(&a.out).with_context(|| format!("cannot write {}", a.out.display()))?;
+    w.write_record(["freq_hz", "h1_re", "h1_im", "h2_re", "h2_im", "coherence"])?;
+    for k in f.band(lo, hi) {
+        w.write_record([f.freq_hz[k], f.h1[k].re, f.h1[k].im, f.h2[k].re, f.h2[k].im, f.coherence[k]].iter().map(|v| format!("{v:.9e}")))?;
+    }
+    w.flush()?;
+    println!("FRF {} -> {}: {} averages of {} samples ({:?} window, {:.0} % overlap), df = {:.4} Hz -> {}", f.input, f.output, f.n_averages, f.nperseg, opts.window, 100.0 * opts.overlap, f.df_hz(), a.out.display());
+    if let Some(p) = &a.plot {
+        report::plot_frf(p, &f, lo.max(f.df_hz()), hi)?;
+        println!("plot -> {}", p.display());
+    }
+    if let Some(j) = &a.json {
+        std::fs::write(j, serde_json::to_string(&f)?).with_context(|| format!("cannot write {}", j.display()))?;
+        println!("JSON -> {}", j.display());
+    }
+    Ok(())
+}
+
+/// `table1` arguments.
+#[derive(Args, Debug)]
+pub struct Table1Args {
+    /// Rig file (TOML).
+    #[arg(long, default_value = "../rigs/paper.toml")]
+    pub rig: PathBuf,
+    /// Noise: fraction of each measured channel's RMS.
+    #[arg(long, default_value_t = 0.05)]
+    pub noise: f64,
+    /// FRF input: force (the paper's) or accel.
+    #[arg(long, default_value = "force")]
+    pub input: String,
+    /// Methods (first is primary): lsce (the paper's), lscf, peak.
+    #[arg(long, default_value = "lsce")]
+    pub method: String,
+    /// Ring-down recorded after each sweep (s).
+    #[arg(long, default_value_t = 20.0)]
+    pub tail_s: f64,
+    /// Noise seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// JSON of all rows.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// `beamtool table1`: the paper's Table 1 protocol in simulation.
+pub fn table1(a: Table1Args) -> Result<()> {
+    let rig = crate::model::Rig::from_toml_file(&a.rig)?;
+    let model = crate::model::BeamModel::new(&rig, &crate::model::ModelOptions::default())?;
+    let tr = protocol::truth(&model)?;
+    let input = InputChannel::from_name(&a.input)?;
+    let opts = IdentOptions { methods: Method::parse_list(&a.method)?, input, band_hz: Some((0.3, 8.0)), n_modes: Some(2), ..Default::default() };
+    let base = SweepSpec { tail_s: a.tail_s, ..SweepSpec::paper(SweepKind::Exponential, 3.0) };
+    let cases = protocol::paper_cases();
+    let pb = indicatif::ProgressBar::new(cases.len() as u64);
+    let mut rows = Vec::new();
+    for (i, c) in cases.iter().enumerate() {
+        rows.extend(protocol::run(&model, std::slice::from_ref(c), &base, a.noise, &opts, a.seed + i as u64)?);
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    println!("Table 1 in simulation: {} rig, 100 Hz, {:.0} % noise, input {:?}, {} (band 0.3-8 Hz), {} s ring-down", a.rig.display(), a.noise * 100.0, input, a.method, a.tail_s);
+    print!("{}", protocol::table(&rows, tr.for_input(input)));
+    if let Some(j) = &a.json {
+        std::fs::write(j, serde_json::to_string_pretty(&rows)?).with_context(|| format!("cannot write {}", j.display()))?;
         println!("JSON -> {}", j.display());
     }
     Ok(())

@@ -14,8 +14,10 @@
 //! - the tip deflection |W/Y(f)| A ≤ `tip_max_m`, where W/Y is the base-position → tip-deflection
 //!   transmissibility of the clamped-base modes (given as [`TipMode`]s: the rig model's
 //!   Γ_r·tip_r, or 1.566 / −0.868 / 0.509 for a uniform cantilever's first three modes).
-//!   Sweeping through a resonance gives less than the steady-state response, so this is
-//!   conservative; `beamtool sweep --rig` simulates the command and reports the true peak.
+//!   This bounds the steady-state response only: a lightly damped mode keeps ringing after
+//!   the sweep passes its resonance while the envelope grows again, so the transient peak can
+//!   exceed it. `beamtool sweep --rig` therefore simulates the command and tightens the limit
+//!   until the simulated peak tip deflection respects the user's limit.
 
 use anyhow::{bail, Result};
 use serde::Serialize;
