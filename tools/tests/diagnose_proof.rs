@@ -20,9 +20,10 @@ fn nulls_give_none_and_clear_effects_are_named() {
     }
     let correct = rows.iter().filter(|r| r.truth != "none" && r.correct).count();
     assert!(correct >= 2, "{table}");
-    for r in rows.iter().filter(|r| r.correct && r.truth != "none") {
-        assert!(r.nrmse.1 < 0.8 * r.nrmse.0, "{table}");
-    }
+    // the target: median validation NRMSE reduction >= 30 % where an effect exists
+    let mut red: Vec<f64> = rows.iter().filter(|r| r.truth != "none").map(|r| 1.0 - r.nrmse.1 / r.nrmse.0).collect();
+    red.sort_by(|a, b| a.total_cmp(b));
+    assert!(red[red.len() / 2] >= 0.3, "{table}");
 }
 
 #[test]

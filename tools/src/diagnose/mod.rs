@@ -123,6 +123,10 @@ pub fn diagnose(rig: &Rig, fit_data: &[Prepared], validate: &Prepared, progress:
     if fit_data.is_empty() {
         bail!("at least one --fit recording is needed");
     }
+    // the nominal model must be able to simulate every recording: report why not, by name
+    for d in fit_data.iter().chain(std::iter::once(validate)) {
+        sim::predict(rig, &sim::Params::default(), d, &mut None).map_err(|e| anyhow::anyhow!("{}: {e:#}", d.name))?;
+    }
     let ch = channels_of(fit_data);
     let calib = calibration_defs(rig, &ch);
     // initial whitening: a fraction of each channel's signal scale

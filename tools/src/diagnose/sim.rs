@@ -376,24 +376,29 @@ mod tests {
         .unwrap()
     }
 
-    fn move_rec() -> crate::recording::Recording {
-        let (y, _) = crate::model::trapezoid_reference(0.0, 0.05, 0.2, 2.0, 100.0, 5.0).unwrap();
-        let mut r = crate::recording::Recording::with_uniform_time(y.len(), 100.0);
+    fn move_rec_at(rate: f64) -> crate::recording::Recording {
+        let (y, _) = crate::model::trapezoid_reference(0.0, 0.05, 0.2, 2.0, rate, 5.0).unwrap();
+        let mut r = crate::recording::Recording::with_uniform_time(y.len(), rate);
         r.base_cmd_m = Some(y.clone());
         r.tip_pos_m = Some(y.clone());
         r.force_n = Some(vec![0.0; y.len()]);
         r
     }
 
+    fn move_rec() -> crate::recording::Recording {
+        move_rec_at(100.0)
+    }
+
     #[test]
     fn nominal_matches_the_model_simulator() {
+        // at 1 kHz every model mode is below Nyquist and kept: identical to `model::sim`
         let rig = rig();
-        let rec = move_rec();
+        let rec = move_rec_at(1000.0);
         let d = Prepared::new("t", &rec).unwrap();
         let p = Params::default();
         let pred = predict(&rig, &p, &d, &mut None).unwrap();
         let model = BeamModel::new(&rig, &ModelOptions::default()).unwrap();
-        let sim = BaseMotionSim::new(&model, 0.01).unwrap();
+        let sim = BaseMotionSim::new(&model, 0.001).unwrap();
         let (w, u) = sim.run(&d.cmd_m);
         for k in 0..w.len() {
             assert!((pred.tip_m.as_ref().unwrap()[k] - d.cmd_m[k] - w[k]).abs() < 1e-9);
@@ -406,7 +411,8 @@ mod tests {
         let rec = move_rec();
         let d = Prepared::new("t", &rec).unwrap();
         let y = second_order(&d.cmd_m, 0.01, 2.0 * std::f64::consts::PI * 1e4, 0.7, true);
-        assert!(y.iter().zip(&d.cmd_m).all(|(a, b)| (a - b).abs() < 1e-6));
+        // following error 2ζv/ω = 4.5 µm at 10 kHz bandwidth
+        assert!(y.iter().zip(&d.cmd_m).all(|(a, b)| (a - b).abs() < 5e-6));
         let y = second_order(&d.cmd_m, 0.01, 2.0 * std::f64::consts::PI * 5.0, 0.7, true);
         let lag = y.iter().zip(&d.cmd_m).map(|(a, b)| b - a).fold(0.0, f64::max);
         // following error of a 2nd-order loop at 0.2 m/s: 2ζv/ω = 8.9 mm
