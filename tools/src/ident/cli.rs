@@ -55,6 +55,9 @@ pub struct IdentifyArgs {
     /// No sweep-tracking filter on the input.
     #[arg(long)]
     pub no_track: bool,
+    /// Sanathanan–Koerner iterations of LSCF (removes output-noise damping bias).
+    #[arg(long, default_value_t = 0)]
+    pub sk: usize,
     /// Write the stabilisation diagram (SVG) here.
     #[arg(long)]
     pub stab_plot: Option<PathBuf>,
@@ -159,6 +162,7 @@ pub fn options_of(a: &IdentifyArgs) -> Result<IdentOptions> {
         n_modes: a.modes,
         max_order: a.max_order,
         track_input: !a.no_track,
+        sk_iterations: a.sk,
         progress: true,
         ..Default::default()
     };

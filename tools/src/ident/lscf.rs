@@ -19,6 +19,44 @@ use realfft::num_complex::Complex64;
 ///
 /// Errors: fewer lines than 2·order + 2, an ill-conditioned system.
 pub fn lscf_poles(freq_hz: &[f64], h: &[Complex64], weight: &[f64], order: usize, zeta_max: f64) -> Result<Vec<Pole>> {
+    lscf_poles_sk(freq_hz, h, weight, order, zeta_max, 0)
+}
+
+/// [`lscf_poles`] followed by `sk_iterations` Sanathanan–Koerner iterations: each re-solves
+/// with the line weights divided by |A(Ω_k)| of the previous denominator, so the cost tends to
+/// the output error |B/A − H|² and the damping bias that output noise gives the linearised
+/// cost (H noise multiplied by A) goes away.
+pub fn lscf_poles_sk(freq_hz: &[f64], h: &[Complex64], weight: &[f64], order: usize, zeta_max: f64, sk_iterations: usize) -> Result<Vec<Pole>> {
+    let mut w = weight.to_vec();
+    let mut res = lscf_once(freq_hz, h, &w, order, zeta_max)?;
+    let dt = 1.0 / (2.0 * freq_hz[freq_hz.len() - 1]);
+    for _ in 0..sk_iterations {
+        let coef = &res.1;
+        let mut nw = Vec::with_capacity(w.len());
+        for (k, &f) in freq_hz.iter().enumerate() {
+            let om = Complex64::new(0.0, 2.0 * std::f64::consts::PI * f * dt).exp();
+            let mut p = Complex64::new(1.0, 0.0);
+            let mut a = Complex64::new(0.0, 0.0);
+            for &c in coef {
+                a += p * c;
+                p *= om;
+            }
+            nw.push(weight[k] / a.norm().max(1e-300));
+        }
+        let m = nw.iter().cloned().fold(0.0, f64::max);
+        if !(m > 0.0 && m.is_finite()) {
+            break;
+        }
+        w = nw.iter().map(|v| v / m).collect();
+        match lscf_once(freq_hz, h, &w, order, zeta_max) {
+            Ok(r) => res = r,
+            Err(_) => break,
+        }
+    }
+    Ok(res.0)
+}
+
+fn lscf_once(freq_hz: &[f64], h: &[Complex64], weight: &[f64], order: usize, zeta_max: f64) -> Result<(Vec<Pole>, Vec<f64>)> {
     let nl = freq_hz.len();
     if nl < 2 * order + 2 || order == 0 {
         bail!("LSCF order {order} needs at least {} frequency lines in the band (have {nl})", 2 * order + 2);
@@ -70,7 +108,7 @@ pub fn lscf_poles(freq_hz: &[f64], h: &[Complex64], weight: &[f64], order: usize
     let mut coef: Vec<f64> = sol.iter().copied().collect();
     coef.push(1.0);
     let roots = poly_roots(&coef);
-    Ok(physical_poles(&roots, dt, f_lo, f_hi, zeta_max))
+    Ok((physical_poles(&roots, dt, f_lo, f_hi, zeta_max), coef))
 }
 
 #[cfg(test)]

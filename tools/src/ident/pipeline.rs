@@ -83,6 +83,11 @@ pub struct IdentOptions {
     /// ([`super::denoise`]); skipped with a warning when the input is not a sweep, and never
     /// applied to the force (it also carries the beam's reaction at its resonances).
     pub track_input: bool,
+    /// Sanathanan–Koerner iterations of LSCF ([`super::lscf::lscf_poles_sk`]): removes the
+    /// damping bias of output noise (ζ2 +28 % → +2 % over 20 seeds with 5 % tip noise only),
+    /// but made things worse when the same noisy base position feeds input and output
+    /// (tip deflection = tip − base), so 0 by default.
+    pub sk_iterations: usize,
     /// Show a progress bar.
     pub progress: bool,
 }
@@ -102,6 +107,7 @@ impl Default for IdentOptions {
             n_modes: None,
             criteria: StabCriteria::default(),
             track_input: true,
+            sk_iterations: 0,
             progress: false,
         }
     }
@@ -288,7 +294,7 @@ pub fn identify_frf(frf: &Frf, opts: &IdentOptions, warnings: &mut Vec<String>) 
                     b.set_message("LSCF");
                 }
                 let d = diagram("LSCF", orders, &opts.criteria, |n| {
-                    Ok(lscf_poles(fq, h, &w, n, 1.0)?.into_iter().map(|p| p.remove_decay(sigma_w)).filter(|p| p.zeta > 0.0 && p.zeta < opts.zeta_max).collect())
+                    Ok(super::lscf::lscf_poles_sk(fq, h, &w, n, 1.0, opts.sk_iterations)?.into_iter().map(|p| p.remove_decay(sigma_w)).filter(|p| p.zeta > 0.0 && p.zeta < opts.zeta_max).collect())
                 }, bar.as_ref())?;
                 if let Some(b) = bar {
                     b.finish_and_clear();
