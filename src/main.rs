@@ -27,8 +27,8 @@ use core::cell::RefCell;
 use core::fmt::Write as _;
 use embassy_embedded_hal::adapter::BlockingAsync;
 use embassy_executor::Spawner;
-use embassy_stm32::flash::{Blocking, Flash};
 use embassy_stm32::dac::{DacChannel, Value};
+use embassy_stm32::flash::{Blocking, Flash};
 use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
@@ -286,8 +286,9 @@ async fn main(_spawner: Spawner) {
             Ok(line) => match console.handle_line(&line, &mut Shared, &mut out) {
                 Action::None => {}
                 Action::Save => {
-                    let r = save_settings(&mut flash, SETTINGS_FLASH, &mut sbuf, console.settings())
-                        .await;
+                    let r =
+                        save_settings(&mut flash, SETTINGS_FLASH, &mut sbuf, console.settings())
+                            .await;
                     console.finish_save(r, &mut out);
                 }
                 Action::Load => {

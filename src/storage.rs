@@ -81,7 +81,12 @@ impl<'a> Value<'a> for Record {
 type Map<'f, S> = MapStorage<
     u8,
     &'f mut S,
-    Cache<sequential_storage::cache::Uncached, sequential_storage::cache::Uncached, sequential_storage::cache::Uncached, u8>,
+    Cache<
+        sequential_storage::cache::Uncached,
+        sequential_storage::cache::Uncached,
+        sequential_storage::cache::Uncached,
+        u8,
+    >,
 >;
 
 fn open<S: NorFlash>(flash: &mut S, range: Range<u32>) -> Result<Map<'_, S>, StorageError> {

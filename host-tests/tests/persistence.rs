@@ -159,7 +159,11 @@ fn power_loss_at_every_byte_of_a_save_keeps_old_or_new() {
         }
         // The next save after the cut works and wins.
         save(&mut flash, &tuned(3.3)).unwrap();
-        assert_eq!(load(&mut flash), Ok(Some(tuned(3.3))), "save after a cut at {cut}");
+        assert_eq!(
+            load(&mut flash),
+            Ok(Some(tuned(3.3))),
+            "save after a cut at {cut}"
+        );
         if r.is_ok() {
             assert_eq!(loaded, Ok(Some(new.clone())));
             total = Some(cut);

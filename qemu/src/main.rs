@@ -65,7 +65,13 @@ fn main() -> ! {
         t0.wrapping_sub(t1) & 0x00ff_ffff,
         120_000 / (t0.wrapping_sub(t1) & 0x00ff_ffff).max(1)
     );
-    let zvdd = |f: f64| Some(ModeSetting { kind: ShaperKind::Zvdd, freq_hz: f, zeta: 0.0074 });
+    let zvdd = |f: f64| {
+        Some(ModeSetting {
+            kind: ShaperKind::Zvdd,
+            freq_hz: f,
+            zeta: 0.0074,
+        })
+    };
     let two_mode = [zvdd(1.1), zvdd(6.9), None, None];
     let three_mode = [zvdd(1.1), zvdd(6.9), zvdd(17.3), None];
     for (label, modes, path) in [

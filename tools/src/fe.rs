@@ -97,9 +97,24 @@ pub struct FeBeam {
 fn hermite(s: f64, le: f64) -> ([f64; 4], [f64; 4], [f64; 4]) {
     let (s2, s3) = (s * s, s * s * s);
     (
-        [1.0 - 3.0 * s2 + 2.0 * s3, le * (s - 2.0 * s2 + s3), 3.0 * s2 - 2.0 * s3, le * (s3 - s2)],
-        [(-6.0 * s + 6.0 * s2) / le, 1.0 - 4.0 * s + 3.0 * s2, (6.0 * s - 6.0 * s2) / le, 3.0 * s2 - 2.0 * s],
-        [(-6.0 + 12.0 * s) / (le * le), (-4.0 + 6.0 * s) / le, (6.0 - 12.0 * s) / (le * le), (-2.0 + 6.0 * s) / le],
+        [
+            1.0 - 3.0 * s2 + 2.0 * s3,
+            le * (s - 2.0 * s2 + s3),
+            3.0 * s2 - 2.0 * s3,
+            le * (s3 - s2),
+        ],
+        [
+            (-6.0 * s + 6.0 * s2) / le,
+            1.0 - 4.0 * s + 3.0 * s2,
+            (6.0 * s - 6.0 * s2) / le,
+            3.0 * s2 - 2.0 * s,
+        ],
+        [
+            (-6.0 + 12.0 * s) / (le * le),
+            (-4.0 + 6.0 * s) / le,
+            (6.0 - 12.0 * s) / (le * le),
+            (-2.0 + 6.0 * s) / le,
+        ],
     )
 }
 
@@ -115,8 +130,17 @@ impl FeBeam {
     /// Assembles the model of the beam in `rig` (needs a `[beam]` section). For
     /// [`FeRoot::FreeBase`] pass the carriage mass yourself (e.g. `rig.base.mass_kg`).
     pub fn from_rig(rig: &Rig, opts: &FeOptions) -> Result<FeBeam> {
-        let b = rig.beam.as_ref().context("the rig has no [beam] section: no beam to model")?;
-        FeBeam::new(&rig.profile()?, b.length_m, b.density_kg_m3, b.youngs_modulus_pa, opts)
+        let b = rig
+            .beam
+            .as_ref()
+            .context("the rig has no [beam] section: no beam to model")?;
+        FeBeam::new(
+            &rig.profile()?,
+            b.length_m,
+            b.density_kg_m3,
+            b.youngs_modulus_pa,
+            opts,
+        )
     }
 
     /// Assembles the model of a beam of `length_m` (m), density `density_kg_m3`, Young's
@@ -124,15 +148,28 @@ impl FeBeam {
     ///
     /// Errors: non-positive sizes, zero elements, negative tip mass or carriage mass,
     /// non-positive root stiffness.
-    pub fn new(profile: &SectionProfile, length_m: f64, density_kg_m3: f64, youngs_modulus_pa: f64, opts: &FeOptions) -> Result<FeBeam> {
-        if !(length_m > 0.0 && density_kg_m3 > 0.0 && youngs_modulus_pa > 0.0 && opts.stiffness_scale > 0.0) {
+    pub fn new(
+        profile: &SectionProfile,
+        length_m: f64,
+        density_kg_m3: f64,
+        youngs_modulus_pa: f64,
+        opts: &FeOptions,
+    ) -> Result<FeBeam> {
+        if !(length_m > 0.0
+            && density_kg_m3 > 0.0
+            && youngs_modulus_pa > 0.0
+            && opts.stiffness_scale > 0.0)
+        {
             bail!("FE beam: length, density, Young's modulus and stiffness scale must be > 0");
         }
         if opts.elements == 0 {
             bail!("FE beam: needs at least one element");
         }
         if !(opts.tip_mass_kg >= 0.0) {
-            bail!("FE beam: tip mass must be >= 0 kg (got {})", opts.tip_mass_kg);
+            bail!(
+                "FE beam: tip mass must be >= 0 kg (got {})",
+                opts.tip_mass_kg
+            );
         }
         if let Some(kr) = opts.root_stiffness_nm_per_rad {
             if !(kr > 0.0 && kr.is_finite()) {
@@ -153,7 +190,16 @@ impl FeBeam {
         // Axial force at x (positive = tension): weight of the beam beyond x plus the tip mass.
         // The beam mass beyond x is integrated element by element (same quadrature).
         let elem_mass: Vec<f64> = (0..ne)
-            .map(|el| GL4.iter().map(|&(xi, w)| 0.5 * le * w * density_kg_m3 * profile.area((el as f64 + 0.5 * (xi + 1.0)) * le)).sum())
+            .map(|el| {
+                GL4.iter()
+                    .map(|&(xi, w)| {
+                        0.5 * le
+                            * w
+                            * density_kg_m3
+                            * profile.area((el as f64 + 0.5 * (xi + 1.0)) * le)
+                    })
+                    .sum()
+            })
             .collect();
         let beam_mass: f64 = elem_mass.iter().sum();
         let sign = match opts.axial_load {
@@ -245,9 +291,14 @@ impl FeBeam {
         let skip = usize::from(self.base_dof.is_some());
         let f: Vec<f64> = w2.iter().skip(skip).take(count).copied().collect();
         if f.first().is_some_and(|v| *v <= 0.0) {
-            bail!("FE beam buckles under the axial load (lowest flexible eigenvalue {:.3e})", f[0]);
+            bail!(
+                "FE beam buckles under the axial load (lowest flexible eigenvalue {:.3e})",
+                f[0]
+            );
         }
-        Ok(f.iter().map(|v| v.sqrt() / (2.0 * std::f64::consts::PI)).collect())
+        Ok(f.iter()
+            .map(|v| v.sqrt() / (2.0 * std::f64::consts::PI))
+            .collect())
     }
 
     /// Rayleigh damping matrix C = α1 M + α2 K (paper eqs. 21–22) giving damping ratios
@@ -293,16 +344,37 @@ mod tests {
     use std::f64::consts::PI;
 
     fn uniform(b: f64, h: f64, l: f64) -> SectionProfile {
-        SectionProfile { x_m: vec![0.0, l], area_m2: vec![b * h; 2], inertia_m4: vec![b * h.powi(3) / 12.0; 2] }
+        SectionProfile {
+            x_m: vec![0.0, l],
+            area_m2: vec![b * h; 2],
+            inertia_m4: vec![b * h.powi(3) / 12.0; 2],
+        }
     }
 
     #[test]
     fn uniform_clamped_beam_matches_euler_bernoulli() {
         let (b, h, l, rho, e) = (0.025, 0.00115, 0.9, 8190.0, 1.9e11);
-        let fe = FeBeam::new(&uniform(b, h, l), l, rho, e, &FeOptions { elements: 60, ..Default::default() }).unwrap();
+        let fe = FeBeam::new(
+            &uniform(b, h, l),
+            l,
+            rho,
+            e,
+            &FeOptions {
+                elements: 60,
+                ..Default::default()
+            },
+        )
+        .unwrap();
         let f = fe.natural_frequencies_hz(3).unwrap();
         let c = (e * b * h.powi(3) / 12.0 / (rho * b * h)).sqrt() / (2.0 * PI * l * l);
-        for (i, bl) in [1.875_104_068_711_961f64, 4.694_091_132_974_175, 7.854_757_438_237_613].iter().enumerate() {
+        for (i, bl) in [
+            1.875_104_068_711_961f64,
+            4.694_091_132_974_175,
+            7.854_757_438_237_613,
+        ]
+        .iter()
+        .enumerate()
+        {
             let rel = f[i] / (bl * bl * c) - 1.0;
             assert!(rel.abs() < 1e-5, "mode {}: {rel:e}", i + 1);
         }
@@ -315,28 +387,62 @@ mod tests {
         // 1 + cos x cosh x + (m_t/m_b) x (cos x sinh x − sin x cosh x) = 0).
         let (b, h, l, rho, e) = (0.025, 0.00115, 0.9, 8190.0, 1.9e11);
         let mb = rho * b * h * l;
-        let fe = FeBeam::new(&uniform(b, h, l), l, rho, e, &FeOptions { elements: 40, tip_mass_kg: mb, ..Default::default() }).unwrap();
+        let fe = FeBeam::new(
+            &uniform(b, h, l),
+            l,
+            rho,
+            e,
+            &FeOptions {
+                elements: 40,
+                tip_mass_kg: mb,
+                ..Default::default()
+            },
+        )
+        .unwrap();
         let g = |x: f64| 1.0 + x.cos() * x.cosh() + x * (x.cos() * x.sinh() - x.sin() * x.cosh());
         let (mut lo, mut hi) = (1.0, 1.8);
         for _ in 0..100 {
             let m = 0.5 * (lo + hi);
-            if g(m).signum() == g(lo).signum() { lo = m } else { hi = m }
+            if g(m).signum() == g(lo).signum() {
+                lo = m
+            } else {
+                hi = m
+            }
         }
         let c = (e * b * h.powi(3) / 12.0 / (rho * b * h)).sqrt() / (2.0 * PI * l * l);
         let f = fe.natural_frequencies_hz(1).unwrap();
         assert!((lo - 1.247_92).abs() < 1e-4, "{lo}");
-        assert!((f[0] / (lo * lo * c) - 1.0).abs() < 1e-6, "{} vs {}", f[0], lo * lo * c);
+        assert!(
+            (f[0] / (lo * lo * c) - 1.0).abs() < 1e-6,
+            "{} vs {}",
+            f[0],
+            lo * lo * c
+        );
     }
 
     #[test]
     fn free_base_has_a_rigid_mode_and_undamped_translation() {
         let (b, h, l) = (0.025, 0.00115, 0.9);
-        let fe = FeBeam::new(&uniform(b, h, l), l, 8190.0, 1.9e11, &FeOptions { elements: 20, root: FeRoot::FreeBase { mass_kg: 2.5 }, ..Default::default() }).unwrap();
+        let fe = FeBeam::new(
+            &uniform(b, h, l),
+            l,
+            8190.0,
+            1.9e11,
+            &FeOptions {
+                elements: 20,
+                root: FeRoot::FreeBase { mass_kg: 2.5 },
+                ..Default::default()
+            },
+        )
+        .unwrap();
         let (w2, _) = fe.eigen().unwrap();
         assert!(w2[0].abs() < 1e-6 * w2[1], "{} vs {}", w2[0], w2[1]);
         let (c, _, _) = fe.rayleigh_damping(0.0074, 0.0074).unwrap();
         let r = fe.rigid_translation();
-        assert!((&c * &r).amax() < 1e-12 * c.amax(), "rigid translation must not be damped");
+        assert!(
+            (&c * &r).amax() < 1e-12 * c.amax(),
+            "rigid translation must not be damped"
+        );
         assert_eq!(fe.base_dof, Some(0));
         // Total mass seen by a rigid translation = carriage + beam.
         assert!((r.dot(&(&fe.mass * &r)) - (2.5 + fe.beam_mass_kg)).abs() < 1e-12);
@@ -345,8 +451,38 @@ mod tests {
     #[test]
     fn bad_options_are_errors() {
         let p = uniform(0.025, 0.00115, 0.9);
-        assert!(FeBeam::new(&p, 0.9, 8190.0, 1.9e11, &FeOptions { elements: 0, ..Default::default() }).is_err());
-        assert!(FeBeam::new(&p, 0.9, 8190.0, 1.9e11, &FeOptions { tip_mass_kg: -1.0, ..Default::default() }).is_err());
-        assert!(FeBeam::new(&p, 0.9, 8190.0, 1.9e11, &FeOptions { root_stiffness_nm_per_rad: Some(0.0), ..Default::default() }).is_err());
+        assert!(FeBeam::new(
+            &p,
+            0.9,
+            8190.0,
+            1.9e11,
+            &FeOptions {
+                elements: 0,
+                ..Default::default()
+            }
+        )
+        .is_err());
+        assert!(FeBeam::new(
+            &p,
+            0.9,
+            8190.0,
+            1.9e11,
+            &FeOptions {
+                tip_mass_kg: -1.0,
+                ..Default::default()
+            }
+        )
+        .is_err());
+        assert!(FeBeam::new(
+            &p,
+            0.9,
+            8190.0,
+            1.9e11,
+            &FeOptions {
+                root_stiffness_nm_per_rad: Some(0.0),
+                ..Default::default()
+            }
+        )
+        .is_err());
     }
 }

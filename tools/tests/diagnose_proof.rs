@@ -10,7 +10,16 @@ use beamtools::truth::{generate, TruthOptions};
 #[test]
 fn nulls_give_none_and_clear_effects_are_named() {
     // 2 null cases and one case each of effects with a strong signature, 30 s recordings
-    let rows = run_proof(&["sensor_delay", "quadratic_damping", "cogging_ripple"], 1, 2, 1000, 30.0, None, false).unwrap();
+    let rows = run_proof(
+        &["sensor_delay", "quadratic_damping", "cogging_ripple"],
+        1,
+        2,
+        1000,
+        30.0,
+        None,
+        false,
+    )
+    .unwrap();
     let table = proof_table(&rows);
     println!("{table}");
     for r in &rows {
@@ -18,26 +27,51 @@ fn nulls_give_none_and_clear_effects_are_named() {
             assert_eq!(r.named, "none", "false discovery on a null case:\n{table}");
         }
     }
-    let correct = rows.iter().filter(|r| r.truth != "none" && r.correct).count();
+    let correct = rows
+        .iter()
+        .filter(|r| r.truth != "none" && r.correct)
+        .count();
     assert!(correct >= 2, "{table}");
     // the issue's target: median validation NRMSE reduction >= 30 % where an effect exists
-    let mut red: Vec<f64> = rows.iter().filter(|r| r.truth != "none").map(|r| 1.0 - r.nrmse.1 / r.nrmse.0).collect();
+    let mut red: Vec<f64> = rows
+        .iter()
+        .filter(|r| r.truth != "none")
+        .map(|r| 1.0 - r.nrmse.1 / r.nrmse.0)
+        .collect();
     red.sort_by(|a, b| a.total_cmp(b));
     assert!(red[red.len() / 2] >= 0.3, "{table}");
 }
 
 #[test]
 fn json_has_the_fields_of_the_issue() {
-    let case = generate("sensor_delay", 1500, &TruthOptions { duration_s: 30.0, ..Default::default() }).unwrap();
+    let case = generate(
+        "sensor_delay",
+        1500,
+        &TruthOptions {
+            duration_s: 30.0,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let rig = Rig::from_toml_str(&case.rig_toml).unwrap();
-    let fit: Vec<Prepared> = case.fit.iter().map(|r| Prepared::new("fit", r).unwrap()).collect();
+    let fit: Vec<Prepared> = case
+        .fit
+        .iter()
+        .map(|r| Prepared::new("fit", r).unwrap())
+        .collect();
     let val = Prepared::new("validate", &case.validate).unwrap();
     let d = diagnose(&rig, &fit, &val, &mut |_, _, _| {}).unwrap();
     let j = to_json(&d);
     assert!(j["effect"].is_string());
     assert!(j["parameters"].is_object());
-    assert!(j["validation"]["nrmse_before"].is_number() && j["validation"]["nrmse_after"].is_number());
-    assert!(j["candidates"].as_array().unwrap().iter().all(|c| c["effect"].is_string() && c["score"].is_number()));
+    assert!(
+        j["validation"]["nrmse_before"].is_number() && j["validation"]["nrmse_after"].is_number()
+    );
+    assert!(j["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|c| c["effect"].is_string() && c["score"].is_number()));
     if j["effect"] == "sensor_delay" {
         let tau = j["parameters"]["sensor_delay_s"].as_f64().unwrap();
         let truth = case.truth["sensor_delay_s"].as_f64().unwrap();
@@ -54,6 +88,8 @@ fn bad_input_is_a_clear_error() {
     assert!(e.contains("base_cmd_m"), "{e}");
     rec.base_cmd_m = Some(vec![0.0; 100]);
     let d = Prepared::new("x.csv", &rec).unwrap();
-    let e = diagnose(&rig, std::slice::from_ref(&d), &d, &mut |_, _, _| {}).unwrap_err().to_string();
+    let e = diagnose(&rig, std::slice::from_ref(&d), &d, &mut |_, _, _| {})
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("no [beam]") || e.contains("tip"), "{e}");
 }

@@ -22,15 +22,32 @@ pub fn beta_120s() -> f64 {
 fn exponential_sweep_120s_5pct_noise_meets_the_accuracy_target() {
     let m = model();
     let tr = truth(&m).unwrap();
-    let spec = SweepSpec { tail_s: 20.0, ..SweepSpec::paper(SweepKind::Exponential, beta_120s()) };
+    let spec = SweepSpec {
+        tail_s: 20.0,
+        ..SweepSpec::paper(SweepKind::Exponential, beta_120s())
+    };
     for seed in [7, 8] {
         let rec = simulate_sweep(&m, &spec, 100.0, 0.05, seed).unwrap();
-        let opts = IdentOptions { methods: vec![Method::Lscf], input: InputChannel::BaseAccel, band_hz: Some((0.3, 8.0)), n_modes: Some(2), ..Default::default() };
+        let opts = IdentOptions {
+            methods: vec![Method::Lscf],
+            input: InputChannel::BaseAccel,
+            band_hz: Some((0.3, 8.0)),
+            n_modes: Some(2),
+            ..Default::default()
+        };
         let (r, _) = identify_recording(&rec, &opts).unwrap();
         assert_eq!(r.modes.len(), 2, "{:?}", r.modes);
         for (m, t) in r.modes.iter().zip(tr.for_input(InputChannel::BaseAccel)) {
             let (ef, ez) = (m.freq_hz / t.0 - 1.0, m.zeta / t.1 - 1.0);
-            eprintln!("seed {seed}: f {:.4} (truth {:.4}, {:+.3} %), zeta {:.5} (truth {:.5}, {:+.1} %)", m.freq_hz, t.0, 100.0 * ef, m.zeta, t.1, 100.0 * ez);
+            eprintln!(
+                "seed {seed}: f {:.4} (truth {:.4}, {:+.3} %), zeta {:.5} (truth {:.5}, {:+.1} %)",
+                m.freq_hz,
+                t.0,
+                100.0 * ef,
+                m.zeta,
+                t.1,
+                100.0 * ez
+            );
             assert!(ef.abs() < 0.002, "frequency error {ef}");
             assert!(ez.abs() < 0.15, "damping error {ez}");
         }
@@ -42,9 +59,18 @@ fn exponential_sweep_120s_5pct_noise_meets_the_accuracy_target() {
 fn without_the_tracking_filter_input_noise_spoils_mode_2_damping() {
     // The control experiment for the tracking filter: same data, filter off.
     let m = model();
-    let spec = SweepSpec { tail_s: 20.0, ..SweepSpec::paper(SweepKind::Exponential, beta_120s()) };
+    let spec = SweepSpec {
+        tail_s: 20.0,
+        ..SweepSpec::paper(SweepKind::Exponential, beta_120s())
+    };
     let rec = simulate_sweep(&m, &spec, 100.0, 0.05, 7).unwrap();
-    let opts = IdentOptions { track_input: false, input: InputChannel::BaseAccel, band_hz: Some((0.3, 8.0)), n_modes: Some(2), ..Default::default() };
+    let opts = IdentOptions {
+        track_input: false,
+        input: InputChannel::BaseAccel,
+        band_hz: Some((0.3, 8.0)),
+        n_modes: Some(2),
+        ..Default::default()
+    };
     let ok = match identify_recording(&rec, &opts) {
         Ok((r, _)) => r.modes.len() == 2 && (r.modes[1].zeta / 0.0074 - 1.0).abs() < 0.15,
         Err(_) => false,

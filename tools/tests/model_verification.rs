@@ -96,10 +96,16 @@ fn uniform_beam_matches_euler_bernoulli_and_converges() {
 /// Independent method: the Hermite-cubic finite-element model of `beamtools::fe` (absolute
 /// coordinates, local cubic shape functions, 4-point Gauss–Legendre per element), clamped root.
 fn fe_clamped_hz(width_root: f64, width_tip: f64, elements: usize) -> Vec<f64> {
-    FeBeam::from_rig(&rig(width_root, width_tip), &FeOptions { elements, ..Default::default() })
-        .unwrap()
-        .natural_frequencies_hz(4)
-        .unwrap()
+    FeBeam::from_rig(
+        &rig(width_root, width_tip),
+        &FeOptions {
+            elements,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+    .natural_frequencies_hz(4)
+    .unwrap()
 }
 
 #[test]
@@ -111,7 +117,10 @@ fn tapered_beam_matches_an_independent_finite_element_model() {
         assert!((fe_u[i] / euler_bernoulli_hz(i) - 1.0).abs() < 1e-5);
     }
     println!("convergence on the tapered beam (relative difference to the 200-element FE model):");
-    println!("{:>3} {:>12} {:>12} {:>12}", "n", "mode 1", "mode 2", "mode 3");
+    println!(
+        "{:>3} {:>12} {:>12} {:>12}",
+        "n", "mode 1", "mode 2", "mode 3"
+    );
     let mut prev_err = f64::INFINITY;
     for n in [3, 4, 5, 6, 8, 10] {
         let g = clamped_hz(&rig(0.030, 0.020), n);
@@ -342,31 +351,115 @@ fn structural_extensions_agree_with_the_finite_element_model() {
     use beamtools::model::Orientation;
     let r = rig(0.030, 0.020);
     let cases: Vec<(&str, ModelOptions, FeOptions)> = vec![
-        ("tip mass 10 g", ModelOptions { tip_mass_kg: 0.01, ..Default::default() }, FeOptions { tip_mass_kg: 0.01, ..Default::default() }),
-        ("root spring 5 N·m/rad", ModelOptions { root_stiffness_nm_per_rad: Some(5.0), ..Default::default() }, FeOptions { root_stiffness_nm_per_rad: Some(5.0), ..Default::default() }),
-        ("hanging (tension)", ModelOptions { axial_load: Some(Orientation::Hanging), ..Default::default() }, FeOptions { axial_load: Some(Orientation::Hanging), ..Default::default() }),
-        ("upright (compression)", ModelOptions { axial_load: Some(Orientation::Upright), ..Default::default() }, FeOptions { axial_load: Some(Orientation::Upright), ..Default::default() }),
-        ("stiffness x 1.1", ModelOptions { stiffness_scale: 1.1, ..Default::default() }, FeOptions { stiffness_scale: 1.1, ..Default::default() }),
+        (
+            "tip mass 10 g",
+            ModelOptions {
+                tip_mass_kg: 0.01,
+                ..Default::default()
+            },
+            FeOptions {
+                tip_mass_kg: 0.01,
+                ..Default::default()
+            },
+        ),
+        (
+            "root spring 5 N·m/rad",
+            ModelOptions {
+                root_stiffness_nm_per_rad: Some(5.0),
+                ..Default::default()
+            },
+            FeOptions {
+                root_stiffness_nm_per_rad: Some(5.0),
+                ..Default::default()
+            },
+        ),
+        (
+            "hanging (tension)",
+            ModelOptions {
+                axial_load: Some(Orientation::Hanging),
+                ..Default::default()
+            },
+            FeOptions {
+                axial_load: Some(Orientation::Hanging),
+                ..Default::default()
+            },
+        ),
+        (
+            "upright (compression)",
+            ModelOptions {
+                axial_load: Some(Orientation::Upright),
+                ..Default::default()
+            },
+            FeOptions {
+                axial_load: Some(Orientation::Upright),
+                ..Default::default()
+            },
+        ),
+        (
+            "stiffness x 1.1",
+            ModelOptions {
+                stiffness_scale: 1.1,
+                ..Default::default()
+            },
+            FeOptions {
+                stiffness_scale: 1.1,
+                ..Default::default()
+            },
+        ),
     ];
     for (name, mo, fo) in cases {
         let g = clamped_hz_opts(&r, ModelOptions { n_modes: 8, ..mo });
-        let fe = FeBeam::from_rig(&r, &FeOptions { elements: 120, ..fo }).unwrap().natural_frequencies_hz(3).unwrap();
+        let fe = FeBeam::from_rig(
+            &r,
+            &FeOptions {
+                elements: 120,
+                ..fo
+            },
+        )
+        .unwrap()
+        .natural_frequencies_hz(3)
+        .unwrap();
         for i in 0..3 {
             let rel = g[i] / fe[i] - 1.0;
-            println!("{name:>24}, mode {}: Galerkin {:.5} Hz, FE {:.5} Hz, {rel:+.2e}", i + 1, g[i], fe[i]);
+            println!(
+                "{name:>24}, mode {}: Galerkin {:.5} Hz, FE {:.5} Hz, {rel:+.2e}",
+                i + 1,
+                g[i],
+                fe[i]
+            );
             assert!(rel.abs() < 5e-3, "{name}, mode {}: {rel:e}", i + 1);
         }
     }
     // Free carriage (force-driven base): Galerkin (relative coordinates) vs FE (absolute).
-    let m = BeamModel::new(&r, &ModelOptions { n_modes: 8, ..Default::default() }).unwrap();
+    let m = BeamModel::new(
+        &r,
+        &ModelOptions {
+            n_modes: 8,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let g = m.free_base_freqs_hz().unwrap();
-    let fe = FeBeam::from_rig(&r, &FeOptions { elements: 120, root: FeRoot::FreeBase { mass_kg: 2.5 }, ..Default::default() })
-        .unwrap()
-        .natural_frequencies_hz(3)
-        .unwrap();
+    let fe = FeBeam::from_rig(
+        &r,
+        &FeOptions {
+            elements: 120,
+            root: FeRoot::FreeBase { mass_kg: 2.5 },
+            ..Default::default()
+        },
+    )
+    .unwrap()
+    .natural_frequencies_hz(3)
+    .unwrap();
     for i in 0..3 {
         let rel = g[i] / fe[i] - 1.0;
-        println!("{:>24}, mode {}: Galerkin {:.5} Hz, FE {:.5} Hz, {rel:+.2e}", "free carriage 2.5 kg", i + 1, g[i], fe[i]);
+        println!(
+            "{:>24}, mode {}: Galerkin {:.5} Hz, FE {:.5} Hz, {rel:+.2e}",
+            "free carriage 2.5 kg",
+            i + 1,
+            g[i],
+            fe[i]
+        );
         assert!(rel.abs() < 5e-3, "free base, mode {}: {rel:e}", i + 1);
     }
 }

@@ -34,7 +34,10 @@ pub struct DiagnoseArgs {
 
 fn bar(len: u64) -> ProgressBar {
     let b = ProgressBar::new(len);
-    b.set_style(ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} {msg}").unwrap_or_else(|_| ProgressStyle::default_bar()));
+    b.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
     b
 }
 
@@ -45,7 +48,12 @@ pub fn load(path: &Path) -> Result<Prepared> {
 }
 
 /// Runs a diagnosis on files, with a progress bar.
-pub fn diagnose_files(rig: &Path, fit: &[PathBuf], validate: &Path, show: bool) -> Result<Diagnosis> {
+pub fn diagnose_files(
+    rig: &Path,
+    fit: &[PathBuf],
+    validate: &Path,
+    show: bool,
+) -> Result<Diagnosis> {
     let rig = Rig::from_toml_file(rig)?;
     let fit: Vec<Prepared> = fit.iter().map(|p| load(p)).collect::<Result<_>>()?;
     let val = load(validate)?;
@@ -67,9 +75,14 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
     let t0 = std::time::Instant::now();
     let d = diagnose_files(&a.rig, &a.fit, &a.validate, true)?;
     print!("{}", words(&d));
-    println!("({} model evaluations, {:.1} s)", d.evaluations, t0.elapsed().as_secs_f64());
+    println!(
+        "({} model evaluations, {:.1} s)",
+        d.evaluations,
+        t0.elapsed().as_secs_f64()
+    );
     if let Some(j) = &a.json {
-        std::fs::write(j, serde_json::to_string_pretty(&to_json(&d))?).with_context(|| format!("cannot write {}", j.display()))?;
+        std::fs::write(j, serde_json::to_string_pretty(&to_json(&d))?)
+            .with_context(|| format!("cannot write {}", j.display()))?;
     }
     if let Some(r) = &a.report {
         write_report(&d, r)?;
@@ -123,7 +136,15 @@ pub struct ProofRow {
 }
 
 /// Runs the proof over generated cases; returns the rows.
-pub fn run_proof(effects: &[&str], cases: usize, nulls: usize, seed0: u64, duration_s: f64, out: Option<&Path>, show: bool) -> Result<Vec<ProofRow>> {
+pub fn run_proof(
+    effects: &[&str],
+    cases: usize,
+    nulls: usize,
+    seed0: u64,
+    duration_s: f64,
+    out: Option<&Path>,
+    show: bool,
+) -> Result<Vec<ProofRow>> {
     let mut jobs: Vec<(String, u64)> = Vec::new();
     for (i, e) in effects.iter().enumerate() {
         for k in 0..cases {
@@ -137,14 +158,22 @@ pub fn run_proof(effects: &[&str], cases: usize, nulls: usize, seed0: u64, durat
     if !show {
         pb.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }
-    let opts = TruthOptions { duration_s, ..Default::default() };
+    let opts = TruthOptions {
+        duration_s,
+        ..Default::default()
+    };
     let mut rows = Vec::new();
     for (effect, seed) in jobs {
         pb.set_message(format!("{effect} seed {seed}"));
         let t0 = std::time::Instant::now();
         let case = generate(&effect, seed, &opts)?;
         let rig = Rig::from_toml_str(&case.rig_toml)?;
-        let fit: Vec<Prepared> = case.fit.iter().enumerate().map(|(i, r)| Prepared::new(&format!("fit{}", i + 1), r)).collect::<Result<_>>()?;
+        let fit: Vec<Prepared> = case
+            .fit
+            .iter()
+            .enumerate()
+            .map(|(i, r)| Prepared::new(&format!("fit{}", i + 1), r))
+            .collect::<Result<_>>()?;
         let val = Prepared::new("validate", &case.validate)?;
         let d = run_diagnosis(&rig, &fit, &val, &mut |_, _, _| {})?;
         let (c, before, after) = validation_summary(&d);
@@ -168,7 +197,16 @@ pub fn run_proof(effects: &[&str], cases: usize, nulls: usize, seed0: u64, durat
             case.write(&dir)?;
             write_report(&d, &dir.join("report"))?;
         }
-        rows.push(ProofRow { truth: effect, seed, named, correct, parameter, orientation_ok, nrmse: (before, after, super::fit::CHANNEL_NAMES[c].to_string()), seconds: t0.elapsed().as_secs_f64() });
+        rows.push(ProofRow {
+            truth: effect,
+            seed,
+            named,
+            correct,
+            parameter,
+            orientation_ok,
+            nrmse: (before, after, super::fit::CHANNEL_NAMES[c].to_string()),
+            seconds: t0.elapsed().as_secs_f64(),
+        });
         pb.inc(1);
     }
     pb.finish_and_clear();
@@ -178,10 +216,25 @@ pub fn run_proof(effects: &[&str], cases: usize, nulls: usize, seed0: u64, durat
 /// The confusion table and summary of proof rows.
 pub fn proof_table(rows: &[ProofRow]) -> String {
     let mut s = String::new();
-    s += &format!("{:<20} {:>6} {:<20} {:>4} {:>30} {:>10} {:>10} {:>7} {:>6}\n", "truth", "seed", "named", "ok", "parameter (true → fitted)", "NRMSE0", "NRMSE1", "red %", "s");
+    s += &format!(
+        "{:<20} {:>6} {:<20} {:>4} {:>30} {:>10} {:>10} {:>7} {:>6}\n",
+        "truth",
+        "seed",
+        "named",
+        "ok",
+        "parameter (true → fitted)",
+        "NRMSE0",
+        "NRMSE1",
+        "red %",
+        "s"
+    );
     for r in rows {
         let p = r.parameter.as_ref().map_or_else(
-            || r.orientation_ok.map_or(String::from("-"), |o| format!("orientation {}", if o { "ok" } else { "WRONG" })),
+            || {
+                r.orientation_ok.map_or(String::from("-"), |o| {
+                    format!("orientation {}", if o { "ok" } else { "WRONG" })
+                })
+            },
             |(n, t, f, e)| format!("{n} {t:.3e}→{f:.3e} ({:.0}%)", 100.0 * e),
         );
         s += &format!(
@@ -212,8 +265,18 @@ pub fn proof_table(rows: &[ProofRow]) -> String {
         }
         s += &format!("{:<16}{:>4}", t, i);
         for n in &labels {
-            let k = rows.iter().filter(|r| r.truth == *t && r.named == *n).count();
-            s += &format!("{:>4}", if k == 0 { ".".to_string() } else { k.to_string() });
+            let k = rows
+                .iter()
+                .filter(|r| r.truth == *t && r.named == *n)
+                .count();
+            s += &format!(
+                "{:>4}",
+                if k == 0 {
+                    ".".to_string()
+                } else {
+                    k.to_string()
+                }
+            );
         }
         s += "\n";
     }
@@ -221,10 +284,21 @@ pub fn proof_table(rows: &[ProofRow]) -> String {
     let nulls: Vec<&ProofRow> = rows.iter().filter(|r| r.truth == "none").collect();
     let correct = rows.iter().filter(|r| r.correct).count();
     let false_disc = nulls.iter().filter(|r| r.named != "none").count();
-    let mut red: Vec<f64> = effect_rows.iter().map(|r| 1.0 - r.nrmse.1 / r.nrmse.0).collect();
+    let mut red: Vec<f64> = effect_rows
+        .iter()
+        .map(|r| 1.0 - r.nrmse.1 / r.nrmse.0)
+        .collect();
     red.sort_by(|a, b| a.total_cmp(b));
-    let med = if red.is_empty() { f64::NAN } else { red[red.len() / 2] };
-    let mut perr: Vec<f64> = effect_rows.iter().filter(|r| r.correct).filter_map(|r| r.parameter.as_ref().map(|p| p.3)).collect();
+    let med = if red.is_empty() {
+        f64::NAN
+    } else {
+        red[red.len() / 2]
+    };
+    let mut perr: Vec<f64> = effect_rows
+        .iter()
+        .filter(|r| r.correct)
+        .filter_map(|r| r.parameter.as_ref().map(|p| p.3))
+        .collect();
     perr.sort_by(|a, b| a.total_cmp(b));
     s += &format!(
         "\ncorrect {}/{} ({:.0} %); false discoveries on nulls {}/{}; median validation NRMSE reduction where an effect exists {:.1} %; median parameter error (correct cases) {:.0} %\n",
@@ -242,14 +316,29 @@ pub fn proof_table(rows: &[ProofRow]) -> String {
 /// Runs `diagnose-proof`.
 pub fn proof(a: ProofArgs) -> Result<()> {
     let effects: Vec<&str> = match &a.only {
-        Some(o) => o.split(',').map(|s| s.trim()).filter(|s| !s.is_empty()).collect(),
+        Some(o) => o
+            .split(',')
+            .map(|s| s.trim())
+            .filter(|s| !s.is_empty())
+            .collect(),
         None => EFFECTS.to_vec(),
     };
-    let rows = run_proof(&effects, a.cases, a.nulls.max(if a.only.is_some() { 0 } else { 4 }), a.seed, a.duration_s, Some(&a.out), true)?;
+    let rows = run_proof(
+        &effects,
+        a.cases,
+        a.nulls.max(if a.only.is_some() { 0 } else { 4 }),
+        a.seed,
+        a.duration_s,
+        Some(&a.out),
+        true,
+    )?;
     let table = proof_table(&rows);
     print!("{table}");
     std::fs::create_dir_all(&a.out)?;
     std::fs::write(a.out.join("proof.md"), format!("```\n{table}```\n"))?;
-    std::fs::write(a.out.join("proof.json"), serde_json::to_string_pretty(&json!(rows))?)?;
+    std::fs::write(
+        a.out.join("proof.json"),
+        serde_json::to_string_pretty(&json!(rows))?,
+    )?;
     Ok(())
 }

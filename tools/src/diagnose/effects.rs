@@ -107,8 +107,20 @@ pub struct StartHints {
     pub length_m: f64,
 }
 
-fn def(name: &'static str, transform: Transform, starts: Vec<f64>, scale: f64, zero_is_null: bool) -> ParamDef {
-    ParamDef { name, transform, starts, scale, zero_is_null }
+fn def(
+    name: &'static str,
+    transform: Transform,
+    starts: Vec<f64>,
+    scale: f64,
+    zero_is_null: bool,
+) -> ParamDef {
+    ParamDef {
+        name,
+        transform,
+        starts,
+        scale,
+        zero_is_null,
+    }
 }
 
 /// The calibration parameters: ln stiffness scale, ln ζ1, ln ζ2 (with a beam), carriage-mass
@@ -117,13 +129,31 @@ pub fn calibration_defs(rig: &Rig, ch: &Channels) -> Vec<ParamDef> {
     let mut v = Vec::new();
     if rig.beam.is_some() {
         let (z1, z2) = rig.damping_ratios();
-        v.push(def("stiffness_scale", Transform::Log, vec![1.0], 1.0, false));
+        v.push(def(
+            "stiffness_scale",
+            Transform::Log,
+            vec![1.0],
+            1.0,
+            false,
+        ));
         v.push(def("zeta1", Transform::Log, vec![z1.max(1e-4)], 1.0, false));
         v.push(def("zeta2", Transform::Log, vec![z2.max(1e-4)], 1.0, false));
     }
     if ch.force {
-        v.push(def("base_mass_delta_kg", Transform::Linear, vec![0.0], 0.1 * rig.base.mass_kg, false));
-        v.push(def("force_delay_s", Transform::Linear, vec![0.0], 0.1 / rig.sample_rate_hz(), false));
+        v.push(def(
+            "base_mass_delta_kg",
+            Transform::Linear,
+            vec![0.0],
+            0.1 * rig.base.mass_kg,
+            false,
+        ));
+        v.push(def(
+            "force_delay_s",
+            Transform::Linear,
+            vec![0.0],
+            0.1 / rig.sample_rate_hz(),
+            false,
+        ));
     }
     v
 }
@@ -160,8 +190,20 @@ pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
             words: "friction on the carriage (Coulomb + viscous)",
             orientation: None,
             params: vec![
-                def("friction_n", Transform::Linear, vec![h.friction.0], 0.1, true),
-                def("viscous_n_s_per_m", Transform::Linear, vec![h.friction.1], 1.0, true),
+                def(
+                    "friction_n",
+                    Transform::Linear,
+                    vec![h.friction.0],
+                    0.1,
+                    true,
+                ),
+                def(
+                    "viscous_n_s_per_m",
+                    Transform::Linear,
+                    vec![h.friction.1],
+                    1.0,
+                    true,
+                ),
             ],
         });
         c.push(Candidate {
@@ -169,9 +211,27 @@ pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
             words: "force ripple periodic in the carriage position (cogging)",
             orientation: None,
             params: vec![
-                def("cogging_sin_n", Transform::Linear, vec![h.cogging.0], 0.1, true),
-                def("cogging_cos_n", Transform::Linear, vec![h.cogging.1], 0.1, true),
-                def("cogging_pitch_m", Transform::Log, vec![h.cogging.2], 1.0, false),
+                def(
+                    "cogging_sin_n",
+                    Transform::Linear,
+                    vec![h.cogging.0],
+                    0.1,
+                    true,
+                ),
+                def(
+                    "cogging_cos_n",
+                    Transform::Linear,
+                    vec![h.cogging.1],
+                    0.1,
+                    true,
+                ),
+                def(
+                    "cogging_pitch_m",
+                    Transform::Log,
+                    vec![h.cogging.2],
+                    1.0,
+                    false,
+                ),
             ],
         });
     }
@@ -182,7 +242,13 @@ pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
             words: "finite-bandwidth position loop: the carriage does not follow its command",
             orientation: None,
             params: vec![
-                def("servo_bandwidth_hz", Transform::Log, vec![0.05 * f0, 0.3 * f0, 2.0 * f0], 1.0, false),
+                def(
+                    "servo_bandwidth_hz",
+                    Transform::Log,
+                    vec![0.05 * f0, 0.3 * f0, 2.0 * f0],
+                    1.0,
+                    false,
+                ),
                 def("servo_damping_ratio", Transform::Log, vec![0.7], 1.0, false),
             ],
         });
@@ -192,40 +258,91 @@ pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
             id: "tip_mass",
             words: "a lumped mass at the tip (marker, sensor)",
             orientation: None,
-            params: vec![def("tip_mass_kg", Transform::Linear, vec![0.03 * h.beam_mass_kg], 0.05 * h.beam_mass_kg, true)],
+            params: vec![def(
+                "tip_mass_kg",
+                Transform::Linear,
+                vec![0.03 * h.beam_mass_kg],
+                0.05 * h.beam_mass_kg,
+                true,
+            )],
         });
         c.push(Candidate {
             id: "root_compliance",
             words: "a compliant clamp (rotational spring at the root)",
             orientation: None,
-            params: vec![def("root_stiffness_nm_per_rad", Transform::Log, vec![10.0 * h.ei_over_l, 40.0 * h.ei_over_l], 1.0, false)],
+            params: vec![def(
+                "root_stiffness_nm_per_rad",
+                Transform::Log,
+                vec![10.0 * h.ei_over_l, 40.0 * h.ei_over_l],
+                1.0,
+                false,
+            )],
         });
         // ζ_eq = (4/3π) c A ∫u³/(m/l ∫u²) for the first mode shape u (∫u² ≈ 0.25 l, ∫u³ ≈ 0.16 l):
         // the drag that doubles ζ1 at the peak deflection A
-        let c0 = h.zeta1 * 3.7 * h.beam_mass_kg / (h.peak_deflection_m.max(1e-4) * h.length_m.max(1e-3));
-        let c0 = if c0.is_finite() && c0 > 0.0 { c0.min(1e6) } else { 1.0 };
+        let c0 =
+            h.zeta1 * 3.7 * h.beam_mass_kg / (h.peak_deflection_m.max(1e-4) * h.length_m.max(1e-3));
+        let c0 = if c0.is_finite() && c0 > 0.0 {
+            c0.min(1e6)
+        } else {
+            1.0
+        };
         c.push(Candidate {
             id: "quadratic_damping",
             words: "amplitude-dependent (quadratic, aerodynamic) damping",
             orientation: None,
-            params: vec![def("drag_coefficient_kg_per_m2", Transform::Linear, vec![0.3 * c0, c0], c0 * 0.1, true)],
+            params: vec![def(
+                "drag_coefficient_kg_per_m2",
+                Transform::Linear,
+                vec![0.3 * c0, c0],
+                c0 * 0.1,
+                true,
+            )],
         });
         c.push(Candidate {
             id: "sensor_delay",
             words: "latency of the tip measurement",
             orientation: None,
-            params: vec![def("sensor_delay_s", Transform::Linear, vec![0.2 / h.rate_hz, 2.0 / h.rate_hz], 0.1 / h.rate_hz, true)],
+            params: vec![def(
+                "sensor_delay_s",
+                Transform::Linear,
+                vec![0.2 / h.rate_hz, 2.0 / h.rate_hz],
+                0.1 / h.rate_hz,
+                true,
+            )],
         });
-        c.push(Candidate { id: "gravity_axial_load", words: "gravity axial load: the beam hangs (tension)", orientation: Some(Orientation::Hanging), params: vec![] });
-        c.push(Candidate { id: "gravity_axial_load", words: "gravity axial load: the beam stands upright (compression)", orientation: Some(Orientation::Upright), params: vec![] });
+        c.push(Candidate {
+            id: "gravity_axial_load",
+            words: "gravity axial load: the beam hangs (tension)",
+            orientation: Some(Orientation::Hanging),
+            params: vec![],
+        });
+        c.push(Candidate {
+            id: "gravity_axial_load",
+            words: "gravity axial load: the beam stands upright (compression)",
+            orientation: Some(Orientation::Upright),
+            params: vec![],
+        });
         let fmax = 0.4 * h.rate_hz;
         c.push(Candidate {
             id: "mount_resonance",
             words: "a resonance of the carriage/mount between motor and beam root",
             orientation: None,
             params: vec![
-                def("mount_frequency_hz", Transform::Log, vec![(1.5 * h.f2_hz).min(fmax), (3.0 * h.f2_hz).min(fmax), fmax], 1.0, false),
-                def("mount_damping_ratio", Transform::Log, vec![0.05], 1.0, false),
+                def(
+                    "mount_frequency_hz",
+                    Transform::Log,
+                    vec![(1.5 * h.f2_hz).min(fmax), (3.0 * h.f2_hz).min(fmax), fmax],
+                    1.0,
+                    false,
+                ),
+                def(
+                    "mount_damping_ratio",
+                    Transform::Log,
+                    vec![0.05],
+                    1.0,
+                    false,
+                ),
             ],
         });
     }
@@ -235,21 +352,42 @@ pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
 /// Applies a candidate's effect values (physical units, in `cand.params` order).
 pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
     p.orientation = cand.orientation;
-    let get = |name: &str| cand.params.iter().position(|d| d.name == name).map(|i| values[i]);
+    let get = |name: &str| {
+        cand.params
+            .iter()
+            .position(|d| d.name == name)
+            .map(|i| values[i])
+    };
     match cand.id {
         "base_friction" => {
             p.friction_n = get("friction_n").unwrap_or(0.0);
             p.viscous_n_s_per_m = get("viscous_n_s_per_m").unwrap_or(0.0);
         }
         "cogging_ripple" => {
-            p.cogging = Some((get("cogging_sin_n").unwrap_or(0.0), get("cogging_cos_n").unwrap_or(0.0), get("cogging_pitch_m").unwrap_or(0.01)));
+            p.cogging = Some((
+                get("cogging_sin_n").unwrap_or(0.0),
+                get("cogging_cos_n").unwrap_or(0.0),
+                get("cogging_pitch_m").unwrap_or(0.01),
+            ));
         }
-        "servo_lag" => p.servo = Some((get("servo_bandwidth_hz").unwrap_or(1e3), get("servo_damping_ratio").unwrap_or(0.7).clamp(0.05, 5.0))),
+        "servo_lag" => {
+            p.servo = Some((
+                get("servo_bandwidth_hz").unwrap_or(1e3),
+                get("servo_damping_ratio").unwrap_or(0.7).clamp(0.05, 5.0),
+            ))
+        }
         "tip_mass" => p.tip_mass_kg = get("tip_mass_kg").unwrap_or(0.0).abs(),
         "root_compliance" => p.root_stiffness_nm_per_rad = get("root_stiffness_nm_per_rad"),
-        "quadratic_damping" => p.drag_kg_per_m2 = get("drag_coefficient_kg_per_m2").unwrap_or(0.0).abs(),
+        "quadratic_damping" => {
+            p.drag_kg_per_m2 = get("drag_coefficient_kg_per_m2").unwrap_or(0.0).abs()
+        }
         "sensor_delay" => p.sensor_delay_s = get("sensor_delay_s").unwrap_or(0.0),
-        "mount_resonance" => p.mount = Some((get("mount_frequency_hz").unwrap_or(100.0), get("mount_damping_ratio").unwrap_or(0.05).clamp(0.005, 2.0))),
+        "mount_resonance" => {
+            p.mount = Some((
+                get("mount_frequency_hz").unwrap_or(100.0),
+                get("mount_damping_ratio").unwrap_or(0.05).clamp(0.005, 2.0),
+            ))
+        }
         _ => {}
     }
 }

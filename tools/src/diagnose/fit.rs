@@ -19,7 +19,11 @@ pub fn residuals(d: &Prepared, pred: &Prediction) -> [Option<Vec<f64>>; 3] {
         (Some(a), Some(b)) => Some(a.iter().zip(b).map(|(x, y)| x - y).collect()),
         _ => None,
     };
-    [diff(&d.base_m, &pred.base_m), diff(&d.tip_m, &pred.tip_m), diff(&d.force_n, &pred.force_n)]
+    [
+        diff(&d.base_m, &pred.base_m),
+        diff(&d.tip_m, &pred.tip_m),
+        diff(&d.force_n, &pred.force_n),
+    ]
 }
 
 /// Sum of squares and count per channel over several recordings.
@@ -44,8 +48,15 @@ pub fn channel_rss(res: &[[Option<Vec<f64>>; 3]]) -> ([f64; 3], [usize; 3]) {
 /// anyway; what remains is their signature in frequency ratios and participation).
 pub fn f1_preserving_factor(rig: &Rig, p: &Params) -> Option<f64> {
     use crate::model::{BeamModel, ModelOptions};
-    let base = ModelOptions { stiffness_scale: p.stiffness_scale, ..Default::default() };
-    let f0 = BeamModel::new(rig, &base).ok()?.clamped_modes().ok()?.omega_rad_s[0];
+    let base = ModelOptions {
+        stiffness_scale: p.stiffness_scale,
+        ..Default::default()
+    };
+    let f0 = BeamModel::new(rig, &base)
+        .ok()?
+        .clamped_modes()
+        .ok()?
+        .omega_rad_s[0];
     let mut g = 1.0;
     for _ in 0..3 {
         let ext = ModelOptions {
@@ -55,7 +66,11 @@ pub fn f1_preserving_factor(rig: &Rig, p: &Params) -> Option<f64> {
             axial_load: p.orientation,
             ..Default::default()
         };
-        let f = BeamModel::new(rig, &ext).ok()?.clamped_modes().ok()?.omega_rad_s[0];
+        let f = BeamModel::new(rig, &ext)
+            .ok()?
+            .clamped_modes()
+            .ok()?
+            .omega_rad_s[0];
         g *= (f0 / f).powi(2);
     }
     Some(g)
@@ -77,25 +92,51 @@ pub struct Problem<'a> {
 
 impl<'a> Problem<'a> {
     /// A problem over `calib` (+ `cand`'s parameters) starting at representation `x0`.
-    pub fn new(rig: &'a Rig, data: &'a [Prepared], sigma: [f64; 3], calib: &'a [ParamDef], cand: Option<&'a Candidate>, x0: DVector<f64>) -> Self {
-        Problem { rig, data, sigma, calib, cand, x: x0, caches: RefCell::new(vec![None; data.len()]), evaluations: RefCell::new(0) }
+    pub fn new(
+        rig: &'a Rig,
+        data: &'a [Prepared],
+        sigma: [f64; 3],
+        calib: &'a [ParamDef],
+        cand: Option<&'a Candidate>,
+        x0: DVector<f64>,
+    ) -> Self {
+        Problem {
+            rig,
+            data,
+            sigma,
+            calib,
+            cand,
+            x: x0,
+            caches: RefCell::new(vec![None; data.len()]),
+            evaluations: RefCell::new(0),
+        }
     }
 
     /// All parameter definitions in vector order.
     pub fn defs(&self) -> Vec<&ParamDef> {
-        self.calib.iter().chain(self.cand.map(|c| c.params.iter()).into_iter().flatten()).collect()
+        self.calib
+            .iter()
+            .chain(self.cand.map(|c| c.params.iter()).into_iter().flatten())
+            .collect()
     }
 
     /// Physical parameters of representation `x`.
     pub fn params_of(&self, x: &DVector<f64>) -> Params {
         let defs = self.defs();
-        let vals: Vec<f64> = defs.iter().enumerate().map(|(i, d)| d.value(x[i])).collect();
+        let vals: Vec<f64> = defs
+            .iter()
+            .enumerate()
+            .map(|(i, d)| d.value(x[i]))
+            .collect();
         let nc = self.calib.len();
         let mut p = Params::default();
         apply_calibration(self.calib, &vals[..nc], &mut p);
         if let Some(c) = self.cand {
             apply_effect(c, &vals[nc..], &mut p);
-            if p.tip_mass_kg > 0.0 || p.root_stiffness_nm_per_rad.is_some() || p.orientation.is_some() {
+            if p.tip_mass_kg > 0.0
+                || p.root_stiffness_nm_per_rad.is_some()
+                || p.orientation.is_some()
+            {
                 p.stiffness_scale *= f1_preserving_factor(self.rig, &p).unwrap_or(1.0);
             }
         }
@@ -139,7 +180,12 @@ impl<'a> Problem<'a> {
                     DVector::from_vec(v)
                 } else {
                     if std::env::var_os("DIAG_DEBUG").is_some() {
-                        eprintln!("non-finite residual: sigma {:?}, first at {:?} of {}", self.sigma, v.iter().position(|e| !e.is_finite()), v.len());
+                        eprintln!(
+                            "non-finite residual: sigma {:?}, first at {:?} of {}",
+                            self.sigma,
+                            v.iter().position(|e| !e.is_finite()),
+                            v.len()
+                        );
                     }
                     DVector::from_element(total, 1e3)
                 }
@@ -150,7 +196,9 @@ impl<'a> Problem<'a> {
 
     fn len_of(&self, d: &Prepared) -> usize {
         let n = d.cmd_m.len();
-        n * (usize::from(d.base_m.is_some()) + usize::from(d.tip_m.is_some()) + usize::from(d.force_n.is_some()))
+        n * (usize::from(d.base_m.is_some())
+            + usize::from(d.tip_m.is_some())
+            + usize::from(d.force_n.is_some()))
     }
 
     fn steps(&self) -> Vec<f64> {
@@ -215,11 +263,24 @@ pub struct FitResult {
 
 /// Fits `cand` (or the calibration alone) from every combination of starting values (at most
 /// 6) plus `warm` (a previous calibration, representation), keeping the lowest cost.
-pub fn fit(rig: &Rig, data: &[Prepared], sigma: [f64; 3], calib: &[ParamDef], cand: Option<&Candidate>, warm: Option<&DVector<f64>>) -> FitResult {
-    let defs: Vec<&ParamDef> = calib.iter().chain(cand.map(|c| c.params.iter()).into_iter().flatten()).collect();
+pub fn fit(
+    rig: &Rig,
+    data: &[Prepared],
+    sigma: [f64; 3],
+    calib: &[ParamDef],
+    cand: Option<&Candidate>,
+    warm: Option<&DVector<f64>>,
+) -> FitResult {
+    let defs: Vec<&ParamDef> = calib
+        .iter()
+        .chain(cand.map(|c| c.params.iter()).into_iter().flatten())
+        .collect();
     let nc = calib.len();
     // starting points: warm calibration × the effect's start grid
-    let mut starts: Vec<DVector<f64>> = vec![DVector::from_iterator(defs.len(), defs.iter().map(|d| d.repr(d.starts[0])))];
+    let mut starts: Vec<DVector<f64>> = vec![DVector::from_iterator(
+        defs.len(),
+        defs.iter().map(|d| d.repr(d.starts[0])),
+    )];
     for (i, d) in defs.iter().enumerate() {
         let mut more = Vec::new();
         for s in &starts {
@@ -244,13 +305,27 @@ pub fn fit(rig: &Rig, data: &[Prepared], sigma: [f64; 3], calib: &[ParamDef], ca
     for x0 in starts {
         let problem = Problem::new(rig, data, sigma, calib, cand, x0.clone());
         if std::env::var_os("DIAG_DEBUG").is_some() {
-            eprintln!("start {:?} x0 {:?} cost {:.4e}", cand.map(|c| c.id), x0.as_slice(), problem.whitened(&x0).norm_squared());
+            eprintln!(
+                "start {:?} x0 {:?} cost {:.4e}",
+                cand.map(|c| c.id),
+                x0.as_slice(),
+                problem.whitened(&x0).norm_squared()
+            );
         }
-        let (problem, _report) = LevenbergMarquardt::new().with_patience(30).with_ftol(1e-8).with_xtol(1e-8).minimize(problem);
+        let (problem, _report) = LevenbergMarquardt::new()
+            .with_patience(30)
+            .with_ftol(1e-8)
+            .with_xtol(1e-8)
+            .minimize(problem);
         let r = problem.whitened(&problem.x);
         let cost = r.norm_squared();
         if std::env::var_os("DIAG_DEBUG").is_some() {
-            eprintln!("  end x {:?} cost {:.4e} {:?}", problem.x.as_slice(), cost, _report.termination);
+            eprintln!(
+                "  end x {:?} cost {:.4e} {:?}",
+                problem.x.as_slice(),
+                cost,
+                _report.termination
+            );
         }
         evals += *problem.evaluations.borrow();
         if best.as_ref().map_or(true, |b| cost < b.0) {
@@ -262,9 +337,26 @@ pub fn fit(rig: &Rig, data: &[Prepared], sigma: [f64; 3], calib: &[ParamDef], ca
     let j = problem.jacobian().expect("jacobian");
     let m = j.nrows() as f64;
     let s2 = cost / (m - x.len() as f64).max(1.0);
-    let cov = (j.transpose() * &j).try_inverse().unwrap_or_else(|| DMatrix::from_element(x.len(), x.len(), f64::NAN));
-    let values: Vec<f64> = defs.iter().enumerate().map(|(i, d)| d.value(x[i])).collect();
-    let std: Vec<f64> = defs.iter().enumerate().map(|(i, d)| (s2 * cov[(i, i)]).max(0.0).sqrt() * d.dvalue(x[i]).abs()).collect();
+    let cov = (j.transpose() * &j)
+        .try_inverse()
+        .unwrap_or_else(|| DMatrix::from_element(x.len(), x.len(), f64::NAN));
+    let values: Vec<f64> = defs
+        .iter()
+        .enumerate()
+        .map(|(i, d)| d.value(x[i]))
+        .collect();
+    let std: Vec<f64> = defs
+        .iter()
+        .enumerate()
+        .map(|(i, d)| (s2 * cov[(i, i)]).max(0.0).sqrt() * d.dvalue(x[i]).abs())
+        .collect();
     let evaluations = evals + *problem.evaluations.borrow();
-    FitResult { x, values, std, names: defs.iter().map(|d| d.name).collect(), cost, evaluations }
+    FitResult {
+        x,
+        values,
+        std,
+        names: defs.iter().map(|d| d.name).collect(),
+        cost,
+        evaluations,
+    }
 }

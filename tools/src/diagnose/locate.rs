@@ -71,7 +71,11 @@ fn corr(a: &[f64], b: &[f64]) -> f64 {
 }
 
 fn rms_where(r: &[f64], m: &[bool]) -> f64 {
-    let (s, n) = r.iter().zip(m).filter(|(_, k)| **k).fold((0.0, 0usize), |(s, n), (x, _)| (s + x * x, n + 1));
+    let (s, n) = r
+        .iter()
+        .zip(m)
+        .filter(|(_, k)| **k)
+        .fold((0.0, 0usize), |(s, n), (x, _)| (s + x * x, n + 1));
     if n == 0 {
         f64::NAN
     } else {
@@ -154,7 +158,8 @@ pub fn locate(data: &[Prepared], preds: &[Prediction], model_freqs_hz: &[f64]) -
     for c in 0..3 {
         let mut all_r = Vec::new();
         let mut sig = Vec::new();
-        let (mut mov, mut rev, mut still, mut v_all, mut vs_all, mut dp_all, mut y_all) = (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);
+        let (mut mov, mut rev, mut still, mut v_all, mut vs_all, mut dp_all, mut y_all) =
+            (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);
         let mut amp = Vec::new();
         let mut spectra: Vec<(f64, f64)> = Vec::new();
         for (d, p) in data.iter().zip(preds) {
@@ -163,7 +168,9 @@ pub fn locate(data: &[Prepared], preds: &[Prediction], model_freqs_hz: &[f64]) -
                 1 => (&d.tip_m, &p.tip_m),
                 _ => (&d.force_n, &p.force_n),
             };
-            let (Some(meas), Some(pr)) = (meas, pr) else { continue };
+            let (Some(meas), Some(pr)) = (meas, pr) else {
+                continue;
+            };
             let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
             let v = velocity(&d.cmd_m, d.dt);
             let vd = velocity(drive, d.dt);
@@ -186,7 +193,11 @@ pub fn locate(data: &[Prepared], preds: &[Prediction], model_freqs_hz: &[f64]) -
                 }
             }
             let still_m: Vec<bool> = moving.iter().map(|m| !m).collect();
-            let signal: Vec<f64> = if c == 1 { meas.iter().zip(drive).map(|(a, b)| a - b).collect() } else { meas.clone() };
+            let signal: Vec<f64> = if c == 1 {
+                meas.iter().zip(drive).map(|(a, b)| a - b).collect()
+            } else {
+                meas.clone()
+            };
             let mean = signal.iter().sum::<f64>() / n as f64;
             sig.extend(signal.iter().map(|x| x - mean));
             if c == 1 {
@@ -202,7 +213,10 @@ pub fn locate(data: &[Prepared], preds: &[Prediction], model_freqs_hz: &[f64]) -
             rev.extend(reversal);
             still.extend(still_m);
             v_all.extend(vd.iter().copied());
-            vs_all.extend(vd.iter().map(|x| if x.abs() > 1e-4 { x.signum() } else { 0.0 }));
+            vs_all.extend(
+                vd.iter()
+                    .map(|x| if x.abs() > 1e-4 { x.signum() } else { 0.0 }),
+            );
             dp_all.extend(dp);
             y_all.extend(drive.iter().copied());
         }
@@ -213,11 +227,24 @@ pub fn locate(data: &[Prepared], preds: &[Prediction], model_freqs_hz: &[f64]) -
         let rms = rms_where(&all_r, &ones);
         let sig_rms = rms_where(&sig, &ones);
         let (hi, lo) = if c == 1 {
-            let mut a: Vec<f64> = amp.iter().zip(&still).filter(|(_, s)| **s).map(|(a, _)| *a).collect();
+            let mut a: Vec<f64> = amp
+                .iter()
+                .zip(&still)
+                .filter(|(_, s)| **s)
+                .map(|(a, _)| *a)
+                .collect();
             a.sort_by(|x, y| x.total_cmp(y));
             let med = a.get(a.len() / 2).copied().unwrap_or(0.0);
-            let hm: Vec<bool> = amp.iter().zip(&still).map(|(a, s)| *s && *a > med).collect();
-            let lm: Vec<bool> = amp.iter().zip(&still).map(|(a, s)| *s && *a <= med).collect();
+            let hm: Vec<bool> = amp
+                .iter()
+                .zip(&still)
+                .map(|(a, s)| *s && *a > med)
+                .collect();
+            let lm: Vec<bool> = amp
+                .iter()
+                .zip(&still)
+                .map(|(a, s)| *s && *a <= med)
+                .collect();
             (rms_where(&all_r, &hm), rms_where(&all_r, &lm))
         } else {
             (f64::NAN, f64::NAN)
@@ -248,19 +275,35 @@ pub fn locate(data: &[Prepared], preds: &[Prediction], model_freqs_hz: &[f64]) -
             ch.channel, ch.rms, ch.nrmse, ch.rms_moving, ch.rms_reversal, ch.rms_still
         );
         if ch.rms_high_amplitude.is_finite() {
-            s += &format!(", free decay high/low amplitude {:.3e}/{:.3e}", ch.rms_high_amplitude, ch.rms_low_amplitude);
+            s += &format!(
+                ", free decay high/low amplitude {:.3e}/{:.3e}",
+                ch.rms_high_amplitude, ch.rms_low_amplitude
+            );
         }
         words.push(s);
-        let pk: Vec<String> = ch.spectrum_peaks.iter().map(|(f, a)| format!("{f:.2} Hz ({a:.2e})")).collect();
+        let pk: Vec<String> = ch
+            .spectrum_peaks
+            .iter()
+            .map(|(f, a)| format!("{f:.2} Hz ({a:.2e})"))
+            .collect();
         let near: Vec<String> = ch
             .spectrum_peaks
             .iter()
-            .filter_map(|(f, _)| model_freqs_hz.iter().find(|m| (*m / f - 1.0).abs() < 0.08).map(|m| format!("{f:.2} Hz ≈ model mode {m:.2} Hz")))
+            .filter_map(|(f, _)| {
+                model_freqs_hz
+                    .iter()
+                    .find(|m| (*m / f - 1.0).abs() < 0.08)
+                    .map(|m| format!("{f:.2} Hz ≈ model mode {m:.2} Hz"))
+            })
             .collect();
         words.push(format!(
             "  spectrum peaks: {}{}",
             pk.join(", "),
-            if near.is_empty() { String::from(" (none at a model mode)") } else { format!("; {}", near.join(", ")) }
+            if near.is_empty() {
+                String::from(" (none at a model mode)")
+            } else {
+                format!("; {}", near.join(", "))
+            }
         ));
         words.push(format!(
             "  correlation with sign(velocity) {:+.2}, velocity {:+.2}, d/dt of the prediction (time shift) {:+.2}; best position ripple pitch {:.1} mm explains {:.0} % of the moving residual",
@@ -271,5 +314,9 @@ pub fn locate(data: &[Prepared], preds: &[Prediction], model_freqs_hz: &[f64]) -
             100.0 * ch.position_ripple.1
         ));
     }
-    Location { channels, model_freqs_hz: model_freqs_hz.to_vec(), words }
+    Location {
+        channels,
+        model_freqs_hz: model_freqs_hz.to_vec(),
+        words,
+    }
 }

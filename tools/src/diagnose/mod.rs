@@ -91,7 +91,11 @@ pub fn nrmse(d: &Prepared, pred: &Prediction) -> [f64; 3] {
         let Some(res) = &r[c] else { continue };
         let sig: Vec<f64> = match c {
             0 => d.base_m.clone().unwrap_or_default(),
-            1 => d.tip_m.as_ref().map(|t| t.iter().zip(drive).map(|(a, b)| a - b).collect()).unwrap_or_default(),
+            1 => d
+                .tip_m
+                .as_ref()
+                .map(|t| t.iter().zip(drive).map(|(a, b)| a - b).collect())
+                .unwrap_or_default(),
             _ => d.force_n.clone().unwrap_or_default(),
         };
         let m = sig.iter().sum::<f64>() / sig.len() as f64;
@@ -119,13 +123,19 @@ fn rms(v: &[f64]) -> f64 {
 ///
 /// Errors: recordings the rig cannot simulate (tip channel without a beam, …), a rig the model
 /// refuses, a validation recording whose channels differ from every fit recording's.
-pub fn diagnose(rig: &Rig, fit_data: &[Prepared], validate: &Prepared, progress: &mut dyn FnMut(usize, usize, &str)) -> Result<Diagnosis> {
+pub fn diagnose(
+    rig: &Rig,
+    fit_data: &[Prepared],
+    validate: &Prepared,
+    progress: &mut dyn FnMut(usize, usize, &str),
+) -> Result<Diagnosis> {
     if fit_data.is_empty() {
         bail!("at least one --fit recording is needed");
     }
     // the nominal model must be able to simulate every recording: report why not, by name
     for d in fit_data.iter().chain(std::iter::once(validate)) {
-        sim::predict(rig, &sim::Params::default(), d, &mut None).map_err(|e| anyhow::anyhow!("{}: {e:#}", d.name))?;
+        sim::predict(rig, &sim::Params::default(), d, &mut None)
+            .map_err(|e| anyhow::anyhow!("{}: {e:#}", d.name))?;
     }
     let ch = channels_of(fit_data);
     let calib = calibration_defs(rig, &ch);
@@ -156,29 +166,62 @@ pub fn diagnose(rig: &Rig, fit_data: &[Prepared], validate: &Prepared, progress:
     progress(0, total_steps, "calibrating the nominal model");
     let mut cal = fit(rig, fit_data, sigma, &calib, None, None);
     let problem = fit::Problem::new(rig, fit_data, sigma, &calib, None, cal.x.clone());
-    let preds0 = problem.predictions(&cal.x).ok_or_else(|| anyhow::anyhow!("the calibrated nominal model cannot be simulated"))?;
-    let res0: Vec<_> = fit_data.iter().zip(&preds0).map(|(d, p)| residuals(d, p)).collect();
+    let preds0 = problem
+        .predictions(&cal.x)
+        .ok_or_else(|| anyhow::anyhow!("the calibrated nominal model cannot be simulated"))?;
+    let res0: Vec<_> = fit_data
+        .iter()
+        .zip(&preds0)
+        .map(|(d, p)| residuals(d, p))
+        .collect();
     let (rss0, n0) = channel_rss(&res0);
     for c in 0..3 {
         if n0[c] > 0 {
             sigma[c] = (rss0[c] / n0[c] as f64).sqrt().max(1e-12);
         }
     }
-    progress(1, total_steps, "recalibrating with the residual noise scales");
+    progress(
+        1,
+        total_steps,
+        "recalibrating with the residual noise scales",
+    );
     cal = fit(rig, fit_data, sigma, &calib, None, Some(&cal.x));
     let mut evaluations = cal.evaluations;
     let problem = fit::Problem::new(rig, fit_data, sigma, &calib, None, cal.x.clone());
-    let preds0 = problem.predictions(&cal.x).ok_or_else(|| anyhow::anyhow!("the calibrated nominal model cannot be simulated"))?;
-    let res0: Vec<_> = fit_data.iter().zip(&preds0).map(|(d, p)| residuals(d, p)).collect();
+    let preds0 = problem
+        .predictions(&cal.x)
+        .ok_or_else(|| anyhow::anyhow!("the calibrated nominal model cannot be simulated"))?;
+    let res0: Vec<_> = fit_data
+        .iter()
+        .zip(&preds0)
+        .map(|(d, p)| residuals(d, p))
+        .collect();
     let (rss0, n0) = channel_rss(&res0);
     let p_nom = problem.params_of(&cal.x);
     // model frequencies and hints
     let (model_freqs, beam_mass, ei_over_l, length_m) = match &rig.beam {
         Some(b) => {
-            let m = BeamModel::new(rig, &ModelOptions { stiffness_scale: p_nom.stiffness_scale, damping_ratios: p_nom.zeta, ..Default::default() })?;
-            let f: Vec<f64> = m.clamped_modes()?.omega_rad_s.iter().map(|w| w / (2.0 * std::f64::consts::PI)).collect();
+            let m = BeamModel::new(
+                rig,
+                &ModelOptions {
+                    stiffness_scale: p_nom.stiffness_scale,
+                    damping_ratios: p_nom.zeta,
+                    ..Default::default()
+                },
+            )?;
+            let f: Vec<f64> = m
+                .clamped_modes()?
+                .omega_rad_s
+                .iter()
+                .map(|w| w / (2.0 * std::f64::consts::PI))
+                .collect();
             let prof = rig.profile()?;
-            (f, m.beam_mass_kg, b.youngs_modulus_pa * p_nom.stiffness_scale * prof.inertia(0.0) / b.length_m, b.length_m)
+            (
+                f,
+                m.beam_mass_kg,
+                b.youngs_modulus_pa * p_nom.stiffness_scale * prof.inertia(0.0) / b.length_m,
+                b.length_m,
+            )
         }
         None => (vec![], 0.0, 1.0, 0.0),
     };
@@ -198,7 +241,12 @@ pub fn diagnose(rig: &Rig, fit_data: &[Prepared], validate: &Prepared, progress:
             fr_y.extend(drive.iter().copied());
         }
         if let Some(t) = &d.tip_m {
-            peak_def = peak_def.max(t.iter().zip(drive).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max));
+            peak_def = peak_def.max(
+                t.iter()
+                    .zip(drive)
+                    .map(|(a, b)| (a - b).abs())
+                    .fold(0.0, f64::max),
+            );
         }
     }
     let friction = locate::friction_ls(&fr_r, &fr_v);
@@ -219,7 +267,12 @@ pub fn diagnose(rig: &Rig, fit_data: &[Prepared], validate: &Prepared, progress:
     // validation of the calibrated nominal model
     let vdata = std::slice::from_ref(validate);
     let vprob = fit::Problem::new(rig, vdata, sigma, &calib, None, cal.x.clone());
-    let vpred0 = vprob.predictions(&cal.x).ok_or_else(|| anyhow::anyhow!("the calibrated nominal model cannot simulate the validation recording"))?.remove(0);
+    let vpred0 = vprob
+        .predictions(&cal.x)
+        .ok_or_else(|| {
+            anyhow::anyhow!("the calibrated nominal model cannot simulate the validation recording")
+        })?
+        .remove(0);
     let vres0 = [residuals(validate, &vpred0)];
     let (vrss0, vn) = channel_rss(&vres0);
     let val_nrmse_nominal = nrmse(validate, &vpred0);
@@ -231,13 +284,21 @@ pub fn diagnose(rig: &Rig, fit_data: &[Prepared], validate: &Prepared, progress:
         let f = fit(rig, fit_data, sigma, &calib, Some(cand), Some(&cal.x));
         evaluations += f.evaluations;
         let prob = fit::Problem::new(rig, fit_data, sigma, &calib, Some(cand), f.x.clone());
-        let Some(preds) = prob.predictions(&f.x) else { continue };
-        let res: Vec<_> = fit_data.iter().zip(&preds).map(|(d, p)| residuals(d, p)).collect();
+        let Some(preds) = prob.predictions(&f.x) else {
+            continue;
+        };
+        let res: Vec<_> = fit_data
+            .iter()
+            .zip(&preds)
+            .map(|(d, p)| residuals(d, p))
+            .collect();
         let (rss, _) = channel_rss(&res);
         let k = cand.params.len().max(1);
         let delta_bic = delta_neg2ll(&rss, &rss0, &n0) + k as f64 * (n_total as f64).ln();
         let vprob = fit::Problem::new(rig, vdata, sigma, &calib, Some(cand), f.x.clone());
-        let Some(mut vp) = vprob.predictions(&f.x) else { continue };
+        let Some(mut vp) = vprob.predictions(&f.x) else {
+            continue;
+        };
         let vpred = vp.remove(0);
         let vres = [residuals(validate, &vpred)];
         let (vrss, _) = channel_rss(&vres);
@@ -254,8 +315,12 @@ pub fn diagnose(rig: &Rig, fit_data: &[Prepared], validate: &Prepared, progress:
                 }
             }
         }
-        let q_before = vres0[0][best_channel].as_ref().map_or(0.0, |r| ljung_box(r, LJUNG_BOX_LAGS));
-        let q_after = vres[0][best_channel].as_ref().map_or(0.0, |r| ljung_box(r, LJUNG_BOX_LAGS));
+        let q_before = vres0[0][best_channel]
+            .as_ref()
+            .map_or(0.0, |r| ljung_box(r, LJUNG_BOX_LAGS));
+        let q_after = vres[0][best_channel]
+            .as_ref()
+            .map_or(0.0, |r| ljung_box(r, LJUNG_BOX_LAGS));
         let nc = calib.len();
         let significance = cand
             .params
@@ -264,24 +329,42 @@ pub fn diagnose(rig: &Rig, fit_data: &[Prepared], validate: &Prepared, progress:
             .filter(|(_, d)| d.zero_is_null)
             .map(|(i, _)| f.values[nc + i].abs() / f.std[nc + i].max(1e-300))
             .fold(f64::NEG_INFINITY, f64::max);
-        let significance = if significance == f64::NEG_INFINITY { f64::INFINITY } else { significance };
+        let significance = if significance == f64::NEG_INFINITY {
+            f64::INFINITY
+        } else {
+            significance
+        };
         let mut fails = Vec::new();
         if !(delta_bic < -BIC_MARGIN) {
             fails.push(format!("ΔBIC {delta_bic:+.1} not < −{BIC_MARGIN}"));
         }
         if !(delta_val < -VALIDATION_MARGIN) {
-            fails.push(format!("validation Δ(−2lnL) {delta_val:+.1} not < −{VALIDATION_MARGIN}"));
+            fails.push(format!(
+                "validation Δ(−2lnL) {delta_val:+.1} not < −{VALIDATION_MARGIN}"
+            ));
         }
         if !(reduction >= MIN_VALIDATION_REDUCTION) {
-            fails.push(format!("validation NRMSE reduction {:.1} % < {:.0} %", 100.0 * reduction, 100.0 * MIN_VALIDATION_REDUCTION));
+            fails.push(format!(
+                "validation NRMSE reduction {:.1} % < {:.0} %",
+                100.0 * reduction,
+                100.0 * MIN_VALIDATION_REDUCTION
+            ));
         }
-        let sp_before = vres0[0][best_channel].as_ref().map_or(0.0, |r| structured_power(r, LJUNG_BOX_LAGS));
-        let sp_after = vres[0][best_channel].as_ref().map_or(0.0, |r| structured_power(r, LJUNG_BOX_LAGS));
+        let sp_before = vres0[0][best_channel]
+            .as_ref()
+            .map_or(0.0, |r| structured_power(r, LJUNG_BOX_LAGS));
+        let sp_after = vres[0][best_channel]
+            .as_ref()
+            .map_or(0.0, |r| structured_power(r, LJUNG_BOX_LAGS));
         if !(sp_after < sp_before) {
-            fails.push(format!("correlated residual not reduced (Σc_k² {sp_before:.2e} → {sp_after:.2e})"));
+            fails.push(format!(
+                "correlated residual not reduced (Σc_k² {sp_before:.2e} → {sp_after:.2e})"
+            ));
         }
         if !(significance >= MIN_SIGMAS) {
-            fails.push(format!("effect parameter only {significance:.1} σ from zero"));
+            fails.push(format!(
+                "effect parameter only {significance:.1} σ from zero"
+            ));
         }
         let passed = fails.is_empty();
         outcomes.push(CandidateOutcome {
@@ -296,7 +379,11 @@ pub fn diagnose(rig: &Rig, fit_data: &[Prepared], validate: &Prepared, progress:
             whiteness: (q_before, q_after),
             significance,
             passed,
-            reason: if passed { "passes every guard".into() } else { fails.join("; ") },
+            reason: if passed {
+                "passes every guard".into()
+            } else {
+                fails.join("; ")
+            },
             val_pred: vpred,
             fit: f,
         });
@@ -306,7 +393,10 @@ pub fn diagnose(rig: &Rig, fit_data: &[Prepared], validate: &Prepared, progress:
     if let Some(s) = selected {
         for (i, o) in outcomes.iter_mut().enumerate() {
             if i != s && o.passed {
-                o.reason = format!("passes the guard but gains less on validation than {}", "the selected effect");
+                o.reason = format!(
+                    "passes the guard but gains less on validation than {}",
+                    "the selected effect"
+                );
             }
         }
     }

@@ -10,7 +10,10 @@ use std::path::Path;
 
 /// Effect parameters of an outcome as (JSON name with unit, value, σ); cogging sine/cosine
 /// become amplitude and pitch, gravity its orientation.
-pub fn effect_parameters(o: &CandidateOutcome, n_calib: usize) -> (Vec<(String, f64, f64)>, Option<String>) {
+pub fn effect_parameters(
+    o: &CandidateOutcome,
+    n_calib: usize,
+) -> (Vec<(String, f64, f64)>, Option<String>) {
     let mut out = Vec::new();
     let names = &o.fit.names[n_calib..];
     let vals = &o.fit.values[n_calib..];
@@ -23,12 +26,20 @@ pub fn effect_parameters(o: &CandidateOutcome, n_calib: usize) -> (Vec<(String, 
         out.push(("cogging_pitch_m".to_string(), vals[2], std[2]));
     } else {
         for i in 0..names.len() {
-            let v = if matches!(names[i], "tip_mass_kg" | "drag_coefficient_kg_per_m2") { vals[i].abs() } else { vals[i] };
+            let v = if matches!(names[i], "tip_mass_kg" | "drag_coefficient_kg_per_m2") {
+                vals[i].abs()
+            } else {
+                vals[i]
+            };
             out.push((names[i].to_string(), v, std[i]));
         }
     }
     let orientation = if o.id == "gravity_axial_load" {
-        Some(if o.words.contains("hangs") { "hanging".to_string() } else { "upright".to_string() })
+        Some(if o.words.contains("hangs") {
+            "hanging".to_string()
+        } else {
+            "upright".to_string()
+        })
     } else {
         None
     };
@@ -40,10 +51,17 @@ pub fn validation_summary(d: &Diagnosis) -> (usize, f64, f64) {
     match d.selected {
         Some(s) => {
             let o = &d.candidates[s];
-            (o.best_channel, d.val_nrmse_nominal[o.best_channel], o.val_nrmse[o.best_channel])
+            (
+                o.best_channel,
+                d.val_nrmse_nominal[o.best_channel],
+                o.val_nrmse[o.best_channel],
+            )
         }
         None => {
-            let c = [1, 2, 0].into_iter().find(|&c| d.val_nrmse_nominal[c].is_finite()).unwrap_or(0);
+            let c = [1, 2, 0]
+                .into_iter()
+                .find(|&c| d.val_nrmse_nominal[c].is_finite())
+                .unwrap_or(0);
             (c, d.val_nrmse_nominal[c], d.val_nrmse_nominal[c])
         }
     }
@@ -67,10 +85,16 @@ pub fn to_json(d: &Diagnosis) -> Value {
     }
     let (c, before, after) = validation_summary(d);
     let mut per = Map::new();
-    let after_all = d.selected.map(|s| d.candidates[s].val_nrmse).unwrap_or(d.val_nrmse_nominal);
+    let after_all = d
+        .selected
+        .map(|s| d.candidates[s].val_nrmse)
+        .unwrap_or(d.val_nrmse_nominal);
     for k in 0..3 {
         if d.val_nrmse_nominal[k].is_finite() {
-            per.insert(CHANNEL_NAMES[k].into(), json!({"nrmse_before": d.val_nrmse_nominal[k], "nrmse_after": after_all[k]}));
+            per.insert(
+                CHANNEL_NAMES[k].into(),
+                json!({"nrmse_before": d.val_nrmse_nominal[k], "nrmse_after": after_all[k]}),
+            );
         }
     }
     let cands: Vec<Value> = d
@@ -96,7 +120,10 @@ pub fn to_json(d: &Diagnosis) -> Value {
         .collect();
     let mut cal = Map::new();
     for i in 0..nc {
-        cal.insert(d.calibration.names[i].into(), json!({"value": d.calibration.values[i], "std": d.calibration.std[i]}));
+        cal.insert(
+            d.calibration.names[i].into(),
+            json!({"value": d.calibration.values[i], "std": d.calibration.std[i]}),
+        );
     }
     json!({
         "effect": d.effect,
@@ -117,14 +144,22 @@ pub fn words(d: &Diagnosis) -> String {
     let mut s = String::new();
     s += "Calibration of the nominal model (fit recordings):\n";
     for i in 0..nc {
-        s += &format!("  {} = {:.5} ± {:.2e}\n", d.calibration.names[i], d.calibration.values[i], d.calibration.std[i]);
+        s += &format!(
+            "  {} = {:.5} ± {:.2e}\n",
+            d.calibration.names[i], d.calibration.values[i], d.calibration.std[i]
+        );
     }
     s += "Where the residual of the calibrated nominal model lies:\n";
     for w in &d.location.words {
         s += &format!("  {w}\n");
     }
     if !d.location.model_freqs_hz.is_empty() {
-        let f: Vec<String> = d.location.model_freqs_hz.iter().map(|f| format!("{f:.2}")).collect();
+        let f: Vec<String> = d
+            .location
+            .model_freqs_hz
+            .iter()
+            .map(|f| format!("{f:.2}"))
+            .collect();
         s += &format!("  model modes (Hz): {}\n", f.join(", "));
     }
     let (c, before, after) = validation_summary(d);
@@ -151,7 +186,10 @@ pub fn words(d: &Diagnosis) -> String {
                 o.whiteness.1
             );
         }
-        None => s += &format!("\nDIAGNOSIS: none — no candidate earns its parameters (validation NRMSE {} {:.4})\n", CHANNEL_NAMES[c], before),
+        None => s += &format!(
+            "\nDIAGNOSIS: none — no candidate earns its parameters (validation NRMSE {} {:.4})\n",
+            CHANNEL_NAMES[c], before
+        ),
     }
     s += "\nCandidates (best validation gain first):\n";
     for o in &d.candidates {
@@ -172,11 +210,20 @@ pub fn words(d: &Diagnosis) -> String {
 /// Writes `report.md`, `diagnosis.json` and the SVG plots into `dir`.
 pub fn write_report(d: &Diagnosis, dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir)?;
-    std::fs::write(dir.join("report.md"), format!("# Diagnosis\n\n```\n{}```\n", words(d)))?;
-    std::fs::write(dir.join("diagnosis.json"), serde_json::to_string_pretty(&to_json(d))?)?;
+    std::fs::write(
+        dir.join("report.md"),
+        format!("# Diagnosis\n\n```\n{}```\n", words(d)),
+    )?;
+    std::fs::write(
+        dir.join("diagnosis.json"),
+        serde_json::to_string_pretty(&to_json(d))?,
+    )?;
     let v = &d.validate;
     let t = &v.time_s;
-    let aug = d.selected.map(|s| &d.candidates[s].val_pred).unwrap_or(&d.val_pred_nominal);
+    let aug = d
+        .selected
+        .map(|s| &d.candidates[s].val_pred)
+        .unwrap_or(&d.val_pred_nominal);
     let r0 = residuals(v, &d.val_pred_nominal);
     let r1 = residuals(v, aug);
     for c in 0..3 {
@@ -185,19 +232,36 @@ pub fn write_report(d: &Diagnosis, dir: &Path) -> Result<()> {
             1 => &v.tip_m,
             _ => &v.force_n,
         };
-        let (Some(meas), Some(r0), Some(r1)) = (meas, &r0[c], &r1[c]) else { continue };
+        let (Some(meas), Some(r0), Some(r1)) = (meas, &r0[c], &r1[c]) else {
+            continue;
+        };
         let nominal: Vec<f64> = meas.iter().zip(r0).map(|(m, r)| m - r).collect();
         let augmented: Vec<f64> = meas.iter().zip(r1).map(|(m, r)| m - r).collect();
         let name = CHANNEL_NAMES[c];
         lines(
             &dir.join(format!("{name}_recording.svg")),
-            &format!("validation {name}: recording, nominal, augmented ({})", d.effect),
+            &format!(
+                "validation {name}: recording, nominal, augmented ({})",
+                d.effect
+            ),
             "time (s)",
             name,
             &[
-                Series { label: "recording".into(), x: t, y: meas },
-                Series { label: "nominal (calibrated)".into(), x: t, y: &nominal },
-                Series { label: format!("augmented ({})", d.effect), x: t, y: &augmented },
+                Series {
+                    label: "recording".into(),
+                    x: t,
+                    y: meas,
+                },
+                Series {
+                    label: "nominal (calibrated)".into(),
+                    x: t,
+                    y: &nominal,
+                },
+                Series {
+                    label: format!("augmented ({})", d.effect),
+                    x: t,
+                    y: &augmented,
+                },
             ],
             false,
         )?;
@@ -206,17 +270,46 @@ pub fn write_report(d: &Diagnosis, dir: &Path) -> Result<()> {
             &format!("validation {name} residual before/after"),
             "time (s)",
             name,
-            &[Series { label: "nominal".into(), x: t, y: r0 }, Series { label: format!("augmented ({})", d.effect), x: t, y: r1 }],
+            &[
+                Series {
+                    label: "nominal".into(),
+                    x: t,
+                    y: r0,
+                },
+                Series {
+                    label: format!("augmented ({})", d.effect),
+                    x: t,
+                    y: r1,
+                },
+            ],
             false,
         )?;
         let (f, m0) = amplitude_spectrum(r0, 1.0 / v.dt);
         let (_, m1) = amplitude_spectrum(r1, 1.0 / v.dt);
         lines(
             &dir.join(format!("{name}_residual_spectrum.svg")),
-            &format!("validation {name} residual spectrum (model modes {:?} Hz)", d.location.model_freqs_hz.iter().map(|f| (f * 100.0).round() / 100.0).collect::<Vec<_>>()),
+            &format!(
+                "validation {name} residual spectrum (model modes {:?} Hz)",
+                d.location
+                    .model_freqs_hz
+                    .iter()
+                    .map(|f| (f * 100.0).round() / 100.0)
+                    .collect::<Vec<_>>()
+            ),
             "frequency (Hz)",
             "amplitude",
-            &[Series { label: "nominal".into(), x: &f, y: &m0 }, Series { label: format!("augmented ({})", d.effect), x: &f, y: &m1 }],
+            &[
+                Series {
+                    label: "nominal".into(),
+                    x: &f,
+                    y: &m0,
+                },
+                Series {
+                    label: format!("augmented ({})", d.effect),
+                    x: &f,
+                    y: &m1,
+                },
+            ],
             true,
         )?;
     }

@@ -27,12 +27,18 @@ pub const LJUNG_BOX_LAGS: usize = 20;
 
 /// −2 ln L of the per-channel Gaussian profile likelihood.
 pub fn neg2ll(rss: &[f64; 3], n: &[usize; 3]) -> f64 {
-    (0..3).filter(|&c| n[c] > 0).map(|c| n[c] as f64 * (rss[c].max(1e-300) / n[c] as f64).ln()).sum()
+    (0..3)
+        .filter(|&c| n[c] > 0)
+        .map(|c| n[c] as f64 * (rss[c].max(1e-300) / n[c] as f64).ln())
+        .sum()
 }
 
 /// Δ(−2 ln L) of `rss` against `rss0` (same samples).
 pub fn delta_neg2ll(rss: &[f64; 3], rss0: &[f64; 3], n: &[usize; 3]) -> f64 {
-    (0..3).filter(|&c| n[c] > 0).map(|c| n[c] as f64 * (rss[c].max(1e-300) / rss0[c].max(1e-300)).ln()).sum()
+    (0..3)
+        .filter(|&c| n[c] > 0)
+        .map(|c| n[c] as f64 * (rss[c].max(1e-300) / rss0[c].max(1e-300)).ln())
+        .sum()
 }
 
 /// Structured (correlated) power of `r`: Σ_{k=1..lags} c_k² with the autocovariances c_k, i.e.
@@ -44,7 +50,9 @@ pub fn structured_power(r: &[f64], lags: usize) -> f64 {
         return 0.0;
     }
     let m = r.iter().sum::<f64>() / n as f64;
-    (1..=lags).map(|k| ((k..n).map(|i| (r[i] - m) * (r[i - k] - m)).sum::<f64>() / n as f64).powi(2)).sum()
+    (1..=lags)
+        .map(|k| ((k..n).map(|i| (r[i] - m) * (r[i - k] - m)).sum::<f64>() / n as f64).powi(2))
+        .sum()
 }
 
 /// Ljung–Box Q over `lags` lags of `r`.
@@ -81,7 +89,11 @@ mod tests {
         let q = ljung_box(&white, 20);
         // chi-square with 20 dof: 99.9 % quantile 45.3
         assert!(q < 45.3, "{q}");
-        let colored: Vec<f64> = white.iter().enumerate().map(|(k, x)| x + (k as f64 * 0.3).sin()).collect();
+        let colored: Vec<f64> = white
+            .iter()
+            .enumerate()
+            .map(|(k, x)| x + (k as f64 * 0.3).sin())
+            .collect();
         assert!(ljung_box(&colored, 20) > 10.0 * q);
     }
 
@@ -89,7 +101,10 @@ mod tests {
     fn likelihood_deltas() {
         let n = [100, 0, 100];
         assert_eq!(delta_neg2ll(&[1.0, 0.0, 2.0], &[1.0, 0.0, 2.0], &n), 0.0);
-        assert!((delta_neg2ll(&[0.5, 0.0, 2.0], &[1.0, 0.0, 2.0], &n) - 100.0 * 0.5f64.ln()).abs() < 1e-12);
+        assert!(
+            (delta_neg2ll(&[0.5, 0.0, 2.0], &[1.0, 0.0, 2.0], &n) - 100.0 * 0.5f64.ln()).abs()
+                < 1e-12
+        );
         assert!((neg2ll(&[100.0, 0.0, 100.0], &n)).abs() < 1e-12);
     }
 }

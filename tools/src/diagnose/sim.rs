@@ -166,10 +166,18 @@ fn second_order(u: &[f64], dt: f64, omega: f64, zeta: f64, lowpass: bool) -> Vec
     let mut y = Vec::with_capacity(n);
     for k in 0..n {
         let vb = if k == 0 { 0.0 } else { (u[k] - u[k - 1]) / dt };
-        let va = if k + 1 < n { (u[k + 1] - u[k]) / dt } else { 0.0 };
+        let va = if k + 1 < n {
+            (u[k + 1] - u[k]) / dt
+        } else {
+            0.0
+        };
         y.push(u[k] + x[0]);
         x[1] -= va - vb;
-        let f = if lowpass { -2.0 * zeta * omega * va } else { 0.0 };
+        let f = if lowpass {
+            -2.0 * zeta * omega * va
+        } else {
+            0.0
+        };
         x = phi * x + gam * f;
     }
     y
@@ -205,17 +213,28 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
     let modes = model.clamped_modes()?;
     // keep modes below 0.45 × the sample rate
     let nyq = 0.45 * 2.0 * std::f64::consts::PI / (2.0 * dt);
-    let keep = modes.omega_rad_s.iter().take_while(|w| **w < nyq).count().max(1);
+    let keep = modes
+        .omega_rad_s
+        .iter()
+        .take_while(|w| **w < nyq)
+        .count()
+        .max(1);
     let l = model.length_m;
     let npts = 16;
     let off = usize::from(p.root_stiffness_nm_per_rad.is_some());
     let basis: Vec<BasisFn> = (0..opts.n_modes).map(|i| BasisFn::new(i + 1, l)).collect();
-    let xs: Vec<f64> = (0..npts).map(|j| (j as f64 + 0.5) * l / npts as f64).collect();
+    let xs: Vec<f64> = (0..npts)
+        .map(|j| (j as f64 + 0.5) * l / npts as f64)
+        .collect();
     let shape: Vec<Vec<f64>> = (0..keep)
         .map(|r| {
             xs.iter()
                 .map(|&x| {
-                    let mut v = if off == 1 { modes.shapes[(0, r)] * x } else { 0.0 };
+                    let mut v = if off == 1 {
+                        modes.shapes[(0, r)] * x
+                    } else {
+                        0.0
+                    };
                     for (i, b) in basis.iter().enumerate() {
                         v += modes.shapes[(off + i, r)] * b.eval(x).0;
                     }
@@ -224,8 +243,13 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
                 .collect()
         })
         .collect();
-    let zeta: Vec<f64> = modes.zeta[..keep].iter().map(|z| z.clamp(0.0, 0.95)).collect();
-    let phi = (0..keep).map(|r| mode_zoh(modes.omega_rad_s[r], zeta[r], dt).0).collect();
+    let zeta: Vec<f64> = modes.zeta[..keep]
+        .iter()
+        .map(|z| z.clamp(0.0, 0.95))
+        .collect();
+    let phi = (0..keep)
+        .map(|r| mode_zoh(modes.omega_rad_s[r], zeta[r], dt).0)
+        .collect();
     Ok(BeamCache {
         key: structural_key(p, dt),
         omega: modes.omega_rad_s[..keep].to_vec(),
@@ -262,7 +286,12 @@ fn structural_key(p: &Params, dt: f64) -> Vec<f64> {
 ///
 /// Errors: a structural parameter set the model refuses (e.g. buckling), a rig without a beam
 /// when the recording has a tip channel.
-pub fn predict(rig: &Rig, p: &Params, d: &Prepared, cache: &mut Option<BeamCache>) -> Result<Prediction> {
+pub fn predict(
+    rig: &Rig,
+    p: &Params,
+    d: &Prepared,
+    cache: &mut Option<BeamCache>,
+) -> Result<Prediction> {
     let dt = d.dt;
     let n = d.cmd_m.len();
     let mut out = Prediction::default();
@@ -283,12 +312,18 @@ pub fn predict(rig: &Rig, p: &Params, d: &Prepared, cache: &mut Option<BeamCache
     };
     let accel = |y: &[f64], k: usize| {
         let vb = if k == 0 { 0.0 } else { (y[k] - y[k - 1]) / dt };
-        let va = if k + 1 < n { (y[k + 1] - y[k]) / dt } else { 0.0 };
+        let va = if k + 1 < n {
+            (y[k + 1] - y[k]) / dt
+        } else {
+            0.0
+        };
         (va - vb) / dt
     };
     let mut force = vec![0.0; n];
     if rig.beam.is_some() {
-        let stale = cache.as_ref().map_or(true, |c| c.key != structural_key(p, dt));
+        let stale = cache
+            .as_ref()
+            .map_or(true, |c| c.key != structural_key(p, dt));
         if stale {
             *cache = Some(beam_cache(rig, p, dt)?);
         }
@@ -300,8 +335,16 @@ pub fn predict(rig: &Rig, p: &Params, d: &Prepared, cache: &mut Option<BeamCache
         let npts = c.weights.len();
         let mut modal_f = vec![0.0; nm];
         for k in 0..n {
-            let vb = if k == 0 { 0.0 } else { (root[k] - root[k - 1]) / dt };
-            let va = if k + 1 < n { (root[k + 1] - root[k]) / dt } else { 0.0 };
+            let vb = if k == 0 {
+                0.0
+            } else {
+                (root[k] - root[k - 1]) / dt
+            };
+            let va = if k + 1 < n {
+                (root[k + 1] - root[k]) / dt
+            } else {
+                0.0
+            };
             let dv = va - vb;
             let acc = dv / dt;
             let mut tip = 0.0;
@@ -334,11 +377,18 @@ pub fn predict(rig: &Rig, p: &Params, d: &Prepared, cache: &mut Option<BeamCache
         }
         if d.tip_m.is_some() {
             let tip: Vec<f64> = root.iter().zip(&w).map(|(y, w)| y + w).collect();
-            out.tip_m = Some(if p.sensor_delay_s != 0.0 { delayed(&tip, p.sensor_delay_s, dt) } else { tip });
+            out.tip_m = Some(if p.sensor_delay_s != 0.0 {
+                delayed(&tip, p.sensor_delay_s, dt)
+            } else {
+                tip
+            });
         }
     } else {
         if d.tip_m.is_some() {
-            bail!("{}: the recording has `tip_pos_m` but the rig has no [beam]", d.name);
+            bail!(
+                "{}: the recording has `tip_pos_m` but the rig has no [beam]",
+                d.name
+            );
         }
         let m = rig.base.mass_kg + p.base_mass_delta_kg;
         for (k, fk) in force.iter_mut().enumerate() {
@@ -348,7 +398,12 @@ pub fn predict(rig: &Rig, p: &Params, d: &Prepared, cache: &mut Option<BeamCache
     if d.force_n.is_some() {
         if p.friction_n != 0.0 || p.viscous_n_s_per_m != 0.0 {
             for k in 0..n {
-                let v = if k + 1 < n { (drive[k + 1] - drive[k.saturating_sub(1)]) / (dt * (k + 1 - k.saturating_sub(1)) as f64) } else { 0.0 };
+                let v = if k + 1 < n {
+                    (drive[k + 1] - drive[k.saturating_sub(1)])
+                        / (dt * (k + 1 - k.saturating_sub(1)) as f64)
+                } else {
+                    0.0
+                };
                 force[k] += p.friction_n * (v / 1e-3).tanh() + p.viscous_n_s_per_m * v;
             }
         }
@@ -359,7 +414,11 @@ pub fn predict(rig: &Rig, p: &Params, d: &Prepared, cache: &mut Option<BeamCache
                 force[k] += a * s + b * co;
             }
         }
-        out.force_n = Some(if p.force_delay_s != 0.0 { delayed(&force, p.force_delay_s, dt) } else { force });
+        out.force_n = Some(if p.force_delay_s != 0.0 {
+            delayed(&force, p.force_delay_s, dt)
+        } else {
+            force
+        });
     }
     Ok(out)
 }
@@ -414,8 +473,15 @@ mod tests {
         // following error 2ζv/ω = 4.5 µm at 10 kHz bandwidth
         assert!(y.iter().zip(&d.cmd_m).all(|(a, b)| (a - b).abs() < 5e-6));
         let y = second_order(&d.cmd_m, 0.01, 2.0 * std::f64::consts::PI * 5.0, 0.7, true);
-        let lag = y.iter().zip(&d.cmd_m).map(|(a, b)| b - a).fold(0.0, f64::max);
+        let lag = y
+            .iter()
+            .zip(&d.cmd_m)
+            .map(|(a, b)| b - a)
+            .fold(0.0, f64::max);
         // following error of a 2nd-order loop at 0.2 m/s: 2ζv/ω = 8.9 mm
-        assert!((lag - 2.0 * 0.7 * 0.2 / (2.0 * std::f64::consts::PI * 5.0)).abs() < 1e-3, "{lag}");
+        assert!(
+            (lag - 2.0 * 0.7 * 0.2 / (2.0 * std::f64::consts::PI * 5.0)).abs() < 1e-3,
+            "{lag}"
+        );
     }
 }

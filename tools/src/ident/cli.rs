@@ -1,7 +1,7 @@
 //! `identify`: modes of a free decay in a NumPy `.npy` ([time; signal]) or a recording CSV.
 
 use super::freedecay::{identify_free_decay, FreeDecayOptions, FreeDecayResult};
-use super::frf::{frf_of_recording, InputChannel, OutputChannel, Window, WelchOptions, Detrend};
+use super::frf::{frf_of_recording, Detrend, InputChannel, OutputChannel, WelchOptions, Window};
 use super::protocol;
 use super::report;
 use super::sweep::{generate, SweepKind, SweepSpec, TipMode};
@@ -148,7 +148,11 @@ fn parse_band(s: &str) -> Result<(f64, f64)> {
     if v.len() != 2 {
         bail!("--band wants `f_lo,f_hi` in Hz (got `{s}`)");
     }
-    let p = |x: &str| x.trim().parse::<f64>().with_context(|| format!("--band: `{x}` is not a number"));
+    let p = |x: &str| {
+        x.trim()
+            .parse::<f64>()
+            .with_context(|| format!("--band: `{x}` is not a number"))
+    };
     Ok((p(v[0])?, p(v[1])?))
 }
 
@@ -177,7 +181,13 @@ fn is_input_output(path: &Path) -> bool {
         return false;
     }
     match Recording::read_csv(path) {
-        Ok(r) => r.force_n.is_some() || r.base_pos_m.as_ref().or(r.base_cmd_m.as_ref()).is_some_and(|b| b.iter().any(|v| (v - b[0]).abs() > 1e-9)),
+        Ok(r) => {
+            r.force_n.is_some()
+                || r.base_pos_m
+                    .as_ref()
+                    .or(r.base_cmd_m.as_ref())
+                    .is_some_and(|b| b.iter().any(|v| (v - b[0]).abs() > 1e-9))
+        }
         Err(_) => false,
     }
 }
@@ -188,7 +198,12 @@ pub fn identify(a: IdentifyArgs) -> Result<()> {
         let rec = Recording::read_csv(&a.recording)?;
         let opts = options_of(&a)?;
         let (r, frf) = identify_recording(&rec, &opts)?;
-        println!("{}: {} samples at {:.1} Hz", a.recording.display(), rec.len(), rec.sample_rate_hz());
+        println!(
+            "{}: {} samples at {:.1} Hz",
+            a.recording.display(),
+            rec.len(),
+            rec.sample_rate_hz()
+        );
         print!("{}", report::table(&r));
         for mr in &r.methods {
             if let Some(d) = &mr.diagram {
@@ -207,7 +222,8 @@ pub fn identify(a: IdentifyArgs) -> Result<()> {
             println!("FRF plot -> {}", p.display());
         }
         if let Some(j) = &a.json {
-            std::fs::write(j, serde_json::to_string_pretty(&r)?).with_context(|| format!("cannot write {}", j.display()))?;
+            std::fs::write(j, serde_json::to_string_pretty(&r)?)
+                .with_context(|| format!("cannot write {}", j.display()))?;
             println!("JSON -> {}", j.display());
         }
         return Ok(());
@@ -287,18 +303,32 @@ pub fn sweep(a: SweepArgs) -> Result<()> {
         let m = crate::model::BeamModel::new(&rig, &crate::model::ModelOptions::default())?;
         let c = m.clamped_modes()?;
         for i in 0..c.omega_rad_s.len() {
-            tip_modes.push(TipMode { freq_hz: c.omega_rad_s[i] / (2.0 * std::f64::consts::PI), zeta: c.zeta[i], gain: c.participation[i] * c.tip[i] });
+            tip_modes.push(TipMode {
+                freq_hz: c.omega_rad_s[i] / (2.0 * std::f64::consts::PI),
+                zeta: c.zeta[i],
+                gain: c.participation[i] * c.tip[i],
+            });
         }
         model = Some(m);
     }
     for (i, s) in a.mode.iter().enumerate() {
         let v: Vec<&str> = s.split(':').collect();
-        let p = |x: &str| x.trim().parse::<f64>().with_context(|| format!("--mode `{s}`: want f_hz:zeta"));
+        let p = |x: &str| {
+            x.trim()
+                .parse::<f64>()
+                .with_context(|| format!("--mode `{s}`: want f_hz:zeta"))
+        };
         if v.len() != 2 {
             bail!("--mode `{s}`: want f_hz:zeta");
         }
-        let gain = *super::sweep::UNIFORM_CANTILEVER_GAINS.get(i).with_context(|| "--mode: at most 3 modes")?;
-        tip_modes.push(TipMode { freq_hz: p(v[0])?, zeta: p(v[1])?, gain });
+        let gain = *super::sweep::UNIFORM_CANTILEVER_GAINS
+            .get(i)
+            .with_context(|| "--mode: at most 3 modes")?;
+        tip_modes.push(TipMode {
+            freq_hz: p(v[0])?,
+            zeta: p(v[1])?,
+            gain,
+        });
     }
     let spec = SweepSpec {
         kind: SweepKind::from_name(&a.kind)?,
@@ -322,7 +352,11 @@ pub fn sweep(a: SweepArgs) -> Result<()> {
     if let (Some(m), Some(limit)) = (&model, a.tip_max_mm.map(|v| v * 1e-3)) {
         let sim = crate::model::sim::BaseMotionSim::new(m, 1.0 / spec.sample_rate_hz)?;
         for _ in 0..8 {
-            let peak = sim.run(&s.base_cmd_m).0.iter().fold(0.0f64, |p, v| p.max(v.abs()));
+            let peak = sim
+                .run(&s.base_cmd_m)
+                .0
+                .iter()
+                .fold(0.0f64, |p, v| p.max(v.abs()));
             if peak <= limit {
                 break;
             }
@@ -330,18 +364,35 @@ pub fn sweep(a: SweepArgs) -> Result<()> {
             s = generate(&spec)?;
         }
     }
-    let mut rec = Recording { time_s: s.time_s.clone(), base_cmd_m: Some(s.base_cmd_m.clone()), ..Default::default() };
+    let mut rec = Recording {
+        time_s: s.time_s.clone(),
+        base_cmd_m: Some(s.base_cmd_m.clone()),
+        ..Default::default()
+    };
     rec.notes.clear();
     rec.write_csv(&a.out)?;
     println!("{:?} sweep {}..{} Hz, beta = {} ({}), T = {:.2} s (+{} s lead, {} s tail), {} samples at {} Hz -> {}",
         spec.kind, spec.f_a_hz, spec.f_b_hz, spec.rate, if spec.kind == SweepKind::Linear { "Hz/s" } else { "octaves/min" },
         s.duration_s, spec.lead_s, spec.tail_s, s.time_s.len(), spec.sample_rate_hz, a.out.display());
-    println!("peak stroke {:.3} mm (limit {}), peak acceleration {:.3} m/s^2 (limit {})", s.peak_stroke_m * 1e3, a.stroke_mm, s.peak_accel_m_s2, a.accel_max);
+    println!(
+        "peak stroke {:.3} mm (limit {}), peak acceleration {:.3} m/s^2 (limit {})",
+        s.peak_stroke_m * 1e3,
+        a.stroke_mm,
+        s.peak_accel_m_s2,
+        a.accel_max
+    );
     if let Some(m) = model {
         let sim = crate::model::sim::BaseMotionSim::new(&m, 1.0 / spec.sample_rate_hz)?;
         let (w, _) = sim.run(&s.base_cmd_m);
         let peak = w.iter().fold(0.0f64, |p, v| p.max(v.abs()));
-        println!("simulated on the rig: peak tip deflection {:.3} mm{}", peak * 1e3, a.tip_max_mm.map_or(String::new(), |l| format!(" (limit {l} mm; envelope limit tightened to {:.2} mm steady state)", spec.tip_max_m.unwrap_or(0.0) * 1e3)));
+        println!(
+            "simulated on the rig: peak tip deflection {:.3} mm{}",
+            peak * 1e3,
+            a.tip_max_mm.map_or(String::new(), |l| format!(
+                " (limit {l} mm; envelope limit tightened to {:.2} mm steady state)",
+                spec.tip_max_m.unwrap_or(0.0) * 1e3
+            ))
+        );
     }
     Ok(())
 }
@@ -393,19 +444,41 @@ pub fn frf(a: FrfArgs) -> Result<()> {
         detrend: Detrend::from_name(&a.detrend)?,
         pad: 1,
     };
-    let (f, warnings) = frf_of_recording(&rec, InputChannel::from_name(&a.input)?, OutputChannel::from_name(&a.output)?, &opts)?;
+    let (f, warnings) = frf_of_recording(
+        &rec,
+        InputChannel::from_name(&a.input)?,
+        OutputChannel::from_name(&a.output)?,
+        &opts,
+    )?;
     for w in &warnings {
         println!("warning: {w}");
     }
     let nyq = 0.5 * f.sample_rate_hz;
-    let (lo, hi) = a.band.as_deref().map(parse_band).transpose()?.unwrap_or((0.0, nyq));
+    let (lo, hi) = a
+        .band
+        .as_deref()
+        .map(parse_band)
+        .transpose()?
+        .unwrap_or((0.0, nyq));
     if hi > nyq * (1.0 + 1e-9) {
         bail!("--band upper limit {hi} Hz is beyond the Nyquist frequency {nyq} Hz");
     }
-    let mut w = csv::Writer::from_path(&a.out).with_context(|| format!("cannot write {}", a.out.display()))?;
+    let mut w = csv::Writer::from_path(&a.out)
+        .with_context(|| format!("cannot write {}", a.out.display()))?;
     w.write_record(["freq_hz", "h1_re", "h1_im", "h2_re", "h2_im", "coherence"])?;
     for k in f.band(lo, hi) {
-        w.write_record([f.freq_hz[k], f.h1[k].re, f.h1[k].im, f.h2[k].re, f.h2[k].im, f.coherence[k]].iter().map(|v| format!("{v:.9e}")))?;
+        w.write_record(
+            [
+                f.freq_hz[k],
+                f.h1[k].re,
+                f.h1[k].im,
+                f.h2[k].re,
+                f.h2[k].im,
+                f.coherence[k],
+            ]
+            .iter()
+            .map(|v| format!("{v:.9e}")),
+        )?;
     }
     w.flush()?;
     println!("FRF {} -> {}: {} averages of {} samples ({:?} window, {:.0} % overlap), df = {:.4} Hz -> {}", f.input, f.output, f.n_averages, f.nperseg, opts.window, 100.0 * opts.overlap, f.df_hz(), a.out.display());
@@ -414,7 +487,8 @@ pub fn frf(a: FrfArgs) -> Result<()> {
         println!("plot -> {}", p.display());
     }
     if let Some(j) = &a.json {
-        std::fs::write(j, serde_json::to_string(&f)?).with_context(|| format!("cannot write {}", j.display()))?;
+        std::fs::write(j, serde_json::to_string(&f)?)
+            .with_context(|| format!("cannot write {}", j.display()))?;
         println!("JSON -> {}", j.display());
     }
     Ok(())
@@ -452,20 +526,37 @@ pub fn table1(a: Table1Args) -> Result<()> {
     let model = crate::model::BeamModel::new(&rig, &crate::model::ModelOptions::default())?;
     let tr = protocol::truth(&model)?;
     let input = InputChannel::from_name(&a.input)?;
-    let opts = IdentOptions { methods: Method::parse_list(&a.method)?, input, band_hz: Some((0.3, 8.0)), n_modes: Some(2), ..Default::default() };
-    let base = SweepSpec { tail_s: a.tail_s, ..SweepSpec::paper(SweepKind::Exponential, 3.0) };
+    let opts = IdentOptions {
+        methods: Method::parse_list(&a.method)?,
+        input,
+        band_hz: Some((0.3, 8.0)),
+        n_modes: Some(2),
+        ..Default::default()
+    };
+    let base = SweepSpec {
+        tail_s: a.tail_s,
+        ..SweepSpec::paper(SweepKind::Exponential, 3.0)
+    };
     let cases = protocol::paper_cases();
     let pb = indicatif::ProgressBar::new(cases.len() as u64);
     let mut rows = Vec::new();
     for (i, c) in cases.iter().enumerate() {
-        rows.extend(protocol::run(&model, std::slice::from_ref(c), &base, a.noise, &opts, a.seed + i as u64)?);
+        rows.extend(protocol::run(
+            &model,
+            std::slice::from_ref(c),
+            &base,
+            a.noise,
+            &opts,
+            a.seed + i as u64,
+        )?);
         pb.inc(1);
     }
     pb.finish_and_clear();
     println!("Table 1 in simulation: {} rig, 100 Hz, {:.0} % noise, input {:?}, {} (band 0.3-8 Hz), {} s ring-down", a.rig.display(), a.noise * 100.0, input, a.method, a.tail_s);
     print!("{}", protocol::table(&rows, tr.for_input(input)));
     if let Some(j) = &a.json {
-        std::fs::write(j, serde_json::to_string_pretty(&rows)?).with_context(|| format!("cannot write {}", j.display()))?;
+        std::fs::write(j, serde_json::to_string_pretty(&rows)?)
+            .with_context(|| format!("cannot write {}", j.display()))?;
         println!("JSON -> {}", j.display());
     }
     Ok(())

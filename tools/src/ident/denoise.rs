@@ -35,9 +35,13 @@ impl Tracked {
 /// ridge is searched inside `band_hz` (the sweep's band).
 pub fn track_sweep(x: &[f64], rate_hz: f64, frame_s: f64, band_hz: (f64, f64)) -> Result<Tracked> {
     let n = x.len();
-    let l = ((frame_s * rate_hz) as usize).next_power_of_two().clamp(16, n.next_power_of_two().max(16));
+    let l = ((frame_s * rate_hz) as usize)
+        .next_power_of_two()
+        .clamp(16, n.next_power_of_two().max(16));
     let hop = l / 4;
-    let win: Vec<f64> = (0..l).map(|k| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * k as f64 / l as f64).cos()).collect();
+    let win: Vec<f64> = (0..l)
+        .map(|k| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * k as f64 / l as f64).cos())
+        .collect();
     let mut planner = RealFftPlanner::<f64>::new();
     let fwd = planner.plan_fft_forward(l);
     let inv = planner.plan_fft_inverse(l);
@@ -45,7 +49,10 @@ pub fn track_sweep(x: &[f64], rate_hz: f64, frame_s: f64, band_hz: (f64, f64)) -
     let total = n + 2 * pad;
     let mut xp = vec![0.0; total];
     xp[pad..pad + n].copy_from_slice(x);
-    let frames: Vec<usize> = (0..).map(|i| i * hop).take_while(|&s| s + l <= total).collect();
+    let frames: Vec<usize> = (0..)
+        .map(|i| i * hop)
+        .take_while(|&s| s + l <= total)
+        .collect();
     let nb = l / 2 + 1;
     let df = rate_hz / l as f64;
     let mut specs: Vec<Vec<Complex64>> = Vec::with_capacity(frames.len());
@@ -55,18 +62,29 @@ pub fn track_sweep(x: &[f64], rate_hz: f64, frame_s: f64, band_hz: (f64, f64)) -
             buf[k] = xp[s + k] * win[k];
         }
         let mut sp = fwd.make_output_vec();
-        fwd.process(&mut buf, &mut sp).map_err(|e| anyhow::anyhow!("STFT: {e}"))?;
+        fwd.process(&mut buf, &mut sp)
+            .map_err(|e| anyhow::anyhow!("STFT: {e}"))?;
         specs.push(sp);
     }
     // Ridge: the strongest bin inside the search band, then a 5-frame median.
     let k_lo = ((band_hz.0 / df).floor() as usize).clamp(1, nb - 1);
     let k_hi = ((band_hz.1 / df).ceil() as usize).clamp(k_lo, nb - 1);
-    let raw: Vec<f64> = specs.iter().map(|sp| (k_lo..=k_hi).max_by(|&a, &b| sp[a].norm_sqr().total_cmp(&sp[b].norm_sqr())).unwrap_or(k_lo) as f64 * df).collect();
-    let ridge: Vec<f64> = (0..raw.len()).map(|i| {
-        let mut w: Vec<f64> = raw[i.saturating_sub(2)..(i + 3).min(raw.len())].to_vec();
-        w.sort_by(|a, b| a.total_cmp(b));
-        w[w.len() / 2]
-    }).collect();
+    let raw: Vec<f64> = specs
+        .iter()
+        .map(|sp| {
+            (k_lo..=k_hi)
+                .max_by(|&a, &b| sp[a].norm_sqr().total_cmp(&sp[b].norm_sqr()))
+                .unwrap_or(k_lo) as f64
+                * df
+        })
+        .collect();
+    let ridge: Vec<f64> = (0..raw.len())
+        .map(|i| {
+            let mut w: Vec<f64> = raw[i.saturating_sub(2)..(i + 3).min(raw.len())].to_vec();
+            w.sort_by(|a, b| a.total_cmp(b));
+            w[w.len() / 2]
+        })
+        .collect();
     let mut out = vec![0.0; total];
     let mut norm = vec![0.0; total];
     let (mut e_all, mut e_kept) = (0.0, 0.0);
@@ -75,7 +93,11 @@ pub fn track_sweep(x: &[f64], rate_hz: f64, frame_s: f64, band_hz: (f64, f64)) -
     let hop_t = hop as f64 / rate_hz;
     for (i, (&s, sp)) in frames.iter().zip(specs.iter_mut()).enumerate() {
         let (a, b) = (i.saturating_sub(2), (i + 2).min(frames.len() - 1));
-        let rate = if b > a { (ridge[b] - ridge[a]).abs() / ((b - a) as f64 * hop_t) } else { 0.0 };
+        let rate = if b > a {
+            (ridge[b] - ridge[a]).abs() / ((b - a) as f64 * hop_t)
+        } else {
+            0.0
+        };
         let half = 0.5 * rate * frame_t + 3.0 * df;
         for (k, c) in sp.iter_mut().enumerate() {
             let e = c.norm_sqr();
@@ -96,14 +118,27 @@ pub fn track_sweep(x: &[f64], rate_hz: f64, frame_s: f64, band_hz: (f64, f64)) -
         sp[0].im = 0.0;
         sp[nb - 1].im = 0.0;
         let mut o = inv.make_output_vec();
-        inv.process(sp, &mut o).map_err(|e| anyhow::anyhow!("ISTFT: {e}"))?;
+        inv.process(sp, &mut o)
+            .map_err(|e| anyhow::anyhow!("ISTFT: {e}"))?;
         for k in 0..l {
             out[s + k] += o[k] / l as f64 * win[k];
             norm[s + k] += win[k] * win[k];
         }
     }
-    let x: Vec<f64> = (pad..pad + n).map(|k| if norm[k] > 1e-9 { out[k] / norm[k] } else { 0.0 }).collect();
-    Ok(Tracked { x, kept_energy: if e_all > 0.0 { e_kept / e_all } else { 0.0 }, kept_bins: b_kept as f64 / b_all.max(1) as f64 })
+    let x: Vec<f64> = (pad..pad + n)
+        .map(|k| {
+            if norm[k] > 1e-9 {
+                out[k] / norm[k]
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    Ok(Tracked {
+        x,
+        kept_energy: if e_all > 0.0 { e_kept / e_all } else { 0.0 },
+        kept_bins: b_kept as f64 / b_all.max(1) as f64,
+    })
 }
 
 #[cfg(test)]
@@ -117,18 +152,36 @@ mod tests {
         let fs = 100.0;
         let n = 12000;
         let k = 3.0 * std::f64::consts::LN_2 / 60.0;
-        let clean: Vec<f64> = (0..n).map(|i| {
-            let t = i as f64 / fs;
-            (2.0 * std::f64::consts::PI * 0.1 * (k * t).exp_m1() / k).sin()
-        }).collect();
+        let clean: Vec<f64> = (0..n)
+            .map(|i| {
+                let t = i as f64 / fs;
+                (2.0 * std::f64::consts::PI * 0.1 * (k * t).exp_m1() / k).sin()
+            })
+            .collect();
         let mut rng = StdRng::seed_from_u64(3);
         let d = Normal::new(0.0, 0.2).unwrap();
         let noisy: Vec<f64> = clean.iter().map(|v| v + d.sample(&mut rng)).collect();
         let r = track_sweep(&noisy, fs, 4.0, (0.05, 49.0)).unwrap();
-        let err = |v: &[f64]| (v.iter().zip(&clean).skip(500).take(n - 1000).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / (n - 1000) as f64).sqrt();
-        assert!(err(&r.x) < 0.3 * err(&noisy), "{} vs {}", err(&r.x), err(&noisy));
+        let err = |v: &[f64]| {
+            (v.iter()
+                .zip(&clean)
+                .skip(500)
+                .take(n - 1000)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+                / (n - 1000) as f64)
+                .sqrt()
+        };
+        assert!(
+            err(&r.x) < 0.3 * err(&noisy),
+            "{} vs {}",
+            err(&r.x),
+            err(&noisy)
+        );
         assert!(r.is_sweep(), "{r:?}");
         let noise_only: Vec<f64> = (0..n).map(|_| d.sample(&mut rng)).collect();
-        assert!(!track_sweep(&noise_only, fs, 4.0, (0.05, 49.0)).unwrap().is_sweep());
+        assert!(!track_sweep(&noise_only, fs, 4.0, (0.05, 49.0))
+            .unwrap()
+            .is_sweep());
     }
 }

@@ -48,13 +48,17 @@ impl Window {
             "exp" | "exponential" => Window::Exponential { end_fraction: 0.01 },
             _ => match l.strip_prefix("exp:") {
                 Some(v) => {
-                    let e: f64 = v.parse().with_context(|| format!("window `{s}`: not a number after exp:"))?;
+                    let e: f64 = v
+                        .parse()
+                        .with_context(|| format!("window `{s}`: not a number after exp:"))?;
                     if !(e > 0.0 && e <= 1.0) {
                         bail!("window `{s}`: the end fraction must be in (0, 1]");
                     }
                     Window::Exponential { end_fraction: e }
                 }
-                None => bail!("unknown window `{s}` (hamming, hann, rect, exp, exp:<end fraction>)"),
+                None => {
+                    bail!("unknown window `{s}` (hamming, hann, rect, exp, exp:<end fraction>)")
+                }
             },
         })
     }
@@ -67,7 +71,9 @@ impl Window {
             Window::Hamming => (0..n).map(|k| 0.54 - 0.46 * c(k)).collect(),
             Window::Hann => (0..n).map(|k| 0.5 - 0.5 * c(k)).collect(),
             Window::Rectangular => vec![1.0; n],
-            Window::Exponential { end_fraction } => (0..n).map(|k| end_fraction.powf(k as f64 / m)).collect(),
+            Window::Exponential { end_fraction } => {
+                (0..n).map(|k| end_fraction.powf(k as f64 / m)).collect()
+            }
         }
     }
 }
@@ -105,10 +111,16 @@ impl Detrend {
             Detrend::Linear => {
                 let mt = (n - 1.0) / 2.0;
                 let m = x.iter().sum::<f64>() / n;
-                let sxy: f64 = x.iter().enumerate().map(|(k, v)| (k as f64 - mt) * (v - m)).sum();
+                let sxy: f64 = x
+                    .iter()
+                    .enumerate()
+                    .map(|(k, v)| (k as f64 - mt) * (v - m))
+                    .sum();
                 let sxx: f64 = (0..x.len()).map(|k| (k as f64 - mt).powi(2)).sum();
                 let b = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-                x.iter_mut().enumerate().for_each(|(k, v)| *v -= m + b * (k as f64 - mt));
+                x.iter_mut()
+                    .enumerate()
+                    .for_each(|(k, v)| *v -= m + b * (k as f64 - mt));
             }
         }
     }
@@ -132,11 +144,20 @@ pub struct WelchOptions {
 impl Default for WelchOptions {
     /// Paper Step 2: Hamming, 50 % overlap, mean removed, segments of 1/4 of the record.
     fn default() -> Self {
-        WelchOptions { nperseg: None, overlap: 0.5, window: Window::Hamming, detrend: Detrend::Mean, pad: 1 }
+        WelchOptions {
+            nperseg: None,
+            overlap: 0.5,
+            window: Window::Hamming,
+            detrend: Detrend::Mean,
+            pad: 1,
+        }
     }
 }
 
-fn ser_complex<S: serde::Serializer>(v: &[Complex64], s: S) -> std::result::Result<S::Ok, S::Error> {
+fn ser_complex<S: serde::Serializer>(
+    v: &[Complex64],
+    s: S,
+) -> std::result::Result<S::Ok, S::Error> {
     use serde::ser::SerializeSeq;
     let mut q = s.serialize_seq(Some(v.len()))?;
     for c in v {
@@ -184,8 +205,16 @@ impl Frf {
 
     /// Indices of the lines with f_lo ≤ f ≤ f_hi.
     pub fn band(&self, f_lo: f64, f_hi: f64) -> std::ops::Range<usize> {
-        let a = self.freq_hz.iter().position(|&f| f >= f_lo).unwrap_or(self.freq_hz.len());
-        let b = self.freq_hz.iter().rposition(|&f| f <= f_hi).map_or(0, |k| k + 1);
+        let a = self
+            .freq_hz
+            .iter()
+            .position(|&f| f >= f_lo)
+            .unwrap_or(self.freq_hz.len());
+        let b = self
+            .freq_hz
+            .iter()
+            .rposition(|&f| f <= f_hi)
+            .map_or(0, |k| k + 1);
         a..b.max(a)
     }
 }
@@ -205,7 +234,11 @@ pub fn check_signal(name: &str, x: &[f64], min_len: usize) -> Result<()> {
 /// Fraction of samples sitting at the signal's extreme values (a clipped/saturated sensor
 /// shows runs of identical samples at its maximum or minimum). Returns (fraction, value).
 pub fn saturation(x: &[f64]) -> (f64, f64) {
-    let (lo, hi) = x.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+    let (lo, hi) = x
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
     if !(hi > lo) {
         return (1.0, hi);
     }
@@ -272,8 +305,10 @@ pub fn welch(x: &[f64], y: &[f64], rate_hz: f64, opts: &WelchOptions) -> Result<
             bx[k] = sx[k] * win[k];
             by[k] = sy[k] * win[k];
         }
-        fft.process(&mut bx, &mut fx).map_err(|e| anyhow::anyhow!("FFT: {e}"))?;
-        fft.process(&mut by, &mut fy).map_err(|e| anyhow::anyhow!("FFT: {e}"))?;
+        fft.process(&mut bx, &mut fx)
+            .map_err(|e| anyhow::anyhow!("FFT: {e}"))?;
+        fft.process(&mut by, &mut fy)
+            .map_err(|e| anyhow::anyhow!("FFT: {e}"))?;
         for k in 0..nf {
             sxx[k] += fx[k].norm_sqr();
             syy[k] += fy[k].norm_sqr();
@@ -290,14 +325,20 @@ pub fn welch(x: &[f64], y: &[f64], rate_hz: f64, opts: &WelchOptions) -> Result<
     let mut coh = Vec::with_capacity(nf);
     for k in 0..nf {
         h1.push(sxy[k] / sxx[k].max(tiny));
-        h2.push(if sxy[k].norm() > tiny { Complex64::new(syy[k], 0.0) / sxy[k].conj() } else { Complex64::new(f64::NAN, f64::NAN) });
+        h2.push(if sxy[k].norm() > tiny {
+            Complex64::new(syy[k], 0.0) / sxy[k].conj()
+        } else {
+            Complex64::new(f64::NAN, f64::NAN)
+        });
         coh.push((sxy[k].norm_sqr() / (sxx[k] * syy[k]).max(tiny)).min(1.0));
     }
     if sxx.iter().all(|&v| v <= tiny) {
         bail!("the input has no energy (constant signal)");
     }
     let window_decay_s = match opts.window {
-        Window::Exponential { end_fraction } => -end_fraction.ln() * rate_hz / (nseg.max(2) - 1) as f64,
+        Window::Exponential { end_fraction } => {
+            -end_fraction.ln() * rate_hz / (nseg.max(2) - 1) as f64
+        }
         _ => 0.0,
     };
     Ok(Frf {
@@ -353,8 +394,12 @@ impl OutputChannel {
     /// `deflection`/`tip_defl`, `tip`/`tip_abs`.
     pub fn from_name(s: &str) -> Result<OutputChannel> {
         match s.to_ascii_lowercase().as_str() {
-            "deflection" | "defl" | "tip_defl" | "tip_deflection" => Ok(OutputChannel::TipDeflection),
-            "tip" | "tip_abs" | "tip_pos" | "tip_pos_m" | "absolute" => Ok(OutputChannel::TipAbsolute),
+            "deflection" | "defl" | "tip_defl" | "tip_deflection" => {
+                Ok(OutputChannel::TipDeflection)
+            }
+            "tip" | "tip_abs" | "tip_pos" | "tip_pos_m" | "absolute" => {
+                Ok(OutputChannel::TipAbsolute)
+            }
             _ => bail!("unknown output `{s}` (deflection, tip)"),
         }
     }
@@ -362,27 +407,50 @@ impl OutputChannel {
 
 /// The input and output signals of `rec` (validated), with descriptions and warnings
 /// (saturation). Errors: a missing column (named).
-pub fn channels(rec: &Recording, input: InputChannel, output: OutputChannel) -> Result<(Vec<f64>, Vec<f64>, String, String, Vec<String>)> {
+pub fn channels(
+    rec: &Recording,
+    input: InputChannel,
+    output: OutputChannel,
+) -> Result<(Vec<f64>, Vec<f64>, String, String, Vec<String>)> {
     rec.validate()?;
-    let base = rec.base_pos_m.as_ref().map(|v| (v, "base_pos_m")).or(rec.base_cmd_m.as_ref().map(|v| (v, "base_cmd_m")));
+    let base = rec
+        .base_pos_m
+        .as_ref()
+        .map(|v| (v, "base_pos_m"))
+        .or(rec.base_cmd_m.as_ref().map(|v| (v, "base_cmd_m")));
     let dt = rec.sample_interval_s();
     let (x, xd) = match input {
-        InputChannel::Force => (rec.force_n.clone().context("the recording has no force_n column (input = force)")?, "motor force force_n (N)".to_string()),
+        InputChannel::Force => (
+            rec.force_n
+                .clone()
+                .context("the recording has no force_n column (input = force)")?,
+            "motor force force_n (N)".to_string(),
+        ),
         InputChannel::BasePos => {
-            let (b, name) = base.context("the recording has no base_pos_m or base_cmd_m column (input = base position)")?;
+            let (b, name) = base.context(
+                "the recording has no base_pos_m or base_cmd_m column (input = base position)",
+            )?;
             (b.clone(), format!("base position {name} (m)"))
         }
         InputChannel::BaseAccel => {
-            let (b, name) = base.context("the recording has no base_pos_m or base_cmd_m column (input = base acceleration)")?;
+            let (b, name) = base.context(
+                "the recording has no base_pos_m or base_cmd_m column (input = base acceleration)",
+            )?;
             let n = b.len();
             let mut a = vec![0.0; n];
             for k in 1..n.saturating_sub(1) {
                 a[k] = (b[k + 1] - 2.0 * b[k] + b[k - 1]) / (dt * dt);
             }
-            (a, format!("base acceleration (second difference of {name}, m/s^2)"))
+            (
+                a,
+                format!("base acceleration (second difference of {name}, m/s^2)"),
+            )
         }
     };
-    let tip = rec.tip_pos_m.as_ref().context("the recording has no tip_pos_m column (output)")?;
+    let tip = rec
+        .tip_pos_m
+        .as_ref()
+        .context("the recording has no tip_pos_m column (output)")?;
     let (y, yd) = match output {
         OutputChannel::TipAbsolute => (tip.clone(), "absolute tip position tip_pos_m (m)".to_string()),
         OutputChannel::TipDeflection => match base {
@@ -405,7 +473,12 @@ pub fn channels(rec: &Recording, input: InputChannel, output: OutputChannel) -> 
 }
 
 /// FRF of a recording: [`channels`] then [`welch`].
-pub fn frf_of_recording(rec: &Recording, input: InputChannel, output: OutputChannel, opts: &WelchOptions) -> Result<(Frf, Vec<String>)> {
+pub fn frf_of_recording(
+    rec: &Recording,
+    input: InputChannel,
+    output: OutputChannel,
+    opts: &WelchOptions,
+) -> Result<(Frf, Vec<String>)> {
     let (x, y, xd, yd, warnings) = channels(rec, input, output)?;
     let mut f = welch(&x, &y, rec.sample_rate_hz(), opts)?;
     f.input = xd;
@@ -431,12 +504,16 @@ mod tests {
         for k in 0..n {
             y[k] = x[k] + if k > 0 { a * y[k - 1] } else { 0.0 };
         }
-        let opts = WelchOptions { nperseg: Some(512), ..Default::default() };
+        let opts = WelchOptions {
+            nperseg: Some(512),
+            ..Default::default()
+        };
         let f = welch(&x, &y, 1.0, &opts).unwrap();
         assert!(f.n_averages > 50);
         for k in (5..250).step_by(20) {
             let w = 2.0 * std::f64::consts::PI * f.freq_hz[k];
-            let h = Complex64::new(1.0, 0.0) / (Complex64::new(1.0, 0.0) - a * Complex64::new(0.0, -w).exp());
+            let h = Complex64::new(1.0, 0.0)
+                / (Complex64::new(1.0, 0.0) - a * Complex64::new(0.0, -w).exp());
             assert!((f.h1[k] - h).norm() / h.norm() < 0.05, "H1 at {k}");
             assert!((f.h2[k] - h).norm() / h.norm() < 0.05, "H2 at {k}");
             assert!(f.coherence[k] > 0.98);
@@ -447,7 +524,8 @@ mod tests {
         let k = 250;
         assert!(g.coherence[k] < 0.8, "{}", g.coherence[k]);
         let w = 2.0 * std::f64::consts::PI * g.freq_hz[k];
-        let h = Complex64::new(1.0, 0.0) / (Complex64::new(1.0, 0.0) - a * Complex64::new(0.0, -w).exp());
+        let h = Complex64::new(1.0, 0.0)
+            / (Complex64::new(1.0, 0.0) - a * Complex64::new(0.0, -w).exp());
         assert!((g.h1[k].norm() / h.norm() - 1.0).abs() < 0.25);
         // H2 is biased upwards by output noise.
         assert!(g.h2[k].norm() > 1.1 * h.norm());
@@ -460,7 +538,9 @@ mod tests {
         assert!(v.iter().all(|x| x.abs() < 1e-12));
         let h = Window::Hamming.samples(11);
         assert!((h[0] - 0.08).abs() < 1e-12 && (h[5] - 1.0).abs() < 1e-12);
-        assert!(matches!(Window::from_name("exp:0.1").unwrap(), Window::Exponential { end_fraction } if (end_fraction - 0.1).abs() < 1e-15));
+        assert!(
+            matches!(Window::from_name("exp:0.1").unwrap(), Window::Exponential { end_fraction } if (end_fraction - 0.1).abs() < 1e-15)
+        );
         assert!(Window::from_name("kaiser").is_err());
     }
 
@@ -470,11 +550,19 @@ mod tests {
         let mut y = vec![0.0; 100];
         assert!(welch(&x, &y[..50], 100.0, &WelchOptions::default()).is_err());
         y[10] = f64::NAN;
-        assert!(welch(&x, &y, 100.0, &WelchOptions::default()).unwrap_err().to_string().contains("sample 10"));
-        let opts = WelchOptions { nperseg: Some(1000), ..Default::default() };
+        assert!(welch(&x, &y, 100.0, &WelchOptions::default())
+            .unwrap_err()
+            .to_string()
+            .contains("sample 10"));
+        let opts = WelchOptions {
+            nperseg: Some(1000),
+            ..Default::default()
+        };
         assert!(welch(&x, &x, 100.0, &opts).is_err());
         assert!(welch(&x[..5], &x[..5], 100.0, &WelchOptions::default()).is_err());
-        let clipped: Vec<f64> = (0..1000).map(|k| (k as f64 * 0.05).sin().clamp(-0.7, 0.7)).collect();
+        let clipped: Vec<f64> = (0..1000)
+            .map(|k| (k as f64 * 0.05).sin().clamp(-0.7, 0.7))
+            .collect();
         assert!(saturation_warning("x", &clipped).is_some());
         let clean: Vec<f64> = (0..1000).map(|k| (k as f64 * 0.05).sin()).collect();
         assert!(saturation_warning("x", &clean).is_none());

@@ -48,7 +48,11 @@ pub fn impulse_response(frf: &Frf, f_lo: f64, f_hi: f64, edge_hz: f64) -> Result
                 1.0
             };
             let v = frf.h1[k];
-            if g > 0.0 && v.re.is_finite() && v.im.is_finite() { v * g } else { Complex64::new(0.0, 0.0) }
+            if g > 0.0 && v.re.is_finite() && v.im.is_finite() {
+                v * g
+            } else {
+                Complex64::new(0.0, 0.0)
+            }
         })
         .collect();
     spec[0].im = 0.0;
@@ -56,11 +60,19 @@ pub fn impulse_response(frf: &Frf, f_lo: f64, f_hi: f64, edge_hz: f64) -> Result
     let mut planner = RealFftPlanner::<f64>::new();
     let inv = planner.plan_fft_inverse(nfft);
     let mut out = inv.make_output_vec();
-    inv.process(&mut spec, &mut out).map_err(|e| anyhow::anyhow!("IFFT: {e}"))?;
+    inv.process(&mut spec, &mut out)
+        .map_err(|e| anyhow::anyhow!("IFFT: {e}"))?;
     let fs = frf.sample_rate_hz;
     let stride = ((fs / (5.0 * f_hi)).floor() as usize).max(1);
-    let h: Vec<f64> = out.iter().step_by(stride).map(|v| v * fs / nfft as f64).collect();
-    Ok(ImpulseResponse { h, dt_s: stride as f64 / fs })
+    let h: Vec<f64> = out
+        .iter()
+        .step_by(stride)
+        .map(|v| v * fs / nfft as f64)
+        .collect();
+    Ok(ImpulseResponse {
+        h,
+        dt_s: stride as f64 / fs,
+    })
 }
 
 /// LSCE poles of model order `n_poles` (= 2 × modes) from the impulse response samples between
@@ -68,12 +80,25 @@ pub fn impulse_response(frf: &Frf, f_lo: f64, f_hi: f64, edge_hz: f64) -> Result
 /// corrected for the window decay `sigma_w` (1/s).
 ///
 /// Errors: too few samples for the order, a singular system.
-pub fn lsce_poles(irf: &ImpulseResponse, n_poles: usize, skip_s: f64, len_s: f64, f_lo: f64, f_hi: f64, zeta_max: f64, sigma_w: f64) -> Result<Vec<Pole>> {
+pub fn lsce_poles(
+    irf: &ImpulseResponse,
+    n_poles: usize,
+    skip_s: f64,
+    len_s: f64,
+    f_lo: f64,
+    f_hi: f64,
+    zeta_max: f64,
+    sigma_w: f64,
+) -> Result<Vec<Pole>> {
     let p = n_poles.max(2);
     let k0 = (skip_s / irf.dt_s).round() as usize;
     let k1 = (((skip_s + len_s) / irf.dt_s).round() as usize).min(irf.h.len() / 2);
     if k1 <= k0 + 3 * p {
-        bail!("LSCE order {p} needs more than {} impulse-response samples after {skip_s} s (have {})", 3 * p, k1.saturating_sub(k0));
+        bail!(
+            "LSCE order {p} needs more than {} impulse-response samples after {skip_s} s (have {})",
+            3 * p,
+            k1.saturating_sub(k0)
+        );
     }
     let h = &irf.h[k0..k1];
     let rows = h.len() - p;
@@ -87,7 +112,9 @@ pub fn lsce_poles(irf: &ImpulseResponse, n_poles: usize, skip_s: f64, len_s: f64
         b[i] = -h[i + p];
     }
     let svd = a.svd(true, true);
-    let coef = svd.solve(&b, 1e-12).map_err(|e| anyhow::anyhow!("LSCE: {e}"))?;
+    let coef = svd
+        .solve(&b, 1e-12)
+        .map_err(|e| anyhow::anyhow!("LSCE: {e}"))?;
     // z^p + a1 z^{p-1} + ... + ap  → ascending coefficients [ap, ..., a1, 1]
     let mut c: Vec<f64> = coef.iter().rev().copied().collect();
     c.push(1.0);
@@ -119,7 +146,11 @@ mod tests {
         let irf = ImpulseResponse { h, dt_s: dt };
         let p = lsce_poles(&irf, 4, 0.0, 30.0, 0.1, 10.0, 0.2, 0.0).unwrap();
         assert_eq!(p.len(), 2, "{p:?}");
-        assert!((p[0].freq_hz / 1.105 - 1.0).abs() < 1e-6 && (p[0].zeta / 0.0074 - 1.0).abs() < 1e-4);
-        assert!((p[1].freq_hz / 6.92 - 1.0).abs() < 1e-6 && (p[1].zeta / 0.0074 - 1.0).abs() < 1e-4);
+        assert!(
+            (p[0].freq_hz / 1.105 - 1.0).abs() < 1e-6 && (p[0].zeta / 0.0074 - 1.0).abs() < 1e-4
+        );
+        assert!(
+            (p[1].freq_hz / 6.92 - 1.0).abs() < 1e-6 && (p[1].zeta / 0.0074 - 1.0).abs() < 1e-4
+        );
     }
 }

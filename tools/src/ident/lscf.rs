@@ -18,7 +18,13 @@ use realfft::num_complex::Complex64;
 /// 0 < ζ < `zeta_max` inside [f_lo, f_hi] = the first and last line.
 ///
 /// Errors: fewer lines than 2·order + 2, an ill-conditioned system.
-pub fn lscf_poles(freq_hz: &[f64], h: &[Complex64], weight: &[f64], order: usize, zeta_max: f64) -> Result<Vec<Pole>> {
+pub fn lscf_poles(
+    freq_hz: &[f64],
+    h: &[Complex64],
+    weight: &[f64],
+    order: usize,
+    zeta_max: f64,
+) -> Result<Vec<Pole>> {
     lscf_poles_sk(freq_hz, h, weight, order, zeta_max, 0)
 }
 
@@ -26,7 +32,14 @@ pub fn lscf_poles(freq_hz: &[f64], h: &[Complex64], weight: &[f64], order: usize
 /// with the line weights divided by |A(Ω_k)| of the previous denominator, so the cost tends to
 /// the output error |B/A − H|² and the damping bias that output noise gives the linearised
 /// cost (H noise multiplied by A) goes away.
-pub fn lscf_poles_sk(freq_hz: &[f64], h: &[Complex64], weight: &[f64], order: usize, zeta_max: f64, sk_iterations: usize) -> Result<Vec<Pole>> {
+pub fn lscf_poles_sk(
+    freq_hz: &[f64],
+    h: &[Complex64],
+    weight: &[f64],
+    order: usize,
+    zeta_max: f64,
+    sk_iterations: usize,
+) -> Result<Vec<Pole>> {
     let mut w = weight.to_vec();
     let mut res = lscf_once(freq_hz, h, &w, order, zeta_max)?;
     let dt = 1.0 / (2.0 * freq_hz[freq_hz.len() - 1]);
@@ -56,10 +69,19 @@ pub fn lscf_poles_sk(freq_hz: &[f64], h: &[Complex64], weight: &[f64], order: us
     Ok(res.0)
 }
 
-fn lscf_once(freq_hz: &[f64], h: &[Complex64], weight: &[f64], order: usize, zeta_max: f64) -> Result<(Vec<Pole>, Vec<f64>)> {
+fn lscf_once(
+    freq_hz: &[f64],
+    h: &[Complex64],
+    weight: &[f64],
+    order: usize,
+    zeta_max: f64,
+) -> Result<(Vec<Pole>, Vec<f64>)> {
     let nl = freq_hz.len();
     if nl < 2 * order + 2 || order == 0 {
-        bail!("LSCF order {order} needs at least {} frequency lines in the band (have {nl})", 2 * order + 2);
+        bail!(
+            "LSCF order {order} needs at least {} frequency lines in the band (have {nl})",
+            2 * order + 2
+        );
     }
     let f_lo = freq_hz[0];
     let f_hi = freq_hz[nl - 1];
@@ -96,14 +118,22 @@ fn lscf_once(freq_hz: &[f64], h: &[Complex64], weight: &[f64], order: usize, zet
     }
     let rinv_s = match r.clone().cholesky() {
         Some(c) => c.solve(&s),
-        None => r.clone().pseudo_inverse(1e-12).map_err(|e| anyhow::anyhow!("LSCF: {e}"))? * &s,
+        None => {
+            r.clone()
+                .pseudo_inverse(1e-12)
+                .map_err(|e| anyhow::anyhow!("LSCF: {e}"))?
+                * &s
+        }
     };
     let m = &t - s.transpose() * rinv_s;
     let a = m.view((0, 0), (order, order)).into_owned();
     let rhs = -DVector::from_iterator(order, (0..order).map(|i| m[(i, order)]));
     let sol = match a.clone().lu().solve(&rhs) {
         Some(v) if v.iter().all(|x| x.is_finite()) => v,
-        _ => a.svd(true, true).solve(&rhs, 1e-14).map_err(|e| anyhow::anyhow!("LSCF: singular system at order {order}: {e}"))?,
+        _ => a
+            .svd(true, true)
+            .solve(&rhs, 1e-14)
+            .map_err(|e| anyhow::anyhow!("LSCF: singular system at order {order}: {e}"))?,
     };
     let mut coef: Vec<f64> = sol.iter().copied().collect();
     coef.push(1.0);
@@ -119,10 +149,13 @@ mod tests {
         f.iter()
             .map(|&fk| {
                 let w = 2.0 * std::f64::consts::PI * fk;
-                modes.iter().map(|&(fr, z, a)| {
-                    let wr = 2.0 * std::f64::consts::PI * fr;
-                    Complex64::new(a, 0.0) / Complex64::new(wr * wr - w * w, 2.0 * z * wr * w)
-                }).sum()
+                modes
+                    .iter()
+                    .map(|&(fr, z, a)| {
+                        let wr = 2.0 * std::f64::consts::PI * fr;
+                        Complex64::new(a, 0.0) / Complex64::new(wr * wr - w * w, 2.0 * z * wr * w)
+                    })
+                    .sum()
             })
             .collect()
     }
@@ -132,10 +165,22 @@ mod tests {
         let f: Vec<f64> = (0..800).map(|k| 0.3 + k as f64 * 0.01).collect();
         let h = modal_frf(&f, &[(1.105, 0.0074, 1.0), (6.92, 0.0074, -0.6)]);
         let p = lscf_poles(&f, &h, &vec![1.0; f.len()], 8, 0.2).unwrap();
-        let m1 = p.iter().find(|p| (p.freq_hz - 1.105).abs() < 0.01).expect("mode 1");
-        let m2 = p.iter().find(|p| (p.freq_hz - 6.92).abs() < 0.05).expect("mode 2");
-        assert!((m1.freq_hz / 1.105 - 1.0).abs() < 1e-4 && (m1.zeta / 0.0074 - 1.0).abs() < 0.01, "{m1:?}");
-        assert!((m2.freq_hz / 6.92 - 1.0).abs() < 1e-4 && (m2.zeta / 0.0074 - 1.0).abs() < 0.01, "{m2:?}");
+        let m1 = p
+            .iter()
+            .find(|p| (p.freq_hz - 1.105).abs() < 0.01)
+            .expect("mode 1");
+        let m2 = p
+            .iter()
+            .find(|p| (p.freq_hz - 6.92).abs() < 0.05)
+            .expect("mode 2");
+        assert!(
+            (m1.freq_hz / 1.105 - 1.0).abs() < 1e-4 && (m1.zeta / 0.0074 - 1.0).abs() < 0.01,
+            "{m1:?}"
+        );
+        assert!(
+            (m2.freq_hz / 6.92 - 1.0).abs() < 1e-4 && (m2.zeta / 0.0074 - 1.0).abs() < 0.01,
+            "{m2:?}"
+        );
     }
 
     #[test]

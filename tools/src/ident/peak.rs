@@ -22,11 +22,29 @@ pub struct Peak {
 /// The `max_peaks` strongest local maxima of |h| in the band [f_lo, f_hi] whose half-power
 /// points lie inside the record; sorted by frequency. Peaks weaker than `min_rel` × the
 /// strongest are ignored.
-pub fn pick_peaks(freq_hz: &[f64], h: &[Complex64], f_lo: f64, f_hi: f64, max_peaks: usize, min_rel: f64) -> Vec<Peak> {
-    let mag: Vec<f64> = h.iter().map(|c| if c.re.is_finite() && c.im.is_finite() { c.norm() } else { 0.0 }).collect();
+pub fn pick_peaks(
+    freq_hz: &[f64],
+    h: &[Complex64],
+    f_lo: f64,
+    f_hi: f64,
+    max_peaks: usize,
+    min_rel: f64,
+) -> Vec<Peak> {
+    let mag: Vec<f64> = h
+        .iter()
+        .map(|c| {
+            if c.re.is_finite() && c.im.is_finite() {
+                c.norm()
+            } else {
+                0.0
+            }
+        })
+        .collect();
     let n = mag.len();
     let mut cand: Vec<usize> = (1..n.saturating_sub(1))
-        .filter(|&k| freq_hz[k] >= f_lo && freq_hz[k] <= f_hi && mag[k] > mag[k - 1] && mag[k] >= mag[k + 1])
+        .filter(|&k| {
+            freq_hz[k] >= f_lo && freq_hz[k] <= f_hi && mag[k] > mag[k - 1] && mag[k] >= mag[k + 1]
+        })
         .collect();
     cand.sort_by(|&a, &b| mag[b].total_cmp(&mag[a]));
     let strongest = cand.first().map_or(0.0, |&k| mag[k]);
@@ -59,13 +77,27 @@ pub fn pick_peaks(freq_hz: &[f64], h: &[Complex64], f_lo: f64, f_hi: f64, max_pe
         let fb = freq_hz[b - 1] + (mag[b - 1] - half) / (mag[b - 1] - mag[b]) * df;
         let (l, c, r) = (mag[k - 1], mag[k], mag[k + 1]);
         let d = l - 2.0 * c + r;
-        let off = if d != 0.0 { (0.5 * (l - r) / d).clamp(-0.5, 0.5) } else { 0.0 };
+        let off = if d != 0.0 {
+            (0.5 * (l - r) / d).clamp(-0.5, 0.5)
+        } else {
+            0.0
+        };
         let fnat = freq_hz[k] + off * df;
         // Close peaks: keep the stronger (already in `out`).
-        if out.iter().any(|p| (p.pole.freq_hz - fnat).abs() < 2.0 * (fb - fa)) {
+        if out
+            .iter()
+            .any(|p| (p.pole.freq_hz - fnat).abs() < 2.0 * (fb - fa))
+        {
             continue;
         }
-        out.push(Peak { pole: Pole { freq_hz: fnat, zeta: (fb - fa) / (2.0 * fnat) }, magnitude: c + 0.0 * off, lines_in_band: b - a - 1 });
+        out.push(Peak {
+            pole: Pole {
+                freq_hz: fnat,
+                zeta: (fb - fa) / (2.0 * fnat),
+            },
+            magnitude: c + 0.0 * off,
+            lines_in_band: b - a - 1,
+        });
     }
     out.sort_by(|a, b| a.pole.freq_hz.total_cmp(&b.pole.freq_hz));
     out
@@ -82,7 +114,10 @@ mod tests {
         let h: Vec<Complex64> = f
             .iter()
             .map(|&fk| {
-                let (w, wr) = (2.0 * std::f64::consts::PI * fk, 2.0 * std::f64::consts::PI * fr);
+                let (w, wr) = (
+                    2.0 * std::f64::consts::PI * fk,
+                    2.0 * std::f64::consts::PI * fr,
+                );
                 Complex64::new(1.0, 0.0) / Complex64::new(wr * wr - w * w, 2.0 * z * wr * w)
             })
             .collect();

@@ -100,7 +100,13 @@ impl Default for IdentOptions {
             methods: vec![Method::Lscf],
             input: InputChannel::BaseAccel,
             output: OutputChannel::TipDeflection,
-            welch: WelchOptions { nperseg: None, overlap: 0.5, window: Window::Rectangular, detrend: super::frf::Detrend::Mean, pad: 1 },
+            welch: WelchOptions {
+                nperseg: None,
+                overlap: 0.5,
+                window: Window::Rectangular,
+                detrend: super::frf::Detrend::Mean,
+                pad: 1,
+            },
             band_hz: None,
             max_order: 32,
             zeta_max: 0.2,
@@ -157,26 +163,46 @@ pub struct IdentResult {
 pub fn auto_band(frf: &Frf) -> (f64, f64) {
     let n = frf.sxx.len();
     let w = (n / 200).max(1);
-    let sm: Vec<f64> = (0..n).map(|k| {
-        let (a, b) = (k.saturating_sub(w), (k + w + 1).min(n));
-        frf.sxx[a..b].iter().sum::<f64>() / (b - a) as f64
-    }).collect();
+    let sm: Vec<f64> = (0..n)
+        .map(|k| {
+            let (a, b) = (k.saturating_sub(w), (k + w + 1).min(n));
+            frf.sxx[a..b].iter().sum::<f64>() / (b - a) as f64
+        })
+        .collect();
     let top = sm.iter().skip(1).cloned().fold(0.0, f64::max);
     let ok: Vec<usize> = (1..n).filter(|&k| sm[k] >= 1e-3 * top).collect();
     let df = frf.df_hz();
-    let lo = ok.first().map_or(5.0 * df, |&k| frf.freq_hz[k]).max(5.0 * df);
-    let hi = ok.last().map_or(0.4 * frf.sample_rate_hz, |&k| frf.freq_hz[k]).min(0.4 * frf.sample_rate_hz);
+    let lo = ok
+        .first()
+        .map_or(5.0 * df, |&k| frf.freq_hz[k])
+        .max(5.0 * df);
+    let hi = ok
+        .last()
+        .map_or(0.4 * frf.sample_rate_hz, |&k| frf.freq_hz[k])
+        .min(0.4 * frf.sample_rate_hz);
     (lo, hi)
 }
 
 fn to_estimates(modes: &[StableMode], method: &str) -> Vec<ModeEstimate> {
-    modes.iter().map(|m| ModeEstimate { freq_hz: m.freq_hz, zeta: m.zeta, freq_hz_std: m.freq_hz_std, zeta_std: m.zeta_std, method: method.to_string() }).collect()
+    modes
+        .iter()
+        .map(|m| ModeEstimate {
+            freq_hz: m.freq_hz,
+            zeta: m.zeta,
+            freq_hz_std: m.freq_hz_std,
+            zeta_std: m.zeta_std,
+            method: method.to_string(),
+        })
+        .collect()
 }
 
 fn keep_best(modes: Vec<StableMode>, n: Option<usize>, band: (f64, f64)) -> Vec<StableMode> {
     // Poles within 5 % of the band width from an edge model the truncation, not the beam.
     let e = 0.05 * (band.1 - band.0);
-    let mut modes: Vec<StableMode> = modes.into_iter().filter(|m| m.freq_hz > band.0 + e && m.freq_hz < band.1 - e).collect();
+    let mut modes: Vec<StableMode> = modes
+        .into_iter()
+        .filter(|m| m.freq_hz > band.0 + e && m.freq_hz < band.1 - e)
+        .collect();
     if let Some(n) = n {
         modes.sort_by(|a, b| b.count.cmp(&a.count));
         modes.truncate(n);
@@ -189,8 +215,11 @@ fn keep_best(modes: Vec<StableMode>, n: Option<usize>, band: (f64, f64)) -> Vec<
 /// base (command if present, else measured position) does not move, that follow motion.
 /// Returns sample ranges.
 pub fn free_decay_segments(rec: &Recording, min_s: f64) -> Vec<std::ops::Range<usize>> {
-    let Some(b) = rec.base_cmd_m.as_ref().or(rec.base_pos_m.as_ref()) else { return vec![] };
-    let range = b.iter().fold(f64::NEG_INFINITY, |m, v| m.max(*v)) - b.iter().fold(f64::INFINITY, |m, v| m.min(*v));
+    let Some(b) = rec.base_cmd_m.as_ref().or(rec.base_pos_m.as_ref()) else {
+        return vec![];
+    };
+    let range = b.iter().fold(f64::NEG_INFINITY, |m, v| m.max(*v))
+        - b.iter().fold(f64::INFINITY, |m, v| m.min(*v));
     let tol = (1e-9f64).max(1e-7 * range);
     let min_n = ((min_s * rec.sample_rate_hz()) as usize).max(64);
     let mut out = Vec::new();
@@ -216,12 +245,19 @@ pub fn free_decay_segments(rec: &Recording, min_s: f64) -> Vec<std::ops::Range<u
 
 /// Log decrement + damped sinusoid on every free-decay segment of `rec`; modes combined across
 /// segments (mean; 1-σ = hypot(mean per-segment σ, spread across segments)).
-pub fn identify_segments(rec: &Recording, opts: &FreeDecayOptions, warnings: &mut Vec<String>) -> Result<Vec<ModeEstimate>> {
+pub fn identify_segments(
+    rec: &Recording,
+    opts: &FreeDecayOptions,
+    warnings: &mut Vec<String>,
+) -> Result<Vec<ModeEstimate>> {
     let segs = free_decay_segments(rec, 3.0);
     if segs.is_empty() {
         bail!("no free-decay segment (base still for >= 3 s after moving) in the recording");
     }
-    let tip = rec.tip_pos_m.as_ref().ok_or_else(|| anyhow::anyhow!("no tip_pos_m column for the free decays"))?;
+    let tip = rec
+        .tip_pos_m
+        .as_ref()
+        .ok_or_else(|| anyhow::anyhow!("no tip_pos_m column for the free decays"))?;
     let base = rec.base_pos_m.as_ref().or(rec.base_cmd_m.as_ref());
     let mut per: Vec<ModeEstimate> = Vec::new();
     for s in &segs {
@@ -232,11 +268,18 @@ pub fn identify_segments(rec: &Recording, opts: &FreeDecayOptions, warnings: &mu
         };
         match identify_free_decay(t, &x, opts) {
             Ok(r) => per.push(r.mode),
-            Err(e) => warnings.push(format!("free decay {:.2}..{:.2} s: {e}", t[0], t[t.len() - 1])),
+            Err(e) => warnings.push(format!(
+                "free decay {:.2}..{:.2} s: {e}",
+                t[0],
+                t[t.len() - 1]
+            )),
         }
     }
     if per.is_empty() {
-        bail!("none of the {} free-decay segments could be analysed", segs.len());
+        bail!(
+            "none of the {} free-decay segments could be analysed",
+            segs.len()
+        );
     }
     let f: Vec<f64> = per.iter().map(|m| m.freq_hz).collect();
     let z: Vec<f64> = per.iter().map(|m| m.zeta).collect();
@@ -253,7 +296,11 @@ pub fn identify_segments(rec: &Recording, opts: &FreeDecayOptions, warnings: &mu
 }
 
 /// Runs the FRF estimators on an existing FRF. `warnings` collects resolution warnings.
-pub fn identify_frf(frf: &Frf, opts: &IdentOptions, warnings: &mut Vec<String>) -> Result<(Vec<MethodResult>, (f64, f64))> {
+pub fn identify_frf(
+    frf: &Frf,
+    opts: &IdentOptions,
+    warnings: &mut Vec<String>,
+) -> Result<(Vec<MethodResult>, (f64, f64))> {
     let nyq = 0.5 * frf.sample_rate_hz;
     let (f_lo, f_hi) = match opts.band_hz {
         Some((a, b)) => {
@@ -275,7 +322,10 @@ pub fn identify_frf(frf: &Frf, opts: &IdentOptions, warnings: &mut Vec<String>) 
     let pb = |n: u64| {
         if opts.progress {
             let p = indicatif::ProgressBar::new(n);
-            p.set_style(indicatif::ProgressStyle::with_template("{msg:>6} [{bar:30}] {pos}/{len} orders").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
+            p.set_style(
+                indicatif::ProgressStyle::with_template("{msg:>6} [{bar:30}] {pos}/{len} orders")
+                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            );
             Some(p)
         } else {
             None
@@ -293,14 +343,30 @@ pub fn identify_frf(frf: &Frf, opts: &IdentOptions, warnings: &mut Vec<String>) 
                 if let Some(b) = &bar {
                     b.set_message("LSCF");
                 }
-                let d = diagram("LSCF", orders, &opts.criteria, |n| {
-                    Ok(super::lscf::lscf_poles_sk(fq, h, &w, n, 1.0, opts.sk_iterations)?.into_iter().map(|p| p.remove_decay(sigma_w)).filter(|p| p.zeta > 0.0 && p.zeta < opts.zeta_max).collect())
-                }, bar.as_ref())?;
+                let d = diagram(
+                    "LSCF",
+                    orders,
+                    &opts.criteria,
+                    |n| {
+                        Ok(
+                            super::lscf::lscf_poles_sk(fq, h, &w, n, 1.0, opts.sk_iterations)?
+                                .into_iter()
+                                .map(|p| p.remove_decay(sigma_w))
+                                .filter(|p| p.zeta > 0.0 && p.zeta < opts.zeta_max)
+                                .collect(),
+                        )
+                    },
+                    bar.as_ref(),
+                )?;
                 if let Some(b) = bar {
                     b.finish_and_clear();
                 }
                 let modes = keep_best(d.modes.clone(), opts.n_modes, (f_lo, f_hi));
-                out.push(MethodResult { method: m, modes: to_estimates(&modes, "lscf"), diagram: Some(d) });
+                out.push(MethodResult {
+                    method: m,
+                    modes: to_estimates(&modes, "lscf"),
+                    diagram: Some(d),
+                });
             }
             Method::Lsce => {
                 let edge = (0.5 * f_lo).min(0.1 * (f_hi - f_lo)).max(2.0 * frf.df_hz());
@@ -312,25 +378,55 @@ pub fn identify_frf(frf: &Frf, opts: &IdentOptions, warnings: &mut Vec<String>) 
                 if let Some(b) = &bar {
                     b.set_message("LSCE");
                 }
-                let d = diagram("LSCE", orders, &opts.criteria, |n| lsce_poles(&irf, n, skip_s, len_s, f_lo, f_hi, opts.zeta_max, sigma_w), bar.as_ref())?;
+                let d = diagram(
+                    "LSCE",
+                    orders,
+                    &opts.criteria,
+                    |n| lsce_poles(&irf, n, skip_s, len_s, f_lo, f_hi, opts.zeta_max, sigma_w),
+                    bar.as_ref(),
+                )?;
                 if let Some(b) = bar {
                     b.finish_and_clear();
                 }
                 let modes = keep_best(d.modes.clone(), opts.n_modes, (f_lo, f_hi));
-                out.push(MethodResult { method: m, modes: to_estimates(&modes, "lsce"), diagram: Some(d) });
+                out.push(MethodResult {
+                    method: m,
+                    modes: to_estimates(&modes, "lsce"),
+                    diagram: Some(d),
+                });
             }
             Method::Peak => {
-                let pk = pick_peaks(&frf.freq_hz, &frf.h1, f_lo, f_hi, opts.n_modes.unwrap_or(4), 0.01);
+                let pk = pick_peaks(
+                    &frf.freq_hz,
+                    &frf.h1,
+                    f_lo,
+                    f_hi,
+                    opts.n_modes.unwrap_or(4),
+                    0.01,
+                );
                 for p in &pk {
                     if p.lines_in_band < 3 {
                         warnings.push(format!("peak picking at {:.3} Hz: only {} lines inside the half-power band; damping is resolution-limited (record longer)", p.pole.freq_hz, p.lines_in_band));
                     }
                 }
-                let modes = pk.iter().map(|p| {
-                    let q = p.pole.remove_decay(sigma_w);
-                    ModeEstimate { freq_hz: q.freq_hz, zeta: q.zeta, freq_hz_std: 0.0, zeta_std: 0.0, method: "peak".into() }
-                }).collect();
-                out.push(MethodResult { method: m, modes, diagram: None });
+                let modes = pk
+                    .iter()
+                    .map(|p| {
+                        let q = p.pole.remove_decay(sigma_w);
+                        ModeEstimate {
+                            freq_hz: q.freq_hz,
+                            zeta: q.zeta,
+                            freq_hz_std: 0.0,
+                            zeta_std: 0.0,
+                            method: "peak".into(),
+                        }
+                    })
+                    .collect();
+                out.push(MethodResult {
+                    method: m,
+                    modes,
+                    diagram: None,
+                });
             }
             Method::LogDec => {}
         }
@@ -340,21 +436,39 @@ pub fn identify_frf(frf: &Frf, opts: &IdentOptions, warnings: &mut Vec<String>) 
 
 /// Combines: the primary method's modes, uncertainty widened by the other methods' spread.
 pub fn combine(methods: &[MethodResult]) -> Vec<ModeEstimate> {
-    let Some(primary) = methods.iter().find(|m| !m.modes.is_empty()) else { return vec![] };
+    let Some(primary) = methods.iter().find(|m| !m.modes.is_empty()) else {
+        return vec![];
+    };
     primary
         .modes
         .iter()
         .map(|m| {
-            let others: Vec<&ModeEstimate> = methods.iter().flat_map(|r| r.modes.iter()).filter(|o| (o.freq_hz / m.freq_hz - 1.0).abs() < 0.03).collect();
+            let others: Vec<&ModeEstimate> = methods
+                .iter()
+                .flat_map(|r| r.modes.iter())
+                .filter(|o| (o.freq_hz / m.freq_hz - 1.0).abs() < 0.03)
+                .collect();
             let f: Vec<f64> = others.iter().map(|o| o.freq_hz).collect();
             let z: Vec<f64> = others.iter().map(|o| o.zeta).collect();
-            let names: Vec<String> = methods.iter().filter(|r| r.modes.iter().any(|o| (o.freq_hz / m.freq_hz - 1.0).abs() < 0.03)).map(|r| r.method.name().to_string()).collect();
+            let names: Vec<String> = methods
+                .iter()
+                .filter(|r| {
+                    r.modes
+                        .iter()
+                        .any(|o| (o.freq_hz / m.freq_hz - 1.0).abs() < 0.03)
+                })
+                .map(|r| r.method.name().to_string())
+                .collect();
             ModeEstimate {
                 freq_hz: m.freq_hz,
                 zeta: m.zeta,
                 freq_hz_std: m.freq_hz_std.hypot(std_dev(&f)),
                 zeta_std: m.zeta_std.hypot(std_dev(&z)),
-                method: if names.len() > 1 { format!("{} (spread over {})", m.method, names.join("+")) } else { m.method.clone() },
+                method: if names.len() > 1 {
+                    format!("{} (spread over {})", m.method, names.join("+"))
+                } else {
+                    m.method.clone()
+                },
             }
         })
         .collect()
@@ -373,7 +487,14 @@ pub fn frf_with_options(rec: &Recording, opts: &IdentOptions) -> Result<(Frf, Ve
     };
     let tr = super::denoise::track_sweep(&x, rate, 4.0, band)?;
     let (x, xd) = if tr.is_sweep() {
-        (tr.x, format!("{xd}, sweep-tracking filtered ({:.0} % of its energy in {:.1} % of the bins)", 100.0 * tr.kept_energy, 100.0 * tr.kept_bins))
+        (
+            tr.x,
+            format!(
+                "{xd}, sweep-tracking filtered ({:.0} % of its energy in {:.1} % of the bins)",
+                100.0 * tr.kept_energy,
+                100.0 * tr.kept_bins
+            ),
+        )
     } else {
         warnings.push(format!("input is not a sweep ({:.0} % of its energy in {:.1} % of the bins): no tracking filter", 100.0 * tr.kept_energy, 100.0 * tr.kept_bins));
         (x, xd)
@@ -394,17 +515,37 @@ pub fn frf_with_options(rec: &Recording, opts: &IdentOptions) -> Result<(Frf, Ve
 pub fn identify_recording(rec: &Recording, opts: &IdentOptions) -> Result<(IdentResult, Frf)> {
     rec.validate()?;
     if rec.len() < 256 {
-        bail!("the recording has {} samples; identification needs at least 256", rec.len());
+        bail!(
+            "the recording has {} samples; identification needs at least 256",
+            rec.len()
+        );
     }
     let (frf, mut warnings) = frf_with_options(rec, opts)?;
     let frf_methods = opts.methods.iter().any(|m| *m != Method::LogDec);
-    let (mut methods, band) = if frf_methods { identify_frf(&frf, opts, &mut warnings)? } else { (vec![], auto_band(&frf)) };
+    let (mut methods, band) = if frf_methods {
+        identify_frf(&frf, opts, &mut warnings)?
+    } else {
+        (vec![], auto_band(&frf))
+    };
     if opts.methods.contains(&Method::LogDec) {
-        let fd = FreeDecayOptions { f_min_hz: band.0, f_max_hz: band.1, ..Default::default() };
+        let fd = FreeDecayOptions {
+            f_min_hz: band.0,
+            f_max_hz: band.1,
+            ..Default::default()
+        };
         match identify_segments(rec, &fd, &mut warnings) {
             Ok(m) => {
-                let r = MethodResult { method: Method::LogDec, modes: m, diagram: None };
-                let pos = opts.methods.iter().position(|m| *m == Method::LogDec).unwrap_or(0).min(methods.len());
+                let r = MethodResult {
+                    method: Method::LogDec,
+                    modes: m,
+                    diagram: None,
+                };
+                let pos = opts
+                    .methods
+                    .iter()
+                    .position(|m| *m == Method::LogDec)
+                    .unwrap_or(0)
+                    .min(methods.len());
                 methods.insert(pos, r);
             }
             Err(e) => warnings.push(format!("logdec: {e}")),
@@ -416,7 +557,12 @@ pub fn identify_recording(rec: &Recording, opts: &IdentOptions) -> Result<(Ident
     }
     let rayleigh = (modes.len() >= 2).then(|| {
         let w = |m: &ModeEstimate| 2.0 * std::f64::consts::PI * m.freq_hz;
-        crate::model::galerkin::rayleigh_coefficients(w(&modes[0]), modes[0].zeta, w(&modes[1]), modes[1].zeta)
+        crate::model::galerkin::rayleigh_coefficients(
+            w(&modes[0]),
+            modes[0].zeta,
+            w(&modes[1]),
+            modes[1].zeta,
+        )
     });
     let res = IdentResult {
         modes,
@@ -433,15 +579,28 @@ pub fn identify_recording(rec: &Recording, opts: &IdentOptions) -> Result<(Ident
 }
 
 /// [`identify_free_decay`] as an [`IdentResult`] (modes of the free decay; no FRF).
-pub fn identify_decay(time_s: &[f64], signal: &[f64], opts: &FreeDecayOptions) -> Result<IdentResult> {
+pub fn identify_decay(
+    time_s: &[f64],
+    signal: &[f64],
+    opts: &FreeDecayOptions,
+) -> Result<IdentResult> {
     let r = identify_free_decay(time_s, signal, opts)?;
     let rayleigh = (r.modes.len() >= 2).then(|| {
         let w = |m: &ModeEstimate| 2.0 * std::f64::consts::PI * m.freq_hz;
-        crate::model::galerkin::rayleigh_coefficients(w(&r.modes[0]), r.modes[0].zeta, w(&r.modes[1]), r.modes[1].zeta)
+        crate::model::galerkin::rayleigh_coefficients(
+            w(&r.modes[0]),
+            r.modes[0].zeta,
+            w(&r.modes[1]),
+            r.modes[1].zeta,
+        )
     });
     Ok(IdentResult {
         modes: r.modes.clone(),
-        methods: vec![MethodResult { method: Method::LogDec, modes: r.modes.clone(), diagram: None }],
+        methods: vec![MethodResult {
+            method: Method::LogDec,
+            modes: r.modes.clone(),
+            diagram: None,
+        }],
         rayleigh,
         band_hz: (opts.f_min_hz, opts.f_max_hz.min(0.45 * r.sample_rate_hz)),
         df_hz: f64::NAN,

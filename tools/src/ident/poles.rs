@@ -18,7 +18,10 @@ impl Pole {
     /// From a continuous-time pole s (rad/s).
     pub fn from_s(s: Complex64) -> Pole {
         let wn = s.norm();
-        Pole { freq_hz: wn / (2.0 * std::f64::consts::PI), zeta: -s.re / wn }
+        Pole {
+            freq_hz: wn / (2.0 * std::f64::consts::PI),
+            zeta: -s.re / wn,
+        }
     }
 
     /// The pole with an extra decay rate `sigma` (1/s) removed (exponential window):
@@ -28,7 +31,10 @@ impl Pole {
             return *self;
         }
         let wn = 2.0 * std::f64::consts::PI * self.freq_hz;
-        let s = Complex64::new(-self.zeta * wn + sigma, wn * (1.0 - self.zeta * self.zeta).max(0.0).sqrt());
+        let s = Complex64::new(
+            -self.zeta * wn + sigma,
+            wn * (1.0 - self.zeta * self.zeta).max(0.0).sqrt(),
+        );
         Pole::from_s(s)
     }
 }
@@ -46,12 +52,21 @@ pub fn poly_roots(c: &[f64]) -> Vec<Complex64> {
     for i in 1..n {
         m[(i, i - 1)] = 1.0;
     }
-    m.complex_eigenvalues().iter().map(|z| Complex64::new(z.re, z.im)).collect()
+    m.complex_eigenvalues()
+        .iter()
+        .map(|z| Complex64::new(z.re, z.im))
+        .collect()
 }
 
 /// Physical poles of discrete roots z (z = e^{sΔt}): upper half-plane, inside the unit circle
 /// (stable), 0 < ζ < `zeta_max`, f_lo ≤ f ≤ f_hi; sorted by frequency.
-pub fn physical_poles(roots: &[Complex64], dt: f64, f_lo: f64, f_hi: f64, zeta_max: f64) -> Vec<Pole> {
+pub fn physical_poles(
+    roots: &[Complex64],
+    dt: f64,
+    f_lo: f64,
+    f_hi: f64,
+    zeta_max: f64,
+) -> Vec<Pole> {
     let mut p: Vec<Pole> = roots
         .iter()
         .filter(|z| z.im > 0.0 && z.norm() < 1.0 && z.norm() > 0.0)
@@ -79,7 +94,11 @@ mod tests {
         let p = physical_poles(&r, dt, 0.0, 100.0, 0.5);
         assert_eq!(p.len(), 1);
         assert!((p[0].freq_hz - 3.0).abs() < 1e-9 && (p[0].zeta - z).abs() < 1e-9);
-        let q = Pole { freq_hz: 3.0, zeta: 0.05 }.remove_decay(0.1);
+        let q = Pole {
+            freq_hz: 3.0,
+            zeta: 0.05,
+        }
+        .remove_decay(0.1);
         assert!(q.zeta < 0.05 && (q.freq_hz - 3.0).abs() < 0.01);
     }
 }

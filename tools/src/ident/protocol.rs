@@ -50,9 +50,20 @@ impl Truth {
 /// The model's true modes (dt only matters for the simulators' set-up).
 pub fn truth(model: &BeamModel) -> Result<Truth> {
     let c = model.clamped_modes()?;
-    let clamped = c.omega_rad_s.iter().zip(&c.zeta).map(|(w, z)| (w / (2.0 * std::f64::consts::PI), *z)).collect();
+    let clamped = c
+        .omega_rad_s
+        .iter()
+        .zip(&c.zeta)
+        .map(|(w, z)| (w / (2.0 * std::f64::consts::PI), *z))
+        .collect();
     let f = ForceSim::new(model, 1e-3, false)?;
-    let free_base = f.omega_rad_s.iter().zip(&f.zeta).skip(1).map(|(w, z)| (w / (2.0 * std::f64::consts::PI), *z)).collect();
+    let free_base = f
+        .omega_rad_s
+        .iter()
+        .zip(&f.zeta)
+        .skip(1)
+        .map(|(w, z)| (w / (2.0 * std::f64::consts::PI), *z))
+        .collect();
     Ok(Truth { clamped, free_base })
 }
 
@@ -60,7 +71,10 @@ pub fn truth(model: &BeamModel) -> Result<Truth> {
 /// (`base_pos_m`, `tip_pos_m`, `force_n`; the command stays clean), seeded.
 pub fn add_noise(rec: &mut Recording, frac: f64, seed: u64) {
     let mut rng = StdRng::seed_from_u64(seed);
-    for ch in [&mut rec.base_pos_m, &mut rec.tip_pos_m, &mut rec.force_n].into_iter().flatten() {
+    for ch in [&mut rec.base_pos_m, &mut rec.tip_pos_m, &mut rec.force_n]
+        .into_iter()
+        .flatten()
+    {
         let n = ch.len() as f64;
         let m = ch.iter().sum::<f64>() / n;
         let rms = (ch.iter().map(|v| (v - m).powi(2)).sum::<f64>() / n).sqrt();
@@ -72,7 +86,13 @@ pub fn add_noise(rec: &mut Recording, frac: f64, seed: u64) {
 
 /// Simulates `spec` (played at its own rate, the simulator's internal rate) on `model`,
 /// decimates to `rate_out_hz` and adds `noise_frac` noise.
-pub fn simulate_sweep(model: &BeamModel, spec: &SweepSpec, rate_out_hz: f64, noise_frac: f64, seed: u64) -> Result<Recording> {
+pub fn simulate_sweep(
+    model: &BeamModel,
+    spec: &SweepSpec,
+    rate_out_hz: f64,
+    noise_frac: f64,
+    seed: u64,
+) -> Result<Recording> {
     let s = generate(spec)?;
     let sim = BaseMotionSim::new(model, 1.0 / spec.sample_rate_hz)?;
     let mut rec = crate::model::cli::decimate(&sim.recording(&s.base_cmd_m, 0.0), rate_out_hz);
@@ -94,13 +114,28 @@ pub struct Row {
 }
 
 /// Runs the protocol for `cases` and returns the rows.
-pub fn run(model: &BeamModel, cases: &[(String, SweepKind, f64)], base: &SweepSpec, noise_frac: f64, opts: &IdentOptions, seed: u64) -> Result<Vec<Row>> {
+pub fn run(
+    model: &BeamModel,
+    cases: &[(String, SweepKind, f64)],
+    base: &SweepSpec,
+    noise_frac: f64,
+    opts: &IdentOptions,
+    seed: u64,
+) -> Result<Vec<Row>> {
     let mut rows = Vec::new();
     for (i, (label, kind, rate)) in cases.iter().enumerate() {
-        let spec = SweepSpec { kind: *kind, rate: *rate, ..base.clone() };
+        let spec = SweepSpec {
+            kind: *kind,
+            rate: *rate,
+            ..base.clone()
+        };
         let rec = simulate_sweep(model, &spec, 100.0, noise_frac, seed + i as u64)?;
         let (result, _) = identify_recording(&rec, opts)?;
-        rows.push(Row { sweep: label.clone(), record_s: rec.time_s[rec.len() - 1], result });
+        rows.push(Row {
+            sweep: label.clone(),
+            record_s: rec.time_s[rec.len() - 1],
+            result,
+        });
     }
     Ok(rows)
 }
@@ -108,24 +143,51 @@ pub fn run(model: &BeamModel, cases: &[(String, SweepKind, f64)], base: &SweepSp
 /// Table 1 layout: f1, f2, ζ1, ζ2 per sweep (mode i = the identified mode nearest to the true
 /// mode i within 10 %), truth in the last row, errors in %.
 pub fn table(rows: &[Row], truth: &[(f64, f64)]) -> String {
-    let mut s = format!("{:<22} {:>8} {:>16} {:>16} {:>16} {:>16}\n", "sweep", "record", "f1 (Hz)", "f2 (Hz)", "zeta1", "zeta2");
-    let pick = |r: &IdentResult, i: usize| r.modes.iter().filter(|m| (m.freq_hz / truth[i].0 - 1.0).abs() < 0.1).min_by(|a, b| (a.freq_hz - truth[i].0).abs().total_cmp(&(b.freq_hz - truth[i].0).abs())).cloned();
+    let mut s = format!(
+        "{:<22} {:>8} {:>16} {:>16} {:>16} {:>16}\n",
+        "sweep", "record", "f1 (Hz)", "f2 (Hz)", "zeta1", "zeta2"
+    );
+    let pick = |r: &IdentResult, i: usize| {
+        r.modes
+            .iter()
+            .filter(|m| (m.freq_hz / truth[i].0 - 1.0).abs() < 0.1)
+            .min_by(|a, b| {
+                (a.freq_hz - truth[i].0)
+                    .abs()
+                    .total_cmp(&(b.freq_hz - truth[i].0).abs())
+            })
+            .cloned()
+    };
     for row in rows {
         let mut cells = Vec::new();
         for i in 0..2 {
             cells.push(match pick(&row.result, i) {
-                Some(m) => format!("{:.4} ({:+.2}%)", m.freq_hz, 100.0 * (m.freq_hz / truth[i].0 - 1.0)),
+                Some(m) => format!(
+                    "{:.4} ({:+.2}%)",
+                    m.freq_hz,
+                    100.0 * (m.freq_hz / truth[i].0 - 1.0)
+                ),
                 None => "-".into(),
             });
         }
         for i in 0..2 {
             cells.push(match pick(&row.result, i) {
-                Some(m) => format!("{:.5} ({:+.0}%)", m.zeta, 100.0 * (m.zeta / truth[i].1 - 1.0)),
+                Some(m) => format!(
+                    "{:.5} ({:+.0}%)",
+                    m.zeta,
+                    100.0 * (m.zeta / truth[i].1 - 1.0)
+                ),
                 None => "-".into(),
             });
         }
-        s += &format!("{:<22} {:>7.1}s {:>16} {:>16} {:>16} {:>16}\n", row.sweep, row.record_s, cells[0], cells[1], cells[2], cells[3]);
+        s += &format!(
+            "{:<22} {:>7.1}s {:>16} {:>16} {:>16} {:>16}\n",
+            row.sweep, row.record_s, cells[0], cells[1], cells[2], cells[3]
+        );
     }
-    s += &format!("{:<22} {:>8} {:>16.4} {:>16.4} {:>16.5} {:>16.5}\n", "truth (model)", "", truth[0].0, truth[1].0, truth[0].1, truth[1].1);
+    s += &format!(
+        "{:<22} {:>8} {:>16.4} {:>16.4} {:>16.5} {:>16.5}\n",
+        "truth (model)", "", truth[0].0, truth[1].0, truth[0].1, truth[1].1
+    );
     s
 }

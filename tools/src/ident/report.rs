@@ -13,21 +13,54 @@ pub fn table(r: &IdentResult) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "FRF: {} -> {}", r.input, r.output);
     if r.df_hz.is_finite() {
-        let _ = writeln!(s, "band {:.3}..{:.3} Hz, line spacing {:.5} Hz, {} average(s)", r.band_hz.0, r.band_hz.1, r.df_hz, r.n_averages);
+        let _ = writeln!(
+            s,
+            "band {:.3}..{:.3} Hz, line spacing {:.5} Hz, {} average(s)",
+            r.band_hz.0, r.band_hz.1, r.df_hz, r.n_averages
+        );
     }
-    let _ = writeln!(s, "{:>4} {:>10} {:>9} {:>9} {:>9}  {}", "mode", "f (Hz)", "+-1sd", "zeta", "+-1sd", "method");
+    let _ = writeln!(
+        s,
+        "{:>4} {:>10} {:>9} {:>9} {:>9}  {}",
+        "mode", "f (Hz)", "+-1sd", "zeta", "+-1sd", "method"
+    );
     for (i, m) in r.modes.iter().enumerate() {
-        let _ = writeln!(s, "{:>4} {:>10.4} {:>9.4} {:>9.5} {:>9.5}  {}", i + 1, m.freq_hz, m.freq_hz_std, m.zeta, m.zeta_std, m.method);
+        let _ = writeln!(
+            s,
+            "{:>4} {:>10.4} {:>9.4} {:>9.5} {:>9.5}  {}",
+            i + 1,
+            m.freq_hz,
+            m.freq_hz_std,
+            m.zeta,
+            m.zeta_std,
+            m.method
+        );
     }
     if r.methods.len() > 1 {
         let _ = writeln!(s, "per method:");
         for mr in &r.methods {
-            let v: Vec<String> = mr.modes.iter().map(|m| format!("{:.4} Hz / {:.5}", m.freq_hz, m.zeta)).collect();
-            let _ = writeln!(s, "  {:>6}: {}", mr.method.name(), if v.is_empty() { "no mode".into() } else { v.join(", ") });
+            let v: Vec<String> = mr
+                .modes
+                .iter()
+                .map(|m| format!("{:.4} Hz / {:.5}", m.freq_hz, m.zeta))
+                .collect();
+            let _ = writeln!(
+                s,
+                "  {:>6}: {}",
+                mr.method.name(),
+                if v.is_empty() {
+                    "no mode".into()
+                } else {
+                    v.join(", ")
+                }
+            );
         }
     }
     if let Some((a1, a2)) = r.rayleigh {
-        let _ = writeln!(s, "Rayleigh damping from modes 1-2 (eq. 22): alpha1 = {a1:.5e} 1/s, alpha2 = {a2:.5e} s");
+        let _ = writeln!(
+            s,
+            "Rayleigh damping from modes 1-2 (eq. 22): alpha1 = {a1:.5e} 1/s, alpha2 = {a2:.5e} s"
+        );
     }
     for w in &r.warnings {
         let _ = writeln!(s, "warning: {w}");
@@ -43,10 +76,42 @@ pub fn plot_frf(path: &Path, frf: &Frf, f_lo: f64, f_hi: f64) -> Result<()> {
     let h1: Vec<f64> = frf.h1[band.clone()].iter().map(|c| c.norm()).collect();
     let h2: Vec<f64> = frf.h2[band.clone()].iter().map(|c| c.norm()).collect();
     let title = format!("FRF {} -> {}", frf.input, frf.output);
-    lines(path, &title, "frequency (Hz)", "|H|", &[Series { label: "|H1|".into(), x: f, y: &h1 }, Series { label: "|H2|".into(), x: f, y: &h2 }], true)?;
-    let stem = path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
+    lines(
+        path,
+        &title,
+        "frequency (Hz)",
+        "|H|",
+        &[
+            Series {
+                label: "|H1|".into(),
+                x: f,
+                y: &h1,
+            },
+            Series {
+                label: "|H2|".into(),
+                x: f,
+                y: &h2,
+            },
+        ],
+        true,
+    )?;
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_default();
     let coh_path = path.with_file_name(format!("{stem}-coherence.svg"));
     let c = &frf.coherence[band];
-    lines(&coh_path, &format!("coherence ({} averages)", frf.n_averages), "frequency (Hz)", "gamma^2", &[Series { label: "coherence".into(), x: f, y: c }], false)?;
+    lines(
+        &coh_path,
+        &format!("coherence ({} averages)", frf.n_averages),
+        "frequency (Hz)",
+        "gamma^2",
+        &[Series {
+            label: "coherence".into(),
+            x: f,
+            y: c,
+        }],
+        false,
+    )?;
     Ok(())
 }

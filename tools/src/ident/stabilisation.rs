@@ -39,7 +39,11 @@ pub struct StabCriteria {
 
 impl Default for StabCriteria {
     fn default() -> Self {
-        StabCriteria { df_rel: 0.01, dzeta_rel: 0.05, min_fraction: 0.3 }
+        StabCriteria {
+            df_rel: 0.01,
+            dzeta_rel: 0.05,
+            min_fraction: 0.3,
+        }
     }
 }
 
@@ -82,11 +86,21 @@ pub struct Diagram {
 pub fn label(raw: Vec<(usize, Vec<Pole>)>, c: &StabCriteria) -> Vec<OrderPoles> {
     let mut out: Vec<OrderPoles> = Vec::with_capacity(raw.len());
     for (order, poles) in raw {
-        let prev = out.last().map(|o| o.poles.iter().map(|p| p.0).collect::<Vec<_>>()).unwrap_or_default();
+        let prev = out
+            .last()
+            .map(|o| o.poles.iter().map(|p| p.0).collect::<Vec<_>>())
+            .unwrap_or_default();
         let lab = poles
             .into_iter()
             .map(|p| {
-                let best = prev.iter().filter(|q| (q.freq_hz / p.freq_hz - 1.0).abs() < c.df_rel).min_by(|a, b| (a.freq_hz - p.freq_hz).abs().total_cmp(&(b.freq_hz - p.freq_hz).abs()));
+                let best = prev
+                    .iter()
+                    .filter(|q| (q.freq_hz / p.freq_hz - 1.0).abs() < c.df_rel)
+                    .min_by(|a, b| {
+                        (a.freq_hz - p.freq_hz)
+                            .abs()
+                            .total_cmp(&(b.freq_hz - p.freq_hz).abs())
+                    });
                 let s = match best {
                     None => Stability::New,
                     Some(q) if (q.zeta / p.zeta - 1.0).abs() < c.dzeta_rel => Stability::Stable,
@@ -103,7 +117,11 @@ pub fn label(raw: Vec<(usize, Vec<Pole>)>, c: &StabCriteria) -> Vec<OrderPoles> 
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(|a, b| a.total_cmp(b));
     let n = v.len();
-    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
 }
 
 fn robust_std(v: &[f64]) -> f64 {
@@ -118,15 +136,27 @@ fn robust_std(v: &[f64]) -> f64 {
 
 /// Selects the modes (clusters of stable poles), sorted by frequency.
 pub fn select(orders: &[OrderPoles], c: &StabCriteria) -> Vec<StableMode> {
-    let mut stable: Vec<Pole> = orders.iter().flat_map(|o| o.poles.iter().filter(|p| p.1 != Stability::New).map(|p| p.0)).collect();
+    let mut stable: Vec<Pole> = orders
+        .iter()
+        .flat_map(|o| {
+            o.poles
+                .iter()
+                .filter(|p| p.1 != Stability::New)
+                .map(|p| p.0)
+        })
+        .collect();
     stable.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
     let mut clusters: Vec<Vec<Pole>> = Vec::new();
     for p in stable {
         match clusters.last_mut() {
-            Some(cl) if {
-                let mut f: Vec<f64> = cl.iter().map(|q| q.freq_hz).collect();
-                (p.freq_hz / median(&mut f) - 1.0).abs() < c.df_rel
-            } => cl.push(p),
+            Some(cl)
+                if {
+                    let mut f: Vec<f64> = cl.iter().map(|q| q.freq_hz).collect();
+                    (p.freq_hz / median(&mut f) - 1.0).abs() < c.df_rel
+                } =>
+            {
+                cl.push(p)
+            }
             _ => clusters.push(vec![p]),
         }
     }
@@ -138,14 +168,26 @@ pub fn select(orders: &[OrderPoles], c: &StabCriteria) -> Vec<StableMode> {
             let mut f: Vec<f64> = cl.iter().map(|p| p.freq_hz).collect();
             let mut z: Vec<f64> = cl.iter().map(|p| p.zeta).collect();
             let (fs, zs) = (robust_std(&f), robust_std(&z));
-            StableMode { freq_hz: median(&mut f), zeta: median(&mut z), freq_hz_std: fs, zeta_std: zs, count: cl.len() }
+            StableMode {
+                freq_hz: median(&mut f),
+                zeta: median(&mut z),
+                freq_hz_std: fs,
+                zeta_std: zs,
+                count: cl.len(),
+            }
         })
         .collect()
 }
 
 /// Runs `estimate(order)` for every order, labels, selects. Errors of single orders are
 /// skipped (an order too high for the data); at least one order must succeed.
-pub fn diagram(method: &str, orders: impl IntoIterator<Item = usize>, c: &StabCriteria, mut estimate: impl FnMut(usize) -> Result<Vec<Pole>>, progress: Option<&indicatif::ProgressBar>) -> Result<Diagram> {
+pub fn diagram(
+    method: &str,
+    orders: impl IntoIterator<Item = usize>,
+    c: &StabCriteria,
+    mut estimate: impl FnMut(usize) -> Result<Vec<Pole>>,
+    progress: Option<&indicatif::ProgressBar>,
+) -> Result<Diagram> {
     let mut raw = Vec::new();
     let mut last_err = None;
     for n in orders {
@@ -162,20 +204,35 @@ pub fn diagram(method: &str, orders: impl IntoIterator<Item = usize>, c: &StabCr
     }
     let labelled = label(raw, c);
     let modes = select(&labelled, c);
-    Ok(Diagram { method: method.to_string(), orders: labelled, modes })
+    Ok(Diagram {
+        method: method.to_string(),
+        orders: labelled,
+        modes,
+    })
 }
 
 impl Diagram {
     /// Text diagram: one line per order, a character per frequency bin of the band
     /// (`o` new, `f` frequency-stable, `s` stable), the selected modes marked below.
     pub fn text(&self, f_lo: f64, f_hi: f64, width: usize) -> String {
-        let col = |f: f64| (((f - f_lo) / (f_hi - f_lo)) * (width - 1) as f64).round().clamp(0.0, (width - 1) as f64) as usize;
-        let mut s = format!("stabilisation diagram ({}), {:.2}..{:.2} Hz; o new, f freq-stable, s stable\n", self.method, f_lo, f_hi);
+        let col = |f: f64| {
+            (((f - f_lo) / (f_hi - f_lo)) * (width - 1) as f64)
+                .round()
+                .clamp(0.0, (width - 1) as f64) as usize
+        };
+        let mut s = format!(
+            "stabilisation diagram ({}), {:.2}..{:.2} Hz; o new, f freq-stable, s stable\n",
+            self.method, f_lo, f_hi
+        );
         for o in &self.orders {
             let mut line = vec![' '; width];
             for (p, st) in &o.poles {
                 let c = col(p.freq_hz);
-                let ch = match st { Stability::New => 'o', Stability::Freq => 'f', Stability::Stable => 's' };
+                let ch = match st {
+                    Stability::New => 'o',
+                    Stability::Freq => 'f',
+                    Stability::Stable => 's',
+                };
                 if line[c] != 's' {
                     line[c] = ch;
                 }
@@ -188,45 +245,102 @@ impl Diagram {
         }
         s += &format!("mode |{}|\n", mark.iter().collect::<String>());
         for m in &self.modes {
-            s += &format!("     {:.4} Hz  zeta {:.5}  ({} stable poles)\n", m.freq_hz, m.zeta, m.count);
+            s += &format!(
+                "     {:.4} Hz  zeta {:.5}  ({} stable poles)\n",
+                m.freq_hz, m.zeta, m.count
+            );
         }
         s
     }
 
     /// SVG: the poles over (frequency, order), on top of the normalised |H| curve.
-    pub fn plot(&self, path: &Path, freq_hz: &[f64], mag: &[f64], f_lo: f64, f_hi: f64) -> Result<()> {
+    pub fn plot(
+        &self,
+        path: &Path,
+        freq_hz: &[f64],
+        mag: &[f64],
+        f_lo: f64,
+        f_hi: f64,
+    ) -> Result<()> {
         let max_order = self.orders.iter().map(|o| o.order).max().unwrap_or(1) as f64;
         let root = SVGBackend::new(path, (1000, 600)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
         let mut chart = ChartBuilder::on(&root)
-            .caption(format!("Stabilisation diagram ({})", self.method), ("sans-serif", 22))
+            .caption(
+                format!("Stabilisation diagram ({})", self.method),
+                ("sans-serif", 22),
+            )
             .margin(15)
             .x_label_area_size(45)
             .y_label_area_size(60)
             .build_cartesian_2d(f_lo..f_hi, 0.0..max_order + 1.0)
             .map_err(|e| anyhow!("{e}"))?;
-        chart.configure_mesh().x_desc("frequency (Hz)").y_desc("model order").draw().map_err(|e| anyhow!("{e}"))?;
+        chart
+            .configure_mesh()
+            .x_desc("frequency (Hz)")
+            .y_desc("model order")
+            .draw()
+            .map_err(|e| anyhow!("{e}"))?;
         // |H| in dB scaled onto the order axis.
-        let band: Vec<(f64, f64)> = freq_hz.iter().zip(mag).filter(|(f, m)| **f >= f_lo && **f <= f_hi && **m > 0.0).map(|(&f, &m)| (f, 20.0 * m.log10())).collect();
+        let band: Vec<(f64, f64)> = freq_hz
+            .iter()
+            .zip(mag)
+            .filter(|(f, m)| **f >= f_lo && **f <= f_hi && **m > 0.0)
+            .map(|(&f, &m)| (f, 20.0 * m.log10()))
+            .collect();
         if !band.is_empty() {
-            let (lo, hi) = band.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.1), b.max(p.1)));
+            let (lo, hi) = band
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+                    (a.min(p.1), b.max(p.1))
+                });
             let sc = |v: f64| 0.5 + max_order * (v - lo) / (hi - lo).max(1e-9);
-            chart.draw_series(LineSeries::new(band.iter().map(|&(f, v)| (f, sc(v))), RGBColor(150, 150, 150).stroke_width(1)))
+            chart
+                .draw_series(LineSeries::new(
+                    band.iter().map(|&(f, v)| (f, sc(v))),
+                    RGBColor(150, 150, 150).stroke_width(1),
+                ))
                 .map_err(|e| anyhow!("{e}"))?
                 .label("|H| (dB, scaled)")
-                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(150, 150, 150)));
+                .legend(|(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(150, 150, 150))
+                });
         }
-        for (st, color, name) in [(Stability::New, RGBColor(200, 200, 200), "new"), (Stability::Freq, BLUE, "frequency stable"), (Stability::Stable, RED, "stable")] {
-            let pts: Vec<(f64, f64)> = self.orders.iter().flat_map(|o| o.poles.iter().filter(move |p| p.1 == st && p.0.freq_hz >= f_lo && p.0.freq_hz <= f_hi).map(move |p| (p.0.freq_hz, o.order as f64))).collect();
-            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
+        for (st, color, name) in [
+            (Stability::New, RGBColor(200, 200, 200), "new"),
+            (Stability::Freq, BLUE, "frequency stable"),
+            (Stability::Stable, RED, "stable"),
+        ] {
+            let pts: Vec<(f64, f64)> = self
+                .orders
+                .iter()
+                .flat_map(|o| {
+                    o.poles
+                        .iter()
+                        .filter(move |p| p.1 == st && p.0.freq_hz >= f_lo && p.0.freq_hz <= f_hi)
+                        .map(move |p| (p.0.freq_hz, o.order as f64))
+                })
+                .collect();
+            chart
+                .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
                 .map_err(|e| anyhow!("{e}"))?
                 .label(name)
                 .legend(move |(x, y)| Circle::new((x + 10, y), 3, color.filled()));
         }
         for m in &self.modes {
-            chart.draw_series(LineSeries::new(vec![(m.freq_hz, 0.0), (m.freq_hz, max_order + 1.0)], BLACK.stroke_width(1))).map_err(|e| anyhow!("{e}"))?;
+            chart
+                .draw_series(LineSeries::new(
+                    vec![(m.freq_hz, 0.0), (m.freq_hz, max_order + 1.0)],
+                    BLACK.stroke_width(1),
+                ))
+                .map_err(|e| anyhow!("{e}"))?;
         }
-        chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| anyhow!("{e}"))?;
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| anyhow!("{e}"))?;
         root.present().map_err(|e| anyhow!("{e}"))?;
         Ok(())
     }
@@ -241,9 +355,15 @@ mod tests {
         let c = StabCriteria::default();
         let raw: Vec<(usize, Vec<Pole>)> = (2..12)
             .map(|n| {
-                let mut v = vec![Pole { freq_hz: 1.1 + 1e-4 * n as f64, zeta: 0.0074 }];
+                let mut v = vec![Pole {
+                    freq_hz: 1.1 + 1e-4 * n as f64,
+                    zeta: 0.0074,
+                }];
                 // A spurious pole wandering around.
-                v.push(Pole { freq_hz: 3.0 + 0.3 * n as f64, zeta: 0.05 });
+                v.push(Pole {
+                    freq_hz: 3.0 + 0.3 * n as f64,
+                    zeta: 0.05,
+                });
                 (n, v)
             })
             .collect();
@@ -251,7 +371,11 @@ mod tests {
         let m = select(&l, &c);
         assert_eq!(m.len(), 1, "{m:?}");
         assert!((m[0].freq_hz - 1.1007).abs() < 1e-3 && m[0].freq_hz_std > 0.0);
-        let d = Diagram { method: "t".into(), orders: l, modes: m };
+        let d = Diagram {
+            method: "t".into(),
+            orders: l,
+            modes: m,
+        };
         assert!(d.text(0.5, 8.0, 60).contains('s'));
     }
 }

@@ -144,7 +144,11 @@ impl SweepSpec {
         pos(self.stroke_max_m, "stroke_max_m")?;
         pos(self.accel_max_m_s2, "accel_max_m_s2")?;
         if !(self.f_b_hz > self.f_a_hz) {
-            bail!("sweep: f_b ({}) must exceed f_a ({})", self.f_b_hz, self.f_a_hz);
+            bail!(
+                "sweep: f_b ({}) must exceed f_a ({})",
+                self.f_b_hz,
+                self.f_a_hz
+            );
         }
         if !(self.rate.is_finite() && self.rate != 0.0) {
             bail!("sweep: rate beta must be non-zero (got {})", self.rate);
@@ -155,7 +159,9 @@ impl SweepSpec {
         if let Some(t) = self.tip_max_m {
             pos(t, "tip_max_m")?;
             if self.tip_modes.is_empty() {
-                bail!("sweep: a tip-deflection limit needs the beam's modes (a rig file or --mode)");
+                bail!(
+                    "sweep: a tip-deflection limit needs the beam's modes (a rig file or --mode)"
+                );
             }
         }
         if !(self.fade_s >= 0.0 && self.lead_s >= 0.0 && self.tail_s >= 0.0) {
@@ -166,16 +172,26 @@ impl SweepSpec {
             bail!("sweep: duration {t:.0} s is longer than an hour; raise |beta|");
         }
         if 2.0 * self.fade_s >= t {
-            bail!("sweep: the fades (2 x {} s) are longer than the sweep ({t:.2} s)", self.fade_s);
+            bail!(
+                "sweep: the fades (2 x {} s) are longer than the sweep ({t:.2} s)",
+                self.fade_s
+            );
         }
         Ok(())
     }
 
     /// Instantaneous frequency (Hz) and phase (rad) at time `t` (s) from the sweep start.
     pub fn freq_phase(&self, t: f64) -> (f64, f64) {
-        let f0 = if self.rate > 0.0 { self.f_a_hz } else { self.f_b_hz };
+        let f0 = if self.rate > 0.0 {
+            self.f_a_hz
+        } else {
+            self.f_b_hz
+        };
         match self.kind {
-            SweepKind::Linear => (f0 + self.rate * t, 2.0 * PI * (f0 * t + 0.5 * self.rate * t * t)),
+            SweepKind::Linear => (
+                f0 + self.rate * t,
+                2.0 * PI * (f0 * t + 0.5 * self.rate * t * t),
+            ),
             SweepKind::Exponential => {
                 let k = self.rate * std::f64::consts::LN_2 / 60.0;
                 (f0 * (k * t).exp(), 2.0 * PI * f0 * (k * t).exp_m1() / k)
@@ -229,10 +245,12 @@ fn moving_mean(x: &[f64], h: usize) -> Vec<f64> {
     for k in 0..n {
         c[k + 1] = c[k] + x[k];
     }
-    (0..n).map(|k| {
-        let (a, b) = (k.saturating_sub(h), (k + h + 1).min(n));
-        (c[b] - c[a]) / (b - a) as f64
-    }).collect()
+    (0..n)
+        .map(|k| {
+            let (a, b) = (k.saturating_sub(h), (k + h + 1).min(n));
+            (c[b] - c[a]) / (b - a) as f64
+        })
+        .collect()
 }
 
 /// A generated sweep.
@@ -263,7 +281,9 @@ pub fn generate(spec: &SweepSpec) -> Result<Sweep> {
     let n = n_lead + n_sweep + n_tail;
     let mut y = vec![0.0; n];
     let mut fr = vec![0.0; n];
-    let raw: Vec<f64> = (0..n_sweep).map(|k| spec.amplitude_m(spec.freq_phase(k as f64 * dt).0)).collect();
+    let raw: Vec<f64> = (0..n_sweep)
+        .map(|k| spec.amplitude_m(spec.freq_phase(k as f64 * dt).0))
+        .collect();
     // The limits can switch abruptly (e.g. at an anti-resonance of the tip transmissibility);
     // a moving minimum over 2 w then a moving mean over w keeps the envelope below every
     // limit while bounding its rate of change (w = 1 s).
@@ -273,7 +293,9 @@ pub fn generate(spec: &SweepSpec) -> Result<Sweep> {
         let t = k as f64 * dt;
         let (f, ph) = spec.freq_phase(t);
         let g = if spec.fade_s > 0.0 {
-            let e = (t / spec.fade_s).min((t_sweep - t) / spec.fade_s).clamp(0.0, 1.0);
+            let e = (t / spec.fade_s)
+                .min((t_sweep - t) / spec.fade_s)
+                .clamp(0.0, 1.0);
             0.5 - 0.5 * (PI * e).cos()
         } else {
             1.0
@@ -282,8 +304,18 @@ pub fn generate(spec: &SweepSpec) -> Result<Sweep> {
         fr[n_lead + k] = f;
     }
     let peak_stroke_m = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let peak_accel_m_s2 = y.windows(3).map(|w| ((w[2] - 2.0 * w[1] + w[0]) / (dt * dt)).abs()).fold(0.0, f64::max);
-    Ok(Sweep { time_s: (0..n).map(|k| k as f64 * dt).collect(), base_cmd_m: y, freq_hz: fr, duration_s: t_sweep, peak_stroke_m, peak_accel_m_s2 })
+    let peak_accel_m_s2 = y
+        .windows(3)
+        .map(|w| ((w[2] - 2.0 * w[1] + w[0]) / (dt * dt)).abs())
+        .fold(0.0, f64::max);
+    Ok(Sweep {
+        time_s: (0..n).map(|k| k as f64 * dt).collect(),
+        base_cmd_m: y,
+        freq_hz: fr,
+        duration_s: t_sweep,
+        peak_stroke_m,
+        peak_accel_m_s2,
+    })
 }
 
 #[cfg(test)]
@@ -305,10 +337,14 @@ mod tests {
 
     #[test]
     fn instantaneous_frequency_is_the_phase_derivative() {
-        for spec in [SweepSpec::paper(SweepKind::Linear, 1.0), SweepSpec::paper(SweepKind::Exponential, -5.0)] {
+        for spec in [
+            SweepSpec::paper(SweepKind::Linear, 1.0),
+            SweepSpec::paper(SweepKind::Exponential, -5.0),
+        ] {
             for &t in &[0.5, 3.0, 7.0] {
                 let h = 1e-5;
-                let d = (spec.freq_phase(t + h).1 - spec.freq_phase(t - h).1) / (2.0 * h) / (2.0 * PI);
+                let d =
+                    (spec.freq_phase(t + h).1 - spec.freq_phase(t - h).1) / (2.0 * h) / (2.0 * PI);
                 assert!((d / spec.freq_phase(t).0 - 1.0).abs() < 1e-6, "{t}");
             }
         }
@@ -318,11 +354,26 @@ mod tests {
     fn envelope_respects_stroke_acceleration_and_tip_limits() {
         let mut spec = SweepSpec::paper(SweepKind::Exponential, 7.0);
         spec.tip_max_m = Some(0.01);
-        spec.tip_modes = vec![TipMode { freq_hz: 1.1, zeta: 0.0074, gain: 1.566 }, TipMode { freq_hz: 6.9, zeta: 0.0074, gain: -0.868 }];
+        spec.tip_modes = vec![
+            TipMode {
+                freq_hz: 1.1,
+                zeta: 0.0074,
+                gain: 1.566,
+            },
+            TipMode {
+                freq_hz: 6.9,
+                zeta: 0.0074,
+                gain: -0.868,
+            },
+        ];
         let s = generate(&spec).unwrap();
         assert!(s.peak_stroke_m <= spec.stroke_max_m + 1e-12);
         // Second differences of a sampled sine slightly under-read; the fade adds a little.
-        assert!(s.peak_accel_m_s2 <= 1.1 * spec.accel_max_m_s2, "{}", s.peak_accel_m_s2);
+        assert!(
+            s.peak_accel_m_s2 <= 1.1 * spec.accel_max_m_s2,
+            "{}",
+            s.peak_accel_m_s2
+        );
         // Steady-state tip deflection bound at every instant.
         for (y, f) in s.base_cmd_m.iter().zip(&s.freq_hz) {
             if *f > 0.0 {
@@ -337,7 +388,15 @@ mod tests {
 
     #[test]
     fn uniform_cantilever_transmissibility_tends_to_minus_one() {
-        let m: Vec<TipMode> = [1.0, 6.27, 17.55].iter().zip(UNIFORM_CANTILEVER_GAINS).map(|(&f, g)| TipMode { freq_hz: f, zeta: 0.01, gain: g }).collect();
+        let m: Vec<TipMode> = [1.0, 6.27, 17.55]
+            .iter()
+            .zip(UNIFORM_CANTILEVER_GAINS)
+            .map(|(&f, g)| TipMode {
+                freq_hz: f,
+                zeta: 0.01,
+                gain: g,
+            })
+            .collect();
         assert!(tip_transmissibility(&m, 1e-3) < 1e-5);
         // Far above the modes W/Y -> -(sum of the gains); the infinite series sums to 1.
         let sum: f64 = UNIFORM_CANTILEVER_GAINS.iter().sum();

@@ -194,10 +194,16 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         a.out.display()
     );
     let tip = rec.tip_pos_m.as_ref().context("internal: no tip channel")?;
-    let (start, target) = (y.first().copied().unwrap_or(0.0), y.last().copied().unwrap_or(0.0));
+    let (start, target) = (
+        y.first().copied().unwrap_or(0.0),
+        y.last().copied().unwrap_or(0.0),
+    );
     if (target - start).abs() > 1e-9 {
         // The command's last change (the shaped command's end).
-        let end_s = y.iter().rposition(|v| (v - target).abs() > 1e-12).map_or(0.0, |k| (k + 1) as f64 / SIM_RATE_HZ);
+        let end_s = y
+            .iter()
+            .rposition(|v| (v - target).abs() > 1e-12)
+            .map_or(0.0, |k| (k + 1) as f64 / SIM_RATE_HZ);
         let band = 0.02 * (target - start).abs();
         let m = crate::measures::measure(&rec.time_s, tip, start, target, end_s, end_s, band);
         println!(
@@ -211,7 +217,10 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         );
     } else {
         let peak = tip.iter().map(|p| (p - target).abs()).fold(0.0, f64::max);
-        println!("largest tip excursion from the final base position {:.3} mm", peak * 1e3);
+        println!(
+            "largest tip excursion from the final base position {:.3} mm",
+            peak * 1e3
+        );
     }
     if let Some(p) = &a.plot {
         let base = rec.base_pos_m.as_ref().unwrap();
@@ -242,9 +251,17 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
 }
 
 /// `simulate --force`: the force-driven free carriage.
-fn simulate_force(a: &SimulateArgs, rig: &Rig, model: &BeamModel, p: &std::path::Path) -> Result<()> {
+fn simulate_force(
+    a: &SimulateArgs,
+    rig: &Rig,
+    model: &BeamModel,
+    p: &std::path::Path,
+) -> Result<()> {
     let rec = Recording::read_csv(p)?;
-    let u = rec.force_n.clone().with_context(|| format!("{}: no force_n column", p.display()))?;
+    let u = rec
+        .force_n
+        .clone()
+        .with_context(|| format!("{}: no force_n column", p.display()))?;
     if u.len() < 2 {
         bail!("{}: needs at least 2 samples of force_n", p.display());
     }
@@ -255,11 +272,21 @@ fn simulate_force(a: &SimulateArgs, rig: &Rig, model: &BeamModel, p: &std::path:
         .map(|k| u[((k as f64 * rate / SIM_RATE_HZ + 1e-9).floor() as usize).min(u.len() - 1)])
         .collect();
     let sim = super::sim::ForceSim::new(model, 1.0 / SIM_RATE_HZ, false)?;
-    let out = decimate(&sim.recording(&u_fine, 1.0 / SIM_RATE_HZ), rig.sample_rate_hz());
+    let out = decimate(
+        &sim.recording(&u_fine, 1.0 / SIM_RATE_HZ),
+        rig.sample_rate_hz(),
+    );
     out.write_csv(&a.out)?;
-    let base = out.base_pos_m.as_ref().context("internal: no base channel")?;
+    let base = out
+        .base_pos_m
+        .as_ref()
+        .context("internal: no base channel")?;
     let tip = out.tip_pos_m.as_ref().context("internal: no tip channel")?;
-    let defl = tip.iter().zip(base).map(|(t, b)| (t - b).abs()).fold(0.0, f64::max);
+    let defl = tip
+        .iter()
+        .zip(base)
+        .map(|(t, b)| (t - b).abs())
+        .fold(0.0, f64::max);
     println!(
         "simulated the free carriage under the motor force of {} ({} samples at {rate:.1} Hz, zero-order hold): \
          {} samples at {} Hz -> {}",
@@ -283,8 +310,16 @@ fn simulate_force(a: &SimulateArgs, rig: &Rig, model: &BeamModel, p: &std::path:
             "time (s)",
             "position (mm)",
             &[
-                Series { label: "base".into(), x: &out.time_s, y: &b },
-                Series { label: "tip (absolute)".into(), x: &out.time_s, y: &t },
+                Series {
+                    label: "base".into(),
+                    x: &out.time_s,
+                    y: &b,
+                },
+                Series {
+                    label: "tip (absolute)".into(),
+                    x: &out.time_s,
+                    y: &t,
+                },
             ],
             false,
         )?;

@@ -106,11 +106,16 @@ impl BeamModel {
     /// (N), outputs `[y (m), w(l) (m), y + w(l) (m)]`.
     pub fn state_space_force(&self) -> Result<StateSpace> {
         let dim = self.mass.nrows();
-        let minv = self.mass.clone().try_inverse().context("mass matrix is singular")?;
+        let minv = self
+            .mass
+            .clone()
+            .try_inverse()
+            .context("mass matrix is singular")?;
         let c = self.free_base_damping()?;
         let mut a = DMatrix::zeros(2 * dim, 2 * dim);
         a.view_mut((0, dim), (dim, dim)).fill_with_identity();
-        a.view_mut((dim, 0), (dim, dim)).copy_from(&(-&minv * &self.stiffness));
+        a.view_mut((dim, 0), (dim, dim))
+            .copy_from(&(-&minv * &self.stiffness));
         a.view_mut((dim, dim), (dim, dim)).copy_from(&(-&minv * &c));
         let mut b = DMatrix::zeros(2 * dim, 1);
         b.view_mut((dim, 0), (dim, 1)).copy_from(&minv.column(0));
@@ -157,7 +162,14 @@ impl BeamModel {
         cc.view_mut((1, 0), (1, nb)).copy_from(&(&ht * &ak));
         cc.view_mut((1, nb), (1, nb)).copy_from(&(&ht * &ac));
         let d = DMatrix::from_column_slice(2, 1, &[0.0, self.mass[(0, 0)] + (&ht * &bq)[(0, 0)]]);
-        Ok(StateSpace { a, b, c: cc, d, inputs: vec!["base_acc_m_s2".into()], outputs: vec!["tip_defl_m".into(), "force_n".into()] })
+        Ok(StateSpace {
+            a,
+            b,
+            c: cc,
+            d,
+            inputs: vec!["base_acc_m_s2".into()],
+            outputs: vec!["tip_defl_m".into(), "force_n".into()],
+        })
     }
 }
 
@@ -169,7 +181,14 @@ mod tests {
 
     fn model(n: usize) -> BeamModel {
         let rig = Rig::from_toml_file("../rigs/paper.toml").unwrap();
-        BeamModel::new(&rig, &ModelOptions { n_modes: n, ..Default::default() }).unwrap()
+        BeamModel::new(
+            &rig,
+            &ModelOptions {
+                n_modes: n,
+                ..Default::default()
+            },
+        )
+        .unwrap()
     }
 
     #[test]
@@ -177,13 +196,36 @@ mod tests {
         let m = model(4);
         let dt = 1e-3;
         let ss = m.state_space_force().unwrap().discretize_zoh(dt).unwrap();
-        let u: Vec<f64> = (0..3000).map(|k| if k < 300 { 5.0 } else if k < 600 { -5.0 } else { 0.0 }).collect();
-        let out = ss.simulate_discrete(&nalgebra::DVector::zeros(ss.a.nrows()), &DMatrix::from_column_slice(u.len(), 1, &u));
+        let u: Vec<f64> = (0..3000)
+            .map(|k| {
+                if k < 300 {
+                    5.0
+                } else if k < 600 {
+                    -5.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let out = ss.simulate_discrete(
+            &nalgebra::DVector::zeros(ss.a.nrows()),
+            &DMatrix::from_column_slice(u.len(), 1, &u),
+        );
         let (y, w) = ForceSim::new(&m, dt, false).unwrap().run(&u);
         let scale = y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
         for k in 0..u.len() {
-            assert!((out[(k, 0)] - y[k]).abs() < 1e-9 * scale, "y at {k}: {} vs {}", out[(k, 0)], y[k]);
-            assert!((out[(k, 1)] - w[k]).abs() < 1e-9 * scale, "w at {k}: {} vs {}", out[(k, 1)], w[k]);
+            assert!(
+                (out[(k, 0)] - y[k]).abs() < 1e-9 * scale,
+                "y at {k}: {} vs {}",
+                out[(k, 0)],
+                y[k]
+            );
+            assert!(
+                (out[(k, 1)] - w[k]).abs() < 1e-9 * scale,
+                "w at {k}: {} vs {}",
+                out[(k, 1)],
+                w[k]
+            );
         }
     }
 
@@ -198,7 +240,16 @@ mod tests {
         let k = m.stiffness.view((1, 1), (nb, nb)).into_owned();
         let h = m.mass.view((1, 0), (nb, 1)).into_owned();
         let w_static = -(m.tip.rows(1, nb).transpose() * k.try_inverse().unwrap() * h)[(0, 0)];
-        assert!((g[(0, 0)] / w_static - 1.0).abs() < 1e-9, "{} vs {w_static}", g[(0, 0)]);
-        assert!((g[(1, 0)] / m.mass[(0, 0)] - 1.0).abs() < 1e-9, "{} vs {}", g[(1, 0)], m.mass[(0, 0)]);
+        assert!(
+            (g[(0, 0)] / w_static - 1.0).abs() < 1e-9,
+            "{} vs {w_static}",
+            g[(0, 0)]
+        );
+        assert!(
+            (g[(1, 0)] / m.mass[(0, 0)] - 1.0).abs() < 1e-9,
+            "{} vs {}",
+            g[(1, 0)],
+            m.mass[(0, 0)]
+        );
     }
 }

@@ -28,7 +28,11 @@ pub struct TruthArgs {
 
 /// Runs `truth`.
 pub fn truth(a: TruthArgs) -> Result<()> {
-    let opts = TruthOptions { duration_s: a.duration_s, n_fit: a.n_fit.max(1), ..Default::default() };
+    let opts = TruthOptions {
+        duration_s: a.duration_s,
+        n_fit: a.n_fit.max(1),
+        ..Default::default()
+    };
     let case = generate(&a.effect, a.seed, &opts)?;
     case.write(&a.out)?;
     println!(

@@ -69,7 +69,11 @@ impl FeBeam {
     /// and the influence vector r. Errors: non-positive sizes, a buckled upright beam is
     /// reported by [`FeBeam::modes`].
     pub fn assemble(&self) -> Result<(DMatrix<f64>, DMatrix<f64>, DVector<f64>)> {
-        if !(self.length_m > 0.0 && self.density_kg_m3 > 0.0 && self.youngs_modulus_pa > 0.0 && self.elements >= 2) {
+        if !(self.length_m > 0.0
+            && self.density_kg_m3 > 0.0
+            && self.youngs_modulus_pa > 0.0
+            && self.elements >= 2)
+        {
             bail!("FE beam needs positive length, density, modulus and >= 2 elements");
         }
         let ne = self.elements;
@@ -113,7 +117,8 @@ impl FeBeam {
             let base = 2 * e;
             for p in 0..4 {
                 for q in 0..4 {
-                    k[(base + p, base + q)] += ei / (h * h * h) * ke[p][q] + n_ax / (30.0 * h) * kg[p][q];
+                    k[(base + p, base + q)] +=
+                        ei / (h * h * h) * ke[p][q] + n_ax / (30.0 * h) * kg[p][q];
                     m[(base + p, base + q)] += rho_a * h / 420.0 * me[p][q];
                 }
             }
@@ -138,7 +143,10 @@ impl FeBeam {
     /// The lowest `n_keep` modes (mass-normalised). Errors: the beam buckles.
     pub fn modes(&self, n_keep: usize) -> Result<FeModes> {
         let (m, k, r) = self.assemble()?;
-        let chol = m.clone().cholesky().context("FE mass matrix not positive definite")?;
+        let chol = m
+            .clone()
+            .cholesky()
+            .context("FE mass matrix not positive definite")?;
         let linv = chol.l().try_inverse().context("FE mass matrix singular")?;
         let c = &linv * &k * linv.transpose();
         let c = 0.5 * (&c + c.transpose());
@@ -196,9 +204,16 @@ mod tests {
         let m = b.modes(3).unwrap();
         let ei = b.youngs_modulus_pa * 0.025 * 0.00115f64.powi(3) / 12.0;
         let rho_a = b.density_kg_m3 * 0.025 * 0.00115;
-        for (r, bl) in [1.875_104_07, 4.694_091_13, 7.854_757_44].iter().enumerate() {
+        for (r, bl) in [1.875_104_07, 4.694_091_13, 7.854_757_44]
+            .iter()
+            .enumerate()
+        {
             let exact = bl * bl / (b.length_m * b.length_m) * (ei / rho_a).sqrt();
-            assert!((m.omega_rad_s[r] / exact - 1.0).abs() < 1e-4, "mode {r}: {} vs {exact}", m.omega_rad_s[r]);
+            assert!(
+                (m.omega_rad_s[r] / exact - 1.0).abs() < 1e-4,
+                "mode {r}: {} vs {exact}",
+                m.omega_rad_s[r]
+            );
         }
         // all modes together carry the whole beam mass
         let all = b.modes(60).unwrap();
@@ -210,10 +225,38 @@ mod tests {
     fn extensions_move_frequencies_the_right_way() {
         let f1 = |b: &FeBeam| b.modes(1).unwrap().omega_rad_s[0];
         let nominal = f1(&strip());
-        assert!(f1(&FeBeam { tip_mass_kg: 0.01, ..strip() }) < nominal);
-        assert!(f1(&FeBeam { root_stiffness_nm_per_rad: Some(5.0), ..strip() }) < nominal);
-        assert!(f1(&FeBeam { gravity_sign: 1.0, ..strip() }) > nominal);
-        assert!(f1(&FeBeam { gravity_sign: -1.0, ..strip() }) < nominal);
-        assert!((f1(&FeBeam { root_stiffness_nm_per_rad: Some(1e9), ..strip() }) / nominal - 1.0).abs() < 1e-5);
+        assert!(
+            f1(&FeBeam {
+                tip_mass_kg: 0.01,
+                ..strip()
+            }) < nominal
+        );
+        assert!(
+            f1(&FeBeam {
+                root_stiffness_nm_per_rad: Some(5.0),
+                ..strip()
+            }) < nominal
+        );
+        assert!(
+            f1(&FeBeam {
+                gravity_sign: 1.0,
+                ..strip()
+            }) > nominal
+        );
+        assert!(
+            f1(&FeBeam {
+                gravity_sign: -1.0,
+                ..strip()
+            }) < nominal
+        );
+        assert!(
+            (f1(&FeBeam {
+                root_stiffness_nm_per_rad: Some(1e9),
+                ..strip()
+            }) / nominal
+                - 1.0)
+                .abs()
+                < 1e-5
+        );
     }
 }

@@ -77,7 +77,11 @@ pub struct TruthOptions {
 
 impl Default for TruthOptions {
     fn default() -> Self {
-        TruthOptions { duration_s: 60.0, n_fit: 2, rate_hz: 100.0 }
+        TruthOptions {
+            duration_s: 60.0,
+            n_fit: 2,
+            rate_hz: 100.0,
+        }
     }
 }
 
@@ -134,22 +138,36 @@ pub fn generate(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCas
 
 fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCase> {
     if effect != "none" && !EFFECTS.contains(&effect) {
-        bail!("unknown effect `{effect}` (one of none, {})", EFFECTS.join(", "));
+        bail!(
+            "unknown effect `{effect}` (one of none, {})",
+            EFFECTS.join(", ")
+        );
     }
     let mut rng = StdRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0x5eed);
     let rate = opts.rate_hz;
     let pi2 = 2.0 * std::f64::consts::PI;
     let mut truth: BTreeMap<String, serde_json::Value> = BTreeMap::new();
     // carriage-only for some base-side cases
-    let base_side = matches!(effect, "base_friction" | "cogging_ripple" | "servo_lag" | "none");
+    let base_side = matches!(
+        effect,
+        "base_friction" | "cogging_ripple" | "servo_lag" | "none"
+    );
     let with_beam = !(base_side && rng.gen_bool(0.25));
     // geometry with f1 in 0.6..5 Hz
     let mut geo;
     loop {
         let steel = rng.gen_bool(0.5);
-        let (density, youngs) = if steel { (rng.gen_range(7800.0..8200.0), rng.gen_range(1.9e11..2.1e11)) } else { (2700.0, rng.gen_range(6.8e10..7.2e10)) };
+        let (density, youngs) = if steel {
+            (rng.gen_range(7800.0..8200.0), rng.gen_range(1.9e11..2.1e11))
+        } else {
+            (2700.0, rng.gen_range(6.8e10..7.2e10))
+        };
         let w0 = rng.gen_range(0.012..0.04);
-        let taper = if rng.gen_bool(0.5) { 1.0 } else { rng.gen_range(0.5..1.0) };
+        let taper = if rng.gen_bool(0.5) {
+            1.0
+        } else {
+            rng.gen_range(0.5..1.0)
+        };
         geo = Geometry {
             length_m: rng.gen_range(0.35..1.0),
             density,
@@ -169,7 +187,11 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         let target = rng.gen_range(0.04..0.12);
         for _ in 0..30 {
             let f0 = f1_hz(&beam)?;
-            let fg = f1_hz(&FeBeam { gravity_sign: sign, ..beam.clone() }).unwrap_or(0.0);
+            let fg = f1_hz(&FeBeam {
+                gravity_sign: sign,
+                ..beam.clone()
+            })
+            .unwrap_or(0.0);
             let shift = (fg / f0 - 1.0).abs();
             if (shift / target - 1.0).abs() < 0.05 {
                 break;
@@ -179,11 +201,17 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         }
         geo.thickness = beam.thickness_m.0;
         beam.gravity_sign = sign;
-        truth.insert("orientation".into(), (if sign > 0.0 { "hanging" } else { "upright" }).into());
+        truth.insert(
+            "orientation".into(),
+            (if sign > 0.0 { "hanging" } else { "upright" }).into(),
+        );
     }
     let beam_mass = geo.density * 0.5 * (geo.width.0 + geo.width.1) * geo.thickness * geo.length_m;
     let carriage = rng.gen_range(1.0..6.0);
-    let zeta = (log_uniform(&mut rng, 0.003, 0.03), log_uniform(&mut rng, 0.003, 0.03));
+    let zeta = (
+        log_uniform(&mut rng, 0.003, 0.03),
+        log_uniform(&mut rng, 0.003, 0.03),
+    );
     // sensors
     let sensors = Sensors {
         tip_noise_m: log_uniform(&mut rng, 2e-5, 3e-4),
@@ -199,7 +227,11 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         zeta,
         carriage_mass_kg: carriage,
         feedforward_mass_kg: carriage + if with_beam { beam_mass } else { 0.0 },
-        servo: Servo { position_bandwidth_hz: rng.gen_range(30.0..60.0), velocity_bandwidth_hz: 0.0, feedforward: true },
+        servo: Servo {
+            position_bandwidth_hz: rng.gen_range(30.0..60.0),
+            velocity_bandwidth_hz: 0.0,
+            feedforward: true,
+        },
         friction: Friction::default(),
         cogging: None,
         mount: None,
@@ -234,9 +266,14 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
             // a few noise σ, and at least 3–8 % of the peak inertial force (below that the
             // 100 Hz discretisation of the motor force masks it; see docs/diagnose.md)
             let inertial = (carriage + beam_mass) * spec.accel_m_s2.1;
-            let fc = (rng.gen_range(1.5..4.0) * sensors.force_noise_n).max(rng.gen_range(0.03..0.08) * inertial);
+            let fc = (rng.gen_range(1.5..4.0) * sensors.force_noise_n)
+                .max(rng.gen_range(0.03..0.08) * inertial);
             let visc = rng.gen_range(0.0..1.0) * fc / v_typ;
-            plant.friction = Friction { coulomb_n: fc, viscous_n_s_per_m: visc, stribeck_m_s: 2e-3 };
+            plant.friction = Friction {
+                coulomb_n: fc,
+                viscous_n_s_per_m: visc,
+                stribeck_m_s: 2e-3,
+            };
             truth.insert("friction_n".into(), fc.into());
             truth.insert("viscous_n_s_per_m".into(), visc.into());
         }
@@ -248,10 +285,18 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
             truth.insert("cogging_pitch_m".into(), p.into());
         }
         "servo_lag" => {
-            let sigma = if has_base { 50.0 * sensors.encoder_noise_m } else { sensors.tip_noise_m };
+            let sigma = if has_base {
+                50.0 * sensors.encoder_noise_m
+            } else {
+                sensors.tip_noise_m
+            };
             let wp = spec.speed_m_s.1 / (rng.gen_range(2.0..6.0) * sigma);
             let f = (wp / pi2).clamp(3.0, 60.0);
-            plant.servo = Servo { position_bandwidth_hz: f, velocity_bandwidth_hz: (4.0 * f).min(150.0), feedforward: false };
+            plant.servo = Servo {
+                position_bandwidth_hz: f,
+                velocity_bandwidth_hz: (4.0 * f).min(150.0),
+                feedforward: false,
+            };
             truth.insert("servo_bandwidth_hz".into(), f.into());
         }
         "tip_mass" => {
@@ -265,7 +310,10 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
             let (mut lo, mut hi) = (1e-3f64.ln(), 1e6f64.ln());
             for _ in 0..50 {
                 let mid = 0.5 * (lo + hi);
-                let f = f1_hz(&FeBeam { root_stiffness_nm_per_rad: Some(mid.exp()), ..beam.clone() })?;
+                let f = f1_hz(&FeBeam {
+                    root_stiffness_nm_per_rad: Some(mid.exp()),
+                    ..beam.clone()
+                })?;
                 if f / f0 < target {
                     lo = mid;
                 } else {
@@ -277,14 +325,19 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
             truth.insert("root_stiffness_nm_per_rad".into(), kr.into());
         }
         "sensor_delay" => {
-            let tau = (rng.gen_range(2.0..6.0) * sensors.tip_noise_m / spec.speed_m_s.1).clamp(0.002, 0.03);
+            let tau = (rng.gen_range(2.0..6.0) * sensors.tip_noise_m / spec.speed_m_s.1)
+                .clamp(0.002, 0.03);
             plant.sensors.tip_delay_s = tau;
             truth.insert("sensor_delay_s".into(), tau.into());
         }
         "mount_resonance" => {
             let f2 = beam.modes(2)?.omega_rad_s[1] / pi2;
             let fm = (rng.gen_range(1.3..3.0) * f2).clamp(8.0, 0.4 * rate);
-            plant.mount = Some(Mount { mass_kg: rng.gen_range(0.15..0.4) * carriage, freq_hz: fm, zeta: rng.gen_range(0.02..0.1) });
+            plant.mount = Some(Mount {
+                mass_kg: rng.gen_range(0.15..0.4) * carriage,
+                freq_hz: fm,
+                zeta: rng.gen_range(0.02..0.1),
+            });
             truth.insert("mount_frequency_hz".into(), fm.into());
         }
         _ => {}
@@ -294,23 +347,42 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         let n_keep = 8;
         let mut modes = beam.modes(n_keep)?;
         let limit = pi2 * (0.1 / fine_dt).min(250.0);
-        let keep = modes.omega_rad_s.iter().take_while(|w| **w < limit).count().max(1);
+        let keep = modes
+            .omega_rad_s
+            .iter()
+            .take_while(|w| **w < limit)
+            .count()
+            .max(1);
         modes.omega_rad_s.truncate(keep);
         modes.participation.truncate(keep);
         modes.node_w.truncate(keep);
         plant.beam = Some((modes, geo.length_m / beam.elements as f64));
     }
-    let mut rng_profiles: Vec<StdRng> = (0..=opts.n_fit).map(|i| StdRng::seed_from_u64(seed ^ (0xABCD + i as u64 * 7919))).collect();
-    let cmds: Vec<Vec<(f64, f64, f64)>> = rng_profiles.iter_mut().map(|r| random_profile(&spec, fine_dt, r)).collect();
+    let mut rng_profiles: Vec<StdRng> = (0..=opts.n_fit)
+        .map(|i| StdRng::seed_from_u64(seed ^ (0xABCD + i as u64 * 7919)))
+        .collect();
+    let cmds: Vec<Vec<(f64, f64, f64)>> = rng_profiles
+        .iter_mut()
+        .map(|r| random_profile(&spec, fine_dt, r))
+        .collect();
     if effect == "quadratic_damping" {
         // drag giving an equivalent linear damping of 0.4..1.0 ζ1 at the peak tip deflection
         let (modes, h) = plant.beam.as_ref().context("beam")?;
         let run = plant.run(&cmds[0], fine_dt);
-        let peak = run.tip_m.iter().zip(&run.y_motor_m).map(|(t, y)| (t - y).abs()).fold(0.0, f64::max);
+        let peak = run
+            .tip_m
+            .iter()
+            .zip(&run.y_motor_m)
+            .map(|(t, y)| (t - y).abs())
+            .fold(0.0, f64::max);
         let phi = &modes.node_w[0];
         let nn = phi.len();
-        let cube: f64 = (1..nn).map(|j| if j + 1 == nn { 0.5 * h } else { *h } * phi[j].abs().powi(3)).sum();
-        let c = rng.gen_range(0.4..1.0) * zeta.0 * 3.0 * std::f64::consts::PI / 4.0 * phi[nn - 1].abs() / (peak.max(1e-4) * cube);
+        let cube: f64 = (1..nn)
+            .map(|j| if j + 1 == nn { 0.5 * h } else { *h } * phi[j].abs().powi(3))
+            .sum();
+        let c = rng.gen_range(0.4..1.0) * zeta.0 * 3.0 * std::f64::consts::PI / 4.0
+            * phi[nn - 1].abs()
+            / (peak.max(1e-4) * cube);
         plant.drag_kg_per_m2 = c;
         truth.insert("drag_coefficient_kg_per_m2".into(), c.into());
     }
@@ -320,16 +392,34 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
     for cmd in &cmds {
         let run = plant.run(cmd, fine_dt);
         let bound = 10.0 * (spec.span_m + geo.length_m);
-        if run.tip_m.iter().chain(&run.y_motor_m).any(|v| !v.is_finite() || v.abs() > bound) {
+        if run
+            .tip_m
+            .iter()
+            .chain(&run.y_motor_m)
+            .any(|v| !v.is_finite() || v.abs() > bound)
+        {
             bail!("the truth plant's servo loop is unstable for this draw");
         }
         let n = cmd.len() / FINE_STEPS;
         let mut rec = Recording::with_uniform_time(n, rate);
         let q = |v: f64, qn: f64| if qn > 0.0 { (v / qn).round() * qn } else { v };
-        let mut gauss = |s: f64| Normal::new(0.0, s).map(|d| d.sample(&mut noise_rng)).unwrap_or(0.0);
+        let mut gauss = |s: f64| {
+            Normal::new(0.0, s)
+                .map(|d| d.sample(&mut noise_rng))
+                .unwrap_or(0.0)
+        };
         rec.base_cmd_m = Some((0..n).map(|k| cmd[k * FINE_STEPS].0).collect());
         if has_base {
-            rec.base_pos_m = Some((0..n).map(|k| q(run.y_motor_m[k * FINE_STEPS] + gauss(sensors.encoder_noise_m), sensors.encoder_quantum_m)).collect());
+            rec.base_pos_m = Some(
+                (0..n)
+                    .map(|k| {
+                        q(
+                            run.y_motor_m[k * FINE_STEPS] + gauss(sensors.encoder_noise_m),
+                            sensors.encoder_quantum_m,
+                        )
+                    })
+                    .collect(),
+            );
         }
         if has_tip {
             let d = plant.sensors.tip_delay_s / fine_dt;
@@ -342,7 +432,8 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
                         } else {
                             let i = pos.floor() as usize;
                             let a = pos - i as f64;
-                            run.tip_m[i] * (1.0 - a) + run.tip_m[(i + 1).min(run.tip_m.len() - 1)] * a
+                            run.tip_m[i] * (1.0 - a)
+                                + run.tip_m[(i + 1).min(run.tip_m.len() - 1)] * a
                         };
                         q(v + gauss(sensors.tip_noise_m), sensors.tip_quantum_m)
                     })
@@ -355,7 +446,10 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
                 (0..n)
                     .map(|k| {
                         let s = &run.force_n[k * FINE_STEPS..(k + 1) * FINE_STEPS];
-                        q(s.iter().sum::<f64>() / s.len() as f64 + gauss(sensors.force_noise_n), sensors.force_quantum_n)
+                        q(
+                            s.iter().sum::<f64>() / s.len() as f64 + gauss(sensors.force_noise_n),
+                            sensors.force_quantum_n,
+                        )
                     })
                     .collect(),
             );
@@ -365,7 +459,10 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
     // the user's rig file: first-order wrong
     let e_rig = geo.youngs * (1.0 + rng.gen_range(-0.06..0.06));
     let m_rig = carriage * (1.0 + rng.gen_range(-0.12..0.12));
-    let z_rig = (zeta.0 * rng.gen_range(0.6..1.7), zeta.1 * rng.gen_range(0.6..1.7));
+    let z_rig = (
+        zeta.0 * rng.gen_range(0.6..1.7),
+        zeta.1 * rng.gen_range(0.6..1.7),
+    );
     let mut toml = format!("# truth case: effect hidden; seed {seed}\n");
     if with_beam {
         toml += &format!(
@@ -380,7 +477,14 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
     truth.insert("tip_noise_m".into(), sensors.tip_noise_m.into());
     truth.insert("force_noise_n".into(), sensors.force_noise_n.into());
     let validate = recs.pop().context("no recordings")?;
-    Ok(TruthCase { effect: effect.to_string(), seed, rig_toml: toml, truth, fit: recs, validate })
+    Ok(TruthCase {
+        effect: effect.to_string(),
+        seed,
+        rig_toml: toml,
+        truth,
+        fit: recs,
+        validate,
+    })
 }
 
 impl TruthCase {

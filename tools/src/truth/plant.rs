@@ -118,21 +118,42 @@ impl Plant {
         let sum_g2: f64 = modes.map_or(0.0, |m| m.participation.iter().map(|g| g * g).sum());
         let zetas: Vec<f64> = match modes {
             Some(m) => {
-                let (w1, w2) = (m.omega_rad_s[0], *m.omega_rad_s.get(1).unwrap_or(&(m.omega_rad_s[0] * 6.0)));
+                let (w1, w2) = (
+                    m.omega_rad_s[0],
+                    *m.omega_rad_s.get(1).unwrap_or(&(m.omega_rad_s[0] * 6.0)),
+                );
                 let det = w2 / w1 - w1 / w2;
                 let a1 = 2.0 * (self.zeta.0 * w2 - self.zeta.1 * w1) / det;
                 let a2 = 2.0 * (self.zeta.1 / w1 - self.zeta.0 / w2) / det;
-                m.omega_rad_s.iter().map(|w| 0.5 * (a1 / w + a2 * w)).collect()
+                m.omega_rad_s
+                    .iter()
+                    .map(|w| 0.5 * (a1 / w + a2 * w))
+                    .collect()
             }
             None => vec![],
         };
         let nodes = modes.map_or(0, |m| m.node_w[0].len());
-        let trib: Vec<f64> = (0..nodes).map(|j| if j == 0 { 0.0 } else if j + 1 == nodes { 0.5 * h } else { h }).collect();
+        let trib: Vec<f64> = (0..nodes)
+            .map(|j| {
+                if j == 0 {
+                    0.0
+                } else if j + 1 == nodes {
+                    0.5 * h
+                } else {
+                    h
+                }
+            })
+            .collect();
         let (m1, m_root, k_m, c_m) = match self.mount {
             Some(mt) => {
                 let w = 2.0 * std::f64::consts::PI * mt.freq_hz;
                 let k = w * w * (mt.mass_kg + m_b);
-                (self.carriage_mass_kg - mt.mass_kg, mt.mass_kg, k, 2.0 * mt.zeta * w * (mt.mass_kg + m_b))
+                (
+                    self.carriage_mass_kg - mt.mass_kg,
+                    mt.mass_kg,
+                    k,
+                    2.0 * mt.zeta * w * (mt.mass_kg + m_b),
+                )
             }
             None => (0.0, self.carriage_mass_kg, 0.0, 0.0),
         };
@@ -146,7 +167,11 @@ impl Plant {
         x[0] = cmd[0].0;
         x[2] = cmd[0].0;
         let mut integ = 0.0;
-        let mut out = FineRun { y_motor_m: vec![], tip_m: vec![], force_n: vec![] };
+        let mut out = FineRun {
+            y_motor_m: vec![],
+            tip_m: vec![],
+            force_n: vec![],
+        };
         let fric = |v: f64| {
             let f = &self.friction;
             if f.coulomb_n == 0.0 && f.viscous_n_s_per_m == 0.0 {
@@ -189,7 +214,8 @@ impl Plant {
             if let Some(m) = modes {
                 for r in 0..nm {
                     let w = m.omega_rad_s[r];
-                    rhs -= m.participation[r] * (modal_f[r] - 2.0 * zetas[r] * w * x[4 + nm + r] - w * w * x[4 + r]);
+                    rhs -= m.participation[r]
+                        * (modal_f[r] - 2.0 * zetas[r] * w * x[4 + nm + r] - w * w * x[4 + r]);
                 }
             }
             let a_r = rhs / (m_root + m_b - sum_g2);
@@ -206,7 +232,9 @@ impl Plant {
                 for r in 0..nm {
                     let w = m.omega_rad_s[r];
                     dx[4 + r] = x[4 + nm + r];
-                    dx[4 + nm + r] = -m.participation[r] * a_r + modal_f[r] - 2.0 * zetas[r] * w * x[4 + nm + r] - w * w * x[4 + r];
+                    dx[4 + nm + r] = -m.participation[r] * a_r + modal_f[r]
+                        - 2.0 * zetas[r] * w * x[4 + nm + r]
+                        - w * w * x[4 + r];
                 }
             }
         };

@@ -42,7 +42,11 @@ pub fn random_profile(spec: &ProfileSpec, dt: f64, rng: &mut impl Rng) -> Vec<(f
         let amax = rng.gen_range(spec.accel_m_s2.0..=spec.accel_m_s2.1);
         let d = (target - pos).abs();
         let s = (target - pos).signum();
-        let (ta, vpk) = if d < vmax * vmax / amax { ((d / amax).sqrt(), (d * amax).sqrt()) } else { (vmax / amax, vmax) };
+        let (ta, vpk) = if d < vmax * vmax / amax {
+            ((d / amax).sqrt(), (d * amax).sqrt())
+        } else {
+            (vmax / amax, vmax)
+        };
         let tc = (d - vpk * ta) / vpk;
         let total = 2.0 * ta + tc.max(0.0);
         let start = pos;
@@ -76,7 +80,13 @@ mod tests {
 
     #[test]
     fn profile_is_consistent() {
-        let spec = ProfileSpec { duration_s: 20.0, span_m: 0.2, speed_m_s: (0.1, 0.3), accel_m_s2: (1.0, 3.0), dwell_s: (1.0, 2.0) };
+        let spec = ProfileSpec {
+            duration_s: 20.0,
+            span_m: 0.2,
+            speed_m_s: (0.1, 0.3),
+            accel_m_s2: (1.0, 3.0),
+            dwell_s: (1.0, 2.0),
+        };
         let dt = 1e-3;
         let p = random_profile(&spec, dt, &mut rand::rngs::StdRng::seed_from_u64(3));
         assert_eq!(p.len(), 20000);
