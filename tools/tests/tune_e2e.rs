@@ -10,6 +10,22 @@ use std::io::{Read, Write};
 use std::path::PathBuf;
 use std::time::Duration;
 
+/// The defaults of `beamtool tune` (2 % tolerance, 0 -> 50 mm at 200 mm/s, 2000 mm/s²,
+/// virtual board) with `recording` and output directory `out`.
+fn args(recording: Option<PathBuf>, out: &std::path::Path) -> TuneArgs {
+    TuneArgs {
+        recording,
+        rig: None,
+        tolerance_pct: 2.0,
+        min_band_pct: 2.0,
+        port: None,
+        move_mm: 50.0,
+        speed_mm_s: 200.0,
+        accel_mm_s2: 2000.0,
+        out: out.to_path_buf(),
+    }
+}
+
 fn tmpdir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("beamshaper-test-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
@@ -20,18 +36,7 @@ fn tmpdir(name: &str) -> PathBuf {
 #[test]
 fn tune_generates_identifies_programs_and_verifies_on_the_virtual_board() {
     let out = tmpdir("tune");
-    tune(TuneArgs {
-        recording: None,
-        rig: None,
-        tolerance_pct: 2.0,
-        min_band_pct: 2.0,
-        port: None,
-        move_mm: 50.0,
-        speed_mm_s: 200.0,
-        accel_mm_s2: 2000.0,
-        out: out.clone(),
-    })
-    .unwrap();
+    tune(args(None, &out)).unwrap();
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("tune.json")).unwrap()).unwrap();
     let pv = report["verification"]["percentage_vibration_pct"]
@@ -55,18 +60,7 @@ fn tune_runs_on_a_real_aluminium_free_decay() {
     if !rec.exists() {
         panic!("real data missing at {}", rec.display());
     }
-    tune(TuneArgs {
-        recording: Some(rec),
-        rig: None,
-        tolerance_pct: 2.0,
-        min_band_pct: 2.0,
-        port: None,
-        move_mm: 50.0,
-        speed_mm_s: 200.0,
-        accel_mm_s2: 2000.0,
-        out: out.clone(),
-    })
-    .unwrap();
+    tune(args(Some(rec), &out)).unwrap();
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("tune.json")).unwrap()).unwrap();
     let f1 = report["modes"][0]["freq_hz"].as_f64().unwrap();
