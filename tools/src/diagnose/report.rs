@@ -186,10 +186,12 @@ pub fn words(d: &Diagnosis) -> String {
                 o.whiteness.1
             );
         }
-        None => s += &format!(
+        None => {
+            s += &format!(
             "\nDIAGNOSIS: none — no candidate earns its parameters (validation NRMSE {} {:.4})\n",
             CHANNEL_NAMES[c], before
-        ),
+        )
+        }
     }
     s += "\nCandidates (best validation gain first):\n";
     for o in &d.candidates {
