@@ -1,6 +1,7 @@
 //! Statistics over 20 noise seeds of the accuracy protocol (docs/ident.md). Run with
 //! `WHICH=bt cargo test --test ident_seed_stats -- --ignored --nocapture` (b = noise on
-//! base_pos_m, t = on tip_pos_m).
+//! base_pos_m, t = on tip_pos_m; `SK=n` Sanathanan–Koerner iterations; `NOCMD=1` drops the
+//! noise-free `base_cmd_m` so that the base is tracking-filtered instead of predicted from it).
 use beamtools::ident::frf::InputChannel;
 use beamtools::ident::protocol::{simulate_sweep, truth};
 use beamtools::ident::sweep::{SweepKind, SweepSpec};
@@ -13,7 +14,7 @@ fn stats() {
     let m = BeamModel::new(&rig, &ModelOptions::default()).unwrap();
     let tr = truth(&m).unwrap();
     let beta = 60.0 * (8.0f64 / 0.1).log2() / 120.0;
-    for meth in [Method::Lscf, Method::Lsce] {
+    for meth in [Method::Lscf] {
         let mut e = vec![vec![]; 4];
         let mut miss = 0;
         for seed in 100..120 {
@@ -32,11 +33,15 @@ fn stats() {
             if which.contains('t') {
                 rec.tip_pos_m = noisy.tip_pos_m.clone();
             }
+            if std::env::var("NOCMD").is_ok() {
+                rec.base_cmd_m = None;
+            }
             let opts = IdentOptions {
                 methods: vec![meth],
                 input: InputChannel::BaseAccel,
                 band_hz: Some((0.3, 8.0)),
                 n_modes: Some(2),
+                sk_iterations: std::env::var("SK").ok().and_then(|s| s.parse().ok()).unwrap_or(IdentOptions::default().sk_iterations),
                 ..Default::default()
             };
             let Ok((r, _)) = identify_recording(&rec, &opts) else {

@@ -56,8 +56,11 @@ pub struct IdentifyArgs {
     #[arg(long)]
     pub no_track: bool,
     /// Sanathanan–Koerner iterations of LSCF (removes output-noise damping bias).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 1)]
     pub sk: usize,
+    /// No maximum-likelihood (output-error) refinement of the primary method's modes.
+    #[arg(long)]
+    pub no_ml: bool,
     /// Write the stabilisation diagram (SVG) here.
     #[arg(long)]
     pub stab_plot: Option<PathBuf>,
@@ -167,6 +170,7 @@ pub fn options_of(a: &IdentifyArgs) -> Result<IdentOptions> {
         max_order: a.max_order,
         track_input: !a.no_track,
         sk_iterations: a.sk,
+        ml_refine: !a.no_ml,
         progress: true,
         ..Default::default()
     };

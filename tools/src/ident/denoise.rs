@@ -6,6 +6,9 @@
 //! the input noise. Only the input is filtered: the output's free ring-down stays at the
 //! resonance after the sweep has passed, so masking the output would bias the damping. With
 //! a clean input, H1 is unbiased by the remaining (output) noise.
+//!
+//! When the recording also holds the noise-free command, [`base_from_command`] does better:
+//! the base position predicted from the command by a fitted FIR servo model.
 
 use anyhow::Result;
 use realfft::num_complex::Complex64;
@@ -138,6 +141,65 @@ pub fn track_sweep(x: &[f64], rate_hz: f64, frame_s: f64, band_hz: (f64, f64)) -
         x,
         kept_energy: if e_all > 0.0 { e_kept / e_all } else { 0.0 },
         kept_bins: b_kept as f64 / b_all.max(1) as f64,
+    })
+}
+
+/// Result of [`base_from_command`].
+#[derive(Clone, Debug)]
+pub struct CommandModel {
+    /// The base position the fitted servo model predicts from the command (same length).
+    pub base: Vec<f64>,
+    /// Fraction of the measured base position's variance the model explains.
+    pub r2: f64,
+    /// Taps (lead, lag) of the FIR model.
+    pub taps: (usize, usize),
+}
+
+/// Noise-free estimate of the base position from the (noise-free) command: a least-squares
+/// FIR model `b[k] ≈ Σ_{j=−lead..lag} h_j · cmd[k−j] + c` of the servo (delay, finite
+/// bandwidth, the beam's reaction on the carriage) fitted on the measured base position.
+/// The sensor noise of `base` is the *output* error of that regression, so the estimate is
+/// consistent and its noise variance is about (taps / N) of the sensor's: an instrumental
+/// variable for the errors-in-variables problem of a noisy measured input (Söderström,
+/// *Errors-in-variables methods in system identification*, Automatica 43, 2007, §6).
+///
+/// Errors: different lengths, fewer than 20 samples per tap, a constant command.
+pub fn base_from_command(cmd: &[f64], base: &[f64], lead: usize, lag: usize) -> Result<CommandModel> {
+    let n = cmd.len();
+    if base.len() != n {
+        anyhow::bail!("base_cmd_m and base_pos_m differ in length ({n} vs {})", base.len());
+    }
+    let p = lead + lag + 2;
+    if n < 20 * p {
+        anyhow::bail!("{n} samples are too few for a {p}-parameter servo model");
+    }
+    let c_mean = cmd.iter().sum::<f64>() / n as f64;
+    let c_var = cmd.iter().map(|v| (v - c_mean).powi(2)).sum::<f64>();
+    if !(c_var > 0.0) {
+        anyhow::bail!("the command base_cmd_m is constant");
+    }
+    let at = |k: isize| cmd[k.clamp(0, n as isize - 1) as usize];
+    let mut a = nalgebra::DMatrix::<f64>::zeros(n, p);
+    for k in 0..n {
+        for j in 0..=(lead + lag) {
+            a[(k, j)] = at(k as isize + lead as isize - j as isize) - c_mean;
+        }
+        a[(k, p - 1)] = 1.0;
+    }
+    let y = nalgebra::DVector::from_column_slice(base);
+    let h = a
+        .clone()
+        .svd(true, true)
+        .solve(&y, 1e-12)
+        .map_err(|e| anyhow::anyhow!("servo model least squares: {e}"))?;
+    let fit = &a * h;
+    let b_mean = base.iter().sum::<f64>() / n as f64;
+    let b_var = base.iter().map(|v| (v - b_mean).powi(2)).sum::<f64>();
+    let r_var = (&y - &fit).norm_squared();
+    Ok(CommandModel {
+        base: fit.iter().copied().collect(),
+        r2: if b_var > 0.0 { 1.0 - r_var / b_var } else { 0.0 },
+        taps: (lead, lag),
     })
 }
 

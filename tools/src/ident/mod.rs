@@ -8,6 +8,7 @@
 //!   tip-deflection limits, as command CSV.
 //! - [`frf`]: Welch H1/H2/coherence (Hamming window by default, overlap, detrending).
 //! - [`lscf`], [`lsce`], [`peak`]: the estimators; [`poles`] their common pole algebra.
+//! - [`mlfit`]: maximum-likelihood (output-error) refinement of the modes on the FRF.
 //! - [`stabilisation`]: diagrams over model orders and automatic mode selection.
 //! - [`pipeline`]: [`identify_recording`] and [`identify_decay`], the public entry points.
 //! - [`report`]: tables (text) and plots (SVG).
@@ -29,6 +30,7 @@ pub mod freedecay;
 pub mod frf;
 pub mod lsce;
 pub mod lscf;
+pub mod mlfit;
 pub mod peak;
 pub mod pipeline;
 pub mod poles;

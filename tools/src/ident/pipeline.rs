@@ -83,11 +83,13 @@ pub struct IdentOptions {
     /// ([`super::denoise`]); skipped with a warning when the input is not a sweep, and never
     /// applied to the force (it also carries the beam's reaction at its resonances).
     pub track_input: bool,
-    /// Sanathanan–Koerner iterations of LSCF ([`super::lscf::lscf_poles_sk`]): removes the
-    /// damping bias of output noise (ζ2 +28 % → +2 % over 20 seeds with 5 % tip noise only),
-    /// but made things worse when the same noisy base position feeds input and output
-    /// (tip deflection = tip − base), so 0 by default.
+    /// Sanathanan–Koerner iterations of LSCF ([`super::lscf::lscf_poles_sk`]): reduce the
+    /// damping bias of output noise (ζ2 +23 % → −1 % mean over 20 seeds at 5 % noise on base
+    /// and tip, docs/ident.md); 1 by default (more iterations lost poles at low orders).
     pub sk_iterations: usize,
+    /// Refine the primary FRF method's modes by the output-error (maximum-likelihood) fit of
+    /// [`super::mlfit`]; its Gauss–Newton σ joins the uncertainty. On by default.
+    pub ml_refine: bool,
     /// Show a progress bar.
     pub progress: bool,
 }
@@ -113,7 +115,8 @@ impl Default for IdentOptions {
             n_modes: None,
             criteria: StabCriteria::default(),
             track_input: true,
-            sk_iterations: 0,
+            sk_iterations: 1,
+            ml_refine: true,
             progress: false,
         }
     }
@@ -474,35 +477,101 @@ pub fn combine(methods: &[MethodResult]) -> Vec<ModeEstimate> {
         .collect()
 }
 
-/// The FRF [`identify_recording`] uses: channels, optional tracking filter of the input, Welch.
+/// The FRF [`identify_recording`] uses: channels, optional tracking filter, Welch.
+///
+/// With a kinematic input (base acceleration or position) and `track_input`, the *measured base
+/// position* is cleaned once and that clean base position feeds both the input (its second
+/// difference for base acceleration) and the output's tip deflection (tip − base): predicted
+/// from the noise-free command `base_cmd_m` by a fitted servo model
+/// ([`super::denoise::base_from_command`]) when the recording has one and the model explains
+/// ≥ 90 % of the base variance, else tracking-filtered ([`super::denoise::track_sweep`]). Filtering only the input left the base sensor's noise in the output, the same
+/// noise twice: an errors-in-variables error that H1 cannot average out in one record (ζ2
+/// scattered by ±33 % at 5 % noise; see docs/ident.md). Force input is never filtered (it also
+/// carries the beam's reaction at its resonances).
 pub fn frf_with_options(rec: &Recording, opts: &IdentOptions) -> Result<(Frf, Vec<String>)> {
     if !opts.track_input || opts.input == InputChannel::Force {
         return frf_of_recording(rec, opts.input, opts.output, &opts.welch);
     }
-    let (x, y, xd, yd, mut warnings) = super::frf::channels(rec, opts.input, opts.output)?;
+    rec.validate()?;
     let rate = rec.sample_rate_hz();
     let band = match opts.band_hz {
         Some(b) => b,
-        None => auto_band(&super::frf::welch(&x, &y, rate, &opts.welch)?),
+        None => {
+            let (x, y, _, _, _) = super::frf::channels(rec, opts.input, opts.output)?;
+            auto_band(&super::frf::welch(&x, &y, rate, &opts.welch)?)
+        }
     };
-    let tr = super::denoise::track_sweep(&x, rate, 4.0, band)?;
-    let (x, xd) = if tr.is_sweep() {
-        (
-            tr.x,
-            format!(
-                "{xd}, sweep-tracking filtered ({:.0} % of its energy in {:.1} % of the bins)",
-                100.0 * tr.kept_energy,
-                100.0 * tr.kept_bins
-            ),
-        )
-    } else {
-        warnings.push(format!("input is not a sweep ({:.0} % of its energy in {:.1} % of the bins): no tracking filter", 100.0 * tr.kept_energy, 100.0 * tr.kept_bins));
-        (x, xd)
-    };
+    let mut warnings = Vec::new();
+    let mut filtered = rec.clone();
+    let mut suffix = String::new();
+    match (rec.base_pos_m.as_ref(), rec.base_cmd_m.as_ref()) {
+        (Some(b), Some(c)) => {
+            // Taps: 0.1 s lead (time-stamp offsets), 1 s lag (servo, reaction).
+            let lead = (0.1 * rate).ceil() as usize;
+            let lag = (1.0 * rate).ceil() as usize;
+            match super::denoise::base_from_command(c, b, lead, lag) {
+                Ok(m) if m.r2 >= 0.9 => {
+                    filtered.base_pos_m = Some(m.base);
+                    suffix = format!(
+                        ", base_pos_m predicted from base_cmd_m by a {}-tap least-squares servo model (R² = {:.4})",
+                        lead + lag + 1,
+                        m.r2
+                    );
+                }
+                other => {
+                    if let Ok(m) = other {
+                        warnings.push(format!("the command explains only {:.0} % of the base position's variance: base_pos_m tracking-filtered instead", 100.0 * m.r2));
+                    }
+                    suffix = track_into(&mut filtered.base_pos_m, b, rate, band, "base_pos_m", &mut warnings)?;
+                }
+            }
+        }
+        (Some(b), None) => {
+            suffix = track_into(&mut filtered.base_pos_m, b, rate, band, "base_pos_m", &mut warnings)?
+        }
+        // A command alone is noise-free: nothing to filter.
+        _ => {}
+    }
+    let (x, y, xd, yd, w) = super::frf::channels(&filtered, opts.input, opts.output)?;
+    warnings.extend(w);
     let mut f = super::frf::welch(&x, &y, rate, &opts.welch)?;
-    f.input = xd;
+    f.input = format!("{xd}{suffix}");
     f.output = yd;
     Ok((f, warnings))
+}
+
+/// Tracking filter ([`super::denoise::track_sweep`]) of the base position `b` about its mean
+/// (the sweep oscillates about a rest position the ridge mask would otherwise remove), written
+/// into `slot` when `b` is a sweep; returns the description suffix (or pushes a warning).
+fn track_into(
+    slot: &mut Option<Vec<f64>>,
+    b: &[f64],
+    rate_hz: f64,
+    band_hz: (f64, f64),
+    name: &str,
+    warnings: &mut Vec<String>,
+) -> Result<String> {
+    let mean = b.iter().sum::<f64>() / b.len() as f64;
+    let centred: Vec<f64> = b.iter().map(|v| v - mean).collect();
+    if centred.iter().all(|v| *v == 0.0) {
+        return Ok(String::new());
+    }
+    let tr = super::denoise::track_sweep(&centred, rate_hz, 4.0, band_hz)?;
+    if tr.is_sweep() {
+        *slot = Some(tr.x.iter().map(|v| v + mean).collect());
+        Ok(format!(
+            ", {name} sweep-tracking filtered ({:.0} % of its energy in {:.1} % of the bins)",
+            100.0 * tr.kept_energy,
+            100.0 * tr.kept_bins
+        ))
+    } else {
+        warnings.push(format!(
+            "{name} is not a sweep ({:.0} % of its energy in {:.1} % of the bins): no tracking filter",
+            100.0 * tr.kept_energy,
+            100.0 * tr.kept_bins
+        ));
+        Ok(String::new())
+    }
 }
 
 /// Identifies the modes of a recording (uniform time, validated): FRF of `opts.input` →
@@ -527,6 +596,11 @@ pub fn identify_recording(rec: &Recording, opts: &IdentOptions) -> Result<(Ident
     } else {
         (vec![], auto_band(&frf))
     };
+    if opts.ml_refine {
+        if let Some(primary) = methods.first_mut() {
+            refine_in_place(&frf, band, primary, &mut warnings);
+        }
+    }
     if opts.methods.contains(&Method::LogDec) {
         let fd = FreeDecayOptions {
             f_min_hz: band.0,
@@ -576,6 +650,30 @@ pub fn identify_recording(rec: &Recording, opts: &IdentOptions) -> Result<(Ident
         warnings,
     };
     Ok((res, frf))
+}
+
+/// Replaces `m`'s modes by their maximum-likelihood refinement ([`super::mlfit`]); the σ of
+/// each is the fit's Gauss–Newton σ and the method's own spread in quadrature. On failure the
+/// modes stay and a warning says why.
+fn refine_in_place(frf: &Frf, band: (f64, f64), m: &mut MethodResult, warnings: &mut Vec<String>) {
+    if !matches!(m.method, Method::Lscf | Method::Lsce) || m.modes.is_empty() {
+        return;
+    }
+    match super::mlfit::refine_modes(frf, band, &m.modes) {
+        Ok(r) => {
+            for (e, q) in m.modes.iter_mut().zip(&r.modes) {
+                e.freq_hz_std = e.freq_hz_std.hypot(q.freq_hz_std);
+                e.zeta_std = e.zeta_std.hypot(q.zeta_std);
+                e.freq_hz = q.freq_hz;
+                e.zeta = q.zeta;
+                e.method = format!("{}+ml", e.method);
+            }
+        }
+        Err(e) => warnings.push(format!(
+            "maximum-likelihood refinement skipped ({e}); {} estimates kept",
+            m.method.name()
+        )),
+    }
 }
 
 /// [`identify_free_decay`] as an [`IdentResult`] (modes of the free decay; no FRF).
