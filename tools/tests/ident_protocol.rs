@@ -18,62 +18,88 @@ pub fn beta_120s() -> f64 {
     60.0 * (8.0f64 / 0.1).log2() / 120.0
 }
 
+/// Errors (%) of f1, f2, ζ1, ζ2 against the clamped-base truth for `seeds`, with `prep`
+/// applied to the noisy recording and `track_input` as given.
+fn errors(
+    m: &BeamModel,
+    seeds: std::ops::Range<u64>,
+    track_input: bool,
+    drop_command: bool,
+) -> Vec<[f64; 4]> {
+    let tr = truth(m).unwrap();
+    let t = tr.for_input(InputChannel::BaseAccel);
+    let spec = SweepSpec {
+        tail_s: 20.0,
+        ..SweepSpec::paper(SweepKind::Exponential, beta_120s())
+    };
+    seeds
+        .map(|seed| {
+            let mut rec = simulate_sweep(m, &spec, 100.0, 0.05, seed).unwrap();
+            if drop_command {
+                rec.base_cmd_m = None;
+            }
+            let opts = IdentOptions {
+                methods: vec![Method::Lscf],
+                input: InputChannel::BaseAccel,
+                band_hz: Some((0.3, 8.0)),
+                n_modes: Some(2),
+                track_input,
+                ..Default::default()
+            };
+            match identify_recording(&rec, &opts) {
+                Ok((r, _)) if r.modes.len() == 2 => {
+                    assert!(r.rayleigh.is_some());
+                    let e = |i: usize| {
+                        [
+                            100.0 * (r.modes[i].freq_hz / t[i].0 - 1.0),
+                            100.0 * (r.modes[i].zeta / t[i].1 - 1.0),
+                        ]
+                    };
+                    let (a, b) = (e(0), e(1));
+                    [a[0], b[0], a[1], b[1]]
+                }
+                _ => [f64::INFINITY; 4],
+            }
+        })
+        .collect()
+}
+
+fn rms(v: &[[f64; 4]], i: usize) -> f64 {
+    (v.iter().map(|e| e[i] * e[i]).sum::<f64>() / v.len() as f64).sqrt()
+}
+
+/// The accuracy target (f within 0.2 %, ζ within 15 %, both modes) on 10 noise seeds, with the
+/// base position predicted from the noise-free command (the default when the recording has
+/// `base_cmd_m`); the tracking filter alone (no command) on most seeds; and the control
+/// experiment: the raw noisy base position in input and output scatters ζ2 far more.
 #[test]
 fn exponential_sweep_120s_5pct_noise_meets_the_accuracy_target() {
     let m = model();
-    let tr = truth(&m).unwrap();
-    let spec = SweepSpec {
-        tail_s: 20.0,
-        ..SweepSpec::paper(SweepKind::Exponential, beta_120s())
-    };
-    for seed in [7, 8] {
-        let rec = simulate_sweep(&m, &spec, 100.0, 0.05, seed).unwrap();
-        let opts = IdentOptions {
-            methods: vec![Method::Lscf],
-            input: InputChannel::BaseAccel,
-            band_hz: Some((0.3, 8.0)),
-            n_modes: Some(2),
-            ..Default::default()
-        };
-        let (r, _) = identify_recording(&rec, &opts).unwrap();
-        assert_eq!(r.modes.len(), 2, "{:?}", r.modes);
-        for (m, t) in r.modes.iter().zip(tr.for_input(InputChannel::BaseAccel)) {
-            let (ef, ez) = (m.freq_hz / t.0 - 1.0, m.zeta / t.1 - 1.0);
-            eprintln!(
-                "seed {seed}: f {:.4} (truth {:.4}, {:+.3} %), zeta {:.5} (truth {:.5}, {:+.1} %)",
-                m.freq_hz,
-                t.0,
-                100.0 * ef,
-                m.zeta,
-                t.1,
-                100.0 * ez
-            );
-            assert!(ef.abs() < 0.002, "frequency error {ef}");
-            assert!(ez.abs() < 0.15, "damping error {ez}");
-        }
-        assert!(r.rayleigh.is_some());
+    let with_cmd = errors(&m, 100..110, true, false);
+    let tracked = errors(&m, 100..110, true, true);
+    let raw = errors(&m, 100..110, false, false);
+    for (name, v) in [("command", &with_cmd), ("tracking", &tracked), ("raw", &raw)] {
+        eprintln!(
+            "{name:>9}: rms error f1 {:.3} % f2 {:.3} % zeta1 {:.2} % zeta2 {:.2} %",
+            rms(v, 0),
+            rms(v, 1),
+            rms(v, 2),
+            rms(v, 3)
+        );
     }
-}
-
-#[test]
-fn without_the_tracking_filter_input_noise_spoils_mode_2_damping() {
-    // The control experiment for the tracking filter: same data, filter off.
-    let m = model();
-    let spec = SweepSpec {
-        tail_s: 20.0,
-        ..SweepSpec::paper(SweepKind::Exponential, beta_120s())
-    };
-    let rec = simulate_sweep(&m, &spec, 100.0, 0.05, 7).unwrap();
-    let opts = IdentOptions {
-        track_input: false,
-        input: InputChannel::BaseAccel,
-        band_hz: Some((0.3, 8.0)),
-        n_modes: Some(2),
-        ..Default::default()
-    };
-    let ok = match identify_recording(&rec, &opts) {
-        Ok((r, _)) => r.modes.len() == 2 && (r.modes[1].zeta / 0.0074 - 1.0).abs() < 0.15,
-        Err(_) => false,
-    };
-    assert!(!ok, "expected a failure without the tracking filter");
+    for e in &with_cmd {
+        assert!(e[0].abs() < 0.2 && e[1].abs() < 0.2, "{e:?}");
+        assert!(e[2].abs() < 15.0 && e[3].abs() < 15.0, "{e:?}");
+    }
+    let ok = tracked
+        .iter()
+        .filter(|e| e[0].abs() < 0.2 && e[1].abs() < 0.2 && e[2].abs() < 15.0 && e[3].abs() < 15.0)
+        .count();
+    assert!(ok >= 8, "tracking filter only: {ok}/10 meet the target: {tracked:?}");
+    assert!(
+        rms(&raw, 3) > 2.0 * rms(&with_cmd, 3),
+        "raw {:.2} % vs command {:.2} %",
+        rms(&raw, 3),
+        rms(&with_cmd, 3)
+    );
 }

@@ -532,8 +532,10 @@ pub fn frf_with_options(rec: &Recording, opts: &IdentOptions) -> Result<(Frf, Ve
         // A command alone is noise-free: nothing to filter.
         _ => {}
     }
-    let (x, y, xd, yd, w) = super::frf::channels(&filtered, opts.input, opts.output)?;
+    // Saturation is judged on the measured channels, not the cleaned ones.
+    let (_, _, _, _, w) = super::frf::channels(rec, opts.input, opts.output)?;
     warnings.extend(w);
+    let (x, y, xd, yd, _) = super::frf::channels(&filtered, opts.input, opts.output)?;
     let mut f = super::frf::welch(&x, &y, rate, &opts.welch)?;
     f.input = format!("{xd}{suffix}");
     f.output = yd;
