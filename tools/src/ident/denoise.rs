@@ -164,6 +164,8 @@ pub struct CommandModel {
 /// *Errors-in-variables methods in system identification*, Automatica 43, 2007, §6).
 ///
 /// Errors: different lengths, fewer than 20 samples per tap, a constant command.
+///
+/// [`base_from_command_bic`] chooses the taps.
 pub fn base_from_command(cmd: &[f64], base: &[f64], lead: usize, lag: usize) -> Result<CommandModel> {
     let n = cmd.len();
     if base.len() != n {
@@ -203,11 +205,78 @@ pub fn base_from_command(cmd: &[f64], base: &[f64], lead: usize, lag: usize) -> 
     })
 }
 
+/// [`base_from_command`] with the taps chosen by the Bayesian information criterion
+/// n ln(RSS/n) + p ln n over lead ∈ {0, `lead_max`} and lag ∈ {0, 1, 2, 4, …, `lag_max`}: a
+/// base that follows its command needs one tap, a servo a few; every needless tap adds the
+/// sensor noise's projection to the prediction (ζ2 scattered by ±4 % with a fixed 111-tap FIR,
+/// ±0.6 % with the clean command itself on the reference rig).
+pub fn base_from_command_bic(
+    cmd: &[f64],
+    base: &[f64],
+    lead_max: usize,
+    lag_max: usize,
+) -> Result<CommandModel> {
+    let n = base.len() as f64;
+    let b_mean = base.iter().sum::<f64>() / n;
+    let b_var = base.iter().map(|v| (v - b_mean).powi(2)).sum::<f64>();
+    let mut lags = vec![0usize];
+    let mut l = 1;
+    while l < lag_max {
+        lags.push(l);
+        l *= 2;
+    }
+    lags.push(lag_max);
+    let leads: Vec<usize> = if lead_max > 0 { vec![0, lead_max] } else { vec![0] };
+    let mut best: Option<(f64, CommandModel)> = None;
+    for &lead in &leads {
+        for &lag in &lags {
+            let Ok(m) = base_from_command(cmd, base, lead, lag) else {
+                continue;
+            };
+            let rss = ((1.0 - m.r2) * b_var).max(1e-300);
+            let bic = n * (rss / n).ln() + (lead + lag + 2) as f64 * n.ln();
+            if best.as_ref().map_or(true, |(b, _)| bic < *b) {
+                best = Some((bic, m));
+            }
+        }
+    }
+    best.map(|(_, m)| m)
+        .ok_or_else(|| anyhow::anyhow!("no servo model could be fitted (too few samples?)"))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use rand::{rngs::StdRng, SeedableRng};
     use rand_distr::{Distribution, Normal};
+
+    /// A base behind a 20 Hz first-order servo lag plus 5 % sensor noise: the BIC model is
+    /// several taps long, and its prediction is 10× closer to the true base than the sensor.
+    #[test]
+    fn servo_model_from_the_command_removes_sensor_noise() {
+        let rate = 100.0;
+        let n = 12000;
+        let cmd: Vec<f64> = (0..n)
+            .map(|k| {
+                let t = k as f64 / rate;
+                0.02 * (2.0 * std::f64::consts::PI * (0.1 * t + 0.03 * t * t)).sin()
+            })
+            .collect();
+        let a = (-2.0 * std::f64::consts::PI * 20.0 / rate).exp();
+        let mut truth = vec![0.0; n];
+        for k in 1..n {
+            truth[k] = a * truth[k - 1] + (1.0 - a) * cmd[k - 1];
+        }
+        let rms = (truth.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
+        let mut rng = StdRng::seed_from_u64(5);
+        let nrm = Normal::new(0.0, 0.05 * rms).unwrap();
+        let meas: Vec<f64> = truth.iter().map(|v| v + nrm.sample(&mut rng)).collect();
+        let m = base_from_command_bic(&cmd, &meas, 10, 100).unwrap();
+        assert!(m.taps.1 >= 2, "{:?}", m.taps);
+        let err = (m.base.iter().zip(&truth).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / n as f64).sqrt();
+        assert!(err < 0.1 * 0.05 * rms, "prediction error {err} vs sensor noise {}", 0.05 * rms);
+        assert!(base_from_command(&cmd, &meas[..100], 0, 4).is_err());
+    }
 
     #[test]
     fn removes_most_noise_from_an_exponential_sweep() {

@@ -5,7 +5,6 @@
 use super::freedecay::{identify_free_decay, FreeDecayOptions};
 use super::frf::{frf_of_recording, Frf, InputChannel, OutputChannel, WelchOptions, Window};
 use super::lsce::{impulse_response, lsce_poles};
-use super::lscf::lscf_poles;
 use super::peak::pick_peaks;
 use super::stabilisation::{diagram, Diagram, StabCriteria, StableMode};
 use super::{std_dev, ModeEstimate};
@@ -506,17 +505,18 @@ pub fn frf_with_options(rec: &Recording, opts: &IdentOptions) -> Result<(Frf, Ve
     let mut suffix = String::new();
     match (rec.base_pos_m.as_ref(), rec.base_cmd_m.as_ref()) {
         (Some(b), Some(c)) => {
-            // Taps: 0.1 s lead (time-stamp offsets), 1 s lag (servo, reaction).
+            // Taps up to 0.1 s lead (time-stamp offsets) and 1 s lag (servo, reaction).
             let lead = (0.1 * rate).ceil() as usize;
             let lag = (1.0 * rate).ceil() as usize;
-            match super::denoise::base_from_command(c, b, lead, lag) {
+            match super::denoise::base_from_command_bic(c, b, lead, lag) {
                 Ok(m) if m.r2 >= 0.9 => {
-                    filtered.base_pos_m = Some(m.base);
                     suffix = format!(
-                        ", base_pos_m predicted from base_cmd_m by a {}-tap least-squares servo model (R² = {:.4})",
-                        lead + lag + 1,
+                        ", base_pos_m predicted from base_cmd_m by a least-squares FIR servo model (taps {}..{} samples, BIC; R² = {:.4})",
+                        -(m.taps.0 as isize),
+                        m.taps.1,
                         m.r2
                     );
+                    filtered.base_pos_m = Some(m.base);
                 }
                 other => {
                     if let Ok(m) = other {
