@@ -8,6 +8,7 @@
 //!   tip-deflection limits, as command CSV.
 //! - [`frf`]: Welch H1/H2/coherence (Hamming window by default, overlap, detrending).
 //! - [`lscf`], [`lsce`], [`peak`]: the estimators; [`poles`] their common pole algebra.
+//! - [`magspec`]: modes of a magnitude-only spectrum (LabVIEW `.lvm` of an impact test).
 //! - [`mlfit`]: maximum-likelihood (output-error) refinement of the modes on the FRF.
 //! - [`stabilisation`]: diagrams over model orders and automatic mode selection.
 //! - [`pipeline`]: [`identify_recording`] and [`identify_decay`], the public entry points.
@@ -30,6 +31,7 @@ pub mod freedecay;
 pub mod frf;
 pub mod lsce;
 pub mod lscf;
+pub mod magspec;
 pub mod mlfit;
 pub mod peak;
 pub mod pipeline;
