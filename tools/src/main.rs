@@ -42,6 +42,8 @@ enum Command {
     Table1(beamtools::ident::cli::Table1Args),
     /// Model-discrepancy diagnosis: locate the mismatch, name the missing physics, refit, validate.
     Diagnose(beamtools::diagnose::cli::DiagnoseArgs),
+    /// Diagnosis across a length series of free decays (one beam clamped at several lengths).
+    DiagnoseLengths(beamtools::diagnose::cli::LengthsArgs),
     /// Prove the diagnosis on concealed effects from the truth generator (confusion table).
     DiagnoseProof(beamtools::diagnose::cli::ProofArgs),
     /// Write one truth-generator case (rig + fit/validation recordings with a hidden effect).
@@ -108,6 +110,7 @@ fn main() -> Result<()> {
         Command::Table1(a) => beamtools::ident::cli::table1(a),
         Command::Diagnose(a) => beamtools::diagnose::cli::diagnose(a),
         Command::DiagnoseProof(a) => beamtools::diagnose::cli::proof(a),
+        Command::DiagnoseLengths(a) => beamtools::diagnose::cli::diagnose_lengths(a),
         Command::Truth(a) => beamtools::truth::cli::truth(a),
         Command::BenchSim(a) => beamtools::model::bench::bench_sim(a),
     }

@@ -463,3 +463,61 @@ fn structural_extensions_agree_with_the_finite_element_model() {
         assert!(rel.abs() < 5e-3, "free base, mode {}: {rel:e}", i + 1);
     }
 }
+
+/// A point mass at x = L is the tip mass; at the clamp it does nothing; at 0.85 L it lowers
+/// f1 less than at the tip and converges with the number of basis functions.
+#[test]
+fn point_mass_matches_tip_mass_at_the_tip() {
+    let r = rig(0.025, 0.025);
+    let base = ModelOptions {
+        n_modes: 8,
+        ..Default::default()
+    };
+    let tip = clamped_hz_opts(
+        &r,
+        ModelOptions {
+            tip_mass_kg: 0.02,
+            ..base.clone()
+        },
+    );
+    let at_tip = clamped_hz_opts(
+        &r,
+        ModelOptions {
+            point_mass: Some((0.9, 0.02)),
+            ..base.clone()
+        },
+    );
+    let at_root = clamped_hz_opts(
+        &r,
+        ModelOptions {
+            point_mass: Some((0.0, 0.02)),
+            ..base.clone()
+        },
+    );
+    let none = clamped_hz_opts(&r, base.clone());
+    for i in 0..3 {
+        assert!((tip[i] / at_tip[i] - 1.0).abs() < 1e-12, "{tip:?} {at_tip:?}");
+        assert!((none[i] / at_root[i] - 1.0).abs() < 1e-12);
+    }
+    let near = |n| {
+        clamped_hz_opts(
+            &r,
+            ModelOptions {
+                n_modes: n,
+                point_mass: Some((0.765, 0.02)),
+                ..Default::default()
+            },
+        )
+    };
+    let (a, b) = (near(8), near(12));
+    assert!(a[0] < none[0] && a[0] > tip[0], "{a:?} {none:?} {tip:?}");
+    assert!((a[0] / b[0] - 1.0).abs() < 1e-6 && (a[1] / b[1] - 1.0).abs() < 1e-4, "{a:?} {b:?}");
+    assert!(BeamModel::new(
+        &r,
+        &ModelOptions {
+            point_mass: Some((1.2, 0.02)),
+            ..Default::default()
+        }
+    )
+    .is_err());
+}

@@ -342,3 +342,136 @@ pub fn proof(a: ProofArgs) -> Result<()> {
     )?;
     Ok(())
 }
+
+/// `diagnose-lengths` arguments.
+#[derive(Args, Debug)]
+pub struct LengthsArgs {
+    /// Rig file (TOML) with the beam's (uniform) section and material; its length is ignored.
+    #[arg(long)]
+    pub rig: PathBuf,
+    /// A free decay at one free length: `L_m=path.npy` or `L_m=path.npy@sensor_from_tip_m`
+    /// (.npy [time_s; signal] or recording CSV); repeat for each length (at least 3).
+    #[arg(long = "decay", required = true)]
+    pub decay: Vec<String>,
+    /// Default distance of the sensor (a lumped mass) from the tip (m).
+    #[arg(long, default_value_t = 0.06)]
+    pub sensor_from_tip_m: f64,
+    /// Modes per length (1 or 2).
+    #[arg(long, default_value_t = 2)]
+    pub modes: usize,
+    /// Write the JSON result here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// Parses `L_m=path[@sensor_m]`.
+fn parse_decay(s: &str, default_sensor: f64) -> Result<(f64, PathBuf, f64)> {
+    let (l, rest) = s
+        .split_once('=')
+        .with_context(|| format!("--decay `{s}`: expected `L_m=path[@sensor_from_tip_m]`"))?;
+    let l: f64 = l
+        .trim()
+        .parse()
+        .with_context(|| format!("--decay `{s}`: `{l}` is not a length in metres"))?;
+    if !(l > 0.0 && l < 100.0) {
+        anyhow::bail!("--decay `{s}`: length {l} m is out of range (metres, > 0)");
+    }
+    let (path, sensor) = match rest.rsplit_once('@') {
+        Some((p, m)) => (
+            p,
+            m.trim()
+                .parse::<f64>()
+                .with_context(|| format!("--decay `{s}`: `{m}` is not a sensor distance in metres"))?,
+        ),
+        None => (rest, default_sensor),
+    };
+    Ok((l, PathBuf::from(path), sensor))
+}
+
+/// The modes of one free decay for the length series: mode 1 and, when asked, the mode nearest
+/// to 6.27 f1 (within ±25 %; the uniform-beam ratio).
+pub fn length_modes(l: f64, path: &Path, sensor: f64, n_modes: usize) -> Result<super::lengths::LengthModes> {
+    let (t, x, what) = crate::ident::cli::free_decay_of(path)?;
+    let r = crate::ident::freedecay::identify_free_decay(
+        &t,
+        &x,
+        &crate::ident::freedecay::FreeDecayOptions {
+            f_min_hz: 0.2,
+            f_max_hz: 0.45 * 1.0 / ((t[t.len() - 1] - t[0]) / (t.len() - 1) as f64),
+            ..Default::default()
+        },
+    )
+    .with_context(|| format!("identifying {}", path.display()))?;
+    let f1 = r.mode.freq_hz;
+    let mut freq_hz = vec![(f1, r.mode.freq_hz_std)];
+    if n_modes >= 2 {
+        let m2 = r
+            .modes
+            .iter()
+            .filter(|m| (m.freq_hz / (super::lengths::UNIFORM_F2_OVER_F1 * f1) - 1.0).abs() < 0.25)
+            .min_by(|a, b| {
+                (a.freq_hz / f1 - super::lengths::UNIFORM_F2_OVER_F1)
+                    .abs()
+                    .total_cmp(&(b.freq_hz / f1 - super::lengths::UNIFORM_F2_OVER_F1).abs())
+            })
+            .with_context(|| {
+                format!(
+                    "{}: no second bending mode within ±25 % of 6.27 × f1 = {:.2} Hz (modes found: {:?} Hz)",
+                    path.display(),
+                    super::lengths::UNIFORM_F2_OVER_F1 * f1,
+                    r.modes.iter().map(|m| (m.freq_hz * 100.0).round() / 100.0).collect::<Vec<_>>()
+                )
+            })?;
+        freq_hz.push((m2.freq_hz, m2.freq_hz_std));
+    }
+    Ok(super::lengths::LengthModes {
+        length_m: l,
+        sensor_from_tip_m: sensor,
+        freq_hz,
+        source: what,
+    })
+}
+
+/// Runs `diagnose-lengths`.
+pub fn diagnose_lengths(a: LengthsArgs) -> Result<()> {
+    let t0 = std::time::Instant::now();
+    let rig = Rig::from_toml_file(&a.rig)?;
+    let mut data = Vec::new();
+    for s in &a.decay {
+        let (l, p, sensor) = parse_decay(s, a.sensor_from_tip_m)?;
+        let m = length_modes(l, &p, sensor, a.modes)?;
+        println!(
+            "L = {:.3} m: {}  ({})",
+            l,
+            m.freq_hz
+                .iter()
+                .enumerate()
+                .map(|(i, (f, sd))| format!("f{} = {f:.4} ± {sd:.4} Hz", i + 1))
+                .collect::<Vec<_>>()
+                .join(", "),
+            m.source
+        );
+        data.push(m);
+    }
+    data.sort_by(|x, y| x.length_m.total_cmp(&y.length_m));
+    let pb = bar(1);
+    pb.set_message("fitting hypotheses (leave-one-length-out)");
+    pb.enable_steady_tick(std::time::Duration::from_millis(200));
+    let d = super::lengths::diagnose_lengths(
+        &rig,
+        &data,
+        &super::lengths::LengthOptions {
+            n_modes: a.modes,
+            ..Default::default()
+        },
+    )?;
+    pb.finish_and_clear();
+    print!("\n{}", super::lengths::words(&d));
+    println!("({:.1} s)", t0.elapsed().as_secs_f64());
+    if let Some(j) = &a.json {
+        std::fs::write(j, serde_json::to_string_pretty(&super::lengths::to_json(&d))?)
+            .with_context(|| format!("cannot write {}", j.display()))?;
+        println!("JSON -> {}", j.display());
+    }
+    Ok(())
+}

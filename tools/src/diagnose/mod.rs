@@ -11,6 +11,7 @@
 pub mod cli;
 pub mod effects;
 pub mod fit;
+pub mod lengths;
 pub mod locate;
 pub mod report;
 pub mod select;

@@ -207,6 +207,7 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
         tip_mass_kg: p.tip_mass_kg,
         root_stiffness_nm_per_rad: p.root_stiffness_nm_per_rad,
         axial_load: p.orientation,
+        point_mass: None,
         damping_ratios: p.zeta,
     };
     let model = BeamModel::new(rig, &opts)?;

@@ -43,6 +43,9 @@ pub struct ModelOptions {
     pub tip_mass_kg: f64,
     /// Rotational spring at the clamp (N·m/rad); `None` = rigid clamp.
     pub root_stiffness_nm_per_rad: Option<f64>,
+    /// A lumped mass `(x_m, kg)` on the beam at distance x from the clamp (e.g. an
+    /// accelerometer); `None` = none.
+    pub point_mass: Option<(f64, f64)>,
     /// Gravity axial load; `None` = horizontal beam.
     pub axial_load: Option<Orientation>,
     /// Damping ratios of the first two flexible modes (→ Rayleigh α1, α2); `None` = the rig's.
@@ -57,6 +60,7 @@ impl Default for ModelOptions {
             base_mass_delta_kg: 0.0,
             tip_mass_kg: 0.0,
             root_stiffness_nm_per_rad: None,
+            point_mass: None,
             axial_load: None,
             damping_ratios: None,
         }
@@ -154,6 +158,10 @@ impl BeamModel {
         if !(opts.stiffness_scale > 0.0) || !(opts.tip_mass_kg >= 0.0) {
             bail!("stiffness scale must be > 0 and tip mass >= 0");
         }
+        let (pm_x, pm_kg) = opts.point_mass.unwrap_or((0.0, 0.0));
+        if !(pm_kg >= 0.0) || !(0.0..=beam.length_m).contains(&pm_x) {
+            bail!("point mass must be >= 0 kg and on the beam (0..={} m); got {pm_kg} kg at {pm_x} m", beam.length_m);
+        }
         let l = beam.length_m;
         let rho = beam.density_kg_m3;
         let e = beam.youngs_modulus_pa * opts.stiffness_scale;
@@ -176,7 +184,8 @@ impl BeamModel {
                         .map(|&(s, w)| w * rho * profile.area(s))
                         .sum();
                     let sign = if o == Orientation::Hanging { 1.0 } else { -1.0 };
-                    sign * G_M_S2 * (below + opts.tip_mass_kg)
+                    let point = if pm_x > x { pm_kg } else { 0.0 };
+                    sign * G_M_S2 * (below + opts.tip_mass_kg + point)
                 }
             }
         };
@@ -218,7 +227,16 @@ impl BeamModel {
         if !(base_mass > 0.0) {
             bail!("carriage mass must stay > 0 (got {base_mass} kg)");
         }
-        mass[(0, 0)] = base_mass + beam_mass + opts.tip_mass_kg; // J (eq. 17)
+        mass[(0, 0)] = base_mass + beam_mass + opts.tip_mass_kg + pm_kg; // J (eq. 17)
+        if pm_kg > 0.0 {
+            shape(pm_x, &mut vals, &mut d1, &mut d2);
+            for i in 1..dim {
+                mass[(0, i)] += pm_kg * vals[i];
+                for j in i..dim {
+                    mass[(i, j)] += pm_kg * vals[i] * vals[j];
+                }
+            }
+        }
                                                                  // Tip mass.
         let mut tip = DVector::zeros(dim);
         shape(l, &mut vals, &mut d1, &mut d2);
