@@ -299,6 +299,21 @@ pub fn fit(
                 s[i] = w[i];
             }
         }
+        // The warm calibration may have "explained" a mismatched mode by damping it out
+        // (ζ → its cap); an effect that moves that mode back needs a start with the rig's
+        // damping ratios as well.
+        let mut fresh = starts[0].clone();
+        let mut changed = false;
+        for (i, d) in defs.iter().enumerate().take(nc) {
+            if d.name.starts_with("zeta") {
+                let v = d.repr(d.starts[0]);
+                changed |= (fresh[i] - v).abs() > 0.5;
+                fresh[i] = v;
+            }
+        }
+        if changed && cand.is_some() {
+            starts.push(fresh);
+        }
     }
     let mut best: Option<(f64, DVector<f64>)> = None;
     let mut evals = 0;

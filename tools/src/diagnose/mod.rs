@@ -367,6 +367,22 @@ pub fn diagnose(
                 "effect parameter only {significance:.1} σ from zero"
             ));
         }
+        // A resonance fitted at the ceiling of its search range (0.4 × the sample rate) is not
+        // identified: the recording holds no information there, and a heavily damped
+        // "resonance" at the band edge acts as a generic gain/phase correction that absorbs
+        // any small model-form error (seen on null cases).
+        for (i, d) in cand.params.iter().enumerate() {
+            if d.name == "mount_frequency_hz" {
+                let ceiling = d.starts.iter().cloned().fold(0.0, f64::max);
+                if f.values[nc + i] >= 0.95 * ceiling {
+                    fails.push(format!(
+                        "mount frequency {:.1} Hz at the edge of the observable band ({:.1} Hz): not identified",
+                        f.values[nc + i],
+                        ceiling
+                    ));
+                }
+            }
+        }
         let passed = fails.is_empty();
         outcomes.push(CandidateOutcome {
             id: cand.id.to_string(),

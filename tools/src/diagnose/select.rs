@@ -19,7 +19,7 @@ pub const BIC_MARGIN: f64 = 10.0;
 /// Validation likelihood margin.
 pub const VALIDATION_MARGIN: f64 = 10.0;
 /// Minimum relative NRMSE reduction on the validation recording.
-pub const MIN_VALIDATION_REDUCTION: f64 = 0.05;
+pub const MIN_VALIDATION_REDUCTION: f64 = 0.06;
 /// Minimum significance of a null-at-zero parameter.
 pub const MIN_SIGMAS: f64 = 3.0;
 /// Ljung–Box lags.
