@@ -34,8 +34,16 @@ fn real_aluminium_length_series_names_the_sensor_mass() {
         j["validation"]["nrmse_after"].as_f64().unwrap(),
     );
     assert!(after < 0.7 * before, "{before} → {after}");
-    let ratio = d.fits[2].parameters.iter().find(|p| p.0 == "tip_mass_over_beam_mass").unwrap().1;
-    assert!((0.01..0.1).contains(&ratio), "sensor mass / beam mass {ratio}");
+    let ratio = d.fits[2]
+        .parameters
+        .iter()
+        .find(|p| p.0 == "tip_mass_over_beam_mass")
+        .unwrap()
+        .1;
+    assert!(
+        (0.01..0.1).contains(&ratio),
+        "sensor mass / beam mass {ratio}"
+    );
     assert_eq!(j["effect"], "tip_mass");
     assert!(j["parameters"]["tip_mass_kg"].as_f64().unwrap() > 0.0);
 }

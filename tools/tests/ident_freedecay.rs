@@ -155,7 +155,8 @@ fn recording_csv_errors_name_row_and_column() {
 #[test]
 fn real_steel_impact_spectrum() {
     use beamtools::ident::magspec::{identify_magnitude_spectrum, read_lvm};
-    let path = std::path::Path::new("../../shared/data/real/steel-cantilever/FFT_data_impulse_test.lvm");
+    let path =
+        std::path::Path::new("../../shared/data/real/steel-cantilever/FFT_data_impulse_test.lvm");
     if !path.exists() {
         eprintln!("skipped: {} not present", path.display());
         return;
@@ -180,12 +181,26 @@ fn bad_lvm_is_a_clear_error() {
     let dir = std::env::temp_dir().join(format!("beamshaper-lvm-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let head = "LabVIEW Measurement\t\n***End_of_Header***\t\nDelta_X\t0.5\t\n***End_of_Header***\t\t\nX_Value\tAcceleration\tComment\n";
-    let good: String = (0..40).map(|k| format!("{}\t-80.0\n", 0.5 * k as f64)).collect();
+    let good: String = (0..40)
+        .map(|k| format!("{}\t-80.0\n", 0.5 * k as f64))
+        .collect();
     let cases = [
         ("no-header.lvm", good.clone(), "End_of_Header"),
-        ("nan.lvm", format!("{head}{good}20.0\tabc\n"), "not a number"),
-        ("short.lvm", format!("{head}0\t-1\n0.5\t-2\n"), "at least 16"),
-        ("grid.lvm", format!("{head}{good}30.0\t-80\n"), "non-uniform"),
+        (
+            "nan.lvm",
+            format!("{head}{good}20.0\tabc\n"),
+            "not a number",
+        ),
+        (
+            "short.lvm",
+            format!("{head}0\t-1\n0.5\t-2\n"),
+            "at least 16",
+        ),
+        (
+            "grid.lvm",
+            format!("{head}{good}30.0\t-80\n"),
+            "non-uniform",
+        ),
     ];
     for (name, body, want) in cases {
         let p = dir.join(name);

@@ -78,7 +78,11 @@ fn exponential_sweep_120s_5pct_noise_meets_the_accuracy_target() {
     let with_cmd = errors(&m, 100..110, true, false);
     let tracked = errors(&m, 100..110, true, true);
     let raw = errors(&m, 100..110, false, false);
-    for (name, v) in [("command", &with_cmd), ("tracking", &tracked), ("raw", &raw)] {
+    for (name, v) in [
+        ("command", &with_cmd),
+        ("tracking", &tracked),
+        ("raw", &raw),
+    ] {
         eprintln!(
             "{name:>9}: rms error f1 {:.3} % f2 {:.3} % zeta1 {:.2} % zeta2 {:.2} %",
             rms(v, 0),
@@ -95,7 +99,10 @@ fn exponential_sweep_120s_5pct_noise_meets_the_accuracy_target() {
         .iter()
         .filter(|e| e[0].abs() < 0.2 && e[1].abs() < 0.2 && e[2].abs() < 15.0 && e[3].abs() < 15.0)
         .count();
-    assert!(ok >= 8, "tracking filter only: {ok}/10 meet the target: {tracked:?}");
+    assert!(
+        ok >= 8,
+        "tracking filter only: {ok}/10 meet the target: {tracked:?}"
+    );
     assert!(
         rms(&raw, 3) > 2.0 * rms(&with_cmd, 3),
         "raw {:.2} % vs command {:.2} %",

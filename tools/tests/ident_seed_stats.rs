@@ -41,7 +41,10 @@ fn stats() {
                 input: InputChannel::BaseAccel,
                 band_hz: Some((0.3, 8.0)),
                 n_modes: Some(2),
-                sk_iterations: std::env::var("SK").ok().and_then(|s| s.parse().ok()).unwrap_or(IdentOptions::default().sk_iterations),
+                sk_iterations: std::env::var("SK")
+                    .ok()
+                    .and_then(|s| s.parse().ok())
+                    .unwrap_or(IdentOptions::default().sk_iterations),
                 track_input: std::env::var("NOTRACK").is_err(),
                 ..Default::default()
             };

@@ -496,7 +496,10 @@ fn point_mass_matches_tip_mass_at_the_tip() {
     );
     let none = clamped_hz_opts(&r, base.clone());
     for i in 0..3 {
-        assert!((tip[i] / at_tip[i] - 1.0).abs() < 1e-12, "{tip:?} {at_tip:?}");
+        assert!(
+            (tip[i] / at_tip[i] - 1.0).abs() < 1e-12,
+            "{tip:?} {at_tip:?}"
+        );
         assert!((none[i] / at_root[i] - 1.0).abs() < 1e-12);
     }
     let near = |n| {
@@ -511,7 +514,10 @@ fn point_mass_matches_tip_mass_at_the_tip() {
     };
     let (a, b) = (near(8), near(12));
     assert!(a[0] < none[0] && a[0] > tip[0], "{a:?} {none:?} {tip:?}");
-    assert!((a[0] / b[0] - 1.0).abs() < 1e-6 && (a[1] / b[1] - 1.0).abs() < 1e-4, "{a:?} {b:?}");
+    assert!(
+        (a[0] / b[0] - 1.0).abs() < 1e-6 && (a[1] / b[1] - 1.0).abs() < 1e-4,
+        "{a:?} {b:?}"
+    );
     assert!(BeamModel::new(
         &r,
         &ModelOptions {

@@ -379,9 +379,9 @@ fn parse_decay(s: &str, default_sensor: f64) -> Result<(f64, PathBuf, f64)> {
     let (path, sensor) = match rest.rsplit_once('@') {
         Some((p, m)) => (
             p,
-            m.trim()
-                .parse::<f64>()
-                .with_context(|| format!("--decay `{s}`: `{m}` is not a sensor distance in metres"))?,
+            m.trim().parse::<f64>().with_context(|| {
+                format!("--decay `{s}`: `{m}` is not a sensor distance in metres")
+            })?,
         ),
         None => (rest, default_sensor),
     };
@@ -390,7 +390,12 @@ fn parse_decay(s: &str, default_sensor: f64) -> Result<(f64, PathBuf, f64)> {
 
 /// The modes of one free decay for the length series: mode 1 and, when asked, the mode nearest
 /// to 6.27 f1 (within ±25 %; the uniform-beam ratio).
-pub fn length_modes(l: f64, path: &Path, sensor: f64, n_modes: usize) -> Result<super::lengths::LengthModes> {
+pub fn length_modes(
+    l: f64,
+    path: &Path,
+    sensor: f64,
+    n_modes: usize,
+) -> Result<super::lengths::LengthModes> {
     let (t, x, what) = crate::ident::cli::free_decay_of(path)?;
     let r = crate::ident::freedecay::identify_free_decay(
         &t,
@@ -469,8 +474,11 @@ pub fn diagnose_lengths(a: LengthsArgs) -> Result<()> {
     print!("\n{}", super::lengths::words(&d));
     println!("({:.1} s)", t0.elapsed().as_secs_f64());
     if let Some(j) = &a.json {
-        std::fs::write(j, serde_json::to_string_pretty(&super::lengths::to_json(&d))?)
-            .with_context(|| format!("cannot write {}", j.display()))?;
+        std::fs::write(
+            j,
+            serde_json::to_string_pretty(&super::lengths::to_json(&d))?,
+        )
+        .with_context(|| format!("cannot write {}", j.display()))?;
         println!("JSON -> {}", j.display());
     }
     Ok(())

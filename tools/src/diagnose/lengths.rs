@@ -199,7 +199,10 @@ struct Series<'a> {
 
 impl Series<'_> {
     fn gravity(&self) -> bool {
-        matches!(self.effect, LengthEffect::GravityHanging | LengthEffect::GravityUpright)
+        matches!(
+            self.effect,
+            LengthEffect::GravityHanging | LengthEffect::GravityUpright
+        )
     }
 
     /// Model frequencies (Hz) of length `i`. Parameters `x`: for gravity, [ln s]; otherwise
@@ -243,20 +246,34 @@ impl Series<'_> {
     /// weighted least-squares solution in log-frequency (eliminated, variable projection).
     fn solve(&self, x: &DVector<f64>, which: &[usize]) -> Option<(f64, Vec<Vec<f64>>)> {
         if self.gravity() {
-            let f = which.iter().map(|&i| self.freqs_at(x, i, 1.0)).collect::<Option<Vec<_>>>()?;
+            let f = which
+                .iter()
+                .map(|&i| self.freqs_at(x, i, 1.0))
+                .collect::<Option<Vec<_>>>()?;
             return Some((x[0].exp(), f));
         }
-        let g = which.iter().map(|&i| self.freqs_at(x, i, 1.0)).collect::<Option<Vec<_>>>()?;
+        let g = which
+            .iter()
+            .map(|&i| self.freqs_at(x, i, 1.0))
+            .collect::<Option<Vec<_>>>()?;
         let (mut num, mut den) = (0.0, 0.0);
         for (gi, &i) in g.iter().zip(which) {
-            for (j, &(fm, sd)) in self.data[i].freq_hz.iter().take(self.opts.n_modes).enumerate() {
+            for (j, &(fm, sd)) in self.data[i]
+                .freq_hz
+                .iter()
+                .take(self.opts.n_modes)
+                .enumerate()
+            {
                 let w = 1.0 / (sd / fm).hypot(self.opts.floor_rel).powi(2);
                 num += w * (fm.ln() - gi.get(j)?.ln());
                 den += w;
             }
         }
         let scale = (2.0 * num / den).exp();
-        let f = g.iter().map(|v| v.iter().map(|x| x * scale.sqrt()).collect()).collect();
+        let f = g
+            .iter()
+            .map(|v| v.iter().map(|x| x * scale.sqrt()).collect())
+            .collect();
         Some((scale, f))
     }
 
@@ -264,12 +281,19 @@ impl Series<'_> {
         let (_, f) = self.solve(x, which)?;
         let mut r = Vec::new();
         for (fi, &i) in f.iter().zip(which) {
-            for (j, &(fm, sd)) in self.data[i].freq_hz.iter().take(self.opts.n_modes).enumerate() {
+            for (j, &(fm, sd)) in self.data[i]
+                .freq_hz
+                .iter()
+                .take(self.opts.n_modes)
+                .enumerate()
+            {
                 let s = (sd / fm).hypot(self.opts.floor_rel);
                 r.push((fi.get(j)? / fm - 1.0) / s);
             }
         }
-        r.iter().all(|v| v.is_finite()).then(|| DVector::from_vec(r))
+        r.iter()
+            .all(|v| v.is_finite())
+            .then(|| DVector::from_vec(r))
     }
 
     /// Relative errors (%) of length `i` with the parameters fitted on `which`.
@@ -281,7 +305,8 @@ impl Series<'_> {
         let f = if self.gravity() {
             self.freqs_at(x, i, 1.0)
         } else {
-            self.freqs_at(x, i, 1.0).map(|g| g.iter().map(|v| v * scale.sqrt()).collect())
+            self.freqs_at(x, i, 1.0)
+                .map(|g| g.iter().map(|v| v * scale.sqrt()).collect())
         };
         match f {
             Some(f) => self.data[i]
@@ -323,7 +348,9 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
             let (mut a, mut b) = (self.x.clone(), self.x.clone());
             a[c] += h;
             b[c] -= h;
-            let d = (self.s.residuals_for(&a, &self.which)? - self.s.residuals_for(&b, &self.which)?) / (2.0 * h);
+            let d = (self.s.residuals_for(&a, &self.which)?
+                - self.s.residuals_for(&b, &self.which)?)
+                / (2.0 * h);
             j.set_column(c, &d);
         }
         Some(j)
@@ -391,16 +418,34 @@ fn fit(s: &Series, which: &[usize]) -> Option<(DVector<f64>, f64, DMatrix<f64>)>
 ///
 /// Errors: fewer than 3 lengths, a length without `n_modes` modes, a non-uniform rig, the
 /// nominal model failing to fit.
-pub fn diagnose_lengths(rig: &Rig, data: &[LengthModes], opts: &LengthOptions) -> Result<LengthDiagnosis> {
+pub fn diagnose_lengths(
+    rig: &Rig,
+    data: &[LengthModes],
+    opts: &LengthOptions,
+) -> Result<LengthDiagnosis> {
     if data.len() < 3 {
-        bail!("a length series needs at least 3 lengths (got {}): one to hold out, two to fit", data.len());
+        bail!(
+            "a length series needs at least 3 lengths (got {}): one to hold out, two to fit",
+            data.len()
+        );
     }
     for d in data {
         if d.freq_hz.len() < opts.n_modes {
-            bail!("{} (L = {} m): {} mode(s) identified, {} needed", d.source, d.length_m, d.freq_hz.len(), opts.n_modes);
+            bail!(
+                "{} (L = {} m): {} mode(s) identified, {} needed",
+                d.source,
+                d.length_m,
+                d.freq_hz.len(),
+                opts.n_modes
+            );
         }
         if !(d.sensor_from_tip_m >= 0.0 && d.sensor_from_tip_m < d.length_m) {
-            bail!("{}: sensor {} m from the tip is not on a {} m beam", d.source, d.sensor_from_tip_m, d.length_m);
+            bail!(
+                "{}: sensor {} m from the tip is not on a {} m beam",
+                d.source,
+                d.sensor_from_tip_m,
+                d.length_m
+            );
         }
     }
     let rigs = data
@@ -447,14 +492,24 @@ pub fn diagnose_lengths(rig: &Rig, data: &[LengthModes], opts: &LengthOptions) -
         let mut parameters = Vec::new();
         let mut k = 0;
         let l_mid = data.iter().map(|d| d.length_m).sum::<f64>() / data.len() as f64;
-        if matches!(effect, LengthEffect::RootCompliance | LengthEffect::RootComplianceAndTipMass) {
+        if matches!(
+            effect,
+            LengthEffect::RootCompliance | LengthEffect::RootComplianceAndTipMass
+        ) {
             let kappa = x[k].exp();
             let kt = kappa * ei * scale;
             parameters.push(("root_stiffness_nm_per_rad".into(), kt, kt * sd(k)));
-            parameters.push(("root_stiffness_times_l_over_ei".into(), kappa * l_mid, kappa * l_mid * sd(k)));
+            parameters.push((
+                "root_stiffness_times_l_over_ei".into(),
+                kappa * l_mid,
+                kappa * l_mid * sd(k),
+            ));
             k += 1;
         }
-        if matches!(effect, LengthEffect::TipMass | LengthEffect::RootComplianceAndTipMass) {
+        if matches!(
+            effect,
+            LengthEffect::TipMass | LengthEffect::RootComplianceAndTipMass
+        ) {
             let m = x[k].exp();
             parameters.push(("tip_mass_kg".into(), m, m * sd(k)));
             let dimless = m / (rho_a * l_mid);
@@ -462,7 +517,12 @@ pub fn diagnose_lengths(rig: &Rig, data: &[LengthModes], opts: &LengthOptions) -
         }
         if s.gravity() {
             parameters.push((
-                if effect == LengthEffect::GravityHanging { "orientation=hanging" } else { "orientation=upright" }.into(),
+                if effect == LengthEffect::GravityHanging {
+                    "orientation=hanging"
+                } else {
+                    "orientation=upright"
+                }
+                .into(),
                 f64::NAN,
                 f64::NAN,
             ));
@@ -493,7 +553,12 @@ pub fn diagnose_lengths(rig: &Rig, data: &[LengthModes], opts: &LengthOptions) -
             .fold(f64::INFINITY, f64::min);
         let mut why = Vec::new();
         if !(gain >= 0.3) {
-            why.push(format!("held-out error {:.3} % vs nominal {:.3} % ({:+.0} %, needs −30 %)", f.heldout_rms_pct, nominal.heldout_rms_pct, -100.0 * gain));
+            why.push(format!(
+                "held-out error {:.3} % vs nominal {:.3} % ({:+.0} %, needs −30 %)",
+                f.heldout_rms_pct,
+                nominal.heldout_rms_pct,
+                -100.0 * gain
+            ));
         }
         if !(dbic <= -6.0) {
             why.push(format!("ΔBIC {dbic:+.1} (needs ≤ −6)"));
@@ -513,7 +578,13 @@ pub fn diagnose_lengths(rig: &Rig, data: &[LengthModes], opts: &LengthOptions) -
         // error by more than 20 %.
         if fits[i].effect == LengthEffect::RootComplianceAndTipMass {
             if let Some(j) = (1..fits.len())
-                .filter(|&j| qualifies[j] && matches!(fits[j].effect, LengthEffect::RootCompliance | LengthEffect::TipMass))
+                .filter(|&j| {
+                    qualifies[j]
+                        && matches!(
+                            fits[j].effect,
+                            LengthEffect::RootCompliance | LengthEffect::TipMass
+                        )
+                })
                 .min_by(|&a, &b| fits[a].heldout_rms_pct.total_cmp(&fits[b].heldout_rms_pct))
             {
                 if fits[j].heldout_rms_pct <= 1.25 * fits[i].heldout_rms_pct {
@@ -548,8 +619,14 @@ pub const UNIFORM_F2_OVER_F1: f64 = 6.266_931_4;
 
 fn locate(data: &[LengthModes], nominal: &LengthFit, n_modes: usize) -> Vec<String> {
     let mut w = Vec::new();
-    let fl2: Vec<f64> = data.iter().map(|d| d.freq_hz[0].0 * d.length_m * d.length_m).collect();
-    let (lo, hi) = (fl2.iter().cloned().fold(f64::INFINITY, f64::min), fl2.iter().cloned().fold(0.0, f64::max));
+    let fl2: Vec<f64> = data
+        .iter()
+        .map(|d| d.freq_hz[0].0 * d.length_m * d.length_m)
+        .collect();
+    let (lo, hi) = (
+        fl2.iter().cloned().fold(f64::INFINITY, f64::min),
+        fl2.iter().cloned().fold(0.0, f64::max),
+    );
     w.push(format!(
         "f1·L² = {} Hz·m² at L = {} m: a uniform beam keeps it constant; it varies by {:.2} % ({}).",
         fl2.iter().map(|v| format!("{v:.4}")).collect::<Vec<_>>().join(", "),
@@ -566,7 +643,10 @@ fn locate(data: &[LengthModes], nominal: &LengthFit, n_modes: usize) -> Vec<Stri
         }
     ));
     if n_modes >= 2 {
-        let ratios: Vec<f64> = data.iter().map(|d| d.freq_hz[1].0 / d.freq_hz[0].0).collect();
+        let ratios: Vec<f64> = data
+            .iter()
+            .map(|d| d.freq_hz[1].0 / d.freq_hz[0].0)
+            .collect();
         w.push(format!(
             "f2/f1 = {} against {:.3} for a uniform clamped–free beam ({:+.1} % on average): a single stiffness scale cannot change a frequency ratio.",
             ratios.iter().map(|v| format!("{v:.3}")).collect::<Vec<_>>().join(", "),
@@ -579,7 +659,11 @@ fn locate(data: &[LengthModes], nominal: &LengthFit, n_modes: usize) -> Vec<Stri
             "L = {:.3} m: nominal model (scale {:.4} fitted on all lengths) errs {} %.",
             d.length_m,
             nominal.stiffness_scale,
-            e.iter().enumerate().map(|(i, v)| format!("f{} {v:+.2}", i + 1)).collect::<Vec<_>>().join(", ")
+            e.iter()
+                .enumerate()
+                .map(|(i, v)| format!("f{} {v:+.2}", i + 1))
+                .collect::<Vec<_>>()
+                .join(", ")
         ));
     }
     w
@@ -591,7 +675,11 @@ fn locate(data: &[LengthModes], nominal: &LengthFit, n_modes: usize) -> Vec<Stri
 /// (score = held-out error reduction against the nominal model, fraction), plus the series.
 pub fn to_json(d: &LengthDiagnosis) -> serde_json::Value {
     let nominal = &d.fits[0];
-    let sel = d.fits.iter().find(|f| f.effect == d.selected).unwrap_or(nominal);
+    let sel = d
+        .fits
+        .iter()
+        .find(|f| f.effect == d.selected)
+        .unwrap_or(nominal);
     let params: serde_json::Map<String, serde_json::Value> = sel
         .parameters
         .iter()
@@ -635,13 +723,24 @@ pub fn words(d: &LengthDiagnosis) -> String {
     for l in &d.location {
         s.push_str(&format!("  - {l}\n"));
     }
-    s.push_str("\nHypotheses (fitted on all lengths; held-out = each length predicted from the others):\n");
-    s.push_str(&format!("  {:<26} {:>8} {:>9} {:>9} {:>14}  parameters\n", "effect", "scale", "chi2", "BIC", "held-out RMS %"));
+    s.push_str(
+        "\nHypotheses (fitted on all lengths; held-out = each length predicted from the others):\n",
+    );
+    s.push_str(&format!(
+        "  {:<26} {:>8} {:>9} {:>9} {:>14}  parameters\n",
+        "effect", "scale", "chi2", "BIC", "held-out RMS %"
+    ));
     for f in &d.fits {
         let params: Vec<String> = f
             .parameters
             .iter()
-            .map(|p| if p.1.is_finite() { format!("{} = {:.4e} ± {:.1e}", p.0, p.1, p.2) } else { p.0.clone() })
+            .map(|p| {
+                if p.1.is_finite() {
+                    format!("{} = {:.4e} ± {:.1e}", p.0, p.1, p.2)
+                } else {
+                    p.0.clone()
+                }
+            })
             .collect();
         let name = match f.effect {
             LengthEffect::GravityHanging => "gravity_axial_load (hang)",
@@ -659,7 +758,11 @@ pub fn words(d: &LengthDiagnosis) -> String {
         ));
     }
     let nominal = &d.fits[0];
-    match d.fits.iter().find(|f| f.effect == d.selected && d.selected != LengthEffect::None) {
+    match d
+        .fits
+        .iter()
+        .find(|f| f.effect == d.selected && d.selected != LengthEffect::None)
+    {
         Some(f) => {
             s.push_str(&format!(
                 "\nNamed: {} — held-out frequency error {:.3} % → {:.3} % ({:.0} % lower).\n",
@@ -668,12 +771,22 @@ pub fn words(d: &LengthDiagnosis) -> String {
                 f.heldout_rms_pct,
                 100.0 * (1.0 - f.heldout_rms_pct / nominal.heldout_rms_pct)
             ));
-            for (l, (e0, e1)) in d.lengths.iter().zip(nominal.heldout_errors_pct.iter().zip(&f.heldout_errors_pct)) {
+            for (l, (e0, e1)) in d
+                .lengths
+                .iter()
+                .zip(nominal.heldout_errors_pct.iter().zip(&f.heldout_errors_pct))
+            {
                 s.push_str(&format!(
                     "  L = {:.3} m held out: {} → {}\n",
                     l.length_m,
-                    e0.iter().map(|v| format!("{v:+.2} %")).collect::<Vec<_>>().join(" "),
-                    e1.iter().map(|v| format!("{v:+.2} %")).collect::<Vec<_>>().join(" ")
+                    e0.iter()
+                        .map(|v| format!("{v:+.2} %"))
+                        .collect::<Vec<_>>()
+                        .join(" "),
+                    e1.iter()
+                        .map(|v| format!("{v:+.2} %"))
+                        .collect::<Vec<_>>()
+                        .join(" ")
                 ));
             }
         }
@@ -681,7 +794,11 @@ pub fn words(d: &LengthDiagnosis) -> String {
     }
     s.push_str("Runner-ups:\n");
     for f in d.fits.iter().skip(1).filter(|f| f.effect != d.selected) {
-        s.push_str(&format!("  {:<26} {}\n", format!("{:?}", f.effect), f.verdict));
+        s.push_str(&format!(
+            "  {:<26} {}\n",
+            format!("{:?}", f.effect),
+            f.verdict
+        ));
     }
     s
 }
@@ -722,7 +839,8 @@ mod tests {
                         n_modes: 10,
                         root_stiffness_nm_per_rad: kr,
                         point_mass: m.map(|m| (l - 0.06, m)),
-                        axial_load: (truth == LengthEffect::GravityHanging).then_some(Orientation::Hanging),
+                        axial_load: (truth == LengthEffect::GravityHanging)
+                            .then_some(Orientation::Hanging),
                         ..Default::default()
                     };
                     let f: Vec<f64> = BeamModel::new(&rl, &o)
@@ -738,7 +856,10 @@ mod tests {
                     LengthModes {
                         length_m: l,
                         sensor_from_tip_m: 0.06,
-                        freq_hz: vec![(f[0] * (1.0 + e), f[0] * 3e-4), (f[1] * (1.0 - e), f[1] * 3e-4)],
+                        freq_hz: vec![
+                            (f[0] * (1.0 + e), f[0] * 3e-4),
+                            (f[1] * (1.0 - e), f[1] * 3e-4),
+                        ],
                         source: format!("synthetic {l}"),
                     }
                 })
@@ -771,7 +892,11 @@ mod tests {
             let truth = effects[case % effects.len()];
             let h = rng.gen_range(0.001..0.004);
             let steel = rng.gen_bool(0.5);
-            let (e, rho) = if steel { (2.0e11, 7850.0) } else { (6.9e10, 2700.0) };
+            let (e, rho) = if steel {
+                (2.0e11, 7850.0)
+            } else {
+                (6.9e10, 2700.0)
+            };
             let r = Rig::from_toml_str(&format!(
                 "[beam]\nlength_m = 0.5\ndensity_kg_m3 = {rho}\nyoungs_modulus_pa = {e}\n\
                  stations = [ {{ x_m = 0.0, width_m = 0.02, thickness_m = {h} }}, {{ x_m = 0.5, width_m = 0.02, thickness_m = {h} }} ]\n\
@@ -780,11 +905,17 @@ mod tests {
             .unwrap();
             let (ei, rho_a) = section(&r).unwrap();
             let l0 = rng.gen_range(0.25..0.5);
-            let lengths = [l0, l0 * rng.gen_range(1.15..1.3), l0 * rng.gen_range(1.35..1.7)];
+            let lengths = [
+                l0,
+                l0 * rng.gen_range(1.15..1.3),
+                l0 * rng.gen_range(1.35..1.7),
+            ];
             let sensor = rng.gen_range(0.02..0.08);
             let noise = rng.gen_range(0.0005..0.003);
-            let kr = (truth == LengthEffect::RootCompliance).then(|| rng.gen_range(5.0..40.0) * ei / lengths[1]);
-            let m = (truth == LengthEffect::TipMass).then(|| rng.gen_range(0.03..0.15) * rho_a * lengths[1]);
+            let kr = (truth == LengthEffect::RootCompliance)
+                .then(|| rng.gen_range(5.0..40.0) * ei / lengths[1]);
+            let m = (truth == LengthEffect::TipMass)
+                .then(|| rng.gen_range(0.03..0.15) * rho_a * lengths[1]);
             let data: Vec<LengthModes> = lengths
                 .iter()
                 .map(|&l| {
@@ -811,7 +942,10 @@ mod tests {
                     LengthModes {
                         length_m: l,
                         sensor_from_tip_m: sensor,
-                        freq_hz: vec![(f[0] * nz(&mut rng), f[0] * noise), (f[1] * nz(&mut rng), f[1] * noise)],
+                        freq_hz: vec![
+                            (f[0] * nz(&mut rng), f[0] * noise),
+                            (f[1] * nz(&mut rng), f[1] * noise),
+                        ],
                         source: String::new(),
                     }
                 })
@@ -852,9 +986,15 @@ mod tests {
             freq_hz: vec![(9.4, 0.01)],
             source: "x".into(),
         };
-        let e = diagnose_lengths(&rig(), &[d.clone(), d.clone()], &LengthOptions::default()).unwrap_err();
+        let e = diagnose_lengths(&rig(), &[d.clone(), d.clone()], &LengthOptions::default())
+            .unwrap_err();
         assert!(format!("{e}").contains("at least 3"));
-        let e = diagnose_lengths(&rig(), &[d.clone(), d.clone(), d], &LengthOptions::default()).unwrap_err();
+        let e = diagnose_lengths(
+            &rig(),
+            &[d.clone(), d.clone(), d],
+            &LengthOptions::default(),
+        )
+        .unwrap_err();
         assert!(format!("{e}").contains("needed"));
     }
 }

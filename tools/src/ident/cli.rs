@@ -243,7 +243,10 @@ fn identify_spectrum(a: &IdentifyArgs) -> Result<()> {
     }
     if modes.len() >= 2 {
         let f1 = modes[0].freq_hz;
-        let ratios: Vec<String> = modes[1..].iter().map(|m| format!("{:.3}", m.freq_hz / f1)).collect();
+        let ratios: Vec<String> = modes[1..]
+            .iter()
+            .map(|m| format!("{:.3}", m.freq_hz / f1))
+            .collect();
         println!("  frequency ratios to mode 1: {} (uniform clamped-free beam: 6.267, 17.547, 34.386, 56.842)", ratios.join(", "));
     }
     if let Some(j) = &a.json {
@@ -256,7 +259,10 @@ fn identify_spectrum(a: &IdentifyArgs) -> Result<()> {
 
 /// `beamtool identify`.
 pub fn identify(a: IdentifyArgs) -> Result<()> {
-    if a.recording.extension().is_some_and(|e| e.eq_ignore_ascii_case("lvm")) {
+    if a.recording
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("lvm"))
+    {
         return identify_spectrum(&a);
     }
     if is_input_output(&a.recording) && a.method != "free-decay" {

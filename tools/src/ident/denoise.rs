@@ -166,10 +166,18 @@ pub struct CommandModel {
 /// Errors: different lengths, fewer than 20 samples per tap, a constant command.
 ///
 /// [`base_from_command_bic`] chooses the taps.
-pub fn base_from_command(cmd: &[f64], base: &[f64], lead: usize, lag: usize) -> Result<CommandModel> {
+pub fn base_from_command(
+    cmd: &[f64],
+    base: &[f64],
+    lead: usize,
+    lag: usize,
+) -> Result<CommandModel> {
     let n = cmd.len();
     if base.len() != n {
-        anyhow::bail!("base_cmd_m and base_pos_m differ in length ({n} vs {})", base.len());
+        anyhow::bail!(
+            "base_cmd_m and base_pos_m differ in length ({n} vs {})",
+            base.len()
+        );
     }
     let p = lead + lag + 2;
     if n < 20 * p {
@@ -200,7 +208,11 @@ pub fn base_from_command(cmd: &[f64], base: &[f64], lead: usize, lag: usize) -> 
     let r_var = (&y - &fit).norm_squared();
     Ok(CommandModel {
         base: fit.iter().copied().collect(),
-        r2: if b_var > 0.0 { 1.0 - r_var / b_var } else { 0.0 },
+        r2: if b_var > 0.0 {
+            1.0 - r_var / b_var
+        } else {
+            0.0
+        },
         taps: (lead, lag),
     })
 }
@@ -226,7 +238,11 @@ pub fn base_from_command_bic(
         l *= 2;
     }
     lags.push(lag_max);
-    let leads: Vec<usize> = if lead_max > 0 { vec![0, lead_max] } else { vec![0] };
+    let leads: Vec<usize> = if lead_max > 0 {
+        vec![0, lead_max]
+    } else {
+        vec![0]
+    };
     let mut best: Option<(f64, CommandModel)> = None;
     for &lead in &leads {
         for &lag in &lags {
@@ -273,8 +289,19 @@ mod tests {
         let meas: Vec<f64> = truth.iter().map(|v| v + nrm.sample(&mut rng)).collect();
         let m = base_from_command_bic(&cmd, &meas, 10, 100).unwrap();
         assert!(m.taps.1 >= 2, "{:?}", m.taps);
-        let err = (m.base.iter().zip(&truth).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / n as f64).sqrt();
-        assert!(err < 0.1 * 0.05 * rms, "prediction error {err} vs sensor noise {}", 0.05 * rms);
+        let err = (m
+            .base
+            .iter()
+            .zip(&truth)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>()
+            / n as f64)
+            .sqrt();
+        assert!(
+            err < 0.1 * 0.05 * rms,
+            "prediction error {err} vs sensor noise {}",
+            0.05 * rms
+        );
         assert!(base_from_command(&cmd, &meas[..100], 0, 4).is_err());
     }
 

@@ -43,9 +43,12 @@ pub struct MagnitudeSpectrum {
 pub fn read_lvm(path: &Path) -> Result<MagnitudeSpectrum> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let end = text
-        .rfind("***End_of_Header***")
-        .with_context(|| format!("{}: no `***End_of_Header***` (not a LabVIEW .lvm file?)", path.display()))?;
+    let end = text.rfind("***End_of_Header***").with_context(|| {
+        format!(
+            "{}: no `***End_of_Header***` (not a LabVIEW .lvm file?)",
+            path.display()
+        )
+    })?;
     let header = &text[..end];
     let field = |name: &str| {
         header
@@ -55,7 +58,8 @@ pub fn read_lvm(path: &Path) -> Result<MagnitudeSpectrum> {
             .map(|v| v.trim().to_string())
     };
     let unit = field("Y_Unit_Label").unwrap_or_default();
-    let delta: Option<f64> = field("Delta_X").and_then(|v| v.split('\t').next()?.trim().parse().ok());
+    let delta: Option<f64> =
+        field("Delta_X").and_then(|v| v.split('\t').next()?.trim().parse().ok());
     let body = &text[end..];
     let (mut f, mut m) = (Vec::new(), Vec::new());
     for (i, line) in body.lines().enumerate().skip(1) {
@@ -65,11 +69,14 @@ pub fn read_lvm(path: &Path) -> Result<MagnitudeSpectrum> {
         }
         let mut it = line.split('\t');
         let parse = |s: Option<&str>, what: &str| -> Result<f64> {
-            let s = s.with_context(|| format!("{}: data line {i}: missing {what}", path.display()))?;
-            let v: f64 = s
-                .trim()
-                .parse()
-                .with_context(|| format!("{}: data line {i}: `{s}` is not a number ({what})", path.display()))?;
+            let s =
+                s.with_context(|| format!("{}: data line {i}: missing {what}", path.display()))?;
+            let v: f64 = s.trim().parse().with_context(|| {
+                format!(
+                    "{}: data line {i}: `{s}` is not a number ({what})",
+                    path.display()
+                )
+            })?;
             if !v.is_finite() {
                 bail!("{}: data line {i}: {what} is not finite", path.display());
             }
@@ -79,7 +86,11 @@ pub fn read_lvm(path: &Path) -> Result<MagnitudeSpectrum> {
         m.push(parse(it.next(), "magnitude")?);
     }
     if f.len() < 16 {
-        bail!("{}: {} spectrum lines; need at least 16", path.display(), f.len());
+        bail!(
+            "{}: {} spectrum lines; need at least 16",
+            path.display(),
+            f.len()
+        );
     }
     let df = f[1] - f[0];
     if !(df > 0.0) {
@@ -87,12 +98,20 @@ pub fn read_lvm(path: &Path) -> Result<MagnitudeSpectrum> {
     }
     for k in 1..f.len() {
         if ((f[k] - f[k - 1]) / df - 1.0).abs() > 1e-3 {
-            bail!("{}: non-uniform frequency grid at line {k} ({} → {} Hz)", path.display(), f[k - 1], f[k]);
+            bail!(
+                "{}: non-uniform frequency grid at line {k} ({} → {} Hz)",
+                path.display(),
+                f[k - 1],
+                f[k]
+            );
         }
     }
     if let Some(d) = delta {
         if (d / df - 1.0).abs() > 1e-3 {
-            bail!("{}: header Delta_X = {d} Hz but the rows step {df} Hz", path.display());
+            bail!(
+                "{}: header Delta_X = {d} Hz but the rows step {df} Hz",
+                path.display()
+            );
         }
     }
     Ok(MagnitudeSpectrum {
@@ -164,7 +183,11 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for PeakFit<'_> {
     fn jacobian(&self) -> Option<DMatrix<f64>> {
         let mut j = DMatrix::zeros(self.f.len(), 4);
         for i in 0..4 {
-            let h = if i == 1 { 1e-7 * self.p[1].abs().max(1e-3) } else { 1e-6 };
+            let h = if i == 1 {
+                1e-7 * self.p[1].abs().max(1e-3)
+            } else {
+                1e-6
+            };
             let (mut a, mut b) = (self.p.clone(), self.p.clone());
             a[i] += h;
             b[i] -= h;
@@ -232,7 +255,11 @@ pub fn identify_magnitude_spectrum(
     let n = f.len();
     let df = f[1] - f[0];
     let lo = f.iter().position(|&x| x >= f_min_hz).unwrap_or(n).max(1);
-    let hi = f.iter().rposition(|&x| x <= f_max_hz).unwrap_or(0).min(n - 2);
+    let hi = f
+        .iter()
+        .rposition(|&x| x <= f_max_hz)
+        .unwrap_or(0)
+        .min(n - 2);
     if lo > hi {
         bail!("no spectrum line in {f_min_hz}..{f_max_hz} Hz");
     }
@@ -258,7 +285,9 @@ pub fn identify_magnitude_spectrum(
     }
     kept.truncate(max_modes);
     if kept.is_empty() {
-        bail!("no peak {min_prominence_db} dB above its neighbourhood in {f_min_hz}..{f_max_hz} Hz");
+        bail!(
+            "no peak {min_prominence_db} dB above its neighbourhood in {f_min_hz}..{f_max_hz} Hz"
+        );
     }
     let mut out = Vec::new();
     for (k, prom) in kept {
@@ -266,7 +295,11 @@ pub fn identify_magnitude_spectrum(
         if width < RESOLVED_LINES {
             let (y0, y1, y2) = (db[k - 1], db[k], db[k + 1]);
             let d = y0 - 2.0 * y1 + y2;
-            let shift = if d < 0.0 { (0.5 * (y0 - y2) / d).clamp(-0.5, 0.5) } else { 0.0 };
+            let shift = if d < 0.0 {
+                (0.5 * (y0 - y2) / d).clamp(-0.5, 0.5)
+            } else {
+                0.0
+            };
             let fnat = f[k] + shift * df;
             out.push(MagnitudeMode {
                 freq_hz: fnat,
@@ -280,7 +313,10 @@ pub fn identify_magnitude_spectrum(
             });
             continue;
         }
-        let (a, b) = (k.saturating_sub(half_window.max(2 * width as usize)), (k + half_window.max(2 * width as usize) + 1).min(n));
+        let (a, b) = (
+            k.saturating_sub(half_window.max(2 * width as usize)),
+            (k + half_window.max(2 * width as usize) + 1).min(n),
+        );
         let floor = median(k.saturating_sub(nb), (k + nb + 1).min(n));
         let lin = |d: f64| 10f64.powf(d / 20.0);
         let z0 = (0.5 * width * df / f[k]).max(1e-5);
@@ -364,7 +400,10 @@ mod tests {
         let r = identify_magnitude_spectrum(&s, 1.0, 70.0, 10.0, 2).unwrap();
         assert_eq!(r.len(), 2);
         for (m, t) in r.iter().zip(&modes) {
-            assert!((m.freq_hz - t.0).abs() < (3.0 * m.freq_hz_std).min(0.005), "{m:?}");
+            assert!(
+                (m.freq_hz - t.0).abs() < (3.0 * m.freq_hz_std).min(0.005),
+                "{m:?}"
+            );
             assert!((m.zeta / t.1 - 1.0).abs() < 0.1, "{m:?}");
             assert!(!m.resolution_limited);
         }

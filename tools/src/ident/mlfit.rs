@@ -166,7 +166,11 @@ pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> R
     let sxx = &frf.sxx[band.clone()];
     let w_max = sxx.iter().fold(0.0f64, |a, &b| a.max(b));
     if !(w_max > 0.0) {
-        bail!("the input has no power in {:.3}..{:.3} Hz", band_hz.0, band_hz.1);
+        bail!(
+            "the input has no power in {:.3}..{:.3} Hz",
+            band_hz.0,
+            band_hz.1
+        );
     }
     let sqrt_w: Vec<f64> = sxx.iter().map(|v| (v / w_max).max(0.0).sqrt()).collect();
     let theta0 = DVector::from_iterator(
@@ -185,7 +189,9 @@ pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> R
         bail!("singular least-squares problem at the starting poles");
     };
     let cost_start = r0.norm_squared() * w_max;
-    let (problem, report) = LevenbergMarquardt::new().with_patience(200).minimize(problem);
+    let (problem, report) = LevenbergMarquardt::new()
+        .with_patience(200)
+        .minimize(problem);
     let theta = problem.theta.clone();
     let (Some(r), Some(j)) = (problem.projected(&theta), problem.jacobian()) else {
         bail!("the fit diverged");
@@ -292,7 +298,10 @@ mod tests {
         let r = refine_modes(&frf, (0.3, 9.0), &start).unwrap();
         assert!(r.cost_end < r.cost_start);
         for (m, t) in r.modes.iter().zip(&truth) {
-            assert!((m.freq_hz - t.0).abs() < 4.0 * m.freq_hz_std, "{m:?} vs {t:?}");
+            assert!(
+                (m.freq_hz - t.0).abs() < 4.0 * m.freq_hz_std,
+                "{m:?} vs {t:?}"
+            );
             assert!((m.zeta - t.1).abs() < 4.0 * m.zeta_std, "{m:?} vs {t:?}");
             assert!((m.zeta / t.1 - 1.0).abs() < 0.1, "{m:?} vs {t:?}");
             assert!(m.zeta_std > 0.0 && m.freq_hz_std > 0.0);

@@ -522,12 +522,26 @@ pub fn frf_with_options(rec: &Recording, opts: &IdentOptions) -> Result<(Frf, Ve
                     if let Ok(m) = other {
                         warnings.push(format!("the command explains only {:.0} % of the base position's variance: base_pos_m tracking-filtered instead", 100.0 * m.r2));
                     }
-                    suffix = track_into(&mut filtered.base_pos_m, b, rate, band, "base_pos_m", &mut warnings)?;
+                    suffix = track_into(
+                        &mut filtered.base_pos_m,
+                        b,
+                        rate,
+                        band,
+                        "base_pos_m",
+                        &mut warnings,
+                    )?;
                 }
             }
         }
         (Some(b), None) => {
-            suffix = track_into(&mut filtered.base_pos_m, b, rate, band, "base_pos_m", &mut warnings)?
+            suffix = track_into(
+                &mut filtered.base_pos_m,
+                b,
+                rate,
+                band,
+                "base_pos_m",
+                &mut warnings,
+            )?
         }
         // A command alone is noise-free: nothing to filter.
         _ => {}

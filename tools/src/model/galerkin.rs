@@ -160,7 +160,10 @@ impl BeamModel {
         }
         let (pm_x, pm_kg) = opts.point_mass.unwrap_or((0.0, 0.0));
         if !(pm_kg >= 0.0) || !(0.0..=beam.length_m).contains(&pm_x) {
-            bail!("point mass must be >= 0 kg and on the beam (0..={} m); got {pm_kg} kg at {pm_x} m", beam.length_m);
+            bail!(
+                "point mass must be >= 0 kg and on the beam (0..={} m); got {pm_kg} kg at {pm_x} m",
+                beam.length_m
+            );
         }
         let l = beam.length_m;
         let rho = beam.density_kg_m3;
@@ -237,7 +240,7 @@ impl BeamModel {
                 }
             }
         }
-                                                                 // Tip mass.
+        // Tip mass.
         let mut tip = DVector::zeros(dim);
         shape(l, &mut vals, &mut d1, &mut d2);
         for i in 1..dim {
