@@ -218,7 +218,8 @@ pub fn base_from_command(
 }
 
 /// [`base_from_command`] with the taps chosen by the Bayesian information criterion
-/// n ln(RSS/n) + p ln n over lead ∈ {0, `lead_max`} and lag ∈ {0, 1, 2, 4, …, `lag_max`}: a
+/// n ln(RSS/n) + p ln n over lead ∈ {0, `lead_max`} and lag ∈ {0, 1, 2, 4, …, `lag_max`} (for
+/// each lead the lags ascend until two in a row do not improve the BIC): a
 /// base that follows its command needs one tap, a servo a few; every needless tap adds the
 /// sensor noise's projection to the prediction (ζ2 scattered by ±4 % with a fixed 111-tap FIR,
 /// ±0.6 % with the clean command itself on the reference rig).
@@ -245,14 +246,25 @@ pub fn base_from_command_bic(
     };
     let mut best: Option<(f64, CommandModel)> = None;
     for &lead in &leads {
+        // Lags ascend; stop after two that do not improve this lead's BIC.
+        let (mut lead_best, mut worse) = (f64::INFINITY, 0);
         for &lag in &lags {
             let Ok(m) = base_from_command(cmd, base, lead, lag) else {
                 continue;
             };
             let rss = ((1.0 - m.r2) * b_var).max(1e-300);
             let bic = n * (rss / n).ln() + (lead + lag + 2) as f64 * n.ln();
+            if bic < lead_best {
+                lead_best = bic;
+                worse = 0;
+            } else {
+                worse += 1;
+            }
             if best.as_ref().map_or(true, |(b, _)| bic < *b) {
                 best = Some((bic, m));
+            }
+            if worse >= 2 {
+                break;
             }
         }
     }
