@@ -110,3 +110,40 @@ fn exponential_sweep_120s_5pct_noise_meets_the_accuracy_target() {
         rms(&with_cmd, 3)
     );
 }
+
+/// A recorded (noisy) command is not used as a clean input: a warning, the tracking filter
+/// instead, and the frequencies still within target.
+#[test]
+fn a_noisy_command_falls_back_to_the_tracking_filter() {
+    let m = model();
+    let spec = SweepSpec {
+        tail_s: 20.0,
+        ..SweepSpec::paper(SweepKind::Exponential, beta_120s())
+    };
+    let clean = simulate_sweep(&m, &spec, 100.0, 0.0, 100).unwrap();
+    let mut rec = simulate_sweep(&m, &spec, 100.0, 0.05, 100).unwrap();
+    let mut c = clean.clone();
+    c.base_pos_m = c.base_cmd_m.take();
+    beamtools::ident::protocol::add_noise(&mut c, 0.05, 1100);
+    rec.base_cmd_m = c.base_pos_m;
+    let opts = IdentOptions {
+        input: InputChannel::BaseAccel,
+        band_hz: Some((0.3, 8.0)),
+        n_modes: Some(2),
+        ..Default::default()
+    };
+    let (r, _) = identify_recording(&rec, &opts).unwrap();
+    assert!(
+        r.warnings.iter().any(|w| w.contains("broadband noise")),
+        "{:?}",
+        r.warnings
+    );
+    assert!(r.input.contains("tracking"), "{}", r.input);
+    let t = truth(&m).unwrap();
+    for (mo, tt) in r.modes.iter().zip(t.for_input(InputChannel::BaseAccel)) {
+        assert!((mo.freq_hz / tt.0 - 1.0).abs() < 0.002, "{mo:?}");
+    }
+    // The clean recording's command is recognised as generated.
+    let (r, _) = identify_recording(&clean, &opts).unwrap();
+    assert!(r.input.contains("predicted from base_cmd_m"), "{}", r.input);
+}

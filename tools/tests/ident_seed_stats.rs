@@ -1,7 +1,8 @@
 //! Statistics over 20 noise seeds of the accuracy protocol (docs/ident.md). Run with
 //! `WHICH=bt cargo test --test ident_seed_stats -- --ignored --nocapture` (b = noise on
 //! base_pos_m, t = on tip_pos_m; `SK=n` Sanathanan–Koerner iterations; `NOCMD=1` drops the
-//! noise-free `base_cmd_m` so that the base is tracking-filtered instead of predicted from it).
+//! noise-free `base_cmd_m` so that the base is tracking-filtered instead of predicted from it;
+//! `NOISYCMD=1` adds 5 % noise to `base_cmd_m` too).
 use beamtools::ident::frf::InputChannel;
 use beamtools::ident::protocol::{simulate_sweep, truth};
 use beamtools::ident::sweep::{SweepKind, SweepSpec};
@@ -32,6 +33,12 @@ fn stats() {
             }
             if which.contains('t') {
                 rec.tip_pos_m = noisy.tip_pos_m.clone();
+            }
+            if std::env::var("NOISYCMD").is_ok() {
+                let mut c = clean.clone();
+                c.base_pos_m = c.base_cmd_m.take();
+                beamtools::ident::protocol::add_noise(&mut c, 0.05, seed + 1000);
+                rec.base_cmd_m = c.base_pos_m;
             }
             if std::env::var("NOCMD").is_ok() {
                 rec.base_cmd_m = None;

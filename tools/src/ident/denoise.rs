@@ -144,6 +144,31 @@ pub fn track_sweep(x: &[f64], rate_hz: f64, frame_s: f64, band_hz: (f64, f64)) -
     })
 }
 
+/// Fraction of the variance of `x` (mean removed) above `f_hz`: ≈ 0 for a generated command
+/// band-limited below `f_hz`, ≈ (1 − 2f/rate) × the noise share for white sensor noise.
+pub fn broadband_fraction(x: &[f64], rate_hz: f64, f_hz: f64) -> f64 {
+    let n = x.len();
+    if n < 4 {
+        return 0.0;
+    }
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let mut planner = RealFftPlanner::<f64>::new();
+    let fft = planner.plan_fft_forward(n);
+    let mut buf: Vec<f64> = x.iter().map(|v| v - mean).collect();
+    let mut sp = fft.make_output_vec();
+    if fft.process(&mut buf, &mut sp).is_err() {
+        return 0.0;
+    }
+    let k0 = ((f_hz / rate_hz) * n as f64).ceil() as usize;
+    let total: f64 = sp.iter().skip(1).map(|c| c.norm_sqr()).sum();
+    let high: f64 = sp.iter().skip(k0.max(1)).map(|c| c.norm_sqr()).sum();
+    if total > 0.0 {
+        high / total
+    } else {
+        0.0
+    }
+}
+
 /// Result of [`base_from_command`].
 #[derive(Clone, Debug)]
 pub struct CommandModel {
