@@ -179,6 +179,12 @@ pub fn rig_at_length(rig: &Rig, length_m: f64) -> Result<Rig> {
     Ok(r)
 }
 
+/// Natural frequencies (Hz) of the clamped-base modes of `rig` with `opts`, ascending.
+pub fn clamped_freqs_hz(rig: &Rig, opts: &ModelOptions) -> Result<Vec<f64>> {
+    let w = BeamModel::new(rig, opts)?.clamped_modes()?.omega_rad_s;
+    Ok(w.iter().map(|w| w / (2.0 * std::f64::consts::PI)).collect())
+}
+
 /// EI (N·m²) and ρA (kg/m) of the rig's (uniform) beam.
 fn section(rig: &Rig) -> Result<(f64, f64)> {
     let beam = rig.beam.as_ref().context("the rig has no [beam] section")?;
@@ -236,9 +242,7 @@ impl Series<'_> {
                 Orientation::Upright
             });
         }
-        let m = BeamModel::new(&self.rigs[i], &o).ok()?;
-        let w = m.clamped_modes().ok()?.omega_rad_s;
-        Some(w.iter().map(|w| w / (2.0 * std::f64::consts::PI)).collect())
+        clamped_freqs_hz(&self.rigs[i], &o).ok()
     }
 
     /// The stiffness scale s and the model frequencies of `which`. Without gravity every
@@ -843,14 +847,7 @@ mod tests {
                             .then_some(Orientation::Hanging),
                         ..Default::default()
                     };
-                    let f: Vec<f64> = BeamModel::new(&rl, &o)
-                        .unwrap()
-                        .clamped_modes()
-                        .unwrap()
-                        .omega_rad_s
-                        .iter()
-                        .map(|w| w / (2.0 * std::f64::consts::PI))
-                        .collect();
+                    let f = clamped_freqs_hz(&rl, &o).unwrap();
                     // Deterministic ±0.05 % "noise".
                     let e = 5e-4 * (((i * 7 + k * 3) % 5) as f64 - 2.0) / 2.0;
                     LengthModes {
@@ -930,14 +927,7 @@ mod tests {
                         },
                         ..Default::default()
                     };
-                    let f: Vec<f64> = BeamModel::new(&rig_at_length(&r, l).unwrap(), &o)
-                        .unwrap()
-                        .clamped_modes()
-                        .unwrap()
-                        .omega_rad_s
-                        .iter()
-                        .map(|w| w / (2.0 * std::f64::consts::PI))
-                        .collect();
+                    let f = clamped_freqs_hz(&rig_at_length(&r, l).unwrap(), &o).unwrap();
                     let nz = |rng: &mut rand::rngs::StdRng| 1.0 + noise * rng.gen_range(-1.7..1.7);
                     LengthModes {
                         length_m: l,
