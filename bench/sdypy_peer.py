@@ -93,26 +93,22 @@ def main():
         seeds = [int(x) for x in a.seeds.split(",")]
     rows = {k: [] for k in ["sdypy-EMA LSCF, measured base", "  same, relaxed 1 % criterion", "sdypy-EMA LSCF, command input", "  same, relaxed 1 % criterion ", "beamtool identify"]}
     times = {k: [] for k in rows}
+    relaxed = {"measured base": "  same, relaxed 1 % criterion", "command input": "  same, relaxed 1 % criterion "}
     dt = d["time_s"][1] - d["time_s"][0]
     for seed in seeds:
         n = add_noise(d, a.noise, seed)
         noisy = a.recording.replace(".csv", f"-noisy{seed}.csv")
         write(noisy, n)
-        t0 = time.perf_counter()
-        b = n["base_pos_m"]
-        f, H = h1_whole_record(accel(b, dt), n["tip_pos_m"] - b, dt)
-        r0, r1 = sdypy_lscf(f, H, truth)
-        rows["sdypy-EMA LSCF, measured base"].append(r0)
-        rows["  same, relaxed 1 % criterion"].append(r1)
-        times["sdypy-EMA LSCF, measured base"].append(time.perf_counter() - t0)
-        if "base_cmd_m" in n:
+        for col, label in (("base_pos_m", "measured base"), ("base_cmd_m", "command input")):
+            if col not in n:
+                continue
             t0 = time.perf_counter()
-            c = n["base_cmd_m"]
-            f, H = h1_whole_record(accel(c, dt), n["tip_pos_m"] - c, dt)
+            b = n[col]
+            f, H = h1_whole_record(accel(b, dt), n["tip_pos_m"] - b, dt)
             r0, r1 = sdypy_lscf(f, H, truth)
-            rows["sdypy-EMA LSCF, command input"].append(r0)
-            rows["  same, relaxed 1 % criterion "].append(r1)
-            times["sdypy-EMA LSCF, command input"].append(time.perf_counter() - t0)
+            rows[f"sdypy-EMA LSCF, {label}"].append(r0)
+            rows[relaxed[label]].append(r1)
+            times[f"sdypy-EMA LSCF, {label}"].append(time.perf_counter() - t0)
         t0 = time.perf_counter()
         out = subprocess.run([a.beamtool, "identify", noisy, "--band", "0.3,8", "--modes", "2", "--json", noisy + ".json"], capture_output=True, text=True)
         times["beamtool identify"].append(time.perf_counter() - t0)

@@ -502,72 +502,45 @@ pub fn frf_with_options(rec: &Recording, opts: &IdentOptions) -> Result<(Frf, Ve
     };
     let mut warnings = Vec::new();
     let mut filtered = rec.clone();
-    let mut suffix = String::new();
-    match (rec.base_pos_m.as_ref(), rec.base_cmd_m.as_ref()) {
-        (Some(b), Some(c)) if command_is_noisy(c, rate, band) => {
-            warnings.push(NOISY_COMMAND.into());
-            suffix = track_into(
-                &mut filtered.base_pos_m,
-                b,
-                rate,
-                band,
-                "base_pos_m",
-                &mut warnings,
-            )?;
-        }
-        (None, Some(c)) if command_is_noisy(c, rate, band) => {
-            warnings.push(NOISY_COMMAND.into());
-            suffix = track_into(
-                &mut filtered.base_cmd_m,
-                c,
-                rate,
-                band,
-                "base_cmd_m",
-                &mut warnings,
-            )?;
-        }
-        (Some(b), Some(c)) => {
-            // Taps up to 0.1 s lead (time-stamp offsets) and 1 s lag (servo, reaction).
-            let lead = (0.1 * rate).ceil() as usize;
-            let lag = (1.0 * rate).ceil() as usize;
-            match super::denoise::base_from_command_bic(c, b, lead, lag) {
-                Ok(m) if m.r2 >= 0.9 => {
-                    suffix = format!(
-                        ", base_pos_m predicted from base_cmd_m by a least-squares FIR servo model (taps {}..{} samples, BIC; R² = {:.4})",
-                        -(m.taps.0 as isize),
-                        m.taps.1,
-                        m.r2
-                    );
-                    filtered.base_pos_m = Some(m.base);
-                }
-                other => {
-                    if let Ok(m) = other {
-                        warnings.push(format!("the command explains only {:.0} % of the base position's variance: base_pos_m tracking-filtered instead", 100.0 * m.r2));
-                    }
-                    suffix = track_into(
-                        &mut filtered.base_pos_m,
-                        b,
-                        rate,
-                        band,
-                        "base_pos_m",
-                        &mut warnings,
-                    )?;
-                }
-            }
-        }
-        (Some(b), None) => {
-            suffix = track_into(
-                &mut filtered.base_pos_m,
-                b,
-                rate,
-                band,
-                "base_pos_m",
-                &mut warnings,
-            )?
-        }
-        // A clean command alone: nothing to filter.
-        _ => {}
+    let noisy_cmd = rec
+        .base_cmd_m
+        .as_deref()
+        .is_some_and(|c| command_is_noisy(c, rate, band));
+    if noisy_cmd {
+        warnings.push(NOISY_COMMAND.into());
     }
+    let predicted = match (rec.base_pos_m.as_deref(), rec.base_cmd_m.as_deref()) {
+        (Some(b), Some(c)) if !noisy_cmd => predict_base(b, c, rate, &mut warnings),
+        _ => None,
+    };
+    let suffix = match (
+        predicted,
+        rec.base_pos_m.as_deref(),
+        rec.base_cmd_m.as_deref(),
+    ) {
+        (Some((x, s)), _, _) => {
+            filtered.base_pos_m = Some(x);
+            s
+        }
+        (None, Some(b), _) => track_into(
+            &mut filtered.base_pos_m,
+            b,
+            rate,
+            band,
+            "base_pos_m",
+            &mut warnings,
+        )?,
+        (None, None, Some(c)) if noisy_cmd => track_into(
+            &mut filtered.base_cmd_m,
+            c,
+            rate,
+            band,
+            "base_cmd_m",
+            &mut warnings,
+        )?,
+        // A clean command alone: nothing to filter.
+        _ => String::new(),
+    };
     // Saturation is judged on the measured channels, not the cleaned ones.
     let (_, _, _, _, w) = super::frf::channels(rec, opts.input, opts.output)?;
     warnings.extend(w);
@@ -576,6 +549,32 @@ pub fn frf_with_options(rec: &Recording, opts: &IdentOptions) -> Result<(Frf, Ve
     f.input = format!("{xd}{suffix}");
     f.output = yd;
     Ok((f, warnings))
+}
+
+/// The base position predicted from a clean command (BIC-sized FIR servo model) and its
+/// description, when the model explains ≥ 90 % of the measured base's variance; otherwise
+/// `None` (with a warning when the fit ran but explained too little).
+fn predict_base(
+    b: &[f64],
+    c: &[f64],
+    rate_hz: f64,
+    warnings: &mut Vec<String>,
+) -> Option<(Vec<f64>, String)> {
+    // Taps up to 0.1 s lead (time-stamp offsets) and 1 s lag (servo, reaction).
+    let lead = (0.1 * rate_hz).ceil() as usize;
+    let lag = (1.0 * rate_hz).ceil() as usize;
+    let m = super::denoise::base_from_command_bic(c, b, lead, lag).ok()?;
+    if m.r2 < 0.9 {
+        warnings.push(format!("the command explains only {:.0} % of the base position's variance: base_pos_m tracking-filtered instead", 100.0 * m.r2));
+        return None;
+    }
+    let s = format!(
+        ", base_pos_m predicted from base_cmd_m by a least-squares FIR servo model (taps {}..{} samples, BIC; R² = {:.4})",
+        -(m.taps.0 as isize),
+        m.taps.1,
+        m.r2
+    );
+    Some((m.base, s))
 }
 
 const NOISY_COMMAND: &str = "base_cmd_m carries broadband noise (a recorded, not a generated, command?): the base is tracking-filtered instead of predicted from it";
