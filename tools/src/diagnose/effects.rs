@@ -123,12 +123,50 @@ fn def(
     }
 }
 
-/// The calibration parameters: ln stiffness scale, ln ζ1, ln ζ2 (with a beam), carriage-mass
-/// correction (kg) and force-channel latency (s) when a force is recorded.
-pub fn calibration_defs(rig: &Rig, ch: &Channels) -> Vec<ParamDef> {
+/// Names of the per-mode damping ratios in the calibration vector (mode 1 first).
+pub const ZETA_NAMES: [&str; 12] = [
+    "zeta_mode1",
+    "zeta_mode2",
+    "zeta_mode3",
+    "zeta_mode4",
+    "zeta_mode5",
+    "zeta_mode6",
+    "zeta_mode7",
+    "zeta_mode8",
+    "zeta_mode9",
+    "zeta_mode10",
+    "zeta_mode11",
+    "zeta_mode12",
+];
+
+/// The calibration: what a user tunes anyway (parameter definitions) and the model size.
+#[derive(Clone, Debug)]
+pub struct Calib {
+    /// Fitted calibration parameters, in vector order.
+    pub defs: Vec<ParamDef>,
+    /// Galerkin basis functions (every in-band mode converged).
+    pub n_basis: usize,
+}
+
+impl Calib {
+    /// Number of calibration parameters.
+    pub fn len(&self) -> usize {
+        self.defs.len()
+    }
+    /// True without calibration parameters.
+    pub fn is_empty(&self) -> bool {
+        self.defs.is_empty()
+    }
+}
+
+/// The calibration parameters: ln stiffness scale and the ln damping ratio of **every** clamped
+/// mode below the band edge (`in_band_modes`, not Rayleigh from modes 1–2: eq. 22 extrapolates
+/// badly to modes 3+) with a beam; carriage-mass correction (kg) and force-channel latency (s)
+/// when a force is recorded. Damping ratios start from the rig's list (the last entry repeated
+/// for higher modes).
+pub fn calibration_defs(rig: &Rig, ch: &Channels, in_band_modes: usize, n_basis: usize) -> Calib {
     let mut v = Vec::new();
     if rig.beam.is_some() {
-        let (z1, z2) = rig.damping_ratios();
         v.push(def(
             "stiffness_scale",
             Transform::Log,
@@ -136,8 +174,19 @@ pub fn calibration_defs(rig: &Rig, ch: &Channels) -> Vec<ParamDef> {
             1.0,
             false,
         ));
-        v.push(def("zeta1", Transform::Log, vec![z1.max(1e-4)], 1.0, false));
-        v.push(def("zeta2", Transform::Log, vec![z2.max(1e-4)], 1.0, false));
+        let listed: Vec<f64> = rig
+            .damping
+            .as_ref()
+            .map(|d| d.ratios.clone())
+            .filter(|r| !r.is_empty())
+            .unwrap_or_else(|| {
+                let (z1, z2) = rig.damping_ratios();
+                vec![z1, z2]
+            });
+        for (r, name) in ZETA_NAMES.iter().enumerate().take(in_band_modes.max(1)) {
+            let z = listed.get(r).or(listed.last()).copied().unwrap_or(0.01);
+            v.push(def(name, Transform::Log, vec![z.max(1e-4)], 1.0, false));
+        }
     }
     if ch.force {
         v.push(def(
@@ -155,28 +204,25 @@ pub fn calibration_defs(rig: &Rig, ch: &Channels) -> Vec<ParamDef> {
             false,
         ));
     }
-    v
+    Calib { defs: v, n_basis }
 }
 
 /// Applies the calibration vector (physical values, in [`calibration_defs`] order).
-pub fn apply_calibration(defs: &[ParamDef], values: &[f64], p: &mut Params) {
-    let mut z = (0.0, 0.0);
-    let mut has_z = false;
-    for (d, &v) in defs.iter().zip(values) {
+pub fn apply_calibration(calib: &Calib, values: &[f64], p: &mut Params) {
+    p.n_basis = calib.n_basis;
+    let mut zm = Vec::new();
+    for (d, &v) in calib.defs.iter().zip(values) {
         match d.name {
             "stiffness_scale" => p.stiffness_scale = v,
-            "zeta1" => {
-                z.0 = v.min(0.5);
-                has_z = true
-            }
-            "zeta2" => z.1 = v.min(0.5),
             "base_mass_delta_kg" => p.base_mass_delta_kg = v,
             "force_delay_s" => p.force_delay_s = v,
+            n if n.starts_with("zeta_mode") => zm.push(v.clamp(1e-5, 0.5)),
             _ => {}
         }
     }
-    if has_z {
-        p.zeta = Some(z);
+    if !zm.is_empty() {
+        p.zeta = Some((zm[0], *zm.get(1).unwrap_or(&zm[0])));
+        p.zeta_modes = Some(zm);
     }
 }
 

@@ -3,12 +3,13 @@
 //! noise-whitened residuals of every recorded channel, forward-difference Jacobian, and the
 //! linearised covariance `s² (JᵀJ)⁻¹` for the parameter uncertainties.
 
-use super::effects::{apply_calibration, apply_effect, Candidate, ParamDef};
+use super::effects::{apply_calibration, apply_effect, Calib, Candidate, ParamDef};
 use super::sim::{predict, BeamCache, Params, Prediction, Prepared};
 use crate::model::Rig;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use std::cell::RefCell;
+use std::time::{Duration, Instant};
 
 /// Channel order used everywhere in the diagnosis.
 pub const CHANNEL_NAMES: [&str; 3] = ["base_pos_m", "tip_pos_m", "force_n"];
@@ -49,6 +50,7 @@ pub fn channel_rss(res: &[[Option<Vec<f64>>; 3]]) -> ([f64; 3], [usize; 3]) {
 pub fn f1_preserving_factor(rig: &Rig, p: &Params) -> Option<f64> {
     use crate::model::{BeamModel, ModelOptions};
     let base = ModelOptions {
+        n_modes: p.n_basis.clamp(1, 12),
         stiffness_scale: p.stiffness_scale,
         ..Default::default()
     };
@@ -60,6 +62,7 @@ pub fn f1_preserving_factor(rig: &Rig, p: &Params) -> Option<f64> {
     let mut g = 1.0;
     for _ in 0..3 {
         let ext = ModelOptions {
+            n_modes: p.n_basis.clamp(1, 12),
             stiffness_scale: p.stiffness_scale * g,
             tip_mass_kg: p.tip_mass_kg,
             root_stiffness_nm_per_rad: p.root_stiffness_nm_per_rad,
@@ -82,12 +85,16 @@ pub struct Problem<'a> {
     data: &'a [Prepared],
     /// Channel noise scales σ (whitening).
     sigma: [f64; 3],
-    calib: &'a [ParamDef],
+    calib: &'a Calib,
     cand: Option<&'a Candidate>,
     x: DVector<f64>,
     caches: RefCell<Vec<Option<BeamCache>>>,
-    /// Samples skipped at the start of each recording (model start-up transients).
+    /// Model evaluations so far.
     pub evaluations: RefCell<usize>,
+    /// Past this instant residuals and Jacobians are refused, which ends the minimisation.
+    deadline: Option<Instant>,
+    /// Lowest cost seen and where (the minimiser may stop on a trial point at the deadline).
+    best: RefCell<Option<(f64, DVector<f64>)>>,
 }
 
 impl<'a> Problem<'a> {
@@ -96,7 +103,7 @@ impl<'a> Problem<'a> {
         rig: &'a Rig,
         data: &'a [Prepared],
         sigma: [f64; 3],
-        calib: &'a [ParamDef],
+        calib: &'a Calib,
         cand: Option<&'a Candidate>,
         x0: DVector<f64>,
     ) -> Self {
@@ -109,12 +116,30 @@ impl<'a> Problem<'a> {
             x: x0,
             caches: RefCell::new(vec![None; data.len()]),
             evaluations: RefCell::new(0),
+            deadline: None,
+            best: RefCell::new(None),
         }
+    }
+
+    /// The same problem with a wall-clock limit.
+    pub fn with_deadline(mut self, deadline: Instant) -> Self {
+        self.deadline = Some(deadline);
+        self
+    }
+
+    fn expired(&self) -> bool {
+        self.deadline.is_some_and(|d| Instant::now() >= d)
+    }
+
+    /// Whitened cost Σ(r/σ)² at `x`.
+    pub fn cost_at(&self, x: &DVector<f64>) -> f64 {
+        self.whitened(x).norm_squared()
     }
 
     /// All parameter definitions in vector order.
     pub fn defs(&self) -> Vec<&ParamDef> {
         self.calib
+            .defs
             .iter()
             .chain(self.cand.map(|c| c.params.iter()).into_iter().flatten())
             .collect()
@@ -227,10 +252,29 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
     }
 
     fn residuals(&self) -> Option<DVector<f64>> {
-        Some(self.whitened(&self.x))
+        if self.expired() {
+            return None;
+        }
+        let r = self.whitened(&self.x);
+        let c = r.norm_squared();
+        let mut b = self.best.borrow_mut();
+        if b.as_ref().map_or(true, |(bc, _)| c < *bc) {
+            *b = Some((c, self.x.clone()));
+        }
+        Some(r)
     }
 
     fn jacobian(&self) -> Option<DMatrix<f64>> {
+        if self.expired() {
+            return None;
+        }
+        self.jacobian_at()
+    }
+}
+
+impl Problem<'_> {
+    /// Forward-difference Jacobian of the whitened residuals at the current parameters.
+    pub fn jacobian_at(&self) -> Option<DMatrix<f64>> {
         let r0 = self.whitened(&self.x);
         let steps = self.steps();
         let mut j = DMatrix::zeros(r0.len(), self.x.len());
@@ -242,6 +286,69 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
         }
         Some(j)
     }
+}
+
+/// (JᵀJ)⁻¹ by eigen-decomposition; a parameter with weight in a direction the data do not
+/// determine (eigenvalue below 1e-10 of the largest) gets NaN variance ("not identified")
+/// rather than a meaningless tiny number.
+pub fn covariance(j: &DMatrix<f64>) -> DMatrix<f64> {
+    let n = j.ncols();
+    let jtj = j.transpose() * j;
+    if !jtj.iter().all(|v| v.is_finite()) {
+        return DMatrix::from_element(n, n, f64::NAN);
+    }
+    let eig = nalgebra::SymmetricEigen::new(jtj);
+    let lmax = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
+    let mut cov = DMatrix::zeros(n, n);
+    let mut null_weight = vec![0.0; n];
+    for k in 0..n {
+        let l = eig.eigenvalues[k];
+        let v = eig.eigenvectors.column(k);
+        if l > 1e-10 * lmax && l > 0.0 {
+            cov += v * v.transpose() / l;
+        } else {
+            for i in 0..n {
+                null_weight[i] += v[i] * v[i];
+            }
+        }
+    }
+    for i in 0..n {
+        if null_weight[i] > 1e-3 {
+            cov[(i, i)] = f64::NAN;
+        }
+    }
+    cov
+}
+
+/// Coarse scan of the stiffness scale (±0.5 in ln E, 21 points) from `x0` with the rig's damping
+/// ratios; returns the best point if the parameters include a stiffness scale.
+fn stiffness_scan(
+    rig: &Rig,
+    data: &[Prepared],
+    sigma: [f64; 3],
+    calib: &Calib,
+    cand: Option<&Candidate>,
+    defs: &[&ParamDef],
+    x0: &DVector<f64>,
+) -> Option<DVector<f64>> {
+    let is = defs.iter().position(|d| d.name == "stiffness_scale")?;
+    let mut x = x0.clone();
+    for (i, d) in defs.iter().enumerate() {
+        if d.name.starts_with("zeta") {
+            x[i] = d.repr(d.starts[0]);
+        }
+    }
+    let problem = Problem::new(rig, data, sigma, calib, cand, x.clone());
+    let centre = x[is];
+    let mut best = (f64::INFINITY, x.clone());
+    for k in 0..21 {
+        x[is] = centre + (k as f64 - 10.0) * 0.05;
+        let c = problem.cost_at(&x);
+        if c < best.0 {
+            best = (c, x.clone());
+        }
+    }
+    Some(best.1)
 }
 
 /// Result of one fit.
@@ -262,16 +369,23 @@ pub struct FitResult {
 }
 
 /// Fits `cand` (or the calibration alone) from every combination of starting values (at most
-/// 6) plus `warm` (a previous calibration, representation), keeping the lowest cost.
+/// 6) plus `warm` (a previous calibration, representation), keeping the lowest cost. A start
+/// from the rig's damping ratios at the best stiffness scale of a coarse scan (±65 % in E)
+/// guards against the local minimum where a mismatched mode is damped out. Every start is
+/// bounded by the Levenberg–Marquardt patience (30 × (parameters + 1) evaluations) and all
+/// starts together by `budget` of wall-clock time (the best point seen is kept).
 pub fn fit(
     rig: &Rig,
     data: &[Prepared],
     sigma: [f64; 3],
-    calib: &[ParamDef],
+    calib: &Calib,
     cand: Option<&Candidate>,
     warm: Option<&DVector<f64>>,
+    budget: Duration,
 ) -> FitResult {
+    let deadline = Instant::now() + budget;
     let defs: Vec<&ParamDef> = calib
+        .defs
         .iter()
         .chain(cand.map(|c| c.params.iter()).into_iter().flatten())
         .collect();
@@ -315,10 +429,23 @@ pub fn fit(
             starts.push(fresh);
         }
     }
+    if let Some(scanned) = stiffness_scan(rig, data, sigma, calib, cand, &defs, &starts[0]) {
+        if starts.iter().all(|s| (s - &scanned).norm() > 1e-6) {
+            starts.push(scanned);
+        }
+    }
     let mut best: Option<(f64, DVector<f64>)> = None;
     let mut evals = 0;
-    for x0 in starts {
-        let problem = Problem::new(rig, data, sigma, calib, cand, x0.clone());
+    let n_starts = starts.len();
+    for (i, x0) in starts.into_iter().enumerate() {
+        let now = Instant::now();
+        if now >= deadline && best.is_some() {
+            break;
+        }
+        // each start gets an equal share of what is left
+        let share = deadline.saturating_duration_since(now) / (n_starts - i) as u32;
+        let problem = Problem::new(rig, data, sigma, calib, cand, x0.clone())
+            .with_deadline(now + share.max(Duration::from_millis(200)));
         if std::env::var_os("DIAG_DEBUG").is_some() {
             eprintln!(
                 "start {:?} x0 {:?} cost {:.4e}",
@@ -332,29 +459,29 @@ pub fn fit(
             .with_ftol(1e-8)
             .with_xtol(1e-8)
             .minimize(problem);
-        let r = problem.whitened(&problem.x);
-        let cost = r.norm_squared();
+        let (cost, xe) = problem.best.borrow().clone().unwrap_or_else(|| {
+            let c = problem.cost_at(&x0);
+            (c, x0.clone())
+        });
         if std::env::var_os("DIAG_DEBUG").is_some() {
             eprintln!(
                 "  end x {:?} cost {:.4e} {:?}",
-                problem.x.as_slice(),
+                xe.as_slice(),
                 cost,
                 _report.termination
             );
         }
         evals += *problem.evaluations.borrow();
         if best.as_ref().map_or(true, |b| cost < b.0) {
-            best = Some((cost, problem.x.clone()));
+            best = Some((cost, xe));
         }
     }
     let (cost, x) = best.expect("at least one start");
     let problem = Problem::new(rig, data, sigma, calib, cand, x.clone());
-    let j = problem.jacobian().expect("jacobian");
+    let j = problem.jacobian_at().expect("jacobian");
     let m = j.nrows() as f64;
     let s2 = cost / (m - x.len() as f64).max(1.0);
-    let cov = (j.transpose() * &j)
-        .try_inverse()
-        .unwrap_or_else(|| DMatrix::from_element(x.len(), x.len(), f64::NAN));
+    let cov = covariance(&j);
     let values: Vec<f64> = defs
         .iter()
         .enumerate()

@@ -80,6 +80,10 @@ pub struct Diagnosis {
     pub validate: Prepared,
     /// Model evaluations in total.
     pub evaluations: usize,
+    /// The Galerkin basis and its convergence for the modes inside the band (with a beam).
+    pub basis: Option<sim::BasisChoice>,
+    /// Band edge (Hz) of the recordings (0.45 × the lowest sample rate).
+    pub band_edge_hz: f64,
 }
 
 /// Per-channel NRMSE of a prediction: rms(residual) / rms(signal − mean); the tip signal is the
@@ -120,6 +124,17 @@ fn rms(v: &[f64]) -> f64 {
     (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
 }
 
+/// Wall-clock budget of one diagnosis (s): every least-squares start is bounded so that the
+/// whole run stays under a minute on a loaded 2-core machine.
+pub const TIME_BUDGET_S: f64 = 45.0;
+
+/// An equal share of what is left of [`TIME_BUDGET_S`] for one of `parts` remaining fits
+/// (at least 0.5 s).
+fn budget_left(t_start: std::time::Instant, parts: f64) -> std::time::Duration {
+    let left = TIME_BUDGET_S - t_start.elapsed().as_secs_f64();
+    std::time::Duration::from_secs_f64((left / parts.max(1.0)).max(0.5))
+}
+
 /// Runs the whole diagnosis. `progress` is called with (step, total, message).
 ///
 /// Errors: recordings the rig cannot simulate (tip channel without a beam, …), a rig the model
@@ -130,6 +145,7 @@ pub fn diagnose(
     validate: &Prepared,
     progress: &mut dyn FnMut(usize, usize, &str),
 ) -> Result<Diagnosis> {
+    let t_start = std::time::Instant::now();
     if fit_data.is_empty() {
         bail!("at least one --fit recording is needed");
     }
@@ -139,7 +155,21 @@ pub fn diagnose(
             .map_err(|e| anyhow::anyhow!("{}: {e:#}", d.name))?;
     }
     let ch = channels_of(fit_data);
-    let calib = calibration_defs(rig, &ch);
+    let band_edge = fit_data
+        .iter()
+        .chain(std::iter::once(validate))
+        .map(|d| sim::band_edge_hz(d.dt))
+        .fold(f64::INFINITY, f64::min);
+    let basis = match rig.beam {
+        Some(_) => Some(sim::converged_basis(rig, 1.0, band_edge)?),
+        None => None,
+    };
+    let calib = calibration_defs(
+        rig,
+        &ch,
+        basis.as_ref().map_or(0, |b| b.freqs_hz.len()),
+        basis.as_ref().map_or(4, |b| b.n_basis),
+    );
     // initial whitening: a fraction of each channel's signal scale
     let mut sigma = [1e-6, 1e-4, 0.1];
     {
@@ -165,7 +195,7 @@ pub fn diagnose(
     let n_cand_est = 12;
     let total_steps = n_cand_est + 3;
     progress(0, total_steps, "calibrating the nominal model");
-    let mut cal = fit(rig, fit_data, sigma, &calib, None, None);
+    let mut cal = fit(rig, fit_data, sigma, &calib, None, None, budget_left(t_start, 4.0));
     let problem = fit::Problem::new(rig, fit_data, sigma, &calib, None, cal.x.clone());
     let preds0 = problem
         .predictions(&cal.x)
@@ -186,7 +216,7 @@ pub fn diagnose(
         total_steps,
         "recalibrating with the residual noise scales",
     );
-    cal = fit(rig, fit_data, sigma, &calib, None, Some(&cal.x));
+    cal = fit(rig, fit_data, sigma, &calib, None, Some(&cal.x), budget_left(t_start, 3.0));
     let mut evaluations = cal.evaluations;
     let problem = fit::Problem::new(rig, fit_data, sigma, &calib, None, cal.x.clone());
     let preds0 = problem
@@ -205,6 +235,7 @@ pub fn diagnose(
             let m = BeamModel::new(
                 rig,
                 &ModelOptions {
+                    n_modes: p_nom.n_basis,
                     stiffness_scale: p_nom.stiffness_scale,
                     damping_ratios: p_nom.zeta,
                     ..Default::default()
@@ -282,7 +313,15 @@ pub fn diagnose(
     let total_steps = cands.len() + 2;
     for (i, cand) in cands.iter().enumerate() {
         progress(2 + i, total_steps, &format!("fitting {}", cand.id));
-        let f = fit(rig, fit_data, sigma, &calib, Some(cand), Some(&cal.x));
+        let f = fit(
+            rig,
+            fit_data,
+            sigma,
+            &calib,
+            Some(cand),
+            Some(&cal.x),
+            budget_left(t_start, (cands.len() - i) as f64),
+        );
         evaluations += f.evaluations;
         let prob = fit::Problem::new(rig, fit_data, sigma, &calib, Some(cand), f.x.clone());
         let Some(preds) = prob.predictions(&f.x) else {
@@ -296,6 +335,9 @@ pub fn diagnose(
         let (rss, _) = channel_rss(&res);
         let k = cand.params.len().max(1);
         let delta_bic = delta_neg2ll(&rss, &rss0, &n0) + k as f64 * (n_total as f64).ln();
+        if std::env::var_os("DIAG_DEBUG").is_some() {
+            eprintln!("{}: fit rss {rss:?} vs nominal {rss0:?} (n {n0:?}); values {:?}", cand.id, f.values);
+        }
         let vprob = fit::Problem::new(rig, vdata, sigma, &calib, Some(cand), f.x.clone());
         let Some(mut vp) = vprob.predictions(&f.x) else {
             continue;
@@ -373,6 +415,23 @@ pub fn diagnose(
         // any small model-form error (seen on null cases).
         for (i, d) in cand.params.iter().enumerate() {
             if d.name == "mount_frequency_hz" {
+                // A residual at one of the model's own modes is a calibration matter (that mode's
+                // damping or the stiffness scale), never a new resonance: the mount frequency
+                // must be separated from every in-band model mode by more than its own 2 σ and
+                // the mount's half-power half-width ζ_m f_m (ζ_m capped at 0.1).
+                let fm = f.values[nc + i];
+                let sf = f.std[nc + i];
+                let zm = cand
+                    .params
+                    .iter()
+                    .position(|q| q.name == "mount_damping_ratio")
+                    .map_or(0.05, |j| f.values[nc + j]);
+                let tol = 2.0 * if sf.is_finite() { sf } else { 0.0 } + zm.min(0.1) * fm;
+                if let Some(fr) = model_freqs.iter().find(|fr| (fm - **fr).abs() <= tol) {
+                    fails.push(format!(
+                        "mount frequency {fm:.2} Hz coincides with the model's own mode at {fr:.2} Hz (within {tol:.2} Hz): a calibration matter, not a new resonance"
+                    ));
+                }
                 let ceiling = d.starts.iter().cloned().fold(0.0, f64::max);
                 if f.values[nc + i] >= 0.95 * ceiling {
                     fails.push(format!(
@@ -429,5 +488,7 @@ pub fn diagnose(
         candidates: outcomes,
         validate: validate.clone(),
         evaluations,
+        basis,
+        band_edge_hz: band_edge,
     })
 }

@@ -135,6 +135,12 @@ pub fn to_json(d: &Diagnosis) -> Value {
         "calibration": cal,
         "location": serde_json::to_value(&d.location).unwrap_or(Value::Null),
         "model_evaluations": d.evaluations,
+        "model": {
+            "band_edge_hz": d.band_edge_hz,
+            "basis_functions": d.basis.as_ref().map(|b| b.n_basis),
+            "in_band_modes_hz": d.basis.as_ref().map(|b| b.freqs_hz.clone()),
+            "convergence_rel": d.basis.as_ref().map(|b| b.convergence_rel),
+        },
     })
 }
 

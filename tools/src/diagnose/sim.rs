@@ -28,8 +28,14 @@ use nalgebra::Vector2;
 pub struct Params {
     /// Multiplies E (calibration).
     pub stiffness_scale: f64,
-    /// Damping ratios of modes 1, 2 (calibration); `None` = the rig's.
+    /// Damping ratios of modes 1, 2 (Rayleigh, eq. 22); `None` = the rig's.
     pub zeta: Option<(f64, f64)>,
+    /// Damping ratio of each clamped mode r (calibration, one per mode inside the recording's
+    /// band); modes beyond the list keep the Rayleigh value of `zeta`.
+    pub zeta_modes: Option<Vec<f64>>,
+    /// Number of Galerkin basis functions (chosen so every mode below the band edge has
+    /// converged; [`converged_basis`]).
+    pub n_basis: usize,
     /// Carriage-mass correction (kg, calibration).
     pub base_mass_delta_kg: f64,
     /// Coulomb friction (N).
@@ -62,6 +68,8 @@ impl Default for Params {
         Params {
             stiffness_scale: 1.0,
             zeta: None,
+            zeta_modes: None,
+            n_basis: 4,
             base_mass_delta_kg: 0.0,
             friction_n: 0.0,
             viscous_n_s_per_m: 0.0,
@@ -201,7 +209,7 @@ pub struct BeamCache {
 
 fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
     let opts = ModelOptions {
-        n_modes: 4,
+        n_modes: p.n_basis.clamp(1, 12),
         stiffness_scale: p.stiffness_scale,
         base_mass_delta_kg: p.base_mass_delta_kg,
         tip_mass_kg: p.tip_mass_kg,
@@ -212,8 +220,9 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
     };
     let model = BeamModel::new(rig, &opts)?;
     let modes = model.clamped_modes()?;
-    // keep modes below 0.45 × the sample rate
-    let nyq = 0.45 * 2.0 * std::f64::consts::PI / (2.0 * dt);
+    // keep the modes below the band edge (0.45 × the sample rate): the exact zero-order-hold
+    // integration is valid up to Nyquist
+    let nyq = band_edge_hz(dt) * 2.0 * std::f64::consts::PI;
     let keep = modes
         .omega_rad_s
         .iter()
@@ -222,8 +231,9 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
         .max(1);
     let l = model.length_m;
     let npts = 16;
+    let nb = opts.n_modes;
     let off = usize::from(p.root_stiffness_nm_per_rad.is_some());
-    let basis: Vec<BasisFn> = (0..opts.n_modes).map(|i| BasisFn::new(i + 1, l)).collect();
+    let basis: Vec<BasisFn> = (0..nb).map(|i| BasisFn::new(i + 1, l)).collect();
     let xs: Vec<f64> = (0..npts)
         .map(|j| (j as f64 + 0.5) * l / npts as f64)
         .collect();
@@ -246,7 +256,14 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
         .collect();
     let zeta: Vec<f64> = modes.zeta[..keep]
         .iter()
-        .map(|z| z.clamp(0.0, 0.95))
+        .enumerate()
+        .map(|(r, z)| {
+            p.zeta_modes
+                .as_ref()
+                .and_then(|v| v.get(r).copied())
+                .unwrap_or(*z)
+                .clamp(0.0, 0.95)
+        })
         .collect();
     let phi = (0..keep)
         .map(|r| mode_zoh(modes.omega_rad_s[r], zeta[r], dt).0)
@@ -267,7 +284,7 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
 
 fn structural_key(p: &Params, dt: f64) -> Vec<f64> {
     let (z1, z2) = p.zeta.unwrap_or((-1.0, -1.0));
-    vec![
+    let mut key = vec![
         p.stiffness_scale,
         z1,
         z2,
@@ -280,7 +297,70 @@ fn structural_key(p: &Params, dt: f64) -> Vec<f64> {
             Some(Orientation::Upright) => -1.0,
         },
         dt,
-    ]
+        p.n_basis as f64,
+    ];
+    key.extend(p.zeta_modes.iter().flatten());
+    key
+}
+
+/// The band edge (Hz) of a recording sampled every `dt` s: 0.45 × the sample rate (90 % of
+/// Nyquist). Modes below it are in the model with their own damping ratio.
+pub fn band_edge_hz(dt: f64) -> f64 {
+    0.45 / dt
+}
+
+/// Galerkin convergence of the modes below a band edge.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BasisChoice {
+    /// Basis functions used.
+    pub n_basis: usize,
+    /// Clamped natural frequencies (Hz) of the modes below the band edge.
+    pub freqs_hz: Vec<f64>,
+    /// Largest relative change of those frequencies from `n_basis` to `n_basis + 1` functions.
+    pub convergence_rel: f64,
+}
+
+/// The smallest number of basis functions (4–11) for which every clamped mode below
+/// `band_edge_hz` moves by less than 1e-3 (relative) when one more function is added.
+///
+/// Errors: the rig has no beam or the model refuses it.
+pub fn converged_basis(rig: &Rig, stiffness_scale: f64, band_edge_hz: f64) -> Result<BasisChoice> {
+    let freqs = |n: usize| -> Result<Vec<f64>> {
+        let m = BeamModel::new(
+            rig,
+            &ModelOptions {
+                n_modes: n,
+                stiffness_scale,
+                ..Default::default()
+            },
+        )?;
+        Ok(m.clamped_modes()?
+            .omega_rad_s
+            .iter()
+            .map(|w| w / (2.0 * std::f64::consts::PI))
+            .collect())
+    };
+    let mut prev = freqs(4)?;
+    let mut last = None;
+    for n in 4..12 {
+        let next = freqs(n + 1)?;
+        let below = prev.iter().take_while(|f| **f < band_edge_hz).count().max(1);
+        let rel = (0..below.min(prev.len()))
+            .map(|r| (prev[r] - next[r]).abs() / next[r])
+            .fold(0.0, f64::max);
+        let choice = BasisChoice {
+            // one function more than the in-band modes so the last one is not the worst
+            n_basis: n,
+            freqs_hz: prev[..below.min(prev.len())].to_vec(),
+            convergence_rel: rel,
+        };
+        if rel < 1e-3 && below < n {
+            return Ok(choice);
+        }
+        last = Some(choice);
+        prev = next;
+    }
+    Ok(last.expect("at least one basis size"))
 }
 
 /// Predicts the channels of `d` with parameters `p`. `cache` keeps the last structural model.
