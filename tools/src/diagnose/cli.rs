@@ -58,13 +58,20 @@ pub fn diagnose_files(
     let fit: Vec<Prepared> = fit.iter().map(|p| load(p)).collect::<Result<_>>()?;
     let val = load(validate)?;
     let pb = bar(1);
-    if !show {
+    // a bar on a terminal; one line per stage on stderr otherwise (logs, CI, pipes)
+    use std::io::IsTerminal;
+    let lines = show && !std::io::stderr().is_terminal();
+    if !show || lines {
         pb.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }
+    let t0 = std::time::Instant::now();
     let d = run_diagnosis(&rig, &fit, &val, &mut |i, n, m| {
         pb.set_length(n as u64);
         pb.set_position(i as u64);
         pb.set_message(m.to_string());
+        if lines {
+            eprintln!("[{:>5.1} s] {i}/{n} {m}", t0.elapsed().as_secs_f64());
+        }
     })?;
     pb.finish_and_clear();
     Ok(d)

@@ -15,6 +15,9 @@ pub enum Transform {
     Linear,
     /// x = ln(value), value > 0.
     Log,
+    /// value = lo + (hi − lo) / (1 + e^(−x)): a physically bounded parameter (no flat clamp
+    /// for the minimiser to stall on).
+    Bounded(f64, f64),
 }
 
 /// One fitted parameter.
@@ -38,6 +41,7 @@ impl ParamDef {
         match self.transform {
             Transform::Linear => x,
             Transform::Log => x.exp(),
+            Transform::Bounded(lo, hi) => lo + (hi - lo) / (1.0 + (-x).exp()),
         }
     }
     /// Representation of a physical value.
@@ -45,6 +49,10 @@ impl ParamDef {
         match self.transform {
             Transform::Linear => v,
             Transform::Log => v.max(1e-300).ln(),
+            Transform::Bounded(lo, hi) => {
+                let u = ((v - lo) / (hi - lo)).clamp(1e-6, 1.0 - 1e-6);
+                (u / (1.0 - u)).ln()
+            }
         }
     }
     /// d value / d x.
@@ -52,6 +60,10 @@ impl ParamDef {
         match self.transform {
             Transform::Linear => 1.0,
             Transform::Log => x.exp(),
+            Transform::Bounded(lo, hi) => {
+                let e = (-x).exp();
+                (hi - lo) * e / (1.0 + e).powi(2)
+            }
         }
     }
 }
@@ -291,11 +303,43 @@ pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
                 def(
                     "servo_bandwidth_hz",
                     Transform::Log,
-                    vec![0.05 * f0, 0.3 * f0, 2.0 * f0],
+                    vec![0.05 * f0, 0.3 * f0, 0.45 * f0],
                     1.0,
                     false,
                 ),
                 def("servo_damping_ratio", Transform::Log, vec![0.7], 1.0, false),
+            ],
+        });
+        // a position loop with velocity and acceleration feed-forward (how drives are tuned):
+        // the same loop, the following error driven only by the parts of ṙ and r̈ the
+        // feed-forward misses
+        c.push(Candidate {
+            id: "servo_lag",
+            words: "finite-bandwidth position loop with velocity/acceleration feed-forward: the carriage does not follow its command",
+            orientation: None,
+            params: vec![
+                def(
+                    "servo_bandwidth_hz",
+                    Transform::Log,
+                    vec![0.05 * f0, 0.3 * f0],
+                    1.0,
+                    false,
+                ),
+                def("servo_damping_ratio", Transform::Log, vec![0.7], 1.0, false),
+                def(
+                    "servo_velocity_ff",
+                    Transform::Bounded(0.0, 1.2),
+                    vec![0.9],
+                    1.0,
+                    false,
+                ),
+                def(
+                    "servo_acceleration_ff",
+                    Transform::Bounded(0.0, 1.2),
+                    vec![0.5],
+                    1.0,
+                    false,
+                ),
             ],
         });
     }
@@ -397,7 +441,9 @@ pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
 
 /// Applies a candidate's effect values (physical units, in `cand.params` order).
 pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
-    p.orientation = cand.orientation;
+    if cand.orientation.is_some() {
+        p.orientation = cand.orientation;
+    }
     let get = |name: &str| {
         cand.params
             .iter()
@@ -420,7 +466,11 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
             p.servo = Some((
                 get("servo_bandwidth_hz").unwrap_or(1e3),
                 get("servo_damping_ratio").unwrap_or(0.7).clamp(0.05, 5.0),
-            ))
+            ));
+            p.servo_ff = (
+                get("servo_velocity_ff").unwrap_or(0.0).clamp(-0.5, 1.5),
+                get("servo_acceleration_ff").unwrap_or(0.0).clamp(-0.5, 1.5),
+            );
         }
         "tip_mass" => p.tip_mass_kg = get("tip_mass_kg").unwrap_or(0.0).abs(),
         "root_compliance" => p.root_stiffness_nm_per_rad = get("root_stiffness_nm_per_rad"),

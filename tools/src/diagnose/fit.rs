@@ -86,7 +86,7 @@ pub struct Problem<'a> {
     /// Channel noise scales σ (whitening).
     sigma: [f64; 3],
     calib: &'a Calib,
-    cand: Option<&'a Candidate>,
+    cands: Vec<&'a Candidate>,
     x: DVector<f64>,
     caches: RefCell<Vec<Option<BeamCache>>>,
     /// Model evaluations so far.
@@ -98,13 +98,14 @@ pub struct Problem<'a> {
 }
 
 impl<'a> Problem<'a> {
-    /// A problem over `calib` (+ `cand`'s parameters) starting at representation `x0`.
+    /// A problem over `calib` (+ the parameters of every effect in `cands`, in order) starting
+    /// at representation `x0`.
     pub fn new(
         rig: &'a Rig,
         data: &'a [Prepared],
         sigma: [f64; 3],
         calib: &'a Calib,
-        cand: Option<&'a Candidate>,
+        cands: &[&'a Candidate],
         x0: DVector<f64>,
     ) -> Self {
         Problem {
@@ -112,7 +113,7 @@ impl<'a> Problem<'a> {
             data,
             sigma,
             calib,
-            cand,
+            cands: cands.to_vec(),
             x: x0,
             caches: RefCell::new(vec![None; data.len()]),
             evaluations: RefCell::new(0),
@@ -141,7 +142,7 @@ impl<'a> Problem<'a> {
         self.calib
             .defs
             .iter()
-            .chain(self.cand.map(|c| c.params.iter()).into_iter().flatten())
+            .chain(self.cands.iter().flat_map(|c| c.params.iter()))
             .collect()
     }
 
@@ -156,8 +157,12 @@ impl<'a> Problem<'a> {
         let nc = self.calib.len();
         let mut p = Params::default();
         apply_calibration(self.calib, &vals[..nc], &mut p);
-        if let Some(c) = self.cand {
-            apply_effect(c, &vals[nc..], &mut p);
+        let mut off = nc;
+        for c in &self.cands {
+            apply_effect(c, &vals[off..off + c.params.len()], &mut p);
+            off += c.params.len();
+        }
+        if !self.cands.is_empty() {
             if p.tip_mass_kg > 0.0
                 || p.root_stiffness_nm_per_rad.is_some()
                 || p.orientation.is_some()
@@ -232,6 +237,7 @@ impl<'a> Problem<'a> {
             .enumerate()
             .map(|(i, d)| match d.transform {
                 super::effects::Transform::Log => 1e-4,
+                super::effects::Transform::Bounded(..) => 1e-3,
                 super::effects::Transform::Linear => 1e-4 * d.scale.max(self.x[i].abs()),
             })
             .collect()
@@ -327,7 +333,7 @@ fn stiffness_scan(
     data: &[Prepared],
     sigma: [f64; 3],
     calib: &Calib,
-    cand: Option<&Candidate>,
+    cands: &[&Candidate],
     defs: &[&ParamDef],
     x0: &DVector<f64>,
 ) -> Option<DVector<f64>> {
@@ -338,7 +344,7 @@ fn stiffness_scan(
             x[i] = d.repr(d.starts[0]);
         }
     }
-    let problem = Problem::new(rig, data, sigma, calib, cand, x.clone());
+    let problem = Problem::new(rig, data, sigma, calib, cands, x.clone());
     let centre = x[is];
     let mut best = (f64::INFINITY, x.clone());
     for k in 0..21 {
@@ -379,17 +385,19 @@ pub fn fit(
     data: &[Prepared],
     sigma: [f64; 3],
     calib: &Calib,
-    cand: Option<&Candidate>,
+    cands: &[&Candidate],
     warm: Option<&DVector<f64>>,
     budget: Duration,
+    explore: bool,
 ) -> FitResult {
     let deadline = Instant::now() + budget;
     let defs: Vec<&ParamDef> = calib
         .defs
         .iter()
-        .chain(cand.map(|c| c.params.iter()).into_iter().flatten())
+        .chain(cands.iter().flat_map(|c| c.params.iter()))
         .collect();
     let nc = calib.len();
+    let cand = cands.last();
     // starting points: warm calibration × the effect's start grid
     let mut starts: Vec<DVector<f64>> = vec![DVector::from_iterator(
         defs.len(),
@@ -409,7 +417,7 @@ pub fn fit(
     }
     if let Some(w) = warm {
         for s in starts.iter_mut() {
-            for i in 0..nc.min(w.len()) {
+            for i in 0..w.len().min(s.len()) {
                 s[i] = w[i];
             }
         }
@@ -425,11 +433,16 @@ pub fn fit(
                 fresh[i] = v;
             }
         }
-        if changed && cand.is_some() {
+        if changed && cand.is_some() && explore {
             starts.push(fresh);
         }
     }
-    if let Some(scanned) = stiffness_scan(rig, data, sigma, calib, cand, &defs, &starts[0]) {
+    let scanned = if explore {
+        stiffness_scan(rig, data, sigma, calib, cands, &defs, &starts[0])
+    } else {
+        None
+    };
+    if let Some(scanned) = scanned {
         if starts.iter().all(|s| (s - &scanned).norm() > 1e-6) {
             starts.push(scanned);
         }
@@ -444,7 +457,7 @@ pub fn fit(
         }
         // each start gets an equal share of what is left
         let share = deadline.saturating_duration_since(now) / (n_starts - i) as u32;
-        let problem = Problem::new(rig, data, sigma, calib, cand, x0.clone())
+        let problem = Problem::new(rig, data, sigma, calib, cands, x0.clone())
             .with_deadline(now + share.max(Duration::from_millis(200)));
         if std::env::var_os("DIAG_DEBUG").is_some() {
             eprintln!(
@@ -477,7 +490,7 @@ pub fn fit(
         }
     }
     let (cost, x) = best.expect("at least one start");
-    let problem = Problem::new(rig, data, sigma, calib, cand, x.clone());
+    let problem = Problem::new(rig, data, sigma, calib, cands, x.clone());
     let j = problem.jacobian_at().expect("jacobian");
     let m = j.nrows() as f64;
     let s2 = cost / (m - x.len() as f64).max(1.0);

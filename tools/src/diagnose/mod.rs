@@ -16,6 +16,7 @@ pub mod locate;
 pub mod report;
 pub mod select;
 pub mod sim;
+pub mod unexplained;
 
 use crate::model::{BeamModel, ModelOptions, Rig};
 use anyhow::{bail, Result};
@@ -29,6 +30,13 @@ use sim::{Prediction, Prepared};
 pub struct CandidateOutcome {
     /// Effect id.
     pub id: String,
+    /// Index of the candidate in the catalogue of this diagnosis.
+    pub cand_index: usize,
+    /// Index of this effect's first parameter in `fit.values` (after the calibration and the
+    /// effects chosen before it).
+    pub param_offset: usize,
+    /// Validation NRMSE per channel of the model it was compared with.
+    pub nrmse_before: [f64; 3],
     /// Words (incl. orientation).
     pub words: String,
     /// The fit (calibration + effect).
@@ -84,6 +92,23 @@ pub struct Diagnosis {
     pub basis: Option<sim::BasisChoice>,
     /// Band edge (Hz) of the recordings (0.45 × the lowest sample rate).
     pub band_edge_hz: f64,
+    /// The effects forward selection added, in order, each as evaluated when it was added
+    /// (its own validation gain against the model before it).
+    pub effects: Vec<CandidateOutcome>,
+    /// Their candidates (catalogue entries), same order.
+    pub final_set: Vec<Candidate>,
+    /// Joint fit of the calibration and every selected effect.
+    pub final_fit: FitResult,
+    /// Validation prediction of the final model.
+    pub final_val_pred: Prediction,
+    /// Validation NRMSE per channel of the final model.
+    pub final_val_nrmse: [f64; 3],
+    /// Selection rounds run.
+    pub rounds: usize,
+    /// What the final model leaves unexplained on the validation recording, if anything.
+    pub unexplained: Option<unexplained::Unexplained>,
+    /// Assumptions made about missing channels.
+    pub assumptions: Vec<String>,
 }
 
 /// Per-channel NRMSE of a prediction: rms(residual) / rms(signal − mean); the tip signal is the
@@ -149,6 +174,9 @@ pub fn diagnose(
     if fit_data.is_empty() {
         bail!("at least one --fit recording is needed");
     }
+    for d in fit_data.iter().chain(std::iter::once(validate)) {
+        check_information(d)?;
+    }
     // the nominal model must be able to simulate every recording: report why not, by name
     for d in fit_data.iter().chain(std::iter::once(validate)) {
         sim::predict(rig, &sim::Params::default(), d, &mut None)
@@ -195,8 +223,17 @@ pub fn diagnose(
     let n_cand_est = 12;
     let total_steps = n_cand_est + 3;
     progress(0, total_steps, "calibrating the nominal model");
-    let mut cal = fit(rig, fit_data, sigma, &calib, None, None, budget_left(t_start, 4.0));
-    let problem = fit::Problem::new(rig, fit_data, sigma, &calib, None, cal.x.clone());
+    let mut cal = fit(
+        rig,
+        fit_data,
+        sigma,
+        &calib,
+        &[],
+        None,
+        budget_left(t_start, 4.0),
+        true,
+    );
+    let problem = fit::Problem::new(rig, fit_data, sigma, &calib, &[], cal.x.clone());
     let preds0 = problem
         .predictions(&cal.x)
         .ok_or_else(|| anyhow::anyhow!("the calibrated nominal model cannot be simulated"))?;
@@ -216,9 +253,18 @@ pub fn diagnose(
         total_steps,
         "recalibrating with the residual noise scales",
     );
-    cal = fit(rig, fit_data, sigma, &calib, None, Some(&cal.x), budget_left(t_start, 3.0));
+    cal = fit(
+        rig,
+        fit_data,
+        sigma,
+        &calib,
+        &[],
+        Some(&cal.x),
+        budget_left(t_start, 3.0),
+        true,
+    );
     let mut evaluations = cal.evaluations;
-    let problem = fit::Problem::new(rig, fit_data, sigma, &calib, None, cal.x.clone());
+    let problem = fit::Problem::new(rig, fit_data, sigma, &calib, &[], cal.x.clone());
     let preds0 = problem
         .predictions(&cal.x)
         .ok_or_else(|| anyhow::anyhow!("the calibrated nominal model cannot be simulated"))?;
@@ -227,8 +273,31 @@ pub fn diagnose(
         .zip(&preds0)
         .map(|(d, p)| residuals(d, p))
         .collect();
-    let (rss0, n0) = channel_rss(&res0);
+    let (_, n0) = channel_rss(&res0);
     let p_nom = problem.params_of(&cal.x);
+    {
+        let best = fit_data
+            .iter()
+            .zip(&preds0)
+            .flat_map(|(d, p)| {
+                let v = nrmse(d, p);
+                [v[1], v[2]]
+            })
+            .filter(|v| v.is_finite())
+            .fold(f64::INFINITY, f64::min);
+        if !(best < MAX_CALIBRATED_NRMSE) {
+            bail!(
+                "no information: even calibrated, the rig model explains almost nothing of the fit recordings (best tip/force channel NRMSE {best:.2} ≥ {MAX_CALIBRATED_NRMSE}); a recording of another rig, or noise only?"
+            );
+        }
+        if p_nom.stiffness_scale < 0.25 || p_nom.stiffness_scale > 4.0 {
+            bail!(
+                "the recordings do not match this rig: the calibration needs {:.2} × the rig's Young's modulus (frequencies off by {:.0} %); check the rig file",
+                p_nom.stiffness_scale,
+                100.0 * (p_nom.stiffness_scale.sqrt() - 1.0)
+            );
+        }
+    }
     // model frequencies and hints
     let (model_freqs, beam_mass, ei_over_l, length_m) = match &rig.beam {
         Some(b) => {
@@ -296,81 +365,298 @@ pub fn diagnose(
         length_m,
     };
     let cands: Vec<Candidate> = catalogue(rig, &ch, &hints);
-    // validation of the calibrated nominal model
-    let vdata = std::slice::from_ref(validate);
-    let vprob = fit::Problem::new(rig, vdata, sigma, &calib, None, cal.x.clone());
-    let vpred0 = vprob
-        .predictions(&cal.x)
-        .ok_or_else(|| {
-            anyhow::anyhow!("the calibrated nominal model cannot simulate the validation recording")
-        })?
-        .remove(0);
-    let vres0 = [residuals(validate, &vpred0)];
-    let (vrss0, vn) = channel_rss(&vres0);
-    let val_nrmse_nominal = nrmse(validate, &vpred0);
     let n_total: usize = n0.iter().sum();
-    let mut outcomes = Vec::new();
-    let total_steps = cands.len() + 2;
-    for (i, cand) in cands.iter().enumerate() {
-        progress(2 + i, total_steps, &format!("fitting {}", cand.id));
-        let f = fit(
-            rig,
-            fit_data,
-            sigma,
-            &calib,
-            Some(cand),
-            Some(&cal.x),
-            budget_left(t_start, (cands.len() - i) as f64),
+    let ctx = Ctx {
+        rig,
+        fit_data,
+        validate,
+        sigma,
+        calib: &calib,
+        n_total,
+        model_freqs: &model_freqs,
+    };
+    // the reference of the first round: the calibrated nominal model
+    let nominal = ctx.reference(&[], cal.clone()).ok_or_else(|| {
+        anyhow::anyhow!("the calibrated nominal model cannot simulate the validation recording")
+    })?;
+    let val_nrmse_nominal = nominal.val_nrmse;
+    let vpred0 = nominal.vpred.clone();
+    // forward selection: add the best candidate that passes every guard against the current
+    // model, re-fit the rest on the augmented model, stop when none passes
+    let mut chosen: Vec<usize> = Vec::new();
+    let mut chosen_outcomes: Vec<CandidateOutcome> = Vec::new();
+    let mut reference = nominal;
+    let mut rounds: Vec<Vec<CandidateOutcome>> = Vec::new();
+    let mut step = 2;
+    for round in 0..MAX_EFFECTS {
+        let pool: Vec<usize> = (0..cands.len())
+            .filter(|&i| chosen.iter().all(|&k| cands[k].id != cands[i].id))
+            .collect();
+        if pool.is_empty() || (round > 0 && t_start.elapsed().as_secs_f64() > 0.8 * TIME_BUDGET_S) {
+            break;
+        }
+        let mut outs = Vec::new();
+        for (j, &ci) in pool.iter().enumerate() {
+            let total_steps = step + pool.len() - j + 1;
+            progress(
+                step,
+                total_steps,
+                &format!("round {}: fitting {}", round + 1, cands[ci].id),
+            );
+            step += 1;
+            let set: Vec<&Candidate> = chosen
+                .iter()
+                .map(|&k| &cands[k])
+                .chain(std::iter::once(&cands[ci]))
+                .collect();
+            let budget = budget_left(t_start, (pool.len() - j) as f64 + 1.0);
+            if let Some(o) = ctx.evaluate(&set, ci, &reference, budget, round == 0) {
+                evaluations += o.fit.evaluations;
+                outs.push(o);
+            }
+        }
+        outs.sort_by(|a, b| a.delta_val.total_cmp(&b.delta_val));
+        let pick = outs.iter().position(|o| o.passed);
+        if let Some(s) = pick {
+            for (i, o) in outs.iter_mut().enumerate() {
+                if i != s && o.passed {
+                    o.reason = "passes the guard but gains less on validation than the selected effect".into();
+                }
+            }
+            let o = outs[s].clone();
+            chosen.push(o.cand_index);
+            let set: Vec<&Candidate> = chosen.iter().map(|&k| &cands[k]).collect();
+            match ctx.reference(&set, o.fit.clone()) {
+                Some(r) => reference = r,
+                None => break,
+            }
+            chosen_outcomes.push(o);
+        }
+        rounds.push(outs);
+        if pick.is_none() {
+            break;
+        }
+    }
+    let total_steps = step + 1;
+    let final_set: Vec<Candidate> = chosen.iter().map(|&k| cands[k].clone()).collect();
+    let unexplained = unexplained::assess(validate, &reference.vres, &reference.vpred, &model_freqs);
+    let outcomes = rounds.first().cloned().unwrap_or_default();
+    let selected = outcomes.iter().position(|o| o.passed && chosen.first() == Some(&o.cand_index));
+    progress(total_steps, total_steps, "done");
+    Ok(Diagnosis {
+        effect: chosen
+            .first()
+            .map_or_else(|| "none".to_string(), |&k| cands[k].id.to_string()),
+        selected,
+        calibration: cal,
+        sigma,
+        location,
+        val_nrmse_nominal,
+        val_pred_nominal: vpred0,
+        candidates: outcomes,
+        validate: validate.clone(),
+        evaluations,
+        basis,
+        band_edge_hz: band_edge,
+        effects: chosen_outcomes,
+        final_set,
+        final_fit: reference.fit,
+        final_val_pred: reference.vpred,
+        final_val_nrmse: reference.val_nrmse,
+        rounds: rounds.len(),
+        unexplained,
+        assumptions: assumptions(fit_data, validate),
+    })
+}
+
+/// Fewest samples and seconds a recording needs: 100 samples and 5 s (several periods of a
+/// slow first mode; the whiteness test uses 20 lags).
+pub const MIN_SAMPLES: usize = 100;
+/// See [`MIN_SAMPLES`].
+pub const MIN_DURATION_S: f64 = 5.0;
+
+/// Refuses a recording that cannot inform a diagnosis: too short, a command that does not move,
+/// or a recorded channel that is constant.
+fn check_information(d: &Prepared) -> Result<()> {
+    let n = d.cmd_m.len();
+    let dur = n as f64 * d.dt;
+    if n < MIN_SAMPLES || dur < MIN_DURATION_S {
+        bail!(
+            "{}: too short for a diagnosis ({n} samples, {dur:.2} s): at least {MIN_SAMPLES} samples and {MIN_DURATION_S} s are needed",
+            d.name
         );
-        evaluations += f.evaluations;
-        let prob = fit::Problem::new(rig, fit_data, sigma, &calib, Some(cand), f.x.clone());
-        let Some(preds) = prob.predictions(&f.x) else {
-            continue;
-        };
-        let res: Vec<_> = fit_data
+    }
+    let span = |v: &[f64]| {
+        v.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+            - v.iter().cloned().fold(f64::INFINITY, f64::min)
+    };
+    let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
+    if !(span(drive) > 0.0) {
+        bail!(
+            "{}: no information: the base does not move (constant position), so nothing excites the model",
+            d.name
+        );
+    }
+    for (name, ch) in [("base_pos_m", &d.base_m), ("tip_pos_m", &d.tip_m), ("force_n", &d.force_n)] {
+        if let Some(v) = ch {
+            if !(span(v) > 0.0) {
+                bail!(
+                    "{}: no information: `{name}` is constant while the base moves (sensor not connected?)",
+                    d.name
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Largest NRMSE (on the channel the model predicts best) at which the calibrated nominal
+/// model is still taken to describe the recordings: below it the model explains at least
+/// 1 − 0.9² = 19 % of that channel's variance.
+pub const MAX_CALIBRATED_NRMSE: f64 = 0.9;
+
+/// Most effects forward selection adds.
+pub const MAX_EFFECTS: usize = 4;
+
+/// Explicit assumptions the diagnosis had to make about the recordings.
+fn assumptions(fit_data: &[Prepared], validate: &Prepared) -> Vec<String> {
+    let mut v = Vec::new();
+    let all: Vec<&Prepared> = fit_data.iter().chain(std::iter::once(validate)).collect();
+    let no_base: Vec<&str> = all
+        .iter()
+        .filter(|d| d.base_m.is_none() && d.drive_m.is_none())
+        .map(|d| d.name.as_str())
+        .collect();
+    if !no_base.is_empty() {
+        v.push(format!(
+            "base_pos_m not recorded in {}: the carriage is assumed to follow base_cmd_m exactly unless servo_lag is named (then it follows the fitted loop)",
+            no_base.join(", ")
+        ));
+    }
+    let no_cmd: Vec<&str> = all
+        .iter()
+        .filter(|d| d.base_m.is_none() && d.drive_m.is_some())
+        .map(|d| d.name.as_str())
+        .collect();
+    if !no_cmd.is_empty() {
+        v.push(format!(
+            "base_cmd_m not recorded in {}: the measured base drives the model and servo_lag cannot be tested",
+            no_cmd.join(", ")
+        ));
+    }
+    v
+}
+
+/// The model a round compares against: its fit and residuals on fit and validation data.
+#[derive(Clone, Debug)]
+struct Reference {
+    fit: FitResult,
+    rss: [f64; 3],
+    vres: [Option<Vec<f64>>; 3],
+    vrss: [f64; 3],
+    vn: [usize; 3],
+    vpred: Prediction,
+    val_nrmse: [f64; 3],
+}
+
+/// What every evaluation shares.
+struct Ctx<'a> {
+    rig: &'a Rig,
+    fit_data: &'a [Prepared],
+    validate: &'a Prepared,
+    sigma: [f64; 3],
+    calib: &'a effects::Calib,
+    n_total: usize,
+    model_freqs: &'a [f64],
+}
+
+impl Ctx<'_> {
+    fn reference(&self, set: &[&Candidate], f: FitResult) -> Option<Reference> {
+        let prob = fit::Problem::new(self.rig, self.fit_data, self.sigma, self.calib, set, f.x.clone());
+        let preds = prob.predictions(&f.x)?;
+        let res: Vec<_> = self
+            .fit_data
             .iter()
             .zip(&preds)
             .map(|(d, p)| residuals(d, p))
             .collect();
         let (rss, _) = channel_rss(&res);
+        let vdata = std::slice::from_ref(self.validate);
+        let vprob = fit::Problem::new(self.rig, vdata, self.sigma, self.calib, set, f.x.clone());
+        let vpred = vprob.predictions(&f.x)?.remove(0);
+        let vres = residuals(self.validate, &vpred);
+        let (vrss, vn) = channel_rss(std::slice::from_ref(&vres));
+        let val_nrmse = nrmse(self.validate, &vpred);
+        Some(Reference {
+            fit: f,
+            rss,
+            vres,
+            vrss,
+            vn,
+            vpred,
+            val_nrmse,
+        })
+    }
+
+    /// Fits `set` (the effects chosen so far + candidate `ci`, last) jointly with the calibration
+    /// and applies every guard against `base`.
+    fn evaluate(
+        &self,
+        set: &[&Candidate],
+        ci: usize,
+        base: &Reference,
+        budget: std::time::Duration,
+        explore: bool,
+    ) -> Option<CandidateOutcome> {
+        let cand = *set.last()?;
+        let f = fit(
+            self.rig,
+            self.fit_data,
+            self.sigma,
+            self.calib,
+            set,
+            Some(&base.fit.x),
+            budget,
+            explore,
+        );
+        let r = self.reference(set, f)?;
+        let f = r.fit.clone();
         let k = cand.params.len().max(1);
-        let delta_bic = delta_neg2ll(&rss, &rss0, &n0) + k as f64 * (n_total as f64).ln();
+        let delta_bic = delta_neg2ll(&r.rss, &base.rss, &n_of(self.fit_data))
+            + k as f64 * (self.n_total as f64).ln();
         if std::env::var_os("DIAG_DEBUG").is_some() {
-            eprintln!("{}: fit rss {rss:?} vs nominal {rss0:?} (n {n0:?}); values {:?}", cand.id, f.values);
+            eprintln!(
+                "{}: fit rss {:?} vs reference {:?}; values {:?}",
+                cand.id, r.rss, base.rss, f.values
+            );
         }
-        let vprob = fit::Problem::new(rig, vdata, sigma, &calib, Some(cand), f.x.clone());
-        let Some(mut vp) = vprob.predictions(&f.x) else {
-            continue;
-        };
-        let vpred = vp.remove(0);
-        let vres = [residuals(validate, &vpred)];
-        let (vrss, _) = channel_rss(&vres);
-        let delta_val = delta_neg2ll(&vrss, &vrss0, &vn);
-        let vnr = nrmse(validate, &vpred);
+        let delta_val = delta_neg2ll(&r.vrss, &base.vrss, &base.vn);
+        let vn = base.vn;
         let mut best_channel = 0;
         let mut reduction = f64::NEG_INFINITY;
         for c in 0..3 {
             if vn[c] > 0 {
-                let red = 1.0 - (vrss[c] / vrss0[c].max(1e-300)).sqrt();
+                let red = 1.0 - (r.vrss[c] / base.vrss[c].max(1e-300)).sqrt();
                 if red > reduction {
                     reduction = red;
                     best_channel = c;
                 }
             }
         }
-        let q_before = vres0[0][best_channel]
+        let q_before = base.vres[best_channel]
             .as_ref()
             .map_or(0.0, |r| ljung_box(r, LJUNG_BOX_LAGS));
-        let q_after = vres[0][best_channel]
+        let q_after = r.vres[best_channel]
             .as_ref()
             .map_or(0.0, |r| ljung_box(r, LJUNG_BOX_LAGS));
-        let nc = calib.len();
+        let off = f.values.len() - cand.params.len();
         let significance = cand
             .params
             .iter()
             .enumerate()
             .filter(|(_, d)| d.zero_is_null)
-            .map(|(i, _)| f.values[nc + i].abs() / f.std[nc + i].max(1e-300))
+            .map(|(i, _)| f.values[off + i].abs() / f.std[off + i].max(1e-300))
+            .map(|z| if z.is_nan() { 0.0 } else { z })
             .fold(f64::NEG_INFINITY, f64::max);
         let significance = if significance == f64::NEG_INFINITY {
             f64::INFINITY
@@ -393,10 +679,10 @@ pub fn diagnose(
                 100.0 * MIN_VALIDATION_REDUCTION
             ));
         }
-        let sp_before = vres0[0][best_channel]
+        let sp_before = base.vres[best_channel]
             .as_ref()
             .map_or(0.0, |r| structured_power(r, LJUNG_BOX_LAGS));
-        let sp_after = vres[0][best_channel]
+        let sp_after = r.vres[best_channel]
             .as_ref()
             .map_or(0.0, |r| structured_power(r, LJUNG_BOX_LAGS));
         if !(sp_after < sp_before) {
@@ -409,47 +695,61 @@ pub fn diagnose(
                 "effect parameter only {significance:.1} σ from zero"
             ));
         }
-        // A resonance fitted at the ceiling of its search range (0.4 × the sample rate) is not
-        // identified: the recording holds no information there, and a heavily damped
-        // "resonance" at the band edge acts as a generic gain/phase correction that absorbs
-        // any small model-form error (seen on null cases).
+        // a lightly damped servo loop is a resonance of the base motion: the same rule as a mount
+        if let (Some(i), Some(j)) = (
+            cand.params.iter().position(|q| q.name == "servo_bandwidth_hz"),
+            cand.params.iter().position(|q| q.name == "servo_damping_ratio"),
+        ) {
+            let (fs, zs, sf) = (f.values[off + i], f.values[off + j], f.std[off + i]);
+            if zs < 0.3 {
+                let tol = 2.0 * if sf.is_finite() { sf } else { 0.0 } + zs * fs;
+                if let Some(fr) = self.model_freqs.iter().find(|fr| (fs - **fr).abs() <= tol) {
+                    fails.push(format!(
+                        "a resonant servo loop (ζ {zs:.2}) at {fs:.2} Hz coincides with the model's own mode at {fr:.2} Hz: a calibration matter"
+                    ));
+                }
+            }
+        }
         for (i, d) in cand.params.iter().enumerate() {
             if d.name == "mount_frequency_hz" {
                 // A residual at one of the model's own modes is a calibration matter (that mode's
                 // damping or the stiffness scale), never a new resonance: the mount frequency
                 // must be separated from every in-band model mode by more than its own 2 σ and
                 // the mount's half-power half-width ζ_m f_m (ζ_m capped at 0.1).
-                let fm = f.values[nc + i];
-                let sf = f.std[nc + i];
+                let fm = f.values[off + i];
+                let sf = f.std[off + i];
                 let zm = cand
                     .params
                     .iter()
                     .position(|q| q.name == "mount_damping_ratio")
-                    .map_or(0.05, |j| f.values[nc + j]);
+                    .map_or(0.05, |j| f.values[off + j]);
                 let tol = 2.0 * if sf.is_finite() { sf } else { 0.0 } + zm.min(0.1) * fm;
-                if let Some(fr) = model_freqs.iter().find(|fr| (fm - **fr).abs() <= tol) {
+                if let Some(fr) = self.model_freqs.iter().find(|fr| (fm - **fr).abs() <= tol) {
                     fails.push(format!(
                         "mount frequency {fm:.2} Hz coincides with the model's own mode at {fr:.2} Hz (within {tol:.2} Hz): a calibration matter, not a new resonance"
                     ));
                 }
+                // A resonance fitted at the ceiling of its search range (0.4 × the sample rate)
+                // is not identified: the recording holds no information there.
                 let ceiling = d.starts.iter().cloned().fold(0.0, f64::max);
-                if f.values[nc + i] >= 0.95 * ceiling {
+                if fm >= 0.95 * ceiling {
                     fails.push(format!(
-                        "mount frequency {:.1} Hz at the edge of the observable band ({:.1} Hz): not identified",
-                        f.values[nc + i],
-                        ceiling
+                        "mount frequency {fm:.1} Hz at the edge of the observable band ({ceiling:.1} Hz): not identified"
                     ));
                 }
             }
         }
         let passed = fails.is_empty();
-        outcomes.push(CandidateOutcome {
+        Some(CandidateOutcome {
             id: cand.id.to_string(),
             words: cand.words.to_string(),
+            cand_index: ci,
+            param_offset: off,
             k,
             delta_bic,
             delta_val,
-            val_nrmse: vnr,
+            val_nrmse: r.val_nrmse,
+            nrmse_before: base.val_nrmse,
             best_channel,
             reduction,
             whiteness: (q_before, q_after),
@@ -460,35 +760,25 @@ pub fn diagnose(
             } else {
                 fails.join("; ")
             },
-            val_pred: vpred,
+            val_pred: r.vpred,
             fit: f,
-        });
+        })
     }
-    outcomes.sort_by(|a, b| a.delta_val.total_cmp(&b.delta_val));
-    let selected = outcomes.iter().position(|o| o.passed);
-    if let Some(s) = selected {
-        for (i, o) in outcomes.iter_mut().enumerate() {
-            if i != s && o.passed {
-                o.reason = format!(
-                    "passes the guard but gains less on validation than {}",
-                    "the selected effect"
-                );
-            }
+}
+
+fn n_of(data: &[Prepared]) -> [usize; 3] {
+    let mut n = [0; 3];
+    for d in data {
+        let m = d.cmd_m.len();
+        if d.base_m.is_some() {
+            n[0] += m;
+        }
+        if d.tip_m.is_some() {
+            n[1] += m;
+        }
+        if d.force_n.is_some() {
+            n[2] += m;
         }
     }
-    progress(total_steps, total_steps, "done");
-    Ok(Diagnosis {
-        effect: selected.map_or_else(|| "none".to_string(), |s| outcomes[s].id.clone()),
-        selected,
-        calibration: cal,
-        sigma,
-        location,
-        val_nrmse_nominal,
-        val_pred_nominal: vpred0,
-        candidates: outcomes,
-        validate: validate.clone(),
-        evaluations,
-        basis,
-        band_edge_hz: band_edge,
-    })
+    n
 }

@@ -8,17 +8,21 @@ use anyhow::Result;
 use serde_json::{json, Map, Value};
 use std::path::Path;
 
-/// Effect parameters of an outcome as (JSON name with unit, value, σ); cogging sine/cosine
-/// become amplitude and pitch, gravity its orientation.
-pub fn effect_parameters(
-    o: &CandidateOutcome,
-    n_calib: usize,
+/// Parameters of the effect `id` whose values sit at `off..off + len` of a fit, as (JSON name
+/// with unit, value, σ); cogging sine/cosine become amplitude and pitch, gravity its
+/// orientation (from `words`).
+pub fn parameters_at(
+    id: &str,
+    words: &str,
+    fit: &super::fit::FitResult,
+    off: usize,
+    len: usize,
 ) -> (Vec<(String, f64, f64)>, Option<String>) {
     let mut out = Vec::new();
-    let names = &o.fit.names[n_calib..];
-    let vals = &o.fit.values[n_calib..];
-    let std = &o.fit.std[n_calib..];
-    if o.id == "cogging_ripple" {
+    let names = &fit.names[off..off + len];
+    let vals = &fit.values[off..off + len];
+    let std = &fit.std[off..off + len];
+    if id == "cogging_ripple" {
         let (a, b) = (vals[0], vals[1]);
         let amp = a.hypot(b);
         let s = ((a * std[0]).powi(2) + (b * std[1]).powi(2)).sqrt() / amp.max(1e-300);
@@ -34,8 +38,8 @@ pub fn effect_parameters(
             out.push((names[i].to_string(), v, std[i]));
         }
     }
-    let orientation = if o.id == "gravity_axial_load" {
-        Some(if o.words.contains("hangs") {
+    let orientation = if id == "gravity_axial_load" {
+        Some(if words.contains("hangs") {
             "hanging".to_string()
         } else {
             "upright".to_string()
@@ -46,17 +50,43 @@ pub fn effect_parameters(
     (out, orientation)
 }
 
+/// Effect parameters of a candidate outcome (its own fit).
+pub fn effect_parameters(o: &CandidateOutcome) -> (Vec<(String, f64, f64)>, Option<String>) {
+    let len = o.fit.values.len() - o.param_offset;
+    parameters_at(&o.id, &o.words, &o.fit, o.param_offset, len)
+}
+
+/// Every selected effect with its parameters from the final joint fit:
+/// (id, words, parameters, orientation, outcome when it was added).
+pub fn final_effects(d: &Diagnosis) -> Vec<(String, Vec<(String, f64, f64)>, Option<String>, &CandidateOutcome)> {
+    let mut off = d.calibration.names.len();
+    let mut out = Vec::new();
+    for (c, o) in d.final_set.iter().zip(&d.effects) {
+        let len = c.params.len();
+        let (p, or) = parameters_at(c.id, c.words, &d.final_fit, off, len);
+        off += len;
+        out.push((c.id.to_string(), p, or, o));
+    }
+    out
+}
+
+/// Following error of the fitted servo loop on the validation recording: (rms, peak) of
+/// command − predicted base (m).
+fn following_error(d: &Diagnosis) -> Option<(f64, f64)> {
+    let b = d.final_val_pred.base_m.as_ref()?;
+    let e: Vec<f64> = d.validate.cmd_m.iter().zip(b).map(|(c, y)| c - y).collect();
+    let rms = (e.iter().map(|x| x * x).sum::<f64>() / e.len().max(1) as f64).sqrt();
+    Some((rms, e.iter().fold(0.0f64, |a, x| a.max(x.abs()))))
+}
+
 /// The primary channel and its validation NRMSE before/after.
 pub fn validation_summary(d: &Diagnosis) -> (usize, f64, f64) {
-    match d.selected {
-        Some(s) => {
-            let o = &d.candidates[s];
-            (
-                o.best_channel,
-                d.val_nrmse_nominal[o.best_channel],
-                o.val_nrmse[o.best_channel],
-            )
-        }
+    match d.effects.first() {
+        Some(o) => (
+            o.best_channel,
+            d.val_nrmse_nominal[o.best_channel],
+            d.final_val_nrmse[o.best_channel],
+        ),
         None => {
             let c = [1, 2, 0]
                 .into_iter()
@@ -73,22 +103,40 @@ pub fn to_json(d: &Diagnosis) -> Value {
     let nc = d.calibration.names.len();
     let mut params = Map::new();
     let mut unc = Map::new();
-    if let Some(s) = d.selected {
-        let (p, orient) = effect_parameters(&d.candidates[s], nc);
+    let mut effects = Vec::new();
+    let fe = final_effects(d);
+    for (i, (id, p, orient, o)) in fe.iter().enumerate() {
+        let mut pm = Map::new();
+        let mut um = Map::new();
         for (n, v, s) in p {
-            params.insert(n.clone(), json!(v));
-            unc.insert(n, json!(s));
+            pm.insert(n.clone(), json!(v));
+            um.insert(n.clone(), if s.is_finite() { json!(s) } else { Value::Null });
         }
         if let Some(o) = orient {
-            params.insert("orientation".into(), json!(o));
+            pm.insert("orientation".into(), json!(o));
         }
+        if id == "servo_lag" {
+            if let Some((rms, peak)) = following_error(d) {
+                pm.insert("servo_following_error_rms_m".into(), json!(rms));
+                pm.insert("servo_following_error_peak_m".into(), json!(peak));
+            }
+        }
+        if i == 0 {
+            params = pm.clone();
+            unc = um.clone();
+        }
+        let c = o.best_channel;
+        effects.push(json!({
+            "effect": id, "words": o.words, "parameters": pm, "uncertainty": um,
+            "validation": {"channel": CHANNEL_NAMES[c], "nrmse_before": o.nrmse_before[c],
+                "nrmse_after": o.val_nrmse[c], "reduction": o.reduction,
+                "delta_neg2loglik": o.delta_val},
+            "delta_bic": o.delta_bic,
+        }));
     }
     let (c, before, after) = validation_summary(d);
     let mut per = Map::new();
-    let after_all = d
-        .selected
-        .map(|s| d.candidates[s].val_nrmse)
-        .unwrap_or(d.val_nrmse_nominal);
+    let after_all = d.final_val_nrmse;
     for k in 0..3 {
         if d.val_nrmse_nominal[k].is_finite() {
             per.insert(
@@ -101,7 +149,7 @@ pub fn to_json(d: &Diagnosis) -> Value {
         .candidates
         .iter()
         .map(|o| {
-            let (p, orient) = effect_parameters(o, nc);
+            let (p, orient) = effect_parameters(o);
             let mut pm = Map::new();
             for (n, v, _) in p {
                 pm.insert(n, json!(v));
@@ -127,7 +175,11 @@ pub fn to_json(d: &Diagnosis) -> Value {
     }
     json!({
         "effect": d.effect,
-        "words": d.selected.map(|s| d.candidates[s].words.clone()).unwrap_or_else(|| "no candidate earns its parameters".into()),
+        "words": d.effects.first().map(|o| o.words.clone()).unwrap_or_else(|| "no candidate earns its parameters".into()),
+        "effects": effects,
+        "unexplained": d.unexplained.as_ref().map(|u| serde_json::to_value(u).unwrap_or(Value::Null)),
+        "assumptions": d.assumptions,
+        "selection_rounds": d.rounds,
         "parameters": params,
         "uncertainty": unc,
         "validation": {"nrmse_before": before, "nrmse_after": after, "channel": CHANNEL_NAMES[c], "per_channel": per},
@@ -168,36 +220,62 @@ pub fn words(d: &Diagnosis) -> String {
             .collect();
         s += &format!("  model modes (Hz): {}\n", f.join(", "));
     }
-    let (c, before, after) = validation_summary(d);
-    match d.selected {
-        Some(i) => {
-            let o = &d.candidates[i];
-            s += &format!("\nDIAGNOSIS: {} — {}\n", o.id, o.words);
-            let (p, orient) = effect_parameters(o, nc);
-            if let Some(or) = orient {
-                s += &format!("  orientation = {or}\n");
-            }
-            for (n, v, sd) in p {
-                s += &format!("  {n} = {v:.5e} ± {sd:.2e}\n");
-            }
-            s += &format!(
-                "  shows in {}: validation NRMSE {:.4} → {:.4} ({:.1} % lower); ΔBIC {:+.1}; validation Δ(−2lnL) {:+.1}; Ljung–Box {:.0} → {:.0}\n",
-                CHANNEL_NAMES[c],
-                before,
-                after,
-                100.0 * (1.0 - after / before),
-                o.delta_bic,
-                o.delta_val,
-                o.whiteness.0,
-                o.whiteness.1
-            );
-        }
-        None => {
-            s += &format!(
+    for a in &d.assumptions {
+        s += &format!("ASSUMPTION: {a}\n");
+    }
+    let (c, before, _) = validation_summary(d);
+    let fe = final_effects(d);
+    if fe.is_empty() {
+        s += &format!(
             "\nDIAGNOSIS: none — no candidate earns its parameters (validation NRMSE {} {:.4})\n",
             CHANNEL_NAMES[c], before
-        )
+        );
+    }
+    for (k, (id, p, orient, o)) in fe.iter().enumerate() {
+        s += &format!("\nDIAGNOSIS {}: {} — {}\n", k + 1, id, o.words);
+        if let Some(or) = orient {
+            s += &format!("  orientation = {or}\n");
         }
+        for (n, v, sd) in p {
+            s += &format!("  {n} = {v:.5e} ± {sd:.2e}\n");
+        }
+        if id == "servo_lag" {
+            if let Some((rms, peak)) = following_error(d) {
+                s += &format!("  following error on validation: rms {rms:.3e} m, peak {peak:.3e} m\n");
+            }
+        }
+        let c = o.best_channel;
+        s += &format!(
+            "  shows in {}: validation NRMSE {:.4} → {:.4} ({:.1} % lower than the model before it); ΔBIC {:+.1}; validation Δ(−2lnL) {:+.1}; Ljung–Box {:.0} → {:.0}\n",
+            CHANNEL_NAMES[c],
+            o.nrmse_before[c],
+            o.val_nrmse[c],
+            100.0 * o.reduction,
+            o.delta_bic,
+            o.delta_val,
+            o.whiteness.0,
+            o.whiteness.1
+        );
+    }
+    match &d.unexplained {
+        Some(u) => {
+            s += &format!(
+                "\nUNEXPLAINED: {} keeps a structured residual {:.1}× its noise (NRMSE {:.4}, Ljung–Box {:.0}) in {:.2}–{:.2} Hz{}; windows {:?}; correlation with commanded velocity {:+.2}, acceleration {:+.2}\n",
+                u.channel,
+                u.residual_over_noise,
+                u.nrmse,
+                u.ljung_box_q,
+                u.band_hz[0],
+                u.band_hz[1],
+                u.nearest_model_mode_hz
+                    .map(|f| format!(" (nearest model mode {f:.2} Hz)"))
+                    .unwrap_or_default(),
+                u.windows,
+                u.correlation_velocity,
+                u.correlation_acceleration
+            );
+        }
+        None => s += "\nNothing structured above noise is left on the validation recording.\n",
     }
     s += "\nCandidates (best validation gain first):\n";
     for o in &d.candidates {
@@ -228,10 +306,7 @@ pub fn write_report(d: &Diagnosis, dir: &Path) -> Result<()> {
     )?;
     let v = &d.validate;
     let t = &v.time_s;
-    let aug = d
-        .selected
-        .map(|s| &d.candidates[s].val_pred)
-        .unwrap_or(&d.val_pred_nominal);
+    let aug = &d.final_val_pred;
     let r0 = residuals(v, &d.val_pred_nominal);
     let r1 = residuals(v, aug);
     for c in 0..3 {

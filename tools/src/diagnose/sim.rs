@@ -3,7 +3,10 @@
 //!
 //! Chain (each block off unless its parameters are set):
 //! 1. servo: the base follows its command through a finite-bandwidth position loop,
-//!    `ÿ + 2ζ_sω_s ẏ + ω_s² y = ω_s² r` (`servo_lag`); predicted `base_pos_m`;
+//!    `ÿ + 2ζ_sω_s ẏ + ω_s² y = k_a r̈ + 2ζ_sω_s k_v ṙ + ω_s² (1 − …) r`, i.e. the following error
+//!    e = y − r obeys `ë + 2ζ_sω_s ė + ω_s² e = −(1 − k_a) r̈ − 2ζ_sω_s (1 − k_v) ṙ` (`servo_lag`;
+//!    k_v = k_a = 0 is a plain 2nd-order lag, PID with velocity/acceleration feed-forward has
+//!    fractions near 1); predicted `base_pos_m`;
 //! 2. the beam is driven by the *measured* base position when recorded (so carriage effects do
 //!    not leak into the tip channel), else by the predicted one;
 //! 3. mount: the beam root follows the carriage through a spring–damper resonance,
@@ -44,6 +47,8 @@ pub struct Params {
     pub viscous_n_s_per_m: f64,
     /// Servo bandwidth (Hz) and damping ratio.
     pub servo: Option<(f64, f64)>,
+    /// Velocity and acceleration feed-forward fractions of the position loop (0 = plain lag).
+    pub servo_ff: (f64, f64),
     /// Tip mass (kg).
     pub tip_mass_kg: f64,
     /// Root rotational stiffness (N·m/rad).
@@ -74,6 +79,7 @@ impl Default for Params {
             friction_n: 0.0,
             viscous_n_s_per_m: 0.0,
             servo: None,
+            servo_ff: (0.0, 0.0),
             tip_mass_kg: 0.0,
             root_stiffness_nm_per_rad: None,
             drag_kg_per_m2: 0.0,
@@ -165,9 +171,12 @@ pub struct Prediction {
     pub force_n: Option<Vec<f64>>,
 }
 
-/// Response e = y − u of `ë + 2ζωė + ω²e = −ü − (lowpass ? 2ζω u̇ : 0)` for a piecewise-linear
-/// u: exact (velocity kicks at the samples, constant forcing in between).
-fn second_order(u: &[f64], dt: f64, omega: f64, zeta: f64, lowpass: bool) -> Vec<f64> {
+/// y = u + e with `ë + 2ζωė + ω²e = −g_a ü − g_v 2ζω u̇` for a piecewise-linear u: exact
+/// (velocity kicks at the samples, constant forcing in between). `g_a = g_v = 1` is the plain
+/// 2nd-order low-pass `ÿ + 2ζωẏ + ω²y = 2ζω… = ω² u`; a position loop with velocity and
+/// acceleration feed-forward fractions k_v, k_a has `g_v = 1 − k_v`, `g_a = 1 − k_a`; a spring–
+/// damper mount driven by its base has `g_a = 1, g_v = 0`.
+fn second_order(u: &[f64], dt: f64, omega: f64, zeta: f64, g_v: f64, g_a: f64) -> Vec<f64> {
     let (phi, gam) = mode_zoh(omega, zeta, dt);
     let n = u.len();
     let mut x = Vector2::zeros();
@@ -180,13 +189,97 @@ fn second_order(u: &[f64], dt: f64, omega: f64, zeta: f64, lowpass: bool) -> Vec
             0.0
         };
         y.push(u[k] + x[0]);
-        x[1] -= va - vb;
-        let f = if lowpass {
-            -2.0 * zeta * omega * va
-        } else {
-            0.0
-        };
+        x[1] -= g_a * (va - vb);
+        let f = -g_v * 2.0 * zeta * omega * va;
         x = phi * x + gam * f;
+    }
+    y
+}
+
+/// Carriage position under a position loop that carries the beam: the loop force
+/// `F = M [k_a r̈ + 2ζω (k_v ṙ − ẏ) + ω² (r − y)]` (M the total moving mass the drive is tuned
+/// for) acts on the carriage, which the beam modes push back (eq. 5 in modal form):
+/// `(M − ΣΓ²) ÿ = F + Σ Γ_r (2ζ_rω_r η̇_r + ω_r² η_r)`, `η̈_r + 2ζ_rω_r η̇_r + ω_r² η_r = −Γ_r ÿ`.
+/// For a rigid load this is the uncoupled loop of [`second_order`]. RK4 with sub-steps of at most
+/// 1/(40 f_max); the command is piecewise linear (r̈ as kicks at the samples).
+fn coupled_servo(
+    r: &[f64],
+    dt: f64,
+    omega: f64,
+    zeta: f64,
+    ff: (f64, f64),
+    c: &BeamCache,
+) -> Vec<f64> {
+    let n = r.len();
+    let nm = c.omega.len();
+    let m_tot = c.total_mass;
+    let sum_g2: f64 = c.gamma.iter().map(|g| g * g).sum();
+    let m_eff = (m_tot - sum_g2).max(1e-9 * m_tot);
+    let w_max = c.omega.iter().cloned().fold(omega, f64::max);
+    let subs = ((dt * w_max * 40.0 / (2.0 * std::f64::consts::PI)).ceil() as usize).clamp(1, 400);
+    let h = dt / subs as f64;
+    // state: y, ẏ, then (η_r, η̇_r)
+    let mut x = vec![0.0; 2 + 2 * nm];
+    x[0] = r[0];
+    let (kv, ka) = ff;
+    let deriv = |x: &[f64], rr: f64, rv: f64, out: &mut [f64]| {
+        let f = m_tot * (2.0 * zeta * omega * (kv * rv - x[1]) + omega * omega * (rr - x[0]));
+        let mut back = 0.0;
+        for j in 0..nm {
+            let (om, z) = (c.omega[j], c.zeta[j]);
+            back += c.gamma[j] * (2.0 * z * om * x[3 + 2 * j] + om * om * x[2 + 2 * j]);
+        }
+        let acc = (f + back) / m_eff;
+        out[0] = x[1];
+        out[1] = acc;
+        for j in 0..nm {
+            let (om, z) = (c.omega[j], c.zeta[j]);
+            out[2 + 2 * j] = x[3 + 2 * j];
+            out[3 + 2 * j] = -c.gamma[j] * acc
+                - 2.0 * z * om * x[3 + 2 * j]
+                - om * om * x[2 + 2 * j];
+        }
+    };
+    let dim = x.len();
+    let (mut k1, mut k2, mut k3, mut k4, mut xt) =
+        (vec![0.0; dim], vec![0.0; dim], vec![0.0; dim], vec![0.0; dim], vec![0.0; dim]);
+    let mut y = Vec::with_capacity(n);
+    let mut v_prev = 0.0;
+    for k in 0..n {
+        y.push(x[0]);
+        let v = if k + 1 < n { (r[k + 1] - r[k]) / dt } else { 0.0 };
+        // acceleration feed-forward of the velocity step at this sample: an impulse
+        let kick = ka * m_tot * (v - v_prev) / m_eff;
+        x[1] += kick;
+        for j in 0..nm {
+            x[3 + 2 * j] -= c.gamma[j] * kick;
+        }
+        v_prev = v;
+        for s in 0..subs {
+            let t0 = s as f64 * h;
+            let rr = |t: f64| r[k] + v * t;
+            deriv(&x, rr(t0), v, &mut k1);
+            for i in 0..dim {
+                xt[i] = x[i] + 0.5 * h * k1[i];
+            }
+            deriv(&xt, rr(t0 + 0.5 * h), v, &mut k2);
+            for i in 0..dim {
+                xt[i] = x[i] + 0.5 * h * k2[i];
+            }
+            deriv(&xt, rr(t0 + 0.5 * h), v, &mut k3);
+            for i in 0..dim {
+                xt[i] = x[i] + h * k3[i];
+            }
+            deriv(&xt, rr(t0 + h), v, &mut k4);
+            for i in 0..dim {
+                x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            }
+        }
+        if !x[0].is_finite() {
+            // an unstable parameter set: report it as a refused prediction downstream
+            y.extend(std::iter::repeat(f64::NAN).take(n - y.len()));
+            break;
+        }
     }
     y
 }
@@ -376,10 +469,38 @@ pub fn predict(
     let dt = d.dt;
     let n = d.cmd_m.len();
     let mut out = Prediction::default();
-    // 1. servo
-    let y_servo = match p.servo {
-        Some((f, z)) => second_order(&d.cmd_m, dt, 2.0 * std::f64::consts::PI * f, z, true),
-        None => d.cmd_m.clone(),
+    // 1. servo; without a measured base the carriage is pushed back by the beam it carries,
+    // so the loop is simulated coupled to the beam modes
+    if p.servo.is_some() && d.drive_m.is_none() && rig.beam.is_some() {
+        let stale = cache
+            .as_ref()
+            .map_or(true, |c| c.key != structural_key(p, dt));
+        if stale {
+            *cache = Some(beam_cache(rig, p, dt)?);
+        }
+    }
+    let coupled = match (p.servo, d.drive_m.is_none(), cache.as_ref()) {
+        (Some((f, z)), true, Some(c)) if rig.beam.is_some() => Some(coupled_servo(
+            &d.cmd_m,
+            dt,
+            2.0 * std::f64::consts::PI * f,
+            z,
+            p.servo_ff,
+            c,
+        )),
+        _ => None,
+    };
+    let y_servo = match (p.servo, coupled) {
+        (_, Some(y)) => y,
+        (Some((f, z)), None) => second_order(
+            &d.cmd_m,
+            dt,
+            2.0 * std::f64::consts::PI * f,
+            z,
+            1.0 - p.servo_ff.0,
+            1.0 - p.servo_ff.1,
+        ),
+        (None, None) => d.cmd_m.clone(),
     };
     if d.base_m.is_some() {
         out.base_m = Some(y_servo.clone());
@@ -388,7 +509,7 @@ pub fn predict(
     let drive: &[f64] = d.drive_m.as_deref().unwrap_or(&y_servo);
     // 3. mount
     let root: Vec<f64> = match p.mount {
-        Some((f, z)) => second_order(drive, dt, 2.0 * std::f64::consts::PI * f, z, false),
+        Some((f, z)) => second_order(drive, dt, 2.0 * std::f64::consts::PI * f, z, 0.0, 1.0),
         None => drive.to_vec(),
     };
     let accel = |y: &[f64], k: usize| {
@@ -547,13 +668,31 @@ mod tests {
     }
 
     #[test]
+    fn coupled_servo_follows_its_command_and_feels_the_beam() {
+        // a stiff loop follows the command to well under its following-error bound, and the
+        // beam's reaction moves the carriage (the coupled and uncoupled loops differ)
+        let rig = rig();
+        let rec = move_rec();
+        let d = Prepared::new("t", &rec).unwrap();
+        let p = Params::default();
+        let c = beam_cache(&rig, &p, d.dt).unwrap();
+        let w = 2.0 * std::f64::consts::PI * 40.0;
+        let y = coupled_servo(&d.cmd_m, d.dt, w, 0.7, (1.0, 1.0), &c);
+        let e = y.iter().zip(&d.cmd_m).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(e < 1e-3, "{e}");
+        let u = second_order(&d.cmd_m, d.dt, w, 0.7, 0.0, 0.0);
+        let diff = y.iter().zip(&u).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(diff > 1e-7 && diff < e.max(1e-6) * 10.0, "{diff} {e}");
+    }
+
+    #[test]
     fn fast_filters_are_transparent_and_slow_ones_lag() {
         let rec = move_rec();
         let d = Prepared::new("t", &rec).unwrap();
-        let y = second_order(&d.cmd_m, 0.01, 2.0 * std::f64::consts::PI * 1e4, 0.7, true);
+        let y = second_order(&d.cmd_m, 0.01, 2.0 * std::f64::consts::PI * 1e4, 0.7, 1.0, 1.0);
         // following error 2ζv/ω = 4.5 µm at 10 kHz bandwidth
         assert!(y.iter().zip(&d.cmd_m).all(|(a, b)| (a - b).abs() < 5e-6));
-        let y = second_order(&d.cmd_m, 0.01, 2.0 * std::f64::consts::PI * 5.0, 0.7, true);
+        let y = second_order(&d.cmd_m, 0.01, 2.0 * std::f64::consts::PI * 5.0, 0.7, 1.0, 1.0);
         let lag = y
             .iter()
             .zip(&d.cmd_m)
