@@ -200,8 +200,8 @@ fn second_order(u: &[f64], dt: f64, omega: f64, zeta: f64, g_v: f64, g_a: f64) -
 /// `F = M [k_a r̈ + 2ζω (k_v ṙ − ẏ) + ω² (r − y)]` (M the total moving mass the drive is tuned
 /// for) acts on the carriage, which the beam modes push back (eq. 5 in modal form):
 /// `(M − ΣΓ²) ÿ = F + Σ Γ_r (2ζ_rω_r η̇_r + ω_r² η_r)`, `η̈_r + 2ζ_rω_r η̇_r + ω_r² η_r = −Γ_r ÿ`.
-/// For a rigid load this is the uncoupled loop of [`second_order`]. RK4 with sub-steps of at most
-/// 1/(40 f_max); the command is piecewise linear (r̈ as kicks at the samples).
+/// For a rigid load this is the uncoupled loop of [`second_order`]. Exact for a piecewise-linear
+/// command (r̈ as kicks at the samples): one matrix exponential per parameter set.
 fn coupled_servo(
     r: &[f64],
     dt: f64,
@@ -215,68 +215,59 @@ fn coupled_servo(
     let m_tot = c.total_mass;
     let sum_g2: f64 = c.gamma.iter().map(|g| g * g).sum();
     let m_eff = (m_tot - sum_g2).max(1e-9 * m_tot);
-    let w_max = c.omega.iter().cloned().fold(omega, f64::max);
-    let subs = ((dt * w_max * 40.0 / (2.0 * std::f64::consts::PI)).ceil() as usize).clamp(1, 400);
-    let h = dt / subs as f64;
-    // state: y, ẏ, then (η_r, η̇_r)
-    let mut x = vec![0.0; 2 + 2 * nm];
-    x[0] = r[0];
     let (kv, ka) = ff;
-    let deriv = |x: &[f64], rr: f64, rv: f64, out: &mut [f64]| {
-        let f = m_tot * (2.0 * zeta * omega * (kv * rv - x[1]) + omega * omega * (rr - x[0]));
-        let mut back = 0.0;
-        for j in 0..nm {
-            let (om, z) = (c.omega[j], c.zeta[j]);
-            back += c.gamma[j] * (2.0 * z * om * x[3 + 2 * j] + om * om * x[2 + 2 * j]);
+    // z = [y, ẏ, (η_j, η̇_j)…, r, ṙ]; within a sample interval r is linear (ṙ constant), so the
+    // interval map is exactly exp(A dt)
+    let dim = 4 + 2 * nm;
+    let (ri, vi) = (dim - 2, dim - 1);
+    let mut acc_row = vec![0.0; dim];
+    acc_row[0] = -m_tot * omega * omega / m_eff;
+    acc_row[1] = -m_tot * 2.0 * zeta * omega / m_eff;
+    acc_row[ri] = m_tot * omega * omega / m_eff;
+    acc_row[vi] = m_tot * 2.0 * zeta * omega * kv / m_eff;
+    for j in 0..nm {
+        let (om, z) = (c.omega[j], c.zeta[j]);
+        acc_row[2 + 2 * j] = c.gamma[j] * om * om / m_eff;
+        acc_row[3 + 2 * j] = c.gamma[j] * 2.0 * z * om / m_eff;
+    }
+    let mut a = nalgebra::DMatrix::<f64>::zeros(dim, dim);
+    a[(0, 1)] = 1.0;
+    for i in 0..dim {
+        a[(1, i)] = acc_row[i];
+    }
+    for j in 0..nm {
+        let (om, z) = (c.omega[j], c.zeta[j]);
+        let (q, qd) = (2 + 2 * j, 3 + 2 * j);
+        a[(q, qd)] = 1.0;
+        for i in 0..dim {
+            a[(qd, i)] = -c.gamma[j] * acc_row[i];
         }
-        let acc = (f + back) / m_eff;
-        out[0] = x[1];
-        out[1] = acc;
-        for j in 0..nm {
-            let (om, z) = (c.omega[j], c.zeta[j]);
-            out[2 + 2 * j] = x[3 + 2 * j];
-            out[3 + 2 * j] = -c.gamma[j] * acc
-                - 2.0 * z * om * x[3 + 2 * j]
-                - om * om * x[2 + 2 * j];
-        }
-    };
-    let dim = x.len();
-    let (mut k1, mut k2, mut k3, mut k4, mut xt) =
-        (vec![0.0; dim], vec![0.0; dim], vec![0.0; dim], vec![0.0; dim], vec![0.0; dim]);
+        a[(qd, qd)] -= 2.0 * z * om;
+        a[(qd, q)] -= om * om;
+    }
+    a[(ri, vi)] = 1.0;
+    let phi = (a * dt).exp();
+    if !phi.iter().all(|v| v.is_finite()) {
+        return vec![f64::NAN; n];
+    }
+    let mut zv = nalgebra::DVector::<f64>::zeros(dim);
+    zv[0] = r[0];
     let mut y = Vec::with_capacity(n);
     let mut v_prev = 0.0;
     for k in 0..n {
-        y.push(x[0]);
+        y.push(zv[0]);
         let v = if k + 1 < n { (r[k + 1] - r[k]) / dt } else { 0.0 };
         // acceleration feed-forward of the velocity step at this sample: an impulse
         let kick = ka * m_tot * (v - v_prev) / m_eff;
-        x[1] += kick;
+        zv[1] += kick;
         for j in 0..nm {
-            x[3 + 2 * j] -= c.gamma[j] * kick;
+            zv[3 + 2 * j] -= c.gamma[j] * kick;
         }
         v_prev = v;
-        for s in 0..subs {
-            let t0 = s as f64 * h;
-            let rr = |t: f64| r[k] + v * t;
-            deriv(&x, rr(t0), v, &mut k1);
-            for i in 0..dim {
-                xt[i] = x[i] + 0.5 * h * k1[i];
-            }
-            deriv(&xt, rr(t0 + 0.5 * h), v, &mut k2);
-            for i in 0..dim {
-                xt[i] = x[i] + 0.5 * h * k2[i];
-            }
-            deriv(&xt, rr(t0 + 0.5 * h), v, &mut k3);
-            for i in 0..dim {
-                xt[i] = x[i] + h * k3[i];
-            }
-            deriv(&xt, rr(t0 + h), v, &mut k4);
-            for i in 0..dim {
-                x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
-            }
-        }
-        if !x[0].is_finite() {
-            // an unstable parameter set: report it as a refused prediction downstream
+        zv[ri] = r[k];
+        zv[vi] = v;
+        zv = &phi * &zv;
+        if !zv[0].is_finite() {
             y.extend(std::iter::repeat(f64::NAN).take(n - y.len()));
             break;
         }
