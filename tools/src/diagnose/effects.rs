@@ -402,6 +402,18 @@ pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
             )],
         });
         c.push(Candidate {
+            id: "sensor_gain",
+            words: "scale error of the tip sensor (e.g. camera calibration)",
+            orientation: None,
+            params: vec![def(
+                "sensor_gain_error",
+                Transform::Linear,
+                vec![0.0],
+                0.01,
+                true,
+            )],
+        });
+        c.push(Candidate {
             id: "gravity_axial_load",
             words: "gravity axial load: the beam hangs (tension)",
             orientation: Some(Orientation::Hanging),
@@ -478,6 +490,9 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
             p.drag_kg_per_m2 = get("drag_coefficient_kg_per_m2").unwrap_or(0.0).abs()
         }
         "sensor_delay" => p.sensor_delay_s = get("sensor_delay_s").unwrap_or(0.0),
+        "sensor_gain" => {
+            p.sensor_gain_error = get("sensor_gain_error").unwrap_or(0.0).clamp(-0.5, 0.5)
+        }
         "mount_resonance" => {
             p.mount = Some((
                 get("mount_frequency_hz").unwrap_or(100.0),

@@ -28,6 +28,8 @@ pub fn parameters_at(
         let s = ((a * std[0]).powi(2) + (b * std[1]).powi(2)).sqrt() / amp.max(1e-300);
         out.push(("cogging_amplitude_n".to_string(), amp, s));
         out.push(("cogging_pitch_m".to_string(), vals[2], std[2]));
+    } else if id == "sensor_gain" {
+        out.push(("sensor_gain".to_string(), 1.0 + vals[0], std[0]));
     } else {
         for i in 0..names.len() {
             let v = if matches!(names[i], "tip_mass_kg" | "drag_coefficient_kg_per_m2") {

@@ -18,7 +18,8 @@
 //!    (`quadratic_damping`); motor force from eq. (5), `u = J ÿ + hᵀ q̈ − ∫ drag`;
 //! 5. carriage forces: `+ F_c sign(ẏ) + c_v ẏ` (`base_friction`, smoothed over 1 mm/s) and
 //!    `+ a sin(2πy/p) + b cos(2πy/p)` (`cogging_ripple`);
-//! 6. tip sensor latency τ: `tip(t − τ)` by linear interpolation (`sensor_delay`).
+//! 6. tip sensor latency τ: `tip(t − τ)` by linear interpolation (`sensor_delay`); tip sensor
+//!    scale g (camera calibration): `g · tip` (`sensor_gain`).
 
 use crate::model::basis::BasisFn;
 use crate::model::sim::mode_zoh;
@@ -57,6 +58,8 @@ pub struct Params {
     pub drag_kg_per_m2: f64,
     /// Tip sensor latency (s).
     pub sensor_delay_s: f64,
+    /// Tip sensor scale error g − 1: the sensor reports (1 + g) × the absolute tip position.
+    pub sensor_gain_error: f64,
     /// Gravity axial load.
     pub orientation: Option<Orientation>,
     /// Mount resonance (Hz, damping ratio).
@@ -84,6 +87,7 @@ impl Default for Params {
             root_stiffness_nm_per_rad: None,
             drag_kg_per_m2: 0.0,
             sensor_delay_s: 0.0,
+            sensor_gain_error: 0.0,
             orientation: None,
             mount: None,
             cogging: None,
@@ -570,8 +574,13 @@ pub fn predict(
         }
         if d.tip_m.is_some() {
             let tip: Vec<f64> = root.iter().zip(&w).map(|(y, w)| y + w).collect();
-            out.tip_m = Some(if p.sensor_delay_s != 0.0 {
+            let tip = if p.sensor_delay_s != 0.0 {
                 delayed(&tip, p.sensor_delay_s, dt)
+            } else {
+                tip
+            };
+            out.tip_m = Some(if p.sensor_gain_error != 0.0 {
+                tip.iter().map(|v| (1.0 + p.sensor_gain_error) * v).collect()
             } else {
                 tip
             });

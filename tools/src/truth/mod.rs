@@ -32,7 +32,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The effect ids of the issue (and `none`).
-pub const EFFECTS: [&str; 9] = [
+pub const EFFECTS: [&str; 10] = [
     "base_friction",
     "servo_lag",
     "tip_mass",
@@ -42,6 +42,7 @@ pub const EFFECTS: [&str; 9] = [
     "gravity_axial_load",
     "mount_resonance",
     "cogging_ripple",
+    "sensor_gain",
 ];
 
 /// Fine integration steps per output sample.
@@ -217,6 +218,7 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         tip_noise_m: log_uniform(&mut rng, 2e-5, 3e-4),
         tip_quantum_m: if rng.gen_bool(0.5) { 1e-5 } else { 1e-4 },
         tip_delay_s: 0.0,
+        tip_gain: 1.0,
         encoder_noise_m: log_uniform(&mut rng, 2e-7, 2e-6),
         encoder_quantum_m: 1e-6,
         force_noise_n: log_uniform(&mut rng, 0.01, 0.2),
@@ -330,6 +332,12 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
             plant.sensors.tip_delay_s = tau;
             truth.insert("sensor_delay_s".into(), tau.into());
         }
+        "sensor_gain" => {
+            // a camera calibration off by 2–8 % either way
+            let g = 1.0 + rng.gen_range(0.02..0.08) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+            plant.sensors.tip_gain = g;
+            truth.insert("sensor_gain".into(), g.into());
+        }
         "mount_resonance" => {
             let f2 = beam.modes(2)?.omega_rad_s[1] / pi2;
             let fm = (rng.gen_range(1.3..3.0) * f2).clamp(8.0, 0.4 * rate);
@@ -435,7 +443,10 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
                             run.tip_m[i] * (1.0 - a)
                                 + run.tip_m[(i + 1).min(run.tip_m.len() - 1)] * a
                         };
-                        q(v + gauss(sensors.tip_noise_m), sensors.tip_quantum_m)
+                        q(
+                            plant.sensors.tip_gain * v + gauss(sensors.tip_noise_m),
+                            sensors.tip_quantum_m,
+                        )
                     })
                     .collect(),
             );

@@ -61,6 +61,8 @@ pub struct Sensors {
     pub tip_quantum_m: f64,
     /// Tip latency (s).
     pub tip_delay_s: f64,
+    /// Tip scale: the camera reports `tip_gain × position` (calibration error; 1 = exact).
+    pub tip_gain: f64,
     /// Encoder noise σ (m).
     pub encoder_noise_m: f64,
     /// Encoder quantum (m).
