@@ -12,6 +12,7 @@
 
 use crate::config::{ModeSetting, Settings, Source, MAX_CUSTOM_IMPULSES, MAX_MODES};
 use crate::engine::NumericPath;
+use crate::reference::SweepKind;
 use crate::runtime::{RunParams, Runtime};
 use crate::shaper::{residual_vibration, Impulse, ShaperKind};
 use core::fmt::Write;
@@ -106,7 +107,8 @@ const HELP: &[&str] = &[
     "help | status | shaper | config",
     "mode <1-4> <zv|zvd|zvdd|zvddd|mzv|ei|2hei|3hei|umzv> <freq_hz> <zeta> [v_tol]",
     "clear <1-4|all> | custom <a>@<t_s> ... | custom clear | shaping on|off | path fixed|f32",
-    "move <target_mm> [speed_mm_s] [accel_mm_s2] | zero | speed <mm_s> | accel <mm_s2>",
+    "move <target_mm> [speed_mm_s] [accel_mm_s2] | stop | zero | speed <mm_s> | accel <mm_s2>",
+    "sweep lin|exp <f0_hz> <f1_hz> <amplitude_mm> <duration_s>   (about the present position)",
     "rate <tick_hz> | step <nm_per_step> | maxrate <steps_per_s> | input <nm_per_count>",
     "source internal|stepdir | save | load | defaults",
     "capture <every_n_ticks> | dump <first> <count<=32>   (setpoints in nm)",
@@ -196,6 +198,8 @@ impl Console {
             "speed" | "accel" => self.cmd_motion_default(cmd, &args, out),
             "source" => self.cmd_source(&args, rt, out),
             "move" => self.cmd_move(&args, rt, out),
+            "sweep" => self.cmd_sweep(&args, rt, out),
+            "stop" => self.cmd_stop(&args, rt, out),
             "capture" => self.cmd_capture(&args, rt, out),
             "dump" => self.cmd_dump(&args, rt, out),
             "zero" => rt
@@ -677,9 +681,114 @@ impl Console {
         let target = libm::round(target_mm * 1e6) as i32;
         let ticks = rt
             .with(|r| r.start_move(target, (speed * 1e6) as f32, (accel * 1e6) as f32))
-            .map_err(|e| CmdErr(e.code(), e.message()))?;
+            .map_err(|e| runtime_err(e, out))?;
         let _ = writeln!(out, "ok move target_mm={target_mm} ticks={ticks}");
         Ok(())
+    }
+}
+
+/// A runtime refusal as a console error; a step-rate refusal first names the limit.
+fn runtime_err(e: crate::runtime::RuntimeError, out: &mut impl Write) -> CmdErr {
+    if let crate::runtime::RuntimeError::StepRate(x) = e {
+        let _ = writeln!(
+            out,
+            "# shaped peak {} steps/s > maxrate {} steps/s; reference speed must stay <= {} mm/s",
+            Num(x.shaped_peak_steps_s as f64, 0),
+            x.max_step_rate_hz,
+            Num(x.max_reference_speed_nm_s as f64 * 1e-6, 3),
+        );
+    }
+    CmdErr(e.code(), e.message())
+}
+
+/// A number printed with at most `.1` decimals, trailing zeros removed (`68.04`, not
+/// `68.03999999999999`; `1e-308` as `0`): the console's number format.
+pub struct Num(pub f64, pub usize);
+
+impl core::fmt::Display for Num {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let mut buf: heapless::String<48> = heapless::String::new();
+        let v = self.0;
+        if !v.is_finite() {
+            return write!(f, "{v}");
+        }
+        if v.abs() >= 1e15 {
+            return write!(f, "{v:e}");
+        }
+        if write!(buf, "{:.*}", self.1.min(12), v).is_err() {
+            return write!(f, "{v}");
+        }
+        let mut t: &str = &buf;
+        if t.contains('.') {
+            t = t.trim_end_matches('0').trim_end_matches('.');
+        }
+        if t == "-0" {
+            t = "0";
+        }
+        f.write_str(t)
+    }
+}
+
+impl Console {
+    fn cmd_sweep(
+        &mut self,
+        args: &[&str],
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
+        let [kind, f0, f1, amp, dur] = args else {
+            return Err(CmdErr(
+                "syntax",
+                "sweep lin|exp <f0_hz> <f1_hz> <amplitude_mm> <duration_s>",
+            ));
+        };
+        let kind = match *kind {
+            "lin" => SweepKind::Linear,
+            "exp" => SweepKind::Exponential,
+            _ => return Err(CmdErr("syntax", "sweep kind must be lin or exp")),
+        };
+        let (f0, f1, amp, dur) = (
+            parse_f64(f0)?,
+            parse_f64(f1)?,
+            parse_f64(amp)?,
+            parse_f64(dur)?,
+        );
+        if !(amp > 0.0 && amp <= 1000.0) {
+            return Err(CmdErr("range", "amplitude must be in (0, 1000] mm"));
+        }
+        let ticks = rt
+            .with(|r| r.start_sweep(kind, f0, f1, amp * 1e6, dur))
+            .map_err(|e| runtime_err(e, out))?;
+        let _ = writeln!(
+            out,
+            "ok sweep kind={} f0_hz={} f1_hz={} amplitude_mm={} ticks={ticks}",
+            kind.name(),
+            Num(f0, 6),
+            Num(f1, 6),
+            Num(amp, 6)
+        );
+        Ok(())
+    }
+
+    fn cmd_stop(
+        &mut self,
+        args: &[&str],
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
+        no_args(args)?;
+        let ticks = rt.with(|r| r.stop());
+        let _ = writeln!(out, "ok stop ticks_to_rest={ticks}");
+        Ok(())
+    }
+}
+
+/// Refuses arguments to a command that takes none.
+fn no_args(args: &[&str]) -> CmdResult {
+    if args.is_empty() {
+        Ok(())
+    } else {
+        Err(CmdErr("syntax", "this command takes no arguments"))
     }
 }
 

@@ -103,3 +103,61 @@ impl DacMirror {
         c.clamp(0, 4095) as u16
     }
 }
+
+/// The limit a shaped reference breaks: its shaped peak step rate exceeds the drive's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepRateExceeded {
+    /// Bound on the shaped setpoint's peak step rate (steps/s): reference peak speed × Σ|w| /
+    /// step size.
+    pub shaped_peak_steps_s: f32,
+    /// The drive's maximum step rate (steps/s), `maxrate`.
+    pub max_step_rate_hz: u32,
+    /// Highest reference peak speed (nm/s) that passes with this shaper and step size.
+    pub max_reference_speed_nm_s: f32,
+}
+
+/// **The step-rate rule** for any reference whose speed never exceeds `peak_speed_nm_s`
+/// (nm/s): the shaped setpoint `y = Σ wᵢ·x(t − tᵢ)` moves at most `Σ|wᵢ|` times as fast as the
+/// reference, so its step rate is bounded by `peak_speed_nm_s · Σ|wᵢ| / step_nm`; the reference
+/// is refused when that bound exceeds `max_step_rate_hz` (the drive's `maxrate`, steps/s).
+///
+/// `taps` is the table the runtime shapes with (`Settings::tap_table(HISTORY_LEN)`), `step_nm`
+/// the output step size (nm). Computed in f32, exactly as the runtime does when it answers
+/// `err step-rate`.
+pub fn check_step_rate(
+    taps: &crate::engine::TapTable,
+    step_nm: u32,
+    max_step_rate_hz: u32,
+    peak_speed_nm_s: f32,
+) -> Result<(), StepRateExceeded> {
+    let gain = taps.abs_weight_sum();
+    let step = step_nm.max(1) as f32;
+    let shaped_peak_steps_s = peak_speed_nm_s * gain / step;
+    if shaped_peak_steps_s > max_step_rate_hz as f32 {
+        return Err(StepRateExceeded {
+            shaped_peak_steps_s,
+            max_step_rate_hz,
+            max_reference_speed_nm_s: max_step_rate_hz as f32 * step / gain,
+        });
+    }
+    Ok(())
+}
+
+/// **The step-rate rule for a point-to-point move** (what `move` answers `err step-rate` with,
+/// and what a planner must respect): a trapezoidal move over `distance_nm` (nm) with speed limit
+/// `speed_nm_s` (nm/s) and acceleration `accel_nm_s2` (nm/s²) reaches the peak speed
+/// [`crate::reference::trapezoid_peak_speed`]; [`check_step_rate`] decides.
+///
+/// Inputs as the console passes them (`move <mm> <mm/s> <mm/s²>` → `(mm·1e6) as f32`).
+/// Returns the limit the move breaks, if any.
+pub fn check_move_step_rate(
+    taps: &crate::engine::TapTable,
+    step_nm: u32,
+    max_step_rate_hz: u32,
+    distance_nm: u32,
+    speed_nm_s: f32,
+    accel_nm_s2: f32,
+) -> Result<(), StepRateExceeded> {
+    let v = crate::reference::trapezoid_peak_speed(distance_nm as f32, speed_nm_s, accel_nm_s2);
+    check_step_rate(taps, step_nm, max_step_rate_hz, v)
+}

@@ -14,8 +14,12 @@
 
 use crate::config::{Settings, Source};
 use crate::engine::{Engine, NumericPath, TapTable};
-use crate::output::{DacMirror, StepCommand, StepOutput};
-use crate::reference::{MoveError, StepDirCounter, TrapezoidMove, POSITION_LIMIT};
+use crate::output::{
+    check_move_step_rate, DacMirror, StepCommand, StepOutput, StepRateExceeded,
+};
+use crate::reference::{
+    MoveError, SineSweep, StepDirCounter, SweepError, SweepKind, TrapezoidMove, POSITION_LIMIT,
+};
 
 /// History length (samples): 16384 × 4 B = 64 KiB of RAM; 16.4 s of shaper duration at
 /// 1 kHz, 1.6 s at 10 kHz.
@@ -160,13 +164,32 @@ impl RunParams {
         }
     }
 
+    /// [`check_move_step_rate`] with these parameters' step size and maximum step rate, for
+    /// the table `taps` (the runtime passes the table it shapes with).
+    pub fn check_move_step_rate(
+        &self,
+        taps: &TapTable,
+        distance_nm: u32,
+        speed_nm_s: f32,
+        accel_nm_s2: f32,
+    ) -> Result<(), StepRateExceeded> {
+        check_move_step_rate(
+            taps,
+            self.step_nm,
+            self.max_step_rate_hz,
+            distance_nm,
+            speed_nm_s,
+            accel_nm_s2,
+        )
+    }
+
     fn max_pulses_per_tick(&self) -> u32 {
         (self.max_step_rate_hz / self.tick_rate_hz.max(1)).max(1)
     }
 }
 
 /// Why a run-time request was refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum RuntimeError {
     /// A move is running (or the reference is not still, for `zero`).
     Busy,
@@ -174,8 +197,11 @@ pub enum RuntimeError {
     Source,
     /// The move profile is invalid or out of range.
     Move(MoveError),
-    /// The shaped move would exceed the drive's maximum step rate.
-    StepRate,
+    /// The sweep is invalid, above the tick's frequency limit or leaves the stroke.
+    Sweep(SweepError),
+    /// The shaped move would exceed the drive's maximum step rate (see
+    /// [`crate::output::check_move_step_rate`]).
+    StepRate(StepRateExceeded),
 }
 
 impl RuntimeError {
@@ -184,8 +210,8 @@ impl RuntimeError {
         match self {
             RuntimeError::Busy => "busy",
             RuntimeError::Source => "source",
-            RuntimeError::Move(_) => "range",
-            RuntimeError::StepRate => "step-rate",
+            RuntimeError::Move(_) | RuntimeError::Sweep(_) => "range",
+            RuntimeError::StepRate(_) => "step-rate",
         }
     }
 
@@ -199,9 +225,29 @@ impl RuntimeError {
             }
             RuntimeError::Move(MoveError::Range) => "target outside +-1073 mm",
             RuntimeError::Move(MoveError::TooLong) => "move too long",
-            RuntimeError::StepRate => "shaped move would exceed the maximum step rate",
+            RuntimeError::Sweep(SweepError::Profile) => {
+                "frequencies, amplitude and duration must be finite and > 0, duration <= 3600 s"
+            }
+            RuntimeError::Sweep(SweepError::Nyquist) => {
+                "sweep frequency above tick rate / 10 (fewer than 10 ticks per period)"
+            }
+            RuntimeError::Sweep(SweepError::Stroke) => {
+                "position +- amplitude leaves the stroke (+-1000 mm)"
+            }
+            RuntimeError::StepRate(_) => "shaped move would exceed the maximum step rate",
         }
     }
+}
+
+/// What the internal source is doing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Motion {
+    /// Holding the reference.
+    Idle,
+    /// A point-to-point move.
+    Move(TrapezoidMove),
+    /// A sine sweep.
+    Sweep(SineSweep),
 }
 
 /// A snapshot for `status`.
@@ -245,7 +291,7 @@ pub struct Runtime {
     pending: Option<RunParams>,
     reference: i32,
     still_ticks: u32,
-    mover: Option<TrapezoidMove>,
+    motion: Motion,
     stepdir: StepDirCounter,
     /// reference = stepdir_offset + input steps × input_nm_per_count (pass-through).
     stepdir_offset: i64,
@@ -275,7 +321,7 @@ impl Runtime {
             pending: None,
             reference: 0,
             still_ticks: u32::MAX,
-            mover: None,
+            motion: Motion::Idle,
             stepdir: StepDirCounter::new(0),
             stepdir_offset: 0,
             setpoint: 0,
@@ -315,7 +361,7 @@ impl Runtime {
         if self.params.source != Source::Internal {
             return Err(RuntimeError::Source);
         }
-        if self.mover.is_some() {
+        if self.motion != Motion::Idle {
             return Err(RuntimeError::Busy);
         }
         let m = TrapezoidMove::new(
@@ -326,20 +372,80 @@ impl Runtime {
             self.params.tick_rate_hz as f32,
         )
         .map_err(RuntimeError::Move)?;
-        let shaped_peak_steps_s =
-            m.peak_speed() * self.engine.taps().abs_weight_sum() / self.params.step_nm as f32;
-        if shaped_peak_steps_s > self.params.max_step_rate_hz as f32 {
-            return Err(RuntimeError::StepRate);
-        }
+        self.params
+            .check_move_step_rate(
+                self.engine.taps(),
+                (target as i64 - self.reference as i64).unsigned_abs() as u32,
+                speed,
+                accel,
+            )
+            .map_err(RuntimeError::StepRate)?;
         let n = m.duration_ticks();
-        self.mover = Some(m);
+        self.motion = Motion::Move(m);
         Ok(n)
+    }
+
+    /// Starts a sine sweep (paper eqs. 33–34, [`SineSweep`]) about the present reference from
+    /// `f0_hz` to `f1_hz` with amplitude `amplitude_nm` lasting `duration_s`. Checked before it
+    /// starts: the stroke, the tick's frequency limit, and the step-rate rule on the sweep's
+    /// peak speed ([`crate::output::check_step_rate`]). Returns its duration in ticks.
+    pub fn start_sweep(
+        &mut self,
+        kind: SweepKind,
+        f0_hz: f64,
+        f1_hz: f64,
+        amplitude_nm: f64,
+        duration_s: f64,
+    ) -> Result<u32, RuntimeError> {
+        if self.params.source != Source::Internal {
+            return Err(RuntimeError::Source);
+        }
+        if self.motion != Motion::Idle {
+            return Err(RuntimeError::Busy);
+        }
+        let sw = SineSweep::new(
+            kind,
+            self.reference,
+            f0_hz,
+            f1_hz,
+            amplitude_nm,
+            duration_s,
+            self.params.tick_rate_hz as f64,
+        )
+        .map_err(RuntimeError::Sweep)?;
+        crate::output::check_step_rate(
+            self.engine.taps(),
+            self.params.step_nm,
+            self.params.max_step_rate_hz,
+            sw.peak_speed(),
+        )
+        .map_err(RuntimeError::StepRate)?;
+        let n = sw.duration_ticks();
+        self.motion = Motion::Sweep(sw);
+        Ok(n)
+    }
+
+    /// Ends a running move (decelerating at its acceleration, then holding) or sweep (fading
+    /// its amplitude out over its fade time, back to its start). Returns the ticks until the
+    /// reference is at rest (0 when nothing runs).
+    pub fn stop(&mut self) -> u32 {
+        match &mut self.motion {
+            Motion::Idle => 0,
+            Motion::Move(m) => {
+                m.stop();
+                m.remaining_ticks()
+            }
+            Motion::Sweep(s) => {
+                s.stop();
+                s.remaining_ticks()
+            }
+        }
     }
 
     /// Declares the current position to be 0 (no pulses are emitted). Refused unless the
     /// reference is still for the active shaper's duration and no move runs.
     pub fn zero(&mut self) -> Result<(), RuntimeError> {
-        if self.mover.is_some() || self.still_ticks < self.engine.taps().duration_ticks() {
+        if self.motion != Motion::Idle || self.still_ticks < self.engine.taps().duration_ticks() {
             return Err(RuntimeError::Busy);
         }
         self.reference = 0;
@@ -359,15 +465,22 @@ impl Runtime {
         self.ticks = self.ticks.wrapping_add(1);
         let steps_in = self.stepdir.update(input.stepdir_count);
         let x = match self.params.source {
-            Source::Internal => match self.mover.as_mut() {
-                Some(m) => {
+            Source::Internal => match &mut self.motion {
+                Motion::Idle => self.reference,
+                Motion::Move(m) => {
                     let x = m.next();
                     if m.done() {
-                        self.mover = None;
+                        self.motion = Motion::Idle;
                     }
                     x
                 }
-                None => self.reference,
+                Motion::Sweep(s) => {
+                    let x = s.next();
+                    if s.done() {
+                        self.motion = Motion::Idle;
+                    }
+                    x
+                }
             },
             Source::StepDir => {
                 let p = self.stepdir_offset + steps_in * self.params.input_nm_per_count as i64;
@@ -381,7 +494,7 @@ impl Runtime {
         }
         self.reference = x;
         if self.pending.is_some()
-            && self.mover.is_none()
+            && self.motion == Motion::Idle
             && self.still_ticks >= self.engine.taps().duration_ticks()
         {
             if let Some(p) = self.pending.take() {
@@ -440,7 +553,7 @@ impl Runtime {
             reference_counts: self.reference,
             setpoint_counts: self.setpoint,
             emitted_steps: self.steps.emitted(),
-            moving: self.mover.is_some(),
+            moving: self.motion != Motion::Idle,
             pending: self.pending.is_some(),
             still_ticks: self.still_ticks,
             step_rate_faults: self.steps.rate_faults(),
