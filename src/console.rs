@@ -1,9 +1,10 @@
 //! The operator's serial console: line assembly, parsing and execution (no heap, no panic).
 //!
-//! Protocol (115200 8N1, lines end in `\n` or `\r\n`): every command gets one or more reply
-//! lines; informational lines start with `# `, and the **last line** is either
+//! Protocol (115200 8N1, lines end in `\n`, `\r` or `\r\n`): every line, an empty one too,
+//! gets one or more reply lines; informational lines start with `# `, and the **last line** is either
 //! `ok <command> [key=value …]` or `err <code>: <message>`. Codes: `unknown`, `syntax`,
-//! `range`, `shaper`, `too-long`, `busy`, `source`, `step-rate`, `garbage`, `line-too-long`,
+//! `range`, `shaper`, `too-long`, `busy`, `source`, `step-rate`, `budget`, `garbage`,
+//! `line-too-long`,
 //! `storage`, `corrupt`. On `err` nothing changes.
 //!
 //! Parameter changes are validated and their shaper is designed here, in thread context;
@@ -30,11 +31,13 @@ pub enum LineError {
     TooLong,
 }
 
-/// Assembles bytes into lines. `\r` and `\n` both terminate; empty lines are skipped.
+/// Assembles bytes into lines. `\n`, `\r` and `\r\n` each end one line; an empty line is a
+/// line too (it gets a reply, like every line).
 #[derive(Clone, Debug, Default)]
 pub struct LineBuffer {
     buf: Line,
     overflow: bool,
+    after_cr: bool,
 }
 
 impl LineBuffer {
@@ -43,22 +46,23 @@ impl LineBuffer {
         LineBuffer {
             buf: heapless::Vec::new(),
             overflow: false,
+            after_cr: false,
         }
     }
 
     /// Feeds one byte; returns a complete line (or an over-long-line error) at a terminator.
     pub fn push(&mut self, byte: u8) -> Option<Result<Line, LineError>> {
+        let after_cr = core::mem::replace(&mut self.after_cr, byte == b'\r');
+        if byte == b'\n' && after_cr {
+            return None; // the `\n` of a `\r\n`
+        }
         if byte == b'\n' || byte == b'\r' {
             let overflow = core::mem::replace(&mut self.overflow, false);
             let line = core::mem::take(&mut self.buf);
             if overflow {
                 return Some(Err(LineError::TooLong));
             }
-            return if line.is_empty() {
-                None
-            } else {
-                Some(Ok(line))
-            };
+            return Some(Ok(line));
         }
         if !self.overflow && self.buf.push(byte).is_err() {
             self.overflow = true;
@@ -174,6 +178,7 @@ impl Console {
         };
         let mut words = text.split_ascii_whitespace();
         let Some(cmd) = words.next() else {
+            let _ = writeln!(out, "err syntax: empty line (try help)");
             return Action::None;
         };
         let mut args: heapless::Vec<&str, 24> = heapless::Vec::new();
@@ -184,6 +189,14 @@ impl Console {
             }
         }
         let mut action = Action::None;
+        let takes_no_args = matches!(
+            cmd,
+            "help" | "status" | "shaper" | "config" | "zero" | "defaults" | "save" | "load" | "stop"
+        );
+        if takes_no_args && !args.is_empty() {
+            let _ = writeln!(out, "err syntax: {cmd} takes no arguments");
+            return Action::None;
+        }
         let r = match cmd {
             "help" => self.help(out),
             "status" => self.status(rt, out),
@@ -210,16 +223,12 @@ impl Console {
                 }),
             "defaults" => self.commit(Settings::DEFAULT, rt, out, "defaults"),
             "save" | "load" => {
-                if !args.is_empty() {
-                    Err(CmdErr("syntax", "save/load take no arguments"))
+                action = if cmd == "save" {
+                    Action::Save
                 } else {
-                    action = if cmd == "save" {
-                        Action::Save
-                    } else {
-                        Action::Load
-                    };
-                    Ok(())
-                }
+                    Action::Load
+                };
+                Ok(())
             }
             _ => Err(CmdErr("unknown", "unknown command (try help)")),
         };
@@ -262,6 +271,9 @@ impl Console {
     }
 
     /// Validates `new`, designs its taps and hands them to the runtime; then adopts `new`.
+    /// The modes and custom list are validated even while shaping is off (so that a later
+    /// `shaping on` cannot fail on them). The reply says when the change applies
+    /// (`applies=next-tick` or `applies=when-still waiting=<what>`).
     fn commit(
         &mut self,
         new: Settings,
@@ -269,20 +281,52 @@ impl Console {
         out: &mut impl Write,
         what: &str,
     ) -> CmdResult {
-        let params = RunParams::from_settings(&new).map_err(|e| {
+        let config_err = |e: crate::config::ConfigError, out: &mut dyn Write| {
             if let crate::config::ConfigError::Taps(_) = e {
                 let _ = writeln!(out, "# {e} ({} Hz)", new.tick_rate_hz);
             }
             CmdErr(e.code(), config_message(&e))
-        })?;
+        };
+        if !new.shaping_enabled {
+            let mut on = new.clone();
+            on.shaping_enabled = true;
+            on.tap_table(crate::runtime::HISTORY_LEN)
+                .map_err(|e| config_err(e, out))?;
+        }
+        let params = RunParams::from_settings(&new).map_err(|e| config_err(e, out))?;
         let taps = params.taps.taps().len();
         let dur = params.taps.duration_ticks();
-        rt.with(|r| r.request(params));
+        let applies = rt.with(|r| {
+            let in_flight = r.engine().taps_in_flight();
+            r.request(params).map_err(|e| (e, in_flight))
+        });
+        let applies = match applies {
+            Ok(a) => a,
+            Err((e, in_flight)) => {
+                if let crate::runtime::RuntimeError::Switch(_) = e {
+                    let _ = writeln!(
+                        out,
+                        "# transition would run {} + {taps} taps per tick; the budget is {} \
+                         (at most {} shapers in flight)",
+                        in_flight,
+                        crate::engine::TAP_BUDGET,
+                        crate::engine::MAX_STAGES
+                    );
+                }
+                return Err(CmdErr(e.code(), e.message()));
+            }
+        };
         self.settings = new;
-        let _ = writeln!(
+        let _ = write!(
             out,
-            "ok {what} taps={taps} duration_ticks={dur} applies=when-still"
+            "ok {what} taps={taps} duration_ticks={dur} applies={}",
+            applies.name()
         );
+        if applies == crate::runtime::Applies::WhenStill {
+            let w = rt.with(|r| r.status().waiting);
+            let _ = write!(out, " waiting={}", w.names());
+        }
+        let _ = writeln!(out);
         Ok(())
     }
 
@@ -299,14 +343,17 @@ impl Console {
         let _ = writeln!(
             out,
             "ok status ticks={} reference_mm={} setpoint_mm={} emitted_steps={} moving={} pending={} \
-             still_ticks={} step_rate_faults={} tick_hz={} path={} taps={} duration_ticks={} source={} \
-             shaping={} changes={}",
+             waiting={} stages={} taps_in_flight={} still_ticks={} step_rate_faults={} tick_hz={} \
+             path={} taps={} duration_ticks={} source={} shaping={} changes={}",
             s.ticks,
-            s.reference_counts as f64 * 1e-6,
-            s.setpoint_counts as f64 * 1e-6,
+            Num(s.reference_counts as f64 * 1e-6, 6),
+            Num(s.setpoint_counts as f64 * 1e-6, 6),
             s.emitted_steps,
             s.moving as u8,
             s.pending as u8,
+            s.waiting.names(),
+            s.stages,
+            s.taps_in_flight,
             s.still_ticks,
             s.step_rate_faults,
             s.tick_rate_hz,
@@ -776,19 +823,10 @@ impl Console {
         rt: &mut impl RuntimeAccess,
         out: &mut impl Write,
     ) -> CmdResult {
-        no_args(args)?;
+        let _ = args;
         let ticks = rt.with(|r| r.stop());
         let _ = writeln!(out, "ok stop ticks_to_rest={ticks}");
         Ok(())
-    }
-}
-
-/// Refuses arguments to a command that takes none.
-fn no_args(args: &[&str]) -> CmdResult {
-    if args.is_empty() {
-        Ok(())
-    } else {
-        Err(CmdErr("syntax", "this command takes no arguments"))
     }
 }
 

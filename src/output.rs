@@ -43,6 +43,11 @@ impl StepOutput {
         }
     }
 
+    /// Changes the pulses one tick may carry (the fault count is kept).
+    pub fn set_max_pulses_per_tick(&mut self, max_pulses_per_tick: u32) {
+        self.max_pulses_per_tick = max_pulses_per_tick;
+    }
+
     /// The steps that must have been emitted for `setpoint` (counts).
     #[inline]
     pub fn steps_for(&self, setpoint: i32) -> i64 {
@@ -130,7 +135,17 @@ pub fn check_step_rate(
     max_step_rate_hz: u32,
     peak_speed_nm_s: f32,
 ) -> Result<(), StepRateExceeded> {
-    let gain = taps.abs_weight_sum();
+    check_step_rate_gain(taps.abs_weight_sum(), step_nm, max_step_rate_hz, peak_speed_nm_s)
+}
+
+/// [`check_step_rate`] with the gain `Σ|w|` given (e.g. a transition's, see
+/// [`crate::engine::EngineState::transition_gain`]).
+pub fn check_step_rate_gain(
+    gain: f32,
+    step_nm: u32,
+    max_step_rate_hz: u32,
+    peak_speed_nm_s: f32,
+) -> Result<(), StepRateExceeded> {
     let step = step_nm.max(1) as f32;
     let shaped_peak_steps_s = peak_speed_nm_s * gain / step;
     if shaped_peak_steps_s > max_step_rate_hz as f32 {

@@ -36,15 +36,15 @@ pub struct TrapezoidMove {
 pub enum MoveError {
     /// Speed, acceleration or tick rate not finite or ≤ 0.
     Profile,
-    /// Target outside ±2³⁰ counts.
+    /// Target outside ±[`POSITION_LIMIT`] counts.
     Range,
     /// The move would take more than 2³² ticks.
     TooLong,
 }
 
-/// Positions are limited to ±2³⁰ counts (±1.07 m in nm) so that the i64 accumulation of the
-/// fixed-point engine cannot overflow.
-pub const POSITION_LIMIT: i32 = 1 << 30;
+/// Positions are limited to ±(2³⁰ − 1) counts (±1.07 m in nm) so that the i64 accumulation of
+/// the fixed-point engine cannot overflow and the f32 path's differences fit an `i32`.
+pub const POSITION_LIMIT: i32 = (1 << 30) - 1;
 
 /// Peak speed (counts/s) of a trapezoidal move over `distance` (counts, ≥ 0) with speed limit
 /// `speed` (counts/s) and acceleration `accel` (counts/s²): `speed` when the distance allows

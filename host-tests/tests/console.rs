@@ -133,9 +133,14 @@ fn line_buffer_handles_crlf_and_overlong_lines() {
             lines.push(l.map(|l| String::from_utf8(l.to_vec()).unwrap()));
         }
     }
+    // `\r\n` ends one line; the empty line between is a line (it gets a reply).
     assert_eq!(
         lines,
-        vec![Ok("status".to_string()), Ok("help".to_string())]
+        vec![
+            Ok("status".to_string()),
+            Ok(String::new()),
+            Ok("help".to_string())
+        ]
     );
     for _ in 0..LINE_MAX + 10 {
         assert!(lb.push(b'a').is_none());

@@ -182,9 +182,20 @@ impl TapTable {
         self.taps.get(..self.len).unwrap_or(&[])
     }
 
-    /// Largest delay (ticks): the shaper's duration on the tick grid, rounded up.
+    /// Largest delay (ticks): the shaper's duration on the tick grid, rounded up. O(1): the
+    /// taps are sorted by strictly increasing delay (an invariant of every constructor).
     pub fn duration_ticks(&self) -> u32 {
-        self.taps().iter().map(|t| t.delay).max().unwrap_or(0)
+        self.taps().last().map(|t| t.delay).unwrap_or(0)
+    }
+
+    /// Number of taps.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True for a table without taps (never produced by the constructors).
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
     }
 
     /// Σ|w|: bounds the shaped velocity relative to the reference's.
