@@ -48,10 +48,13 @@ impl StepOutput {
         self.max_pulses_per_tick = max_pulses_per_tick;
     }
 
-    /// The steps that must have been emitted for `setpoint` (counts).
+    /// The steps that must have been emitted for `setpoint` (counts): ⌊setpoint / step⌋
+    /// (one 32-bit division; the step size is ≥ 1, so the fallback never happens).
     #[inline]
     pub fn steps_for(&self, setpoint: i32) -> i64 {
-        (setpoint as i64).div_euclid(self.counts_per_step as i64)
+        setpoint
+            .checked_div_euclid(self.counts_per_step)
+            .unwrap_or(setpoint) as i64
     }
 
     /// Pulses for this tick so that the emitted count equals the setpoint's step count.
@@ -87,24 +90,27 @@ impl StepOutput {
 }
 
 /// Maps the setpoint onto a 12-bit DAC: code 2048 at position 0, full scale at ±`span`
-/// counts, clamped.
+/// counts, clamped: `2048 + ⌊setpoint · k / 2²⁰⌋` with `k = ⌊2048 · 2²⁰ / span⌋` precomputed
+/// (a multiply and a shift per tick instead of a 64-bit division; within one code of
+/// `2048 + setpoint·2048/span`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DacMirror {
-    span_counts: i32,
+    k: i64,
 }
 
 impl DacMirror {
     /// Mirror with full scale ±`span_counts` (≥ 1).
     pub const fn new(span_counts: i32) -> Self {
+        let span = if span_counts < 1 { 1 } else { span_counts } as i64;
         DacMirror {
-            span_counts: if span_counts < 1 { 1 } else { span_counts },
+            k: (2048i64 << 20) / span,
         }
     }
 
     /// DAC code (0..=4095) of `setpoint`.
     #[inline]
     pub fn code(&self, setpoint: i32) -> u16 {
-        let c = 2048 + (setpoint as i64 * 2048) / self.span_counts as i64;
+        let c = 2048 + ((setpoint as i64).wrapping_mul(self.k) >> 20);
         c.clamp(0, 4095) as u16
     }
 }

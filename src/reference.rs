@@ -109,7 +109,7 @@ impl TrapezoidMove {
     fn distance(&self, t: f32) -> f32 {
         let a = self.accel;
         if let Some((t0, s0, v0)) = self.stop {
-            let tau = (t - t0).clamp(0.0, v0 / a);
+            let tau = (t - t0).max(0.0).min(v0 / a);
             return s0 + v0 * tau - 0.5 * a * tau * tau;
         }
         if t <= self.t_acc {
@@ -137,7 +137,7 @@ impl TrapezoidMove {
         }
         let s = self.distance(self.n as f32 * self.dt);
         let p = self.start as f32 + self.dir * s;
-        let p = libm::roundf(p) as i64;
+        let p = crate::engine::round_f32(p) as i64;
         // Never overshoot the target because of f32 rounding.
         let (lo, hi) = if self.target >= self.start {
             (self.start, self.target)
@@ -399,6 +399,7 @@ impl SineSweep {
     }
 
     /// Advances one tick and returns the reference (counts); x₀ exactly once done.
+    #[inline(never)]
     pub fn next(&mut self) -> i32 {
         if self.done() {
             return self.start;

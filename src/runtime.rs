@@ -503,6 +503,32 @@ impl State {
         self.applied_changes = self.applied_changes.wrapping_add(1);
     }
 
+    /// Applies the pending change if it is due (next tick, or at standstill). Out of line:
+    /// rare, and it moves whole tap tables.
+    #[inline(never)]
+    fn apply_pending(&mut self) {
+        let ready = match &self.pending {
+            None => false,
+            Some((_, Applies::NextTick)) => true,
+            Some((_, Applies::WhenStill)) => {
+                self.motion == Motion::Idle && self.still_ticks >= self.engine.settle_ticks()
+            }
+        };
+        if !ready {
+            return;
+        }
+        if let Some((p, applies)) = self.pending.take() {
+            match applies {
+                Applies::WhenStill => self.apply(p),
+                Applies::NextTick => {
+                    if let Err(p) = self.apply_now(p) {
+                        self.pending = Some((p, applies));
+                    }
+                }
+            }
+        }
+    }
+
     /// Next-tick apply: the table by superposition, the step-rate limit and DAC span as they
     /// are. Gives `p` back (nothing changed) if the engine refuses the switch.
     fn apply_now(&mut self, p: RunParams) -> Result<(), RunParams> {
@@ -739,25 +765,8 @@ impl Runtime {
             st.still_ticks = 0;
         }
         st.reference = x;
-        if let Some((_, applies)) = &st.pending {
-            let ready = match applies {
-                Applies::NextTick => true,
-                Applies::WhenStill => {
-                    st.motion == Motion::Idle && st.still_ticks >= st.engine.settle_ticks()
-                }
-            };
-            if ready {
-                if let Some((p, applies)) = st.pending.take() {
-                    match applies {
-                        Applies::WhenStill => st.apply(p),
-                        Applies::NextTick => {
-                            if let Err(p) = st.apply_now(p) {
-                                st.pending = Some((p, applies));
-                            }
-                        }
-                    }
-                }
-            }
+        if st.pending.is_some() {
+            st.apply_pending();
         }
         st.setpoint = st.engine.tick(&mut self.bufs.history, x);
         st.capture.record(&mut self.bufs.capture, st.setpoint);

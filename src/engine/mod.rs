@@ -151,6 +151,8 @@ pub struct EngineState<const N: usize> {
     split: usize,
     /// Newest sample (or the reset value before the first push).
     newest: i32,
+    /// One stage whose whole window is live: the fast kernels, no clamp bookkeeping.
+    steady: bool,
 }
 
 const fn identity_stage(fill: i32) -> Stage {
@@ -173,6 +175,7 @@ impl<const N: usize> EngineState<N> {
             path: NumericPath::Fixed,
             split: 0,
             newest: position,
+            steady: false,
         }
     }
 
@@ -203,6 +206,7 @@ impl<const N: usize> EngineState<N> {
         self.stages[0] = Stage::new(taps, max_delay, position);
         self.path = path;
         self.newest = position;
+        self.steady = false;
         self.resplit();
         Ok(())
     }
@@ -219,6 +223,7 @@ impl<const N: usize> EngineState<N> {
         s.fill = position;
         s.closed = false;
         self.newest = position;
+        self.steady = false;
         self.resplit();
     }
 
@@ -279,6 +284,10 @@ impl<const N: usize> EngineState<N> {
         let x_s = self.newest;
         let i = self.idx(self.count - 1);
         let old = &mut self.stages[i];
+        if self.steady {
+            old.valid = u32::MAX; // its counters stood still in the steady state
+            self.steady = false;
+        }
         old.closed = true;
         old.skip = 0;
         old.hold = x_s;
@@ -307,8 +316,24 @@ impl<const N: usize> EngineState<N> {
     pub fn tick(&mut self, buf: &mut [i32; N], x: i32) -> i32 {
         self.ring.push(buf, x);
         self.newest = x;
-        // Clamp counters; drop the oldest stages whose window now reads only their held
-        // value (their output is exactly that value, which the next stage's fill cancels).
+        if !self.steady {
+            self.bookkeeping();
+        }
+        self.update_split();
+        match (self.path, self.steady) {
+            (NumericPath::Fixed, true) => self.fast_fixed(buf),
+            (NumericPath::F32, true) => self.fast_f32(buf),
+            (NumericPath::Fixed, false) => self.general_fixed(buf),
+            (NumericPath::F32, false) => self.general_f32(buf),
+        }
+    }
+
+    /// Outside the steady state: advances the clamp counters, drops the oldest stages whose
+    /// window now reads only their held value (their output is exactly that value, which the
+    /// next stage's fill cancels), and detects the steady state (one stage, its whole window
+    /// after the last reset or switch), which lasts until the next `switch`/`reset`/`install`.
+    #[inline(never)]
+    fn bookkeeping(&mut self) {
         for k in 0..self.count {
             let i = self.idx(k);
             let s = &mut self.stages[i];
@@ -318,7 +343,7 @@ impl<const N: usize> EngineState<N> {
             }
         }
         while self.count > 1 {
-            let s = &self.stages[self.first];
+            let s = &self.stages[self.idx(0)];
             if s.closed && s.skip > s.max_delay {
                 self.first = (self.first + 1) % MAX_STAGES;
                 self.count -= 1;
@@ -326,17 +351,10 @@ impl<const N: usize> EngineState<N> {
                 break;
             }
         }
-        self.update_split();
-        let steady = self.count == 1 && {
-            let s = &self.stages[self.first];
+        self.steady = self.count == 1 && {
+            let s = &self.stages[self.idx(0)];
             !s.closed && s.valid > s.max_delay
         };
-        match (self.path, steady) {
-            (NumericPath::Fixed, true) => self.fast_fixed(buf),
-            (NumericPath::F32, true) => self.fast_f32(buf),
-            (NumericPath::Fixed, false) => self.general_fixed(buf),
-            (NumericPath::F32, false) => self.general_f32(buf),
-        }
     }
 
     /// Advances the newest stage's split point by the one tick the ring moved, verifying
@@ -364,50 +382,34 @@ impl<const N: usize> EngineState<N> {
     /// Steady-state fixed-point kernel: Σ w_q30·x over the two unwrapped runs.
     #[inline(always)]
     fn fast_fixed(&self, buf: &[i32; N]) -> i32 {
-        let taps = self.stages[self.first].taps.taps();
+        let taps = self.stages[self.idx(0)].taps.taps();
         let (near, far) = taps.split_at(self.split.min(taps.len()));
         let head = self.ring.head();
-        let mut acc: i64 = 0;
+        // SAFETY (both runs): `head < N` (masked). Every delay d of the table is < N (checked
+        // when the table was staged: `install`/`switch` refuse a max delay ≥ N) and the taps
+        // are sorted (TapTable invariant). `update_split` established
+        // `near.d < lim = N − head ≤ far.d` for this tick. So `head + d < N` for `near` and
+        // `0 ≤ head + d − N < N` for `far`: every read is inside `buf`.
+        let p = buf.as_ptr().wrapping_add(head);
+        let q = p.wrapping_sub(N);
         #[allow(unsafe_code)]
-        // SAFETY: `head < N` (masked). Every delay d of the table is < N (checked when the
-        // table was staged: `install`/`switch` refuse max delay ≥ N) and the taps are sorted
-        // (TapTable invariant). `update_split` established `near.d < lim = N − head ≤ far.d`
-        // for this tick. So `head + d < N` for `near` and `0 ≤ head + d − N < N` for `far`:
-        // every read is inside `buf`.
-        unsafe {
-            let p = buf.as_ptr().add(head);
-            for t in near {
-                acc += t.w_q30 as i64 * *p.add(t.delay as usize) as i64;
-            }
-            let q = buf.as_ptr().add(head).wrapping_sub(N);
-            for t in far {
-                acc += t.w_q30 as i64 * *q.wrapping_add(t.delay as usize) as i64;
-            }
-        }
+        let acc = unsafe { mac_q30(far, q, mac_q30(near, p, 0)) };
         round_q30(acc)
     }
 
     /// Steady-state f32 kernel: Σ w_f32·(x − x_newest) over the two unwrapped runs.
     #[inline(always)]
     fn fast_f32(&self, buf: &[i32; N]) -> i32 {
-        let taps = self.stages[self.first].taps.taps();
+        let taps = self.stages[self.idx(0)].taps.taps();
         let (near, far) = taps.split_at(self.split.min(taps.len()));
         let head = self.ring.head();
         let x0 = self.newest;
-        let mut acc = 0.0f32;
-        #[allow(unsafe_code)]
         // SAFETY: as in `fast_fixed`.
-        unsafe {
-            let p = buf.as_ptr().add(head);
-            for t in near {
-                acc += t.w_f32 * (*p.add(t.delay as usize)).wrapping_sub(x0) as f32;
-            }
-            let q = buf.as_ptr().add(head).wrapping_sub(N);
-            for t in far {
-                acc += t.w_f32 * (*q.wrapping_add(t.delay as usize)).wrapping_sub(x0) as f32;
-            }
-        }
-        x0.wrapping_add(libm::roundf(acc) as i32)
+        let p = buf.as_ptr().wrapping_add(head);
+        let q = p.wrapping_sub(N);
+        #[allow(unsafe_code)]
+        let acc = unsafe { mac_f32(far, q, x0, mac_f32(near, p, x0, 0.0)) };
+        x0.wrapping_add(round_f32(acc))
     }
 
     /// Any state (transition, or window reaching back before a reset): every stage with its
@@ -438,7 +440,7 @@ impl<const N: usize> EngineState<N> {
                 acc += t.w_f32 * v.wrapping_sub(c) as f32;
             }
         }
-        x0.wrapping_add(libm::roundf(acc) as i32)
+        x0.wrapping_add(round_f32(acc))
     }
 
     /// The newest table (the one a transition ends with).
@@ -468,6 +470,72 @@ impl<const N: usize> EngineState<N> {
     /// True while an older table is still settling.
     pub fn in_transition(&self) -> bool {
         self.count > 1
+    }
+}
+
+/// `acc + Σ w_q30·base[d]` over `taps`, four taps per loop iteration.
+///
+/// # Safety
+/// `base.wrapping_add(d)` must point inside one live `[i32; N]` for every tap's delay `d`
+/// (see `EngineState::fast_fixed`). These are the engine's only unchecked reads.
+#[inline(always)]
+#[allow(unsafe_code)]
+unsafe fn mac_q30(taps: &[Tap], base: *const i32, mut acc: i64) -> i64 {
+    let x = |t: &Tap| -> i64 {
+        // SAFETY: the caller's contract above.
+        unsafe { *base.wrapping_add(t.delay as usize) as i64 }
+    };
+    let mut quads = taps.chunks_exact(4);
+    for c in &mut quads {
+        acc += c[0].w_q30 as i64 * x(&c[0]);
+        acc += c[1].w_q30 as i64 * x(&c[1]);
+        acc += c[2].w_q30 as i64 * x(&c[2]);
+        acc += c[3].w_q30 as i64 * x(&c[3]);
+    }
+    for t in quads.remainder() {
+        acc += t.w_q30 as i64 * x(t);
+    }
+    acc
+}
+
+/// `acc + Σ w_f32·(base[d] − x0)` over `taps` in order (the i32 difference is exact for
+/// |x| < 2³⁰), four taps per loop iteration.
+///
+/// # Safety
+/// As [`mac_q30`].
+#[inline(always)]
+#[allow(unsafe_code)]
+unsafe fn mac_f32(taps: &[Tap], base: *const i32, x0: i32, mut acc: f32) -> f32 {
+    let x = |t: &Tap| -> f32 {
+        // SAFETY: the caller's contract of `mac_q30`.
+        unsafe { (*base.wrapping_add(t.delay as usize)).wrapping_sub(x0) as f32 }
+    };
+    let mut quads = taps.chunks_exact(4);
+    for c in &mut quads {
+        acc += c[0].w_f32 * x(&c[0]);
+        acc += c[1].w_f32 * x(&c[1]);
+        acc += c[2].w_f32 * x(&c[2]);
+        acc += c[3].w_f32 * x(&c[3]);
+    }
+    for t in quads.remainder() {
+        acc += t.w_f32 * x(t);
+    }
+    acc
+}
+
+/// `x` rounded to the nearest integer, halves away from zero (as `libm::roundf`), saturating
+/// at the `i32` range; NaN gives 0. A few instructions instead of a library call: `x − trunc(x)`
+/// is exact in f32, so the comparison with ½ decides exactly.
+#[inline(always)]
+pub fn round_f32(x: f32) -> i32 {
+    let t = x as i32; // truncates toward zero, saturates, NaN → 0
+    let frac = x - t as f32;
+    if frac >= 0.5 {
+        t.saturating_add(1)
+    } else if frac <= -0.5 {
+        t.saturating_sub(1)
+    } else {
+        t
     }
 }
 
