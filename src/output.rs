@@ -7,8 +7,8 @@
 /// allows is still emitted in full and counted as a step-rate fault.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct StepOutput {
-    /// Signed steps emitted since the last re-base.
-    emitted: i64,
+    /// Signed steps emitted since the last re-base (|setpoint| < 2³¹ and step ≥ 1: fits).
+    emitted: i32,
     /// Step size (counts per step, nm).
     counts_per_step: i32,
     /// Pulses one tick may carry at the drive's maximum step rate.
@@ -36,7 +36,7 @@ impl StepOutput {
             counts_per_step
         };
         StepOutput {
-            emitted: (position as i64).div_euclid(c as i64),
+            emitted: position.div_euclid(c),
             counts_per_step: c,
             max_pulses_per_tick,
             rate_faults: 0,
@@ -52,18 +52,23 @@ impl StepOutput {
     /// (one 32-bit division; the step size is ≥ 1, so the fallback never happens).
     #[inline]
     pub fn steps_for(&self, setpoint: i32) -> i64 {
+        self.steps32(setpoint) as i64
+    }
+
+    #[inline(always)]
+    fn steps32(&self, setpoint: i32) -> i32 {
         setpoint
             .checked_div_euclid(self.counts_per_step)
-            .unwrap_or(setpoint) as i64
+            .unwrap_or(setpoint)
     }
 
     /// Pulses for this tick so that the emitted count equals the setpoint's step count.
     #[inline]
     pub fn update(&mut self, setpoint: i32) -> StepCommand {
-        let want = self.steps_for(setpoint);
-        let delta = want - self.emitted;
+        let want = self.steps32(setpoint);
+        let delta = want.wrapping_sub(self.emitted);
         self.emitted = want;
-        let pulses = delta.unsigned_abs().min(u32::MAX as u64) as u32;
+        let pulses = delta.unsigned_abs();
         if pulses > self.max_pulses_per_tick {
             self.rate_faults = self.rate_faults.saturating_add(1);
         }
@@ -75,7 +80,7 @@ impl StepOutput {
 
     /// Signed steps emitted.
     pub fn emitted(&self) -> i64 {
-        self.emitted
+        self.emitted as i64
     }
 
     /// Ticks that exceeded the maximum step rate.
@@ -90,27 +95,27 @@ impl StepOutput {
 }
 
 /// Maps the setpoint onto a 12-bit DAC: code 2048 at position 0, full scale at ±`span`
-/// counts, clamped: `2048 + ⌊setpoint · k / 2²⁰⌋` with `k = ⌊2048 · 2²⁰ / span⌋` precomputed
-/// (a multiply and a shift per tick instead of a 64-bit division; within one code of
-/// `2048 + setpoint·2048/span`).
+/// counts, clamped: `2048 + ⌊setpoint · k / 2³²⌋` with `k = ⌊2048 · 2³² / span⌋` precomputed
+/// (one SMULL per tick instead of a 64-bit division; within one code of
+/// `2048 + setpoint·2048/span`). Spans below 4096 counts act as 4096.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DacMirror {
-    k: i64,
+    k: i32,
 }
 
 impl DacMirror {
-    /// Mirror with full scale ±`span_counts` (≥ 1).
+    /// Mirror with full scale ±`span_counts`.
     pub const fn new(span_counts: i32) -> Self {
-        let span = if span_counts < 1 { 1 } else { span_counts } as i64;
+        let span = if span_counts < 4096 { 4096 } else { span_counts } as i64;
         DacMirror {
-            k: (2048i64 << 20) / span,
+            k: ((2048i64 << 32) / span) as i32,
         }
     }
 
     /// DAC code (0..=4095) of `setpoint`.
     #[inline]
     pub fn code(&self, setpoint: i32) -> u16 {
-        let c = 2048 + ((setpoint as i64).wrapping_mul(self.k) >> 20);
+        let c = 2048 + ((setpoint as i64 * self.k as i64) >> 32) as i32;
         c.clamp(0, 4095) as u16
     }
 }

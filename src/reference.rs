@@ -26,6 +26,14 @@ pub struct TrapezoidMove {
     n: u32,
     /// Total ticks of the move (last sample = target).
     n_total: u32,
+    /// End of the constant-speed phase (s): t_acc + t_flat.
+    t_flat_end: f32,
+    /// Distance at the end of the acceleration phase: ½·v_peak·t_acc.
+    s_acc: f32,
+    /// Full distance: v_peak·(t_acc + t_flat).
+    s_full: f32,
+    /// Duration (s): 2·t_acc + t_flat.
+    total_s: f32,
     /// After [`TrapezoidMove::stop`]: time (s), distance (counts) and speed (counts/s) at
     /// which the deceleration to rest began.
     stop: Option<(f32, f32, f32)>,
@@ -101,6 +109,10 @@ impl TrapezoidMove {
             dt: 1.0 / tick_rate_hz,
             n: 0,
             n_total: n_total as u32,
+            t_flat_end: t_acc + t_flat,
+            s_acc: 0.5 * v_peak * t_acc,
+            s_full: v_peak * (t_acc + t_flat),
+            total_s,
             stop: None,
         })
     }
@@ -109,19 +121,25 @@ impl TrapezoidMove {
     fn distance(&self, t: f32) -> f32 {
         let a = self.accel;
         if let Some((t0, s0, v0)) = self.stop {
-            let tau = (t - t0).max(0.0).min(v0 / a);
+            let (tau, t_stop) = (t - t0, v0 / a);
+            let tau = if tau < 0.0 {
+                0.0
+            } else if tau > t_stop {
+                t_stop
+            } else {
+                tau
+            };
             return s0 + v0 * tau - 0.5 * a * tau * tau;
         }
         if t <= self.t_acc {
             0.5 * a * t * t
-        } else if t <= self.t_acc + self.t_flat {
-            0.5 * self.v_peak * self.t_acc + self.v_peak * (t - self.t_acc)
+        } else if t <= self.t_flat_end {
+            self.s_acc + self.v_peak * (t - self.t_acc)
         } else {
-            let total = 2.0 * self.t_acc + self.t_flat;
-            let r = (total - t).max(0.0);
+            let r = self.total_s - t;
+            let r = if r > 0.0 { r } else { 0.0 };
             // distance = full − ½ a r²
-            let full = self.v_peak * (self.t_acc + self.t_flat);
-            full - 0.5 * a * r * r
+            self.s_full - 0.5 * a * r * r
         }
     }
 
@@ -136,15 +154,13 @@ impl TrapezoidMove {
             return self.target;
         }
         let s = self.distance(self.n as f32 * self.dt);
-        let p = self.start as f32 + self.dir * s;
-        let p = crate::engine::round_f32(p) as i64;
+        let p = crate::engine::round_f32(self.start as f32 + self.dir * s);
         // Never overshoot the target because of f32 rounding.
-        let (lo, hi) = if self.target >= self.start {
-            (self.start, self.target)
+        if self.dir > 0.0 {
+            p.max(self.start).min(self.target)
         } else {
-            (self.target, self.start)
-        };
-        p.clamp(lo as i64, hi as i64) as i32
+            p.min(self.start).max(self.target)
+        }
     }
 
     /// True once the last sample (the target) has been produced.
@@ -156,10 +172,15 @@ impl TrapezoidMove {
     fn speed_at(&self, t: f32) -> f32 {
         if t <= self.t_acc {
             self.accel * t
-        } else if t <= self.t_acc + self.t_flat {
+        } else if t <= self.t_flat_end {
             self.v_peak
         } else {
-            (self.accel * (2.0 * self.t_acc + self.t_flat - t)).max(0.0)
+            let v = self.accel * (self.total_s - t);
+            if v > 0.0 {
+                v
+            } else {
+                0.0
+            }
         }
     }
 
@@ -171,7 +192,7 @@ impl TrapezoidMove {
             return;
         }
         let t0 = self.n as f32 * self.dt;
-        if t0 >= self.t_acc + self.t_flat {
+        if t0 >= self.t_flat_end {
             return;
         }
         let s0 = self.distance(t0);

@@ -505,8 +505,10 @@ impl State {
 
     /// Applies the pending change if it is due (next tick, or at standstill). Out of line:
     /// rare, and it moves whole tap tables.
+    /// `stepdir_count` is this tick's raw input count (the pass-through counts from it when
+    /// it becomes the source: the input is only counted while it is the source).
     #[inline(never)]
-    fn apply_pending(&mut self) {
+    fn apply_pending(&mut self, stepdir_count: u16) {
         let ready = match &self.pending {
             None => false,
             Some((_, Applies::NextTick)) => true,
@@ -519,7 +521,12 @@ impl State {
         }
         if let Some((p, applies)) = self.pending.take() {
             match applies {
-                Applies::WhenStill => self.apply(p),
+                Applies::WhenStill => {
+                    if p.source == Source::StepDir && self.params.source != Source::StepDir {
+                        self.stepdir = StepDirCounter::new(stepdir_count);
+                    }
+                    self.apply(p)
+                }
                 Applies::NextTick => {
                     if let Err(p) = self.apply_now(p) {
                         self.pending = Some((p, applies));
@@ -735,7 +742,6 @@ impl Runtime {
     pub fn tick(&mut self, input: &TickInput) -> TickOutput {
         let st = &mut self.st;
         st.ticks = st.ticks.wrapping_add(1);
-        let steps_in = st.stepdir.update(input.stepdir_count);
         let x = match st.params.source {
             Source::Internal => match &mut st.motion {
                 Motion::Idle => st.reference,
@@ -755,6 +761,7 @@ impl Runtime {
                 }
             },
             Source::StepDir => {
+                let steps_in = st.stepdir.update(input.stepdir_count);
                 let p = st.stepdir_offset + steps_in * st.params.input_nm_per_count as i64;
                 p.clamp(-(POSITION_LIMIT as i64), POSITION_LIMIT as i64) as i32
             }
@@ -766,7 +773,7 @@ impl Runtime {
         }
         st.reference = x;
         if st.pending.is_some() {
-            st.apply_pending();
+            st.apply_pending(input.stepdir_count);
         }
         st.setpoint = st.engine.tick(&mut self.bufs.history, x);
         st.capture.record(&mut self.bufs.capture, st.setpoint);

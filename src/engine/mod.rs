@@ -39,10 +39,12 @@
 //! Bounded: one push, the sum over the taps of every stage in flight, at most
 //! [`TAP_BUDGET`] taps in all ([`EngineState::switch`] refuses more), and O([`MAX_STAGES`])
 //! bookkeeping. **Steady state** (one stage, its window entirely after the last reset or
-//! switch) runs the fast kernel: the taps split into the two runs of the ring that do not wrap
-//! ([`history`]), each read through a base pointer with no per-tap bounds check or clamp.
-//! Its safety is proven once per table (delays < N, checked when a table is staged; sorted,
-//! an invariant of [`TapTable`]) and by an O(1) check of the split point each tick.
+//! switch) runs the fast kernel: when the window lies in one unwrapped run of the ring
+//! ([`history`]; all but `max_delay` ticks in every N), the taps are read through a base
+//! pointer with no per-tap bounds check, wrap or clamp, four per loop iteration. Its safety
+//! is proven once per table (the largest delay, found by inspection when the table is
+//! staged, is < N) plus one comparison per tick (`max_delay < N − head`); the remaining
+//! ticks use masked indices.
 //! Nothing allocates or panics.
 
 pub mod history;
@@ -110,6 +112,7 @@ struct Stage {
 }
 
 impl Stage {
+    /// `max_delay` must be the largest delay of `taps` (see [`true_max_delay`]).
     const fn new(taps: TapTable, max_delay: u32, fill: i32) -> Self {
         Stage {
             taps,
@@ -147,8 +150,6 @@ pub struct EngineState<const N: usize> {
     /// Stages in flight (≥ 1).
     count: usize,
     path: NumericPath,
-    /// Taps of the newest stage with delay < the ring's unwrapped limit.
-    split: usize,
     /// Newest sample (or the reset value before the first push).
     newest: i32,
     /// One stage whose whole window is live: the fast kernels, no clamp bookkeeping.
@@ -173,7 +174,6 @@ impl<const N: usize> EngineState<N> {
             first: 0,
             count: 1,
             path: NumericPath::Fixed,
-            split: 0,
             newest: position,
             steady: false,
         }
@@ -197,7 +197,7 @@ impl<const N: usize> EngineState<N> {
         path: NumericPath,
         position: i32,
     ) -> Result<(), SwitchError> {
-        let max_delay = taps.duration_ticks();
+        let max_delay = true_max_delay(&taps);
         if max_delay as usize >= N {
             return Err(SwitchError::TooLong);
         }
@@ -207,7 +207,6 @@ impl<const N: usize> EngineState<N> {
         self.path = path;
         self.newest = position;
         self.steady = false;
-        self.resplit();
         Ok(())
     }
 
@@ -224,7 +223,6 @@ impl<const N: usize> EngineState<N> {
         s.closed = false;
         self.newest = position;
         self.steady = false;
-        self.resplit();
     }
 
     /// Taps per tick the tables in flight need now.
@@ -236,7 +234,7 @@ impl<const N: usize> EngineState<N> {
 
     /// Checks whether `taps` could be switched to now (see [`EngineState::switch`]).
     pub fn can_switch(&self, taps: &TapTable) -> Result<(), SwitchError> {
-        if taps.duration_ticks() as usize >= N {
+        if true_max_delay(taps) as usize >= N {
             return Err(SwitchError::TooLong);
         }
         let need = self.taps_in_flight() + taps.len();
@@ -292,23 +290,10 @@ impl<const N: usize> EngineState<N> {
         old.skip = 0;
         old.hold = x_s;
         let j = self.idx(self.count);
-        let max_delay = taps.duration_ticks();
+        let max_delay = true_max_delay(&taps);
         self.stages[j] = Stage::new(taps, max_delay, x_s);
         self.count += 1;
-        self.resplit();
         Ok(())
-    }
-
-    /// Recomputes the newest stage's split point from scratch (O(taps)).
-    fn resplit(&mut self) {
-        let lim = self.ring.unwrapped_limit();
-        let i = self.idx(self.count.max(1) - 1);
-        self.split = self.stages[i]
-            .taps
-            .taps()
-            .iter()
-            .take_while(|t| t.delay < lim)
-            .count();
     }
 
     /// Pushes `x` (counts, |x| < 2³⁰) and returns the shaped setpoint (counts).
@@ -319,7 +304,6 @@ impl<const N: usize> EngineState<N> {
         if !self.steady {
             self.bookkeeping();
         }
-        self.update_split();
         match (self.path, self.steady) {
             (NumericPath::Fixed, true) => self.fast_fixed(buf),
             (NumericPath::F32, true) => self.fast_f32(buf),
@@ -357,58 +341,52 @@ impl<const N: usize> EngineState<N> {
         };
     }
 
-    /// Advances the newest stage's split point by the one tick the ring moved, verifying
-    /// the invariant `taps[..split] < lim ≤ taps[split..]` in O(1) (rescan if it fails).
-    #[inline(always)]
-    fn update_split(&mut self) {
-        let lim = self.ring.unwrapped_limit();
-        let i = self.idx(self.count - 1);
-        let taps = self.stages[i].taps.taps();
-        let mut k = if lim == 1 { 0 } else { self.split };
-        if let Some(t) = taps.get(k) {
-            if t.delay < lim {
-                k += 1;
-            }
-        }
-        let below = k == 0 || taps.get(k - 1).is_some_and(|t| t.delay < lim);
-        let above = taps.get(k).is_none_or(|t| t.delay >= lim) && k <= taps.len();
-        if below && above {
-            self.split = k;
-        } else {
-            self.resplit();
-        }
-    }
-
-    /// Steady-state fixed-point kernel: Σ w_q30·x over the two unwrapped runs.
+    /// Steady-state fixed-point kernel: Σ w_q30·x. When the whole window lies in one
+    /// unwrapped run of the ring (`max_delay < N − head`: all but `max_delay` ticks in every
+    /// N), one unchecked run from `buf[head]`; else the masked indices (no wrap test either).
     #[inline(always)]
     fn fast_fixed(&self, buf: &[i32; N]) -> i32 {
-        let taps = self.stages[self.idx(0)].taps.taps();
-        let (near, far) = taps.split_at(self.split.min(taps.len()));
+        let s = &self.stages[self.idx(0)];
+        let taps = s.taps.taps_padded();
         let head = self.ring.head();
-        // SAFETY (both runs): `head < N` (masked). Every delay d of the table is < N (checked
-        // when the table was staged: `install`/`switch` refuse a max delay ≥ N) and the taps
-        // are sorted (TapTable invariant). `update_split` established
-        // `near.d < lim = N − head ≤ far.d` for this tick. So `head + d < N` for `near` and
-        // `0 ≤ head + d − N < N` for `far`: every read is inside `buf`.
-        let p = buf.as_ptr().wrapping_add(head);
-        let q = p.wrapping_sub(N);
-        #[allow(unsafe_code)]
-        let acc = unsafe { mac_q30(far, q, mac_q30(near, p, 0)) };
+        let acc = if (s.max_delay as usize) < N - head {
+            // SAFETY: `head < N` (masked) and every delay d ≤ `max_delay` (the true maximum,
+            // computed when the table was staged), so `head + d ≤ head + max_delay < N`:
+            // every read is inside `buf`.
+            #[allow(unsafe_code)]
+            unsafe {
+                mac_q30(taps, buf.as_ptr().add(head), 0)
+            }
+        } else {
+            let mut acc = 0i64;
+            for t in taps {
+                acc += t.w_q30 as i64 * self.ring.get(buf, t.delay) as i64;
+            }
+            acc
+        };
         round_q30(acc)
     }
 
-    /// Steady-state f32 kernel: Σ w_f32·(x − x_newest) over the two unwrapped runs.
+    /// Steady-state f32 kernel: Σ w_f32·(x − x_newest), as [`EngineState::fast_fixed`].
     #[inline(always)]
     fn fast_f32(&self, buf: &[i32; N]) -> i32 {
-        let taps = self.stages[self.idx(0)].taps.taps();
-        let (near, far) = taps.split_at(self.split.min(taps.len()));
+        let s = &self.stages[self.idx(0)];
+        let taps = s.taps.taps_padded();
         let head = self.ring.head();
         let x0 = self.newest;
-        // SAFETY: as in `fast_fixed`.
-        let p = buf.as_ptr().wrapping_add(head);
-        let q = p.wrapping_sub(N);
-        #[allow(unsafe_code)]
-        let acc = unsafe { mac_f32(far, q, x0, mac_f32(near, p, x0, 0.0)) };
+        let acc = if (s.max_delay as usize) < N - head {
+            // SAFETY: as in `fast_fixed`.
+            #[allow(unsafe_code)]
+            unsafe {
+                mac_f32(taps, buf.as_ptr().add(head), x0, 0.0)
+            }
+        } else {
+            let mut acc = 0.0f32;
+            for t in taps {
+                acc += t.w_f32 * self.ring.get(buf, t.delay).wrapping_sub(x0) as f32;
+            }
+            acc
+        };
         x0.wrapping_add(round_f32(acc))
     }
 
@@ -473,17 +451,23 @@ impl<const N: usize> EngineState<N> {
     }
 }
 
+/// The largest delay of `taps`, by inspection of every tap (the fast kernels' safety rests
+/// on it, not on the table's sort order). O(taps), once per table staged.
+fn true_max_delay(taps: &TapTable) -> u32 {
+    taps.taps().iter().map(|t| t.delay).max().unwrap_or(0)
+}
+
 /// `acc + Σ w_q30·base[d]` over `taps`, four taps per loop iteration.
 ///
 /// # Safety
-/// `base.wrapping_add(d)` must point inside one live `[i32; N]` for every tap's delay `d`
+/// `base.add(d)` must point inside one live `[i32; N]` for every tap's delay `d`
 /// (see `EngineState::fast_fixed`). These are the engine's only unchecked reads.
 #[inline(always)]
 #[allow(unsafe_code)]
 unsafe fn mac_q30(taps: &[Tap], base: *const i32, mut acc: i64) -> i64 {
     let x = |t: &Tap| -> i64 {
         // SAFETY: the caller's contract above.
-        unsafe { *base.wrapping_add(t.delay as usize) as i64 }
+        unsafe { *base.add(t.delay as usize) as i64 }
     };
     let mut quads = taps.chunks_exact(4);
     for c in &mut quads {
@@ -508,7 +492,7 @@ unsafe fn mac_q30(taps: &[Tap], base: *const i32, mut acc: i64) -> i64 {
 unsafe fn mac_f32(taps: &[Tap], base: *const i32, x0: i32, mut acc: f32) -> f32 {
     let x = |t: &Tap| -> f32 {
         // SAFETY: the caller's contract of `mac_q30`.
-        unsafe { (*base.wrapping_add(t.delay as usize)).wrapping_sub(x0) as f32 }
+        unsafe { (*base.add(t.delay as usize)).wrapping_sub(x0) as f32 }
     };
     let mut quads = taps.chunks_exact(4);
     for c in &mut quads {
