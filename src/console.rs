@@ -452,8 +452,8 @@ impl Console {
             s.max_step_rate_hz,
             s.input_nm_per_count,
             s.source.name(),
-            s.move_speed_mm_s,
-            s.move_accel_mm_s2,
+            Num(s.move_speed_mm_s as f64, 6),
+            Num(s.move_accel_mm_s2 as f64, 6),
             s.custom.len()
         );
         Ok(())
@@ -760,7 +760,13 @@ impl core::fmt::Display for Num {
             return write!(f, "{v}");
         }
         if v.abs() >= 1e15 {
-            return write!(f, "{v:e}");
+            // m·10^e with 1 ≤ |m| < 10, by repeated division (≤ 308 steps, no log table).
+            let (mut m, mut e) = (v, 0u32);
+            while m.abs() >= 10.0 {
+                m /= 10.0;
+                e += 1;
+            }
+            return write!(f, "{}e{e}", Num(m, 3));
         }
         if write!(buf, "{:.*}", self.1.min(12), v).is_err() {
             return write!(f, "{v}");
