@@ -357,8 +357,10 @@ fn analyse_mode(x: &[f64], rate: f64, f1: f64, warnings: &mut Vec<String>) -> Re
         && (fn_fit / fn_ld - 1.0).abs() < 0.05;
     if !fit_ok {
         warnings.push(format!(
-            "damped-sinusoid fit did not converge ({:?}); log decrement only",
-            report.termination
+            "damped-sinusoid fit rejected ({}; f {:.4} Hz, zeta {:.5}); log decrement only",
+            super::mlfit::termination_text(&report.termination),
+            fn_fit,
+            zeta_fit
         ));
     }
     let (freq, zeta) = if fit_ok {
