@@ -547,3 +547,57 @@ impl Recording {
             .all(|w| ((w[1] - w[0]) - dt).abs() <= UNIFORM_TOLERANCE * dt)
     }
 }
+
+/// Anti-aliased decimation by `q`: a Hamming-windowed sinc low-pass (cut-off 0.4 × the new
+/// sample rate, 16 q + 1 taps, unit DC gain, zero phase) evaluated only at the kept samples,
+/// so the work is N × 16 and the memory the output. `q` ≤ 1 returns a copy.
+pub fn decimate_fir(x: &[f64], q: usize) -> Vec<f64> {
+    if q <= 1 {
+        return x.to_vec();
+    }
+    let half = 8 * q;
+    let fc = 0.4 / q as f64; // cycles per input sample
+    let mut h: Vec<f64> = (0..=2 * half)
+        .map(|i| {
+            let k = i as f64 - half as f64;
+            let sinc = if k == 0.0 {
+                2.0 * fc
+            } else {
+                (2.0 * std::f64::consts::PI * fc * k).sin() / (std::f64::consts::PI * k)
+            };
+            let w = 0.54 - 0.46 * (2.0 * std::f64::consts::PI * i as f64 / (2 * half) as f64).cos();
+            sinc * w
+        })
+        .collect();
+    let s: f64 = h.iter().sum();
+    h.iter_mut().for_each(|v| *v /= s);
+    let n = x.len();
+    (0..n)
+        .step_by(q)
+        .map(|c| {
+            // Edges: the signal is held at its end values.
+            h.iter()
+                .enumerate()
+                .map(|(i, hv)| {
+                    let k = (c + i).saturating_sub(half).min(n - 1);
+                    hv * x[k]
+                })
+                .sum()
+        })
+        .collect()
+}
+
+impl Recording {
+    /// Every channel [decimated](decimate_fir) by `q` (uniform recordings), time base kept.
+    pub fn decimated(&self, q: usize) -> Recording {
+        let d = |c: &Option<Vec<f64>>| c.as_ref().map(|v| decimate_fir(v, q));
+        Recording {
+            time_s: self.time_s.iter().step_by(q.max(1)).copied().collect(),
+            base_cmd_m: d(&self.base_cmd_m),
+            base_pos_m: d(&self.base_pos_m),
+            tip_pos_m: d(&self.tip_pos_m),
+            force_n: d(&self.force_n),
+            notes: self.notes.clone(),
+        }
+    }
+}

@@ -31,6 +31,7 @@ use super::ModeEstimate;
 use crate::recording::{check_time_unit, find_gaps, fmt_sig, split_at_gaps, Recording, F_MIN_HZ};
 use anyhow::{bail, Result};
 use serde::Serialize;
+use std::borrow::Cow;
 use std::fmt;
 
 /// Which path to take.
@@ -271,7 +272,7 @@ pub fn identify(
     check_time_unit(rec)?;
     let mut warnings: Vec<String> = Vec::new();
     progress(Stage::Gaps);
-    let seg = clean_segment(rec, &mut warnings);
+    let mut seg = clean_segment(rec, &mut warnings);
     if seg.len() < 64 {
         bail!(
             "the longest clean stretch of the recording has {} samples; identification needs at least 64",
@@ -281,6 +282,22 @@ pub fn identify(
     progress(Stage::Excitation);
     let base = base_channel(&seg).map(base_motion);
     let (path, reason) = choose_path(&seg, base.as_ref(), opts);
+    let mut base = base;
+    let q = decimation_factor(&seg, path, opts);
+    if q > 1 {
+        let from_s = base.as_ref().map(|b| seg.time_s[b.still_from.min(seg.len() - 1)]);
+        let d = seg.decimated(q);
+        warnings.push(format!(
+            "long recording ({} samples at {} Hz): decimated by {q} to {} Hz (anti-aliased, FIR) before the {path} path",
+            seg.len(),
+            fmt_sig(seg.sample_rate_hz(), 5),
+            fmt_sig(d.sample_rate_hz(), 5)
+        ));
+        if let (Some(b), Some(t0)) = (base.as_mut(), from_s) {
+            b.still_from = d.time_s.partition_point(|t| *t < t0);
+        }
+        seg = Cow::Owned(d);
+    }
     let rate = seg.sample_rate_hz();
     let span = (seg.time_s[0], seg.time_s[seg.len() - 1]);
     let mut out = Identification {
@@ -369,6 +386,52 @@ fn rayleigh(modes: &[ModeEstimate], warnings: &mut Vec<String>) -> Option<(f64, 
     Some((a1, a2))
 }
 
+/// Longest recording analysed at full rate (samples); longer ones are decimated when their
+/// content allows ([`decimation_factor`]).
+pub const MAX_FULL_RATE_SAMPLES: usize = 1 << 20;
+
+/// Decimation factor for a recording longer than [`MAX_FULL_RATE_SAMPLES`] (bounded memory
+/// and time), 1 otherwise. FRF path: the new Nyquist frequency stays ≥ 4 × the top of the
+/// input's band (where the Welch spectrum of the base acceleration — from the command when
+/// recorded — is within 30 dB of its maximum); free-decay paths: ≥ the highest frequency asked
+/// for (`opts.decay.f_max_hz`). At least 2¹⁶ samples are kept.
+pub fn decimation_factor(rec: &Recording, path: IdentPath, opts: &IdentifyOptions) -> usize {
+    let n = rec.len();
+    if n <= MAX_FULL_RATE_SAMPLES {
+        return 1;
+    }
+    let rate = rec.sample_rate_hz();
+    let f_keep = match path {
+        IdentPath::Frf => {
+            let x = rec.base_cmd_m.as_deref().or(rec.base_pos_m.as_deref());
+            match x.and_then(|x| input_band_top_hz(x, rate)) {
+                Some(f) => 4.0 * opts.frf.band_hz.map_or(f, |b| b.1.max(f)),
+                None => return 1,
+            }
+        }
+        _ => opts.decay.f_max_hz,
+    };
+    let q = (0.5 * rate / f_keep).floor() as usize;
+    q.min(n >> 16).max(1)
+}
+
+/// Top of the band (Hz) where the base acceleration's Welch spectrum (Hamming segments of
+/// 2¹⁶ samples) is within 30 dB of its maximum.
+fn input_band_top_hz(x: &[f64], rate: f64) -> Option<f64> {
+    let a: Vec<f64> = x.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]) * rate * rate).collect();
+    let wo = super::frf::WelchOptions {
+        nperseg: Some(1 << 16),
+        overlap: 0.5,
+        window: Window::Hamming,
+        detrend: super::frf::Detrend::Mean,
+        pad: 1,
+    };
+    let f = super::frf::welch(&a, &a, rate, &wo).ok()?;
+    let top = f.sxx.iter().skip(1).cloned().fold(0.0, f64::max);
+    let k = f.sxx.iter().rposition(|v| *v >= 1e-3 * top)?;
+    Some(f.freq_hz[k].max(f.df_hz()))
+}
+
 /// The base position channel: measured if present, else the command.
 fn base_channel(rec: &Recording) -> Option<&[f64]> {
     rec.base_pos_m.as_deref().or(rec.base_cmd_m.as_deref())
@@ -399,10 +462,10 @@ pub fn gap_threshold_s(rec: &Recording) -> Option<f64> {
 }
 
 /// The longest clean (gap-free) segment of `rec`, resampled if its steps jitter; warns.
-fn clean_segment(rec: &Recording, warnings: &mut Vec<String>) -> Recording {
+fn clean_segment<'a>(rec: &'a Recording, warnings: &mut Vec<String>) -> Cow<'a, Recording> {
     let gaps = gap_threshold_s(rec).map_or(vec![], |th| find_gaps(&rec.time_s, th));
     let seg = if gaps.is_empty() {
-        rec.clone()
+        Cow::Borrowed(rec)
     } else {
         let segs = split_at_gaps(rec, &gaps);
         let longest = segs
@@ -426,7 +489,7 @@ fn clean_segment(rec: &Recording, warnings: &mut Vec<String>) -> Recording {
             fmt_sig(s.time_s[s.len() - 1], 4),
             s.len()
         ));
-        segs[longest].clone()
+        Cow::Owned(segs[longest].clone())
     };
     if seg.len() >= 2 && !seg.is_uniform() {
         let dt = seg.sample_interval_s();
@@ -441,7 +504,7 @@ fn clean_segment(rec: &Recording, warnings: &mut Vec<String>) -> Recording {
             fmt_sig(longest * 1e3, 3),
             fmt_sig(1.0 / dt, 5)
         ));
-        return seg.resampled_uniform();
+        return Cow::Owned(seg.resampled_uniform());
     }
     seg
 }
