@@ -601,3 +601,41 @@ impl Recording {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn decimation_keeps_the_band_and_removes_aliases() {
+        let rate = 1000.0;
+        let tone = |f: f64| -> Vec<f64> {
+            (0..20000)
+                .map(|k| (2.0 * std::f64::consts::PI * f * k as f64 / rate).sin())
+                .collect()
+        };
+        let rms = |v: &[f64]| (v[200..v.len() - 200].iter().map(|x| x * x).sum::<f64>() / (v.len() - 400) as f64).sqrt();
+        // q = 10: new rate 100 Hz, pass band to 40 Hz; 5 Hz kept, 170 Hz (would alias to 30 Hz) removed.
+        let kept = decimate_fir(&tone(5.0), 10);
+        assert_eq!(kept.len(), 2000);
+        assert!((rms(&kept) / std::f64::consts::FRAC_1_SQRT_2 - 1.0).abs() < 0.01, "{}", rms(&kept));
+        assert!(rms(&decimate_fir(&tone(170.0), 10)) < 0.01);
+    }
+
+    #[test]
+    fn gaps_split_and_numbers_print_plainly() {
+        let t = vec![0.0, 0.01, 0.02, 0.6, 0.61, 0.62, 0.63];
+        let g = find_gaps(&t, 0.05);
+        assert_eq!(g.len(), 1);
+        assert_eq!(g[0].index, 3);
+        let rec = Recording {
+            time_s: t.clone(),
+            tip_pos_m: Some(t.clone()),
+            ..Default::default()
+        };
+        let s = split_at_gaps(&rec, &g);
+        assert_eq!((s[0].len(), s[1].len()), (3, 4));
+        assert_eq!(fmt_sig(45.00000000000096, 4), "45.00");
+        assert_eq!(fmt_sig(0.0074, 2), "0.0074");
+    }
+}
