@@ -155,7 +155,7 @@ pub struct BaseMotion {
     pub still_from: usize,
     /// Direction reversals beyond the still band (or 0.5 % of the range) before `still_from`.
     pub reversals: usize,
-    /// True when the base's final 10 % is itself still (noise < 1 % of the range).
+    /// True when the base's final 10 % is itself still (noise < 5 % of the range).
     pub ends_still: bool,
 }
 
@@ -559,7 +559,7 @@ pub fn base_motion(b: &[f64]) -> BaseMotion {
         range_m: range,
         still_from,
         reversals,
-        ends_still: noise < 0.01 * range || range == 0.0,
+        ends_still: noise < 0.05 * range || range == 0.0,
     }
 }
 
