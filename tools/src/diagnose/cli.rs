@@ -388,6 +388,11 @@ pub struct LengthsArgs {
 }
 
 /// Parses `L_m=path[@sensor_m]`.
+/// Shortest plausible beam length of `diagnose-lengths` (m).
+pub const MIN_LENGTH_M: f64 = 0.02;
+/// Longest plausible beam length of `diagnose-lengths` (m).
+pub const MAX_LENGTH_M: f64 = 5.0;
+
 fn parse_decay(s: &str, default_sensor: f64) -> Result<(f64, PathBuf, f64)> {
     let (l, rest) = s
         .split_once('=')
@@ -396,8 +401,16 @@ fn parse_decay(s: &str, default_sensor: f64) -> Result<(f64, PathBuf, f64)> {
         .trim()
         .parse()
         .with_context(|| format!("--decay `{s}`: `{l}` is not a length in metres"))?;
-    if !(l > 0.0 && l < 100.0) {
-        anyhow::bail!("--decay `{s}`: length {l} m is out of range (metres, > 0)");
+    // a lab cantilever is centimetres to a few metres long; 40 for 0.40 m is a unit slip
+    if !(l >= MIN_LENGTH_M && l <= MAX_LENGTH_M) {
+        anyhow::bail!(
+            "--decay `{s}`: length {l} m is not plausible for a cantilever ({MIN_LENGTH_M}–{MAX_LENGTH_M} m); lengths are in metres{}",
+            if l > MAX_LENGTH_M && l / 100.0 <= MAX_LENGTH_M {
+                format!(" (did you mean {} m?)", l / 100.0)
+            } else {
+                String::new()
+            }
+        );
     }
     let (path, sensor) = match rest.rsplit_once('@') {
         Some((p, m)) => (
@@ -465,8 +478,25 @@ pub fn diagnose_lengths(a: LengthsArgs) -> Result<()> {
     let t0 = std::time::Instant::now();
     let rig = Rig::from_toml_file(&a.rig)?;
     let mut data = Vec::new();
+    let mut seen: Vec<(f64, PathBuf, Vec<u8>)> = Vec::new();
     for s in &a.decay {
         let (l, p, sensor) = parse_decay(s, a.sensor_from_tip_m)?;
+        // distinct recordings at distinct lengths: the same file (or identical content) for two
+        // lengths carries no length information
+        let bytes = std::fs::read(&p).with_context(|| format!("cannot read {}", p.display()))?;
+        for (l0, p0, b0) in &seen {
+            if *b0 == bytes {
+                anyhow::bail!(
+                    "--decay: {} (L = {l} m) and {} (L = {l0} m) are the same recording; every length needs its own decay",
+                    p.display(),
+                    p0.display()
+                );
+            }
+            if (l0 - l).abs() < 1e-9 {
+                anyhow::bail!("--decay: length {l} m is given twice");
+            }
+        }
+        seen.push((l, p.clone(), bytes));
         let m = length_modes(l, &p, sensor, a.modes)?;
         println!(
             "L = {:.3} m: {}  ({})",

@@ -117,6 +117,8 @@ pub struct StartHints {
     pub zeta1: f64,
     /// Beam length (m) (0 without a beam).
     pub length_m: f64,
+    /// Carriage mass of the rig (kg).
+    pub carriage_mass_kg: f64,
 }
 
 fn def(
@@ -445,6 +447,13 @@ pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
                     1.0,
                     false,
                 ),
+                def(
+                    "mount_mass_kg",
+                    Transform::Log,
+                    vec![0.25 * h.carriage_mass_kg],
+                    1.0,
+                    false,
+                ),
             ],
         });
     }
@@ -494,6 +503,7 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
             p.sensor_gain_error = get("sensor_gain_error").unwrap_or(0.0).clamp(-0.5, 0.5)
         }
         "mount_resonance" => {
+            p.mount_mass_kg = get("mount_mass_kg").unwrap_or(0.0);
             p.mount = Some((
                 get("mount_frequency_hz").unwrap_or(100.0),
                 get("mount_damping_ratio").unwrap_or(0.05).clamp(0.005, 2.0),

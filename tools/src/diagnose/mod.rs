@@ -363,6 +363,7 @@ pub fn diagnose(
         speed_m_s: speed,
         zeta1: p_nom.zeta.map_or(rig.damping_ratios().0, |z| z.0),
         length_m,
+        carriage_mass_kg: rig.base.mass_kg,
     };
     let cands: Vec<Candidate> = catalogue(rig, &ch, &hints);
     let n_total: usize = n0.iter().sum();

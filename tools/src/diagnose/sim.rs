@@ -9,8 +9,8 @@
 //!    fractions near 1); predicted `base_pos_m`;
 //! 2. the beam is driven by the *measured* base position when recorded (so carriage effects do
 //!    not leak into the tip channel), else by the predicted one;
-//! 3. mount: the beam root follows the carriage through a spring–damper resonance,
-//!    `ÿ_r + 2ζ_mω_m (ẏ_r − ẏ) + ω_m² (y_r − y) = 0` (`mount_resonance`);
+//! 3. mount: the beam root is a mount mass on a spring–damper from the carriage, loaded by the
+//!    beam (coupled to its modes, [`coupled_mount`]; `mount_resonance`);
 //! 4. beam: clamped-base modes of [`BeamModel`] (M, K of eqs. 13–20 with tip mass, root spring,
 //!    gravity axial load and the calibration scale), `η̈_r + 2ζ_rω_r η̇_r + ω_r² η_r = −Γ_r ÿ_r + f_r`,
 //!    integrated exactly between samples for a piecewise-linear base (as `model::sim`), with the
@@ -62,8 +62,10 @@ pub struct Params {
     pub sensor_gain_error: f64,
     /// Gravity axial load.
     pub orientation: Option<Orientation>,
-    /// Mount resonance (Hz, damping ratio).
+    /// Mount resonance (Hz, damping ratio): k = (2π f)² (m_mount + m_beam), as loaded rigidly.
     pub mount: Option<(f64, f64)>,
+    /// Mount (beam-side) mass (kg), part of the carriage mass; 0 = a massless filter.
+    pub mount_mass_kg: f64,
     /// Cogging: sine and cosine amplitudes (N) and pitch (m).
     pub cogging: Option<(f64, f64, f64)>,
     /// Latency of the force channel (s, calibration: drives that average or filter the
@@ -90,6 +92,7 @@ impl Default for Params {
             sensor_gain_error: 0.0,
             orientation: None,
             mount: None,
+            mount_mass_kg: 0.0,
             cogging: None,
             force_delay_s: 0.0,
         }
@@ -277,6 +280,76 @@ fn coupled_servo(
         }
     }
     y
+}
+
+/// Beam-root position behind a mount: a mass m_m on a spring–damper from the carriage y, loaded
+/// by the beam (as the truth plant, `tools/src/truth/plant.rs`):
+/// `(m_m + m_b − ΣΓ²) ÿ_r = k (y − y_r) + c (ẏ − ẏ_r) + Σ Γ_j (2ζ_jω_j η̇_j + ω_j² η_j)`,
+/// `η̈_j + 2ζ_jω_j η̇_j + ω_j² η_j = −Γ_j ÿ_r`, k = ω_m² (m_m + m_b), c = 2ζ_m ω_m (m_m + m_b).
+/// Exact for a piecewise-linear y (one matrix exponential).
+fn coupled_mount(
+    y: &[f64],
+    dt: f64,
+    omega: f64,
+    zeta: f64,
+    m_m: f64,
+    c: &BeamCache,
+) -> Vec<f64> {
+    let n = y.len();
+    let nm = c.omega.len();
+    let m_b = c.total_mass - c.base_mass;
+    let sum_g2: f64 = c.gamma.iter().map(|g| g * g).sum();
+    let m_eff = (m_m + m_b - sum_g2).max(1e-9);
+    let k = omega * omega * (m_m + m_b);
+    let cd = 2.0 * zeta * omega * (m_m + m_b);
+    // z = [y_r, ẏ_r, (η_j, η̇_j)…, y, ẏ]
+    let dim = 4 + 2 * nm;
+    let (yi, vi) = (dim - 2, dim - 1);
+    let mut acc_row = vec![0.0; dim];
+    acc_row[0] = -k / m_eff;
+    acc_row[1] = -cd / m_eff;
+    acc_row[yi] = k / m_eff;
+    acc_row[vi] = cd / m_eff;
+    for j in 0..nm {
+        let (om, z) = (c.omega[j], c.zeta[j]);
+        acc_row[2 + 2 * j] = c.gamma[j] * om * om / m_eff;
+        acc_row[3 + 2 * j] = c.gamma[j] * 2.0 * z * om / m_eff;
+    }
+    let mut a = nalgebra::DMatrix::<f64>::zeros(dim, dim);
+    a[(0, 1)] = 1.0;
+    for i in 0..dim {
+        a[(1, i)] = acc_row[i];
+    }
+    for j in 0..nm {
+        let (om, z) = (c.omega[j], c.zeta[j]);
+        let (q, qd) = (2 + 2 * j, 3 + 2 * j);
+        a[(q, qd)] = 1.0;
+        for i in 0..dim {
+            a[(qd, i)] = -c.gamma[j] * acc_row[i];
+        }
+        a[(qd, qd)] -= 2.0 * z * om;
+        a[(qd, q)] -= om * om;
+    }
+    a[(yi, vi)] = 1.0;
+    let phi = (a * dt).exp();
+    if !phi.iter().all(|v| v.is_finite()) {
+        return vec![f64::NAN; n];
+    }
+    let mut zv = nalgebra::DVector::<f64>::zeros(dim);
+    zv[0] = y[0];
+    let mut out = Vec::with_capacity(n);
+    for kk in 0..n {
+        out.push(zv[0]);
+        let v = if kk + 1 < n { (y[kk + 1] - y[kk]) / dt } else { 0.0 };
+        zv[yi] = y[kk];
+        zv[vi] = v;
+        zv = &phi * &zv;
+        if !zv[0].is_finite() {
+            out.extend(std::iter::repeat(f64::NAN).take(n - out.len()));
+            break;
+        }
+    }
+    out
 }
 
 /// Cached structural model (rebuilt only when a structural parameter changes).
@@ -502,11 +575,30 @@ pub fn predict(
     }
     // 2. drive
     let drive: &[f64] = d.drive_m.as_deref().unwrap_or(&y_servo);
-    // 3. mount
-    let root: Vec<f64> = match p.mount {
-        Some((f, z)) => second_order(drive, dt, 2.0 * std::f64::consts::PI * f, z, 0.0, 1.0),
-        None => drive.to_vec(),
+    // 3. mount: with a beam, a mount mass on a spring–damper that carries the beam (coupled)
+    if p.mount.is_some() && rig.beam.is_some() {
+        let stale = cache
+            .as_ref()
+            .map_or(true, |c| c.key != structural_key(p, dt));
+        if stale {
+            *cache = Some(beam_cache(rig, p, dt)?);
+        }
+    }
+    let root: Vec<f64> = match (p.mount, cache.as_ref()) {
+        (Some((f, z)), Some(c)) if rig.beam.is_some() && p.mount_mass_kg > 0.0 => coupled_mount(
+            drive,
+            dt,
+            2.0 * std::f64::consts::PI * f,
+            z,
+            p.mount_mass_kg,
+            c,
+        ),
+        (Some((f, z)), _) => {
+            second_order(drive, dt, 2.0 * std::f64::consts::PI * f, z, 0.0, 1.0)
+        }
+        (None, _) => drive.to_vec(),
     };
+    let mount_mass = if p.mount.is_some() { p.mount_mass_kg } else { 0.0 };
     let accel = |y: &[f64], k: usize| {
         let vb = if k == 0 { 0.0 } else { (y[k] - y[k - 1]) / dt };
         let va = if k + 1 < n {
@@ -570,7 +662,7 @@ pub fn predict(
             }
             w.push(tip);
             // the carriage itself moves with the drive, not with the mount
-            force[k] = f + c.base_mass * (accel(drive, k) - acc);
+            force[k] = f + (c.base_mass - mount_mass) * (accel(drive, k) - acc);
         }
         if d.tip_m.is_some() {
             let tip: Vec<f64> = root.iter().zip(&w).map(|(y, w)| y + w).collect();
