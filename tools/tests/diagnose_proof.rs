@@ -67,6 +67,13 @@ fn json_has_the_fields_of_the_issue() {
     assert!(
         j["validation"]["nrmse_before"].is_number() && j["validation"]["nrmse_after"].is_number()
     );
+    assert!(j["effects"].is_array());
+    assert!(j["unexplained"].is_null() || j["unexplained"]["channel"].is_string());
+    assert!(j["model"]["in_band_modes_hz"].is_array());
+    for e in j["effects"].as_array().unwrap() {
+        assert!(e["effect"].is_string() && e["parameters"].is_object());
+        assert!(e["uncertainty"].is_object() && e["validation"]["nrmse_after"].is_number());
+    }
     assert!(j["candidates"]
         .as_array()
         .unwrap()
@@ -82,14 +89,33 @@ fn json_has_the_fields_of_the_issue() {
 #[test]
 fn bad_input_is_a_clear_error() {
     let rig = Rig::from_toml_str("[base]\nmass_kg = 2.0\n").unwrap();
-    let mut rec = beamtools::recording::Recording::with_uniform_time(100, 100.0);
-    rec.tip_pos_m = Some(vec![0.0; 100]);
+    let n = 1000;
+    let mut rec = beamtools::recording::Recording::with_uniform_time(n, 100.0);
+    let ramp: Vec<f64> = (0..n).map(|k| 1e-4 * k as f64).collect();
+    rec.tip_pos_m = Some(ramp.clone());
     let e = Prepared::new("x.csv", &rec).unwrap_err().to_string();
     assert!(e.contains("base_cmd_m"), "{e}");
-    rec.base_cmd_m = Some(vec![0.0; 100]);
+    rec.base_cmd_m = Some(ramp.clone());
     let d = Prepared::new("x.csv", &rec).unwrap();
     let e = diagnose(&rig, std::slice::from_ref(&d), &d, &mut |_, _, _| {})
         .unwrap_err()
         .to_string();
     assert!(e.contains("no [beam]") || e.contains("tip"), "{e}");
+    // too short: 2 samples
+    let mut short = beamtools::recording::Recording::with_uniform_time(2, 100.0);
+    short.base_cmd_m = Some(vec![0.0, 1e-3]);
+    short.tip_pos_m = Some(vec![0.0, 1e-3]);
+    let s = Prepared::new("short.csv", &short).unwrap();
+    let e = diagnose(&rig, std::slice::from_ref(&d), &s, &mut |_, _, _| {})
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("short.csv") && e.contains("too short"), "{e}");
+    // a base that never moves carries no information
+    let mut still = rec.clone();
+    still.base_cmd_m = Some(vec![0.0; n]);
+    let s = Prepared::new("still.csv", &still).unwrap();
+    let e = diagnose(&rig, std::slice::from_ref(&s), &d, &mut |_, _, _| {})
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("no information"), "{e}");
 }
