@@ -138,21 +138,27 @@ pub fn generate(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCas
 }
 
 fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCase> {
-    if effect != "none" && !EFFECTS.contains(&effect) {
-        bail!(
-            "unknown effect `{effect}` (one of none, {})",
-            EFFECTS.join(", ")
-        );
+    // several simultaneous effects are joined by `+` (e.g. `base_friction+servo_lag`)
+    let parts: Vec<&str> = effect.split('+').map(str::trim).collect();
+    for e in &parts {
+        if (*e != "none" || parts.len() > 1) && !EFFECTS.contains(e) {
+            bail!(
+                "unknown effect `{e}` (one of none, {}; pairs joined by `+`)",
+                EFFECTS.join(", ")
+            );
+        }
     }
     let mut rng = StdRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0x5eed);
     let rate = opts.rate_hz;
     let pi2 = 2.0 * std::f64::consts::PI;
     let mut truth: BTreeMap<String, serde_json::Value> = BTreeMap::new();
     // carriage-only for some base-side cases
-    let base_side = matches!(
-        effect,
-        "base_friction" | "cogging_ripple" | "servo_lag" | "none"
-    );
+    let base_side = parts.iter().all(|e| {
+        matches!(
+            *e,
+            "base_friction" | "cogging_ripple" | "servo_lag" | "none"
+        )
+    });
     let with_beam = !(base_side && rng.gen_bool(0.25));
     // geometry with f1 in 0.6..5 Hz
     let mut geo;
@@ -183,7 +189,7 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
     }
     let mut beam = fe_of(&geo);
     // gravity: rescale thickness so the load shifts f1 by 2..8 %
-    if effect == "gravity_axial_load" {
+    if parts.contains(&"gravity_axial_load") {
         let sign = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
         let target = rng.gen_range(0.04..0.12);
         for _ in 0..30 {
@@ -253,16 +259,18 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
     let mut has_base = rng.gen_bool(0.6);
     let mut has_force = rng.gen_bool(0.6);
     let has_tip = with_beam;
-    match effect {
-        "base_friction" | "cogging_ripple" => has_force = true,
-        "servo_lag" => has_base = rng.gen_bool(0.3),
-        "mount_resonance" => {}
-        _ => {}
+    for e in &parts {
+        match *e {
+            "base_friction" | "cogging_ripple" => has_force = true,
+            "servo_lag" => has_base = rng.gen_bool(0.3),
+            _ => {}
+        }
     }
     if !with_beam {
         has_base = true;
     }
     // effect strengths
+    for effect in parts.iter().copied() {
     match effect {
         "base_friction" => {
             // a few noise σ, and at least 3–8 % of the peak inertial force (below that the
@@ -350,6 +358,7 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         }
         _ => {}
     }
+    }
     let fine_dt = 1.0 / (rate * FINE_STEPS as f64);
     if with_beam {
         let n_keep = 8;
@@ -373,7 +382,7 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         .iter_mut()
         .map(|r| random_profile(&spec, fine_dt, r))
         .collect();
-    if effect == "quadratic_damping" {
+    if parts.contains(&"quadratic_damping") {
         // drag giving an equivalent linear damping of 0.4..1.0 ζ1 at the peak tip deflection
         let (modes, h) = plant.beam.as_ref().context("beam")?;
         let run = plant.run(&cmds[0], fine_dt);
