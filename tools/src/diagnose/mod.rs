@@ -421,7 +421,9 @@ pub fn diagnose(
         if let Some(s) = pick {
             for (i, o) in outs.iter_mut().enumerate() {
                 if i != s && o.passed {
-                    o.reason = "passes the guard but gains less on validation than the selected effect".into();
+                    o.reason =
+                        "passes the guard but gains less on validation than the selected effect"
+                            .into();
                 }
             }
             let o = outs[s].clone();
@@ -440,9 +442,12 @@ pub fn diagnose(
     }
     let total_steps = step + 1;
     let final_set: Vec<Candidate> = chosen.iter().map(|&k| cands[k].clone()).collect();
-    let unexplained = unexplained::assess(validate, &reference.vres, &reference.vpred, &model_freqs);
+    let unexplained =
+        unexplained::assess(validate, &reference.vres, &reference.vpred, &model_freqs);
     let outcomes = rounds.first().cloned().unwrap_or_default();
-    let selected = outcomes.iter().position(|o| o.passed && chosen.first() == Some(&o.cand_index));
+    let selected = outcomes
+        .iter()
+        .position(|o| o.passed && chosen.first() == Some(&o.cand_index));
     progress(total_steps, total_steps, "done");
     Ok(Diagnosis {
         effect: chosen
@@ -498,7 +503,11 @@ fn check_information(d: &Prepared) -> Result<()> {
             d.name
         );
     }
-    for (name, ch) in [("base_pos_m", &d.base_m), ("tip_pos_m", &d.tip_m), ("force_n", &d.force_n)] {
+    for (name, ch) in [
+        ("base_pos_m", &d.base_m),
+        ("tip_pos_m", &d.tip_m),
+        ("force_n", &d.force_n),
+    ] {
         if let Some(v) = ch {
             if !(span(v) > 0.0) {
                 bail!(
@@ -573,7 +582,14 @@ struct Ctx<'a> {
 
 impl Ctx<'_> {
     fn reference(&self, set: &[&Candidate], f: FitResult) -> Option<Reference> {
-        let prob = fit::Problem::new(self.rig, self.fit_data, self.sigma, self.calib, set, f.x.clone());
+        let prob = fit::Problem::new(
+            self.rig,
+            self.fit_data,
+            self.sigma,
+            self.calib,
+            set,
+            f.x.clone(),
+        );
         let preds = prob.predictions(&f.x)?;
         let res: Vec<_> = self
             .fit_data
@@ -698,8 +714,12 @@ impl Ctx<'_> {
         }
         // a lightly damped servo loop is a resonance of the base motion: the same rule as a mount
         if let (Some(i), Some(j)) = (
-            cand.params.iter().position(|q| q.name == "servo_bandwidth_hz"),
-            cand.params.iter().position(|q| q.name == "servo_damping_ratio"),
+            cand.params
+                .iter()
+                .position(|q| q.name == "servo_bandwidth_hz"),
+            cand.params
+                .iter()
+                .position(|q| q.name == "servo_damping_ratio"),
         ) {
             let (fs, zs, sf) = (f.values[off + i], f.values[off + j], f.std[off + i]);
             if zs < 0.3 {

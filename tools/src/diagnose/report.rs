@@ -60,7 +60,14 @@ pub fn effect_parameters(o: &CandidateOutcome) -> (Vec<(String, f64, f64)>, Opti
 
 /// Every selected effect with its parameters from the final joint fit:
 /// (id, words, parameters, orientation, outcome when it was added).
-pub fn final_effects(d: &Diagnosis) -> Vec<(String, Vec<(String, f64, f64)>, Option<String>, &CandidateOutcome)> {
+pub fn final_effects(
+    d: &Diagnosis,
+) -> Vec<(
+    String,
+    Vec<(String, f64, f64)>,
+    Option<String>,
+    &CandidateOutcome,
+)> {
     let mut off = d.calibration.names.len();
     let mut out = Vec::new();
     for (c, o) in d.final_set.iter().zip(&d.effects) {
@@ -112,7 +119,10 @@ pub fn to_json(d: &Diagnosis) -> Value {
         let mut um = Map::new();
         for (n, v, s) in p {
             pm.insert(n.clone(), json!(v));
-            um.insert(n.clone(), if s.is_finite() { json!(s) } else { Value::Null });
+            um.insert(
+                n.clone(),
+                if s.is_finite() { json!(s) } else { Value::Null },
+            );
         }
         if let Some(o) = orient {
             pm.insert("orientation".into(), json!(o));
@@ -243,7 +253,9 @@ pub fn words(d: &Diagnosis) -> String {
         }
         if id == "servo_lag" {
             if let Some((rms, peak)) = following_error(d) {
-                s += &format!("  following error on validation: rms {rms:.3e} m, peak {peak:.3e} m\n");
+                s += &format!(
+                    "  following error on validation: rms {rms:.3e} m, peak {peak:.3e} m\n"
+                );
             }
         }
         let c = o.best_channel;

@@ -263,7 +263,11 @@ fn coupled_servo(
     let mut v_prev = 0.0;
     for k in 0..n {
         y.push(zv[0]);
-        let v = if k + 1 < n { (r[k + 1] - r[k]) / dt } else { 0.0 };
+        let v = if k + 1 < n {
+            (r[k + 1] - r[k]) / dt
+        } else {
+            0.0
+        };
         // acceleration feed-forward of the velocity step at this sample: an impulse
         let kick = ka * m_tot * (v - v_prev) / m_eff;
         zv[1] += kick;
@@ -287,14 +291,7 @@ fn coupled_servo(
 /// `(m_m + m_b − ΣΓ²) ÿ_r = k (y − y_r) + c (ẏ − ẏ_r) + Σ Γ_j (2ζ_jω_j η̇_j + ω_j² η_j)`,
 /// `η̈_j + 2ζ_jω_j η̇_j + ω_j² η_j = −Γ_j ÿ_r`, k = ω_m² (m_m + m_b), c = 2ζ_m ω_m (m_m + m_b).
 /// Exact for a piecewise-linear y (one matrix exponential).
-fn coupled_mount(
-    y: &[f64],
-    dt: f64,
-    omega: f64,
-    zeta: f64,
-    m_m: f64,
-    c: &BeamCache,
-) -> Vec<f64> {
+fn coupled_mount(y: &[f64], dt: f64, omega: f64, zeta: f64, m_m: f64, c: &BeamCache) -> Vec<f64> {
     let n = y.len();
     let nm = c.omega.len();
     let m_b = c.total_mass - c.base_mass;
@@ -340,7 +337,11 @@ fn coupled_mount(
     let mut out = Vec::with_capacity(n);
     for kk in 0..n {
         out.push(zv[0]);
-        let v = if kk + 1 < n { (y[kk + 1] - y[kk]) / dt } else { 0.0 };
+        let v = if kk + 1 < n {
+            (y[kk + 1] - y[kk]) / dt
+        } else {
+            0.0
+        };
         zv[yi] = y[kk];
         zv[vi] = v;
         zv = &phi * &zv;
@@ -505,7 +506,11 @@ pub fn converged_basis(rig: &Rig, stiffness_scale: f64, band_edge_hz: f64) -> Re
     let mut last = None;
     for n in 4..12 {
         let next = freqs(n + 1)?;
-        let below = prev.iter().take_while(|f| **f < band_edge_hz).count().max(1);
+        let below = prev
+            .iter()
+            .take_while(|f| **f < band_edge_hz)
+            .count()
+            .max(1);
         let rel = (0..below.min(prev.len()))
             .map(|r| (prev[r] - next[r]).abs() / next[r])
             .fold(0.0, f64::max);
@@ -593,12 +598,14 @@ pub fn predict(
             p.mount_mass_kg,
             c,
         ),
-        (Some((f, z)), _) => {
-            second_order(drive, dt, 2.0 * std::f64::consts::PI * f, z, 0.0, 1.0)
-        }
+        (Some((f, z)), _) => second_order(drive, dt, 2.0 * std::f64::consts::PI * f, z, 0.0, 1.0),
         (None, _) => drive.to_vec(),
     };
-    let mount_mass = if p.mount.is_some() { p.mount_mass_kg } else { 0.0 };
+    let mount_mass = if p.mount.is_some() {
+        p.mount_mass_kg
+    } else {
+        0.0
+    };
     let accel = |y: &[f64], k: usize| {
         let vb = if k == 0 { 0.0 } else { (y[k] - y[k - 1]) / dt };
         let va = if k + 1 < n {
@@ -672,7 +679,9 @@ pub fn predict(
                 tip
             };
             out.tip_m = Some(if p.sensor_gain_error != 0.0 {
-                tip.iter().map(|v| (1.0 + p.sensor_gain_error) * v).collect()
+                tip.iter()
+                    .map(|v| (1.0 + p.sensor_gain_error) * v)
+                    .collect()
             } else {
                 tip
             });
@@ -770,10 +779,18 @@ mod tests {
         let c = beam_cache(&rig, &p, d.dt).unwrap();
         let w = 2.0 * std::f64::consts::PI * 40.0;
         let y = coupled_servo(&d.cmd_m, d.dt, w, 0.7, (1.0, 1.0), &c);
-        let e = y.iter().zip(&d.cmd_m).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        let e = y
+            .iter()
+            .zip(&d.cmd_m)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
         assert!(e < 1e-3, "{e}");
         let u = second_order(&d.cmd_m, d.dt, w, 0.7, 0.0, 0.0);
-        let diff = y.iter().zip(&u).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        let diff = y
+            .iter()
+            .zip(&u)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
         assert!(diff > 1e-7 && diff < e.max(1e-6) * 10.0, "{diff} {e}");
     }
 
@@ -781,10 +798,24 @@ mod tests {
     fn fast_filters_are_transparent_and_slow_ones_lag() {
         let rec = move_rec();
         let d = Prepared::new("t", &rec).unwrap();
-        let y = second_order(&d.cmd_m, 0.01, 2.0 * std::f64::consts::PI * 1e4, 0.7, 1.0, 1.0);
+        let y = second_order(
+            &d.cmd_m,
+            0.01,
+            2.0 * std::f64::consts::PI * 1e4,
+            0.7,
+            1.0,
+            1.0,
+        );
         // following error 2ζv/ω = 4.5 µm at 10 kHz bandwidth
         assert!(y.iter().zip(&d.cmd_m).all(|(a, b)| (a - b).abs() < 5e-6));
-        let y = second_order(&d.cmd_m, 0.01, 2.0 * std::f64::consts::PI * 5.0, 0.7, 1.0, 1.0);
+        let y = second_order(
+            &d.cmd_m,
+            0.01,
+            2.0 * std::f64::consts::PI * 5.0,
+            0.7,
+            1.0,
+            1.0,
+        );
         let lag = y
             .iter()
             .zip(&d.cmd_m)

@@ -101,7 +101,11 @@ pub fn assess(
         let m = r.iter().sum::<f64>() / r.len() as f64;
         let centred: Vec<f64> = r.iter().map(|x| x - m).collect();
         let e = rms(&centred);
-        let ratio = if noise > 0.0 { e / noise } else { f64::INFINITY };
+        let ratio = if noise > 0.0 {
+            e / noise
+        } else {
+            f64::INFINITY
+        };
         let q = ljung_box(r, LJUNG_BOX_LAGS);
         if !(q > LJUNG_BOX_CRITICAL && ratio > NOISE_FACTOR) {
             continue;

@@ -271,93 +271,94 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
     }
     // effect strengths
     for effect in parts.iter().copied() {
-    match effect {
-        "base_friction" => {
-            // a few noise σ, and at least 3–8 % of the peak inertial force (below that the
-            // 100 Hz discretisation of the motor force masks it; see docs/diagnose.md)
-            let inertial = (carriage + beam_mass) * spec.accel_m_s2.1;
-            let fc = (rng.gen_range(1.5..4.0) * sensors.force_noise_n)
-                .max(rng.gen_range(0.03..0.08) * inertial);
-            let visc = rng.gen_range(0.0..1.0) * fc / v_typ;
-            plant.friction = Friction {
-                coulomb_n: fc,
-                viscous_n_s_per_m: visc,
-                stribeck_m_s: 2e-3,
-            };
-            truth.insert("friction_n".into(), fc.into());
-            truth.insert("viscous_n_s_per_m".into(), visc.into());
-        }
-        "cogging_ripple" => {
-            let a = rng.gen_range(1.5..4.0) * sensors.force_noise_n * std::f64::consts::SQRT_2;
-            let p = rng.gen_range(0.015..0.05);
-            plant.cogging = Some((a, p, rng.gen_range(0.0..pi2)));
-            truth.insert("cogging_amplitude_n".into(), a.into());
-            truth.insert("cogging_pitch_m".into(), p.into());
-        }
-        "servo_lag" => {
-            let sigma = if has_base {
-                50.0 * sensors.encoder_noise_m
-            } else {
-                sensors.tip_noise_m
-            };
-            let wp = spec.speed_m_s.1 / (rng.gen_range(2.0..6.0) * sigma);
-            let f = (wp / pi2).clamp(3.0, 60.0);
-            plant.servo = Servo {
-                position_bandwidth_hz: f,
-                velocity_bandwidth_hz: (4.0 * f).min(150.0),
-                feedforward: false,
-            };
-            truth.insert("servo_bandwidth_hz".into(), f.into());
-        }
-        "tip_mass" => {
-            let m = rng.gen_range(0.05..0.2) * beam_mass;
-            beam.tip_mass_kg = m;
-            truth.insert("tip_mass_kg".into(), m.into());
-        }
-        "root_compliance" => {
-            let target = 1.0 - rng.gen_range(0.06..0.15);
-            let f0 = f1_hz(&beam)?;
-            let (mut lo, mut hi) = (1e-3f64.ln(), 1e6f64.ln());
-            for _ in 0..50 {
-                let mid = 0.5 * (lo + hi);
-                let f = f1_hz(&FeBeam {
-                    root_stiffness_nm_per_rad: Some(mid.exp()),
-                    ..beam.clone()
-                })?;
-                if f / f0 < target {
-                    lo = mid;
-                } else {
-                    hi = mid;
-                }
+        match effect {
+            "base_friction" => {
+                // a few noise σ, and at least 3–8 % of the peak inertial force (below that the
+                // 100 Hz discretisation of the motor force masks it; see docs/diagnose.md)
+                let inertial = (carriage + beam_mass) * spec.accel_m_s2.1;
+                let fc = (rng.gen_range(1.5..4.0) * sensors.force_noise_n)
+                    .max(rng.gen_range(0.03..0.08) * inertial);
+                let visc = rng.gen_range(0.0..1.0) * fc / v_typ;
+                plant.friction = Friction {
+                    coulomb_n: fc,
+                    viscous_n_s_per_m: visc,
+                    stribeck_m_s: 2e-3,
+                };
+                truth.insert("friction_n".into(), fc.into());
+                truth.insert("viscous_n_s_per_m".into(), visc.into());
             }
-            let kr = (0.5 * (lo + hi)).exp();
-            beam.root_stiffness_nm_per_rad = Some(kr);
-            truth.insert("root_stiffness_nm_per_rad".into(), kr.into());
+            "cogging_ripple" => {
+                let a = rng.gen_range(1.5..4.0) * sensors.force_noise_n * std::f64::consts::SQRT_2;
+                let p = rng.gen_range(0.015..0.05);
+                plant.cogging = Some((a, p, rng.gen_range(0.0..pi2)));
+                truth.insert("cogging_amplitude_n".into(), a.into());
+                truth.insert("cogging_pitch_m".into(), p.into());
+            }
+            "servo_lag" => {
+                let sigma = if has_base {
+                    50.0 * sensors.encoder_noise_m
+                } else {
+                    sensors.tip_noise_m
+                };
+                let wp = spec.speed_m_s.1 / (rng.gen_range(2.0..6.0) * sigma);
+                let f = (wp / pi2).clamp(3.0, 60.0);
+                plant.servo = Servo {
+                    position_bandwidth_hz: f,
+                    velocity_bandwidth_hz: (4.0 * f).min(150.0),
+                    feedforward: false,
+                };
+                truth.insert("servo_bandwidth_hz".into(), f.into());
+            }
+            "tip_mass" => {
+                let m = rng.gen_range(0.05..0.2) * beam_mass;
+                beam.tip_mass_kg = m;
+                truth.insert("tip_mass_kg".into(), m.into());
+            }
+            "root_compliance" => {
+                let target = 1.0 - rng.gen_range(0.06..0.15);
+                let f0 = f1_hz(&beam)?;
+                let (mut lo, mut hi) = (1e-3f64.ln(), 1e6f64.ln());
+                for _ in 0..50 {
+                    let mid = 0.5 * (lo + hi);
+                    let f = f1_hz(&FeBeam {
+                        root_stiffness_nm_per_rad: Some(mid.exp()),
+                        ..beam.clone()
+                    })?;
+                    if f / f0 < target {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                let kr = (0.5 * (lo + hi)).exp();
+                beam.root_stiffness_nm_per_rad = Some(kr);
+                truth.insert("root_stiffness_nm_per_rad".into(), kr.into());
+            }
+            "sensor_delay" => {
+                let tau = (rng.gen_range(2.0..6.0) * sensors.tip_noise_m / spec.speed_m_s.1)
+                    .clamp(0.002, 0.03);
+                plant.sensors.tip_delay_s = tau;
+                truth.insert("sensor_delay_s".into(), tau.into());
+            }
+            "sensor_gain" => {
+                // a camera calibration off by 2–8 % either way
+                let g =
+                    1.0 + rng.gen_range(0.02..0.08) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+                plant.sensors.tip_gain = g;
+                truth.insert("sensor_gain".into(), g.into());
+            }
+            "mount_resonance" => {
+                let f2 = beam.modes(2)?.omega_rad_s[1] / pi2;
+                let fm = (rng.gen_range(1.3..3.0) * f2).clamp(8.0, 0.4 * rate);
+                plant.mount = Some(Mount {
+                    mass_kg: rng.gen_range(0.15..0.4) * carriage,
+                    freq_hz: fm,
+                    zeta: rng.gen_range(0.02..0.1),
+                });
+                truth.insert("mount_frequency_hz".into(), fm.into());
+            }
+            _ => {}
         }
-        "sensor_delay" => {
-            let tau = (rng.gen_range(2.0..6.0) * sensors.tip_noise_m / spec.speed_m_s.1)
-                .clamp(0.002, 0.03);
-            plant.sensors.tip_delay_s = tau;
-            truth.insert("sensor_delay_s".into(), tau.into());
-        }
-        "sensor_gain" => {
-            // a camera calibration off by 2–8 % either way
-            let g = 1.0 + rng.gen_range(0.02..0.08) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-            plant.sensors.tip_gain = g;
-            truth.insert("sensor_gain".into(), g.into());
-        }
-        "mount_resonance" => {
-            let f2 = beam.modes(2)?.omega_rad_s[1] / pi2;
-            let fm = (rng.gen_range(1.3..3.0) * f2).clamp(8.0, 0.4 * rate);
-            plant.mount = Some(Mount {
-                mass_kg: rng.gen_range(0.15..0.4) * carriage,
-                freq_hz: fm,
-                zeta: rng.gen_range(0.02..0.1),
-            });
-            truth.insert("mount_frequency_hz".into(), fm.into());
-        }
-        _ => {}
-    }
     }
     let fine_dt = 1.0 / (rate * FINE_STEPS as f64);
     if with_beam {
