@@ -396,6 +396,27 @@ pub fn diagnose(
         if pool.is_empty() || (round > 0 && t_start.elapsed().as_secs_f64() > 0.8 * TIME_BUDGET_S) {
             break;
         }
+        if round > 0 {
+            // refit the current model alone first, so that a better joint optimum of what is
+            // already chosen is never credited to the next candidate
+            let set: Vec<&Candidate> = chosen.iter().map(|&k| &cands[k]).collect();
+            let f = fit(
+                rig,
+                fit_data,
+                sigma,
+                &calib,
+                &set,
+                Some(&reference.fit.x),
+                budget_left(t_start, pool.len() as f64 + 2.0),
+                false,
+            );
+            evaluations += f.evaluations;
+            if f.cost < reference.fit.cost {
+                if let Some(r) = ctx.reference(&set, f) {
+                    reference = r;
+                }
+            }
+        }
         let mut outs = Vec::new();
         for (j, &ci) in pool.iter().enumerate() {
             let total_steps = step + pool.len() - j + 1;
