@@ -447,15 +447,6 @@ pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
                     1.0,
                     false,
                 ),
-                // a mount is a structural part of the carriage: 5–80 % of its mass (a few grams
-                // on a spring would be a vibration absorber, not a mount)
-                def(
-                    "mount_mass_kg",
-                    Transform::Bounded(0.05 * h.carriage_mass_kg, 0.8 * h.carriage_mass_kg),
-                    vec![0.25 * h.carriage_mass_kg],
-                    1.0,
-                    false,
-                ),
             ],
         });
     }

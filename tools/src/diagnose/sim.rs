@@ -253,7 +253,14 @@ fn coupled_servo(
         a[(qd, q)] -= om * om;
     }
     a[(ri, vi)] = 1.0;
-    let phi = (a * dt).exp();
+    // a parameter set far outside the band (ω dt ≫ 1) or non-finite: refuse (the matrix
+    // exponential's scaling-and-squaring would not end on an infinite norm)
+    let ad = a * dt;
+    let norm = ad.amax();
+    if !(norm.is_finite() && norm < 1e4) {
+        return vec![f64::NAN; n];
+    }
+    let phi = ad.exp();
     if !phi.iter().all(|v| v.is_finite()) {
         return vec![f64::NAN; n];
     }
@@ -328,7 +335,14 @@ fn coupled_mount(y: &[f64], dt: f64, omega: f64, zeta: f64, m_m: f64, c: &BeamCa
         a[(qd, q)] -= om * om;
     }
     a[(yi, vi)] = 1.0;
-    let phi = (a * dt).exp();
+    // a parameter set far outside the band (ω dt ≫ 1) or non-finite: refuse (the matrix
+    // exponential's scaling-and-squaring would not end on an infinite norm)
+    let ad = a * dt;
+    let norm = ad.amax();
+    if !(norm.is_finite() && norm < 1e4) {
+        return vec![f64::NAN; n];
+    }
+    let phi = ad.exp();
     if !phi.iter().all(|v| v.is_finite()) {
         return vec![f64::NAN; n];
     }
