@@ -16,7 +16,6 @@
 //!    saved configuration as it was.
 
 use crate::board::client::BoardClient;
-use crate::ident::freedecay::{identify_free_decay, FreeDecayOptions};
 use crate::ident::ModeEstimate;
 use crate::measures::{measure, percentage_vibration};
 use crate::model::cli::{decimate, SIM_RATE_HZ};
@@ -290,6 +289,29 @@ fn wait_still(board: &mut BoardClient, timeout_s: f64, capture_full: Option<usiz
     }
 }
 
+/// The identified modes and how they were found.
+pub struct IdentifiedModes {
+    /// Physical modes, ascending in frequency, with 1-σ.
+    pub modes: Vec<ModeEstimate>,
+    /// The path taken and why, the mode table, rejected estimates and warnings (text).
+    pub description: String,
+}
+
+/// The identification step: the recording at `path` (CSV, `.npy`, `.lvm` spectrum; a sweep,
+/// a free decay or moves + ring-down, with gaps) → its physical modes
+/// ([`crate::ident::identify::identify_file`] with default options).
+pub fn identify_step(path: &Path) -> Result<IdentifiedModes> {
+    let id = crate::ident::identify::identify_file(
+        path,
+        &crate::ident::IdentifyOptions::default(),
+        &mut |_| {},
+    )?;
+    Ok(IdentifiedModes {
+        description: crate::ident::report::identification_table(&id),
+        modes: id.modes,
+    })
+}
+
 /// `beamtool tune`.
 pub fn tune(a: TuneArgs) -> Result<()> {
     let t0 = std::time::Instant::now();
@@ -310,10 +332,11 @@ pub fn tune(a: TuneArgs) -> Result<()> {
         }
     };
     // 2. Identify.
-    let (t, x, what) = crate::ident::cli::free_decay_of(&rec_path)?;
-    let id = identify_free_decay(&t, &x, &FreeDecayOptions::default())?;
-    println!("2. identified from {what}:");
-    crate::ident::cli::print_result("   ", &id);
+    let id = identify_step(&rec_path)?;
+    println!("2. identified from {}:", rec_path.display());
+    for line in id.description.lines() {
+        println!("   {line}");
+    }
     let modes: Vec<ModeEstimate> = id.modes.iter().take(2).cloned().collect();
     // The board: its step resolution and maximum step rate bound the shaped speed.
     let port = match &a.port {
