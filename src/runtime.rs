@@ -538,6 +538,7 @@ impl State {
 
     /// Next-tick apply: the table by superposition, the step-rate limit and DAC span as they
     /// are. Gives `p` back (nothing changed) if the engine refuses the switch.
+    #[allow(clippy::result_large_err)] // the parameters themselves, handed back to stay pending
     fn apply_now(&mut self, p: RunParams) -> Result<(), RunParams> {
         if *self.engine.taps() != p.taps && self.engine.switch(p.taps.clone()).is_err() {
             return Err(p);

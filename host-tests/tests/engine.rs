@@ -331,3 +331,14 @@ fn stepdir_pass_through_unwraps_the_16_bit_counter_and_shapes_it() {
     assert_eq!(rt.status().setpoint_counts, 150_000_000);
     assert_eq!(rt.step_output().emitted(), 150_000);
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+    /// The engine's cheap rounding equals `roundf` (halves away from zero) in the i32 range.
+    #[test]
+    fn round_f32_matches_roundf(x in -2.1e9f32..2.1e9, frac in prop::sample::select(vec![0.0f32, 0.5, -0.5, 0.49999997, 0.50000006, 0.25])) {
+        for v in [x, x.trunc() + frac, frac, -frac] {
+            prop_assert_eq!(beamshaper::engine::round_f32(v), v.round() as i32, "{}", v);
+        }
+    }
+}
