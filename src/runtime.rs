@@ -272,7 +272,9 @@ impl RuntimeError {
             RuntimeError::Sweep(SweepError::Stroke) => {
                 "position +- amplitude leaves the stroke (+-1000 mm)"
             }
-            RuntimeError::StepRate(_) => "shaped move would exceed the maximum step rate",
+            RuntimeError::StepRate(_) => {
+                "the shaped reference would exceed the maximum step rate (maxrate)"
+            }
             RuntimeError::Switch(SwitchError::Budget { .. }) => {
                 "old and new shaper together would exceed the tap budget of 256 taps per tick; \
                  retry when the running transition has ended"
