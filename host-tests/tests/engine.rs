@@ -218,8 +218,10 @@ fn step_output_accounting_across_negative_positions() {
     assert_eq!((c.pulses, s.emitted(), s.rate_faults()), (27, 25, 1));
 }
 
-/// Changing the shaper during a move: the change waits until the reference has been still
-/// for the old shaper's duration, the setpoint never jumps, and the final position is exact.
+/// Changing the shaper together with the tick rate and numeric path during a move: such a
+/// change waits until the reference has been still for the old shaper's duration (a change of
+/// the shaper alone applies at the next tick: `tests/switch.rs`), the setpoint never jumps,
+/// and the final position is exact.
 #[test]
 fn shaper_change_while_moving_never_jumps() {
     let mut a = Settings::DEFAULT;
