@@ -1,0 +1,177 @@
+//! Planning a move before it is sent: the board's step-rate rule with a margin, the console's
+//! target range, and a capture decimation so the whole move, the shaper's tail and a settling
+//! window fit the board's capture buffer. Nothing here talks to the board: a move that
+//! cannot be captured or that the board would refuse is rejected before any motion starts.
+
+use beamshaper::config::Settings;
+use beamshaper::reference::{MoveError, TrapezoidMove};
+use beamshaper::runtime::{CAPTURE_LEN, HISTORY_LEN};
+use thiserror::Error;
+
+/// Fraction of the board's maximum step rate a planned move may use (5 % margin).
+pub const STEP_RATE_USE: f64 = 0.95;
+/// The console's target range (mm): `move` refuses targets outside ±1000 mm.
+pub const TARGET_LIMIT_MM: f64 = 1000.0;
+/// The console's speed (mm/s) and acceleration (mm/s²) ranges.
+pub const SPEED_LIMIT_MM_S: f64 = 10_000.0;
+/// See [`SPEED_LIMIT_MM_S`].
+pub const ACCEL_LIMIT_MM_S2: f64 = 1.0e6;
+
+/// A planned move.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MovePlan {
+    /// Start and target (mm, absolute board coordinates).
+    pub start_mm: f64,
+    /// Target (mm).
+    pub target_mm: f64,
+    /// Peak speed (mm/s) and acceleration (mm/s²) sent with `move`.
+    pub speed_mm_s: f64,
+    /// Acceleration (mm/s²).
+    pub accel_mm_s2: f64,
+    /// Duration of the reference move (ticks).
+    pub move_ticks: u64,
+    /// Ticks to observe: move + shaper + settling window.
+    pub observe_ticks: u64,
+    /// Capture decimation (`capture <every>`).
+    pub capture_every: u32,
+    /// Shaped peak step rate (steps/s) by the board's rule.
+    pub peak_step_rate_hz: f64,
+}
+
+/// Why a move cannot be planned.
+#[derive(Debug, Error, PartialEq)]
+pub enum PlanError {
+    /// Distance, speed or acceleration unusable.
+    #[error("{0}")]
+    Argument(String),
+    /// The board's settings with this shaper are invalid.
+    #[error("the board cannot run this shaper: {0}")]
+    Shaper(String),
+    /// Shaped peak step rate above the board's limit minus the margin.
+    #[error("the shaped move needs {need:.0} steps/s, more than {pct:.0} % of the board's {max} steps/s; use --speed-mm-s {speed_ok:.1} or less")]
+    StepRate {
+        /// Steps/s the move needs.
+        need: f64,
+        /// Board maximum (steps/s).
+        max: u32,
+        /// Allowed fraction in %.
+        pct: f64,
+        /// Largest speed that fits (mm/s).
+        speed_ok: f64,
+    },
+    /// Too long to capture even at the coarsest decimation.
+    #[error("the move and its settling window last {0:.0} s, longer than the board can capture")]
+    Capture(f64),
+}
+
+/// Plans `start_mm → start_mm + move_mm` on a board running `settings` (the shaper it will
+/// run during the move), observing `settle_s` after the shaped command ends.
+pub fn plan_move(
+    settings: &Settings,
+    start_mm: f64,
+    move_mm: f64,
+    speed_mm_s: f64,
+    accel_mm_s2: f64,
+    settle_s: f64,
+) -> Result<MovePlan, PlanError> {
+    let arg = |m: String| Err(PlanError::Argument(m));
+    let target_mm = start_mm + move_mm;
+    if !move_mm.is_finite() || move_mm.abs() < 1e-3 {
+        return arg(format!(
+            "the verification move must be at least 0.001 mm (got {move_mm} mm): a zero move has no residual vibration to measure"
+        ));
+    }
+    if !(target_mm.abs() <= TARGET_LIMIT_MM) {
+        return arg(format!(
+            "the verification move would end at {target_mm:.3} mm, outside the board's ±{TARGET_LIMIT_MM} mm"
+        ));
+    }
+    if !(speed_mm_s > 0.0 && speed_mm_s <= SPEED_LIMIT_MM_S) {
+        return arg(format!(
+            "speed must be > 0 and ≤ {SPEED_LIMIT_MM_S} mm/s (got {speed_mm_s})"
+        ));
+    }
+    if !(accel_mm_s2 > 0.0 && accel_mm_s2 <= ACCEL_LIMIT_MM_S2) {
+        return arg(format!(
+            "acceleration must be > 0 and ≤ {ACCEL_LIMIT_MM_S2} mm/s² (got {accel_mm_s2})"
+        ));
+    }
+    let taps = settings
+        .tap_table(HISTORY_LEN)
+        .map_err(|e| PlanError::Shaper(e.to_string()))?;
+    let tick_hz = settings.tick_rate_hz as f64;
+    let nm = |mm: f64| (mm * 1e6).round() as i32;
+    let mv = TrapezoidMove::new(
+        nm(start_mm),
+        nm(target_mm),
+        (speed_mm_s * 1e6) as f32,
+        (accel_mm_s2 * 1e6) as f32,
+        tick_hz as f32,
+    )
+    .map_err(|e| {
+        PlanError::Argument(
+            match e {
+                MoveError::Profile => "speed or acceleration not usable",
+                MoveError::Range => "target outside the board's position range",
+                MoveError::TooLong => "the move would take more than 2^32 ticks",
+            }
+            .to_string(),
+        )
+    })?;
+    // The board's rule (runtime::start_move): peak reference speed × Σ|w| / step size.
+    let per_speed = taps.abs_weight_sum() as f64 / settings.step_nm as f64;
+    let need = mv.peak_speed() as f64 * per_speed;
+    let max = settings.max_step_rate_hz;
+    if need > STEP_RATE_USE * max as f64 {
+        return Err(PlanError::StepRate {
+            need,
+            max,
+            pct: 100.0 * STEP_RATE_USE,
+            speed_ok: (STEP_RATE_USE * max as f64 / per_speed * 1e-6 * 0.999 * 10.0).floor() / 10.0,
+        });
+    }
+    let move_ticks = mv.duration_ticks() as u64;
+    let observe_ticks =
+        move_ticks + taps.duration_ticks() as u64 + (settle_s.max(0.0) * tick_hz).ceil() as u64;
+    let every = observe_ticks.div_ceil(CAPTURE_LEN as u64 - 16).max(1);
+    if every > 10_000 {
+        return Err(PlanError::Capture(observe_ticks as f64 / tick_hz));
+    }
+    Ok(MovePlan {
+        start_mm,
+        target_mm,
+        speed_mm_s,
+        accel_mm_s2,
+        move_ticks,
+        observe_ticks,
+        capture_every: every as u32,
+        peak_step_rate_hz: need,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_speed_has_no_margin_and_is_refused_with_a_speed_that_fits() {
+        let s = Settings::DEFAULT;
+        let e = plan_move(&s, 0.0, 50.0, 200.0, 2000.0, 5.0).unwrap_err();
+        let PlanError::StepRate { speed_ok, .. } = e else {
+            panic!("{e}")
+        };
+        assert!(speed_ok < 190.0 && speed_ok > 180.0, "{speed_ok}");
+        assert!(plan_move(&s, 0.0, 50.0, speed_ok, 2000.0, 5.0).is_ok());
+    }
+
+    #[test]
+    fn bad_moves_are_refused_and_slow_moves_are_decimated_to_fit_the_capture() {
+        let s = Settings::DEFAULT;
+        assert!(plan_move(&s, 0.0, 0.0, 100.0, 2000.0, 5.0).is_err());
+        assert!(plan_move(&s, 0.0, 2000.0, 100.0, 2000.0, 5.0).is_err());
+        assert!(plan_move(&s, 0.0, 50.0, 0.0, 2000.0, 5.0).is_err());
+        let p = plan_move(&s, 0.0, -50.0, 100.0, 1.0, 5.0).unwrap();
+        assert!(p.capture_every > 1);
+        assert!(p.observe_ticks / p.capture_every as u64 <= CAPTURE_LEN as u64);
+    }
+}
