@@ -118,7 +118,9 @@ impl core::fmt::Display for ConfigError {
             ConfigError::Shaper(e) => f.write_str(e.message()),
             ConfigError::Taps(TapError::TooLong { duration_s, max_s }) => write!(
                 f,
-                "shaper lasts {duration_s:.4} s, the buffer holds {max_s:.4} s at this tick rate"
+                "shaper lasts {} s, the buffer holds {} s at this tick rate",
+                crate::console::Num(*duration_s, 4),
+                crate::console::Num(*max_s, 4)
             ),
             ConfigError::Taps(TapError::TickRate) => f.write_str("tick rate invalid"),
             ConfigError::Taps(TapError::AmplitudeRange) => {
@@ -200,8 +202,17 @@ impl Settings {
 
     /// Validates everything and returns the tap table for a history of `history_len`
     /// samples at the settings' tick rate.
+    ///
+    /// Errors also when a set mode's natural frequency is at or above the tick's Nyquist
+    /// frequency (tick rate / 2): the tick cannot represent it, the shaper would be meaningless.
     pub fn tap_table(&self, history_len: usize) -> Result<TapTable, ConfigError> {
         self.validate()?;
+        let nyquist_hz = 0.5 * self.tick_rate_hz as f64;
+        if self.modes.iter().flatten().any(|m| !(m.freq_hz < nyquist_hz)) {
+            return Err(ConfigError::Range(
+                "mode frequency (must be below the tick's Nyquist frequency, tick rate / 2)",
+            ));
+        }
         let s = self.shaper()?;
         TapTable::from_shaper(&s, self.tick_rate_hz as f64, history_len).map_err(ConfigError::Taps)
     }

@@ -1,9 +1,10 @@
 //! The operator's serial console: line assembly, parsing and execution (no heap, no panic).
 //!
-//! Protocol (115200 8N1, lines end in `\n` or `\r\n`): every command gets one or more reply
-//! lines; informational lines start with `# `, and the **last line** is either
+//! Protocol (115200 8N1, lines end in `\n`, `\r` or `\r\n`): every line, an empty one too,
+//! gets one or more reply lines; informational lines start with `# `, and the **last line** is either
 //! `ok <command> [key=value …]` or `err <code>: <message>`. Codes: `unknown`, `syntax`,
-//! `range`, `shaper`, `too-long`, `busy`, `source`, `step-rate`, `garbage`, `line-too-long`,
+//! `range`, `shaper`, `too-long`, `busy`, `source`, `step-rate`, `budget`, `garbage`,
+//! `line-too-long`,
 //! `storage`, `corrupt`. On `err` nothing changes.
 //!
 //! Parameter changes are validated and their shaper is designed here, in thread context;
@@ -12,6 +13,7 @@
 
 use crate::config::{ModeSetting, Settings, Source, MAX_CUSTOM_IMPULSES, MAX_MODES};
 use crate::engine::NumericPath;
+use crate::reference::SweepKind;
 use crate::runtime::{RunParams, Runtime};
 use crate::shaper::{residual_vibration, Impulse, ShaperKind};
 use core::fmt::Write;
@@ -29,11 +31,13 @@ pub enum LineError {
     TooLong,
 }
 
-/// Assembles bytes into lines. `\r` and `\n` both terminate; empty lines are skipped.
+/// Assembles bytes into lines. `\n`, `\r` and `\r\n` each end one line; an empty line is a
+/// line too (it gets a reply, like every line).
 #[derive(Clone, Debug, Default)]
 pub struct LineBuffer {
     buf: Line,
     overflow: bool,
+    after_cr: bool,
 }
 
 impl LineBuffer {
@@ -42,22 +46,23 @@ impl LineBuffer {
         LineBuffer {
             buf: heapless::Vec::new(),
             overflow: false,
+            after_cr: false,
         }
     }
 
     /// Feeds one byte; returns a complete line (or an over-long-line error) at a terminator.
     pub fn push(&mut self, byte: u8) -> Option<Result<Line, LineError>> {
+        let after_cr = core::mem::replace(&mut self.after_cr, byte == b'\r');
+        if byte == b'\n' && after_cr {
+            return None; // the `\n` of a `\r\n`
+        }
         if byte == b'\n' || byte == b'\r' {
             let overflow = core::mem::replace(&mut self.overflow, false);
             let line = core::mem::take(&mut self.buf);
             if overflow {
                 return Some(Err(LineError::TooLong));
             }
-            return if line.is_empty() {
-                None
-            } else {
-                Some(Ok(line))
-            };
+            return Some(Ok(line));
         }
         if !self.overflow && self.buf.push(byte).is_err() {
             self.overflow = true;
@@ -106,7 +111,8 @@ const HELP: &[&str] = &[
     "help | status | shaper | config",
     "mode <1-4> <zv|zvd|zvdd|zvddd|mzv|ei|2hei|3hei|umzv> <freq_hz> <zeta> [v_tol]",
     "clear <1-4|all> | custom <a>@<t_s> ... | custom clear | shaping on|off | path fixed|f32",
-    "move <target_mm> [speed_mm_s] [accel_mm_s2] | zero | speed <mm_s> | accel <mm_s2>",
+    "move <target_mm> [speed_mm_s] [accel_mm_s2] | stop | zero | speed <mm_s> | accel <mm_s2>",
+    "sweep lin|exp <f0_hz> <f1_hz> <amplitude_mm> <duration_s>   (about the present position)",
     "rate <tick_hz> | step <nm_per_step> | maxrate <steps_per_s> | input <nm_per_count>",
     "source internal|stepdir | save | load | defaults",
     "capture <every_n_ticks> | dump <first> <count<=32>   (setpoints in nm)",
@@ -172,6 +178,7 @@ impl Console {
         };
         let mut words = text.split_ascii_whitespace();
         let Some(cmd) = words.next() else {
+            let _ = writeln!(out, "err syntax: empty line (try help)");
             return Action::None;
         };
         let mut args: heapless::Vec<&str, 24> = heapless::Vec::new();
@@ -182,6 +189,14 @@ impl Console {
             }
         }
         let mut action = Action::None;
+        let takes_no_args = matches!(
+            cmd,
+            "help" | "status" | "shaper" | "config" | "zero" | "defaults" | "save" | "load" | "stop"
+        );
+        if takes_no_args && !args.is_empty() {
+            let _ = writeln!(out, "err syntax: {cmd} takes no arguments");
+            return Action::None;
+        }
         let r = match cmd {
             "help" => self.help(out),
             "status" => self.status(rt, out),
@@ -196,6 +211,8 @@ impl Console {
             "speed" | "accel" => self.cmd_motion_default(cmd, &args, out),
             "source" => self.cmd_source(&args, rt, out),
             "move" => self.cmd_move(&args, rt, out),
+            "sweep" => self.cmd_sweep(&args, rt, out),
+            "stop" => self.cmd_stop(&args, rt, out),
             "capture" => self.cmd_capture(&args, rt, out),
             "dump" => self.cmd_dump(&args, rt, out),
             "zero" => rt
@@ -206,16 +223,12 @@ impl Console {
                 }),
             "defaults" => self.commit(Settings::DEFAULT, rt, out, "defaults"),
             "save" | "load" => {
-                if !args.is_empty() {
-                    Err(CmdErr("syntax", "save/load take no arguments"))
+                action = if cmd == "save" {
+                    Action::Save
                 } else {
-                    action = if cmd == "save" {
-                        Action::Save
-                    } else {
-                        Action::Load
-                    };
-                    Ok(())
-                }
+                    Action::Load
+                };
+                Ok(())
             }
             _ => Err(CmdErr("unknown", "unknown command (try help)")),
         };
@@ -258,6 +271,9 @@ impl Console {
     }
 
     /// Validates `new`, designs its taps and hands them to the runtime; then adopts `new`.
+    /// The modes and custom list are validated even while shaping is off (so that a later
+    /// `shaping on` cannot fail on them). The reply says when the change applies
+    /// (`applies=next-tick` or `applies=when-still waiting=<what>`).
     fn commit(
         &mut self,
         new: Settings,
@@ -265,20 +281,52 @@ impl Console {
         out: &mut impl Write,
         what: &str,
     ) -> CmdResult {
-        let params = RunParams::from_settings(&new).map_err(|e| {
+        let config_err = |e: crate::config::ConfigError, out: &mut dyn Write| {
             if let crate::config::ConfigError::Taps(_) = e {
                 let _ = writeln!(out, "# {e} ({} Hz)", new.tick_rate_hz);
             }
             CmdErr(e.code(), config_message(&e))
-        })?;
+        };
+        if !new.shaping_enabled {
+            let mut on = new.clone();
+            on.shaping_enabled = true;
+            on.tap_table(crate::runtime::HISTORY_LEN)
+                .map_err(|e| config_err(e, out))?;
+        }
+        let params = RunParams::from_settings(&new).map_err(|e| config_err(e, out))?;
         let taps = params.taps.taps().len();
         let dur = params.taps.duration_ticks();
-        rt.with(|r| r.request(params));
+        let applies = rt.with(|r| {
+            let in_flight = r.engine().taps_in_flight();
+            r.request(params).map_err(|e| (e, in_flight))
+        });
+        let applies = match applies {
+            Ok(a) => a,
+            Err((e, in_flight)) => {
+                if let crate::runtime::RuntimeError::Switch(_) = e {
+                    let _ = writeln!(
+                        out,
+                        "# transition would run {} + {taps} taps per tick; the budget is {} \
+                         (at most {} shapers in flight)",
+                        in_flight,
+                        crate::engine::TAP_BUDGET,
+                        crate::engine::MAX_STAGES
+                    );
+                }
+                return Err(CmdErr(e.code(), e.message()));
+            }
+        };
         self.settings = new;
-        let _ = writeln!(
+        let _ = write!(
             out,
-            "ok {what} taps={taps} duration_ticks={dur} applies=when-still"
+            "ok {what} taps={taps} duration_ticks={dur} applies={}",
+            applies.name()
         );
+        if applies == crate::runtime::Applies::WhenStill {
+            let w = rt.with(|r| r.status().waiting);
+            let _ = write!(out, " waiting={}", w.names());
+        }
+        let _ = writeln!(out);
         Ok(())
     }
 
@@ -295,14 +343,17 @@ impl Console {
         let _ = writeln!(
             out,
             "ok status ticks={} reference_mm={} setpoint_mm={} emitted_steps={} moving={} pending={} \
-             still_ticks={} step_rate_faults={} tick_hz={} path={} taps={} duration_ticks={} source={} \
-             shaping={} changes={}",
+             waiting={} stages={} taps_in_flight={} still_ticks={} step_rate_faults={} tick_hz={} \
+             path={} taps={} duration_ticks={} source={} shaping={} changes={}",
             s.ticks,
-            s.reference_counts as f64 * 1e-6,
-            s.setpoint_counts as f64 * 1e-6,
+            Num(s.reference_counts as f64 * 1e-6, 6),
+            Num(s.setpoint_counts as f64 * 1e-6, 6),
             s.emitted_steps,
             s.moving as u8,
             s.pending as u8,
+            s.waiting.names(),
+            s.stages,
+            s.taps_in_flight,
             s.still_ticks,
             s.step_rate_faults,
             s.tick_rate_hz,
@@ -401,8 +452,8 @@ impl Console {
             s.max_step_rate_hz,
             s.input_nm_per_count,
             s.source.name(),
-            s.move_speed_mm_s,
-            s.move_accel_mm_s2,
+            Num(s.move_speed_mm_s as f64, 6),
+            Num(s.move_accel_mm_s2 as f64, 6),
             s.custom.len()
         );
         Ok(())
@@ -677,8 +728,110 @@ impl Console {
         let target = libm::round(target_mm * 1e6) as i32;
         let ticks = rt
             .with(|r| r.start_move(target, (speed * 1e6) as f32, (accel * 1e6) as f32))
-            .map_err(|e| CmdErr(e.code(), e.message()))?;
+            .map_err(|e| runtime_err(e, out))?;
         let _ = writeln!(out, "ok move target_mm={target_mm} ticks={ticks}");
+        Ok(())
+    }
+}
+
+/// A runtime refusal as a console error; a step-rate refusal first names the limit.
+fn runtime_err(e: crate::runtime::RuntimeError, out: &mut impl Write) -> CmdErr {
+    if let crate::runtime::RuntimeError::StepRate(x) = e {
+        let _ = writeln!(
+            out,
+            "# shaped peak {} steps/s > maxrate {} steps/s; reference speed must stay <= {} mm/s",
+            Num(x.shaped_peak_steps_s as f64, 0),
+            x.max_step_rate_hz,
+            Num(x.max_reference_speed_nm_s as f64 * 1e-6, 3),
+        );
+    }
+    CmdErr(e.code(), e.message())
+}
+
+/// A number printed with at most `.1` decimals, trailing zeros removed (`68.04`, not
+/// `68.03999999999999`; `1e-308` as `0`): the console's number format.
+pub struct Num(pub f64, pub usize);
+
+impl core::fmt::Display for Num {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let mut buf: heapless::String<48> = heapless::String::new();
+        let v = self.0;
+        if !v.is_finite() {
+            return write!(f, "{v}");
+        }
+        if v.abs() >= 1e15 {
+            // m·10^e with 1 ≤ |m| < 10, by repeated division (≤ 308 steps, no log table).
+            let (mut m, mut e) = (v, 0u32);
+            while m.abs() >= 10.0 {
+                m /= 10.0;
+                e += 1;
+            }
+            return write!(f, "{}e{e}", Num(m, 3));
+        }
+        if write!(buf, "{:.*}", self.1.min(12), v).is_err() {
+            return write!(f, "{v}");
+        }
+        let mut t: &str = &buf;
+        if t.contains('.') {
+            t = t.trim_end_matches('0').trim_end_matches('.');
+        }
+        if t == "-0" {
+            t = "0";
+        }
+        f.write_str(t)
+    }
+}
+
+impl Console {
+    fn cmd_sweep(
+        &mut self,
+        args: &[&str],
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
+        let [kind, f0, f1, amp, dur] = args else {
+            return Err(CmdErr(
+                "syntax",
+                "sweep lin|exp <f0_hz> <f1_hz> <amplitude_mm> <duration_s>",
+            ));
+        };
+        let kind = match *kind {
+            "lin" => SweepKind::Linear,
+            "exp" => SweepKind::Exponential,
+            _ => return Err(CmdErr("syntax", "sweep kind must be lin or exp")),
+        };
+        let (f0, f1, amp, dur) = (
+            parse_f64(f0)?,
+            parse_f64(f1)?,
+            parse_f64(amp)?,
+            parse_f64(dur)?,
+        );
+        if !(amp > 0.0 && amp <= 1000.0) {
+            return Err(CmdErr("range", "amplitude must be in (0, 1000] mm"));
+        }
+        let ticks = rt
+            .with(|r| r.start_sweep(kind, f0, f1, amp * 1e6, dur))
+            .map_err(|e| runtime_err(e, out))?;
+        let _ = writeln!(
+            out,
+            "ok sweep kind={} f0_hz={} f1_hz={} amplitude_mm={} ticks={ticks}",
+            kind.name(),
+            Num(f0, 6),
+            Num(f1, 6),
+            Num(amp, 6)
+        );
+        Ok(())
+    }
+
+    fn cmd_stop(
+        &mut self,
+        args: &[&str],
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
+        let _ = args;
+        let ticks = rt.with(|r| r.stop());
+        let _ = writeln!(out, "ok stop ticks_to_rest={ticks}");
         Ok(())
     }
 }

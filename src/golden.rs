@@ -124,5 +124,52 @@ pub fn write_golden(out: &mut impl Write) -> Result {
         }
         writeln!(out, " hash={h:016x}")?;
     }
+    // A shaper change mid-move (superposition, both paths) and a sine sweep through it.
+    for path in [NumericPath::Fixed, NumericPath::F32] {
+        let zvd = |f: f64| {
+            Some(ModeSetting {
+                kind: ShaperKind::Zvd,
+                freq_hz: f,
+                zeta: 0.0074,
+            })
+        };
+        let mut a = Settings::DEFAULT;
+        a.modes[0] = zvd(1.0);
+        a.modes[1] = zvd(6.5);
+        a.path = path;
+        a.max_step_rate_hz = 2_000_000;
+        let mut b = a.clone();
+        b.modes[0] = Some(ModeSetting {
+            kind: ShaperKind::Zvdd,
+            freq_hz: 1.1,
+            zeta: 0.0074,
+        });
+        b.modes[1] = zvd(6.9);
+        let (Ok(pa), Ok(pb)) = (RunParams::from_settings(&a), RunParams::from_settings(&b)) else {
+            writeln!(out, "switch err")?;
+            continue;
+        };
+        let mut rt = Runtime::new();
+        rt.configure_at_boot(pa.clone(), 0);
+        let mut h = 0xcbf2_9ce4_8422_2325u64;
+        write!(out, "switch path={}", path.name())?;
+        let _ = rt.start_move(80_000_000, 2.0e8, 2.0e9);
+        for k in 0..6000u32 {
+            if k == 250 && rt.request(pb.clone()).is_err() {
+                write!(out, " refused")?;
+            }
+            if k == 3000 {
+                let _ = rt.request(pa.clone());
+                let _ = rt.start_sweep(crate::reference::SweepKind::Exponential, 0.5, 9.0, 3.0e6, 2.5);
+            }
+            let o = rt.tick(&TickInput::default());
+            h = fnv(h, o.setpoint_counts);
+            h = fnv(h, o.step.pulses as i32);
+            if k % 250 == 0 {
+                write!(out, " {}", o.setpoint_counts)?;
+            }
+        }
+        writeln!(out, " final={} hash={h:016x}", rt.status().setpoint_counts)?;
+    }
     writeln!(out, "end")
 }

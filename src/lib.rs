@@ -6,7 +6,7 @@
 //! - [`shaper`]: input-shaper design (paper §4, eqs. 30–32, and the wider literature),
 //!   multi-mode convolution and the percentage residual vibration.
 #![no_std]
-#![forbid(unsafe_code)]
+#![deny(unsafe_code)]
 
 pub mod config;
 pub mod console;

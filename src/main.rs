@@ -50,16 +50,24 @@ const TIMER_CLOCK_HZ: u32 = 170_000_000;
 /// (read-while-write); the whole-flash `Flash` driver erases without a critical section.
 const SETTINGS_FLASH: core::ops::Range<u32> = (512 - 16) * 1024..512 * 1024;
 
-/// The interrupt-owned state, shared with the console through a critical section.
-static RUNTIME: Mutex<CriticalSectionRawMutex, RefCell<Runtime>> =
-    Mutex::new(RefCell::new(Runtime::new()));
+/// Storage of the runtime: uninitialised, so it sits in `.bss` (its 80 KiB of buffers are
+/// never an image in flash); [`Runtime::init_in_place`] initialises it where it is, at boot.
+static RUNTIME_CELL: StaticCell<Runtime> = StaticCell::new();
+
+/// The interrupt-owned state, shared with the console through a critical section. `None`
+/// only before boot has initialised it (the tick interrupt is enabled after that).
+static RUNTIME: Mutex<CriticalSectionRawMutex, RefCell<Option<&'static mut Runtime>>> =
+    Mutex::new(RefCell::new(None));
 
 /// The console's handle on [`RUNTIME`].
 struct Shared;
 
 impl RuntimeAccess for Shared {
     fn with<T>(&mut self, f: impl FnOnce(&mut Runtime) -> T) -> T {
-        RUNTIME.lock(|r| f(&mut r.borrow_mut()))
+        RUNTIME.lock(|r| match r.borrow_mut().as_deref_mut() {
+            Some(rt) => f(rt),
+            None => defmt::panic!("runtime used before boot initialised it"),
+        })
     }
 }
 
@@ -142,7 +150,10 @@ fn TIM6_DAC() {
         stepdir_count: pac::TIM4.cnt().read().cnt() as u16,
     };
     RUNTIME.lock(|r| {
-        let mut rt = r.borrow_mut();
+        let mut guard = r.borrow_mut();
+        let Some(rt) = guard.as_deref_mut() else {
+            return;
+        };
         let before = rt.tick_rate_hz();
         let out = rt.tick(&input);
         let after = rt.tick_rate_hz();
@@ -253,10 +264,12 @@ async fn main(_spawner: Spawner) {
         BlockingAsync::new(Flash::new_blocking(p.FLASH));
     let mut sbuf = [0u8; STORAGE_BUFFER_BYTES];
     let loaded = load_settings(&mut flash, SETTINGS_FLASH, &mut sbuf).await;
+    let rt = Runtime::init_in_place(RUNTIME_CELL.uninit());
+    RUNTIME.lock(|r| *r.borrow_mut() = Some(rt));
     let stepdir_now = pac::TIM4.cnt().read().cnt() as u16;
     let mut console = Console::boot(loaded, &mut Shared, stepdir_now, &mut UartOut(&mut tx));
     init_timers();
-    set_tick_rate(RUNTIME.lock(|r| r.borrow().tick_rate_hz()));
+    set_tick_rate(Shared.with(|r| r.tick_rate_hz()));
     // The tick pre-empts the console UART and the embassy time driver (TIM15).
     interrupt::LPUART1.set_priority(Priority::P1);
     interrupt::TIM1_BRK_TIM15.set_priority(Priority::P1);

@@ -1,66 +1,10 @@
 //! The serial console: replies, errors that change nothing, and random lines (proptest).
 
 use beamshaper::config::Settings;
-use beamshaper::console::{Action, Console, LineBuffer, LineError, LINE_MAX};
-use beamshaper::runtime::{Runtime, TickInput};
+use beamshaper::console::{Action, LineBuffer, LineError, LINE_MAX};
+use beamshaper::runtime::TickInput;
+use beamshaper_host_tests::Board;
 use proptest::prelude::*;
-
-struct Board {
-    rt: Box<Runtime>,
-    console: Console,
-}
-
-impl Board {
-    fn new() -> Self {
-        let mut rt = Box::new(Runtime::new());
-        let mut boot = String::new();
-        let console = Console::boot::<&str>(Ok(None), &mut *rt, 0, &mut boot);
-        assert!(boot.contains("no saved settings, using defaults"), "{boot}");
-        Board { rt, console }
-    }
-
-    fn cmd(&mut self, line: &str) -> (String, Action) {
-        let mut out = String::new();
-        let a = self
-            .console
-            .handle_line(line.as_bytes(), &mut *self.rt, &mut out);
-        (out, a)
-    }
-
-    fn ok(&mut self, line: &str) -> String {
-        let (out, _) = self.cmd(line);
-        let last = out.lines().last().unwrap_or("");
-        assert!(last.starts_with("ok "), "`{line}` -> {out}");
-        out
-    }
-
-    fn err(&mut self, line: &str, code: &str) {
-        let before = (
-            self.console.settings().clone(),
-            self.rt.pending().cloned(),
-            self.rt.status(),
-        );
-        let (out, a) = self.cmd(line);
-        let last = out.lines().last().unwrap_or("");
-        assert!(
-            last.starts_with(&format!("err {code}:")),
-            "`{line}` -> {out}"
-        );
-        assert_eq!(a, Action::None);
-        let after = (
-            self.console.settings().clone(),
-            self.rt.pending().cloned(),
-            self.rt.status(),
-        );
-        assert_eq!(before, after, "state changed on err for `{line}`");
-    }
-
-    fn run(&mut self, ticks: usize) {
-        for _ in 0..ticks {
-            self.rt.tick(&TickInput::default());
-        }
-    }
-}
 
 #[test]
 fn set_show_and_move() {
@@ -189,9 +133,14 @@ fn line_buffer_handles_crlf_and_overlong_lines() {
             lines.push(l.map(|l| String::from_utf8(l.to_vec()).unwrap()));
         }
     }
+    // `\r\n` ends one line; the empty line between is a line (it gets a reply).
     assert_eq!(
         lines,
-        vec![Ok("status".to_string()), Ok("help".to_string())]
+        vec![
+            Ok("status".to_string()),
+            Ok(String::new()),
+            Ok("help".to_string())
+        ]
     );
     for _ in 0..LINE_MAX + 10 {
         assert!(lb.push(b'a').is_none());

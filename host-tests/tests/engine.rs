@@ -246,7 +246,7 @@ fn shaper_change_while_moving_never_jumps() {
     let old_duration = rt.status().duration_ticks as u64;
     for k in 0..10_000u64 {
         if k == 100 {
-            rt.request(RunParams::from_settings(&b).unwrap());
+            rt.request(RunParams::from_settings(&b).unwrap()).unwrap();
         }
         let out = rt.tick(&TickInput::default());
         max_step = max_step.max((out.setpoint_counts as i64 - prev as i64).abs());

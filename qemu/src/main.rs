@@ -19,7 +19,8 @@ use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hio};
 
-static mut RT: Runtime = Runtime::new();
+/// The runtime in `.bss`, initialised in place as the firmware does.
+static mut RT: core::mem::MaybeUninit<Runtime> = core::mem::MaybeUninit::zeroed();
 
 #[entry]
 fn main() -> ! {
@@ -93,8 +94,11 @@ fn main() -> ! {
     loop {}
 }
 
-/// Prints the mean instructions per tick over 1000 ticks of a 0 → 50 mm move (50 mm/s,
-/// 500 mm/s²: the reference and the shaped setpoint both move during all of them).
+/// Prints the mean instructions per tick over 1000 ticks of a 0 → 100 mm move (50 mm/s,
+/// 500 mm/s²: the reference and the shaped setpoint both move during all of them), started
+/// once the runtime has been still for the shaper's duration after boot (steady state), and
+/// then over 1000 ticks of the same move with the shaper changed mid-move (the transition:
+/// the old and the new table both run, see `beamshaper::engine`).
 fn tick_cost(buf: &mut Buffered<'_>, label: &str, s: &Settings) {
     let p = match RunParams::from_settings(s) {
         Ok(p) => p,
@@ -106,31 +110,53 @@ fn tick_cost(buf: &mut Buffered<'_>, label: &str, s: &Settings) {
     let taps = p.taps.taps().len();
     // SAFETY: single-threaded bare-metal program, no interrupts touch RT.
     #[allow(static_mut_refs)]
-    let rt = unsafe { &mut RT };
-    *rt = Runtime::new();
+    let rt = Runtime::init_in_place(unsafe { &mut RT });
     rt.configure_at_boot(p, 0);
-    if rt.start_move(50_000_000, 5.0e7, 5.0e8).is_err() {
+    for _ in 0..=rt.engine().settle_ticks() {
+        rt.tick(&TickInput::default());
+    }
+    if rt.start_move(100_000_000, 5.0e7, 5.0e8).is_err() {
         let _ = writeln!(buf, "tick-cost {label} move-err");
         return;
     }
     for _ in 0..50 {
         rt.tick(&TickInput::default());
     }
-    let n = 1000u32;
+    let (counts, moving) = measure(rt, 1000);
+    let _ = writeln!(
+        buf,
+        "tick-cost {label} path={} taps={taps} ticks=1000 moving={moving} systick_counts={counts} instructions_per_tick~{}",
+        s.path.name(),
+        counts as u64 * 40 / 1000
+    );
+    // The same shaper 3 % lower in frequency, switched in mid-move.
+    let mut t = s.clone();
+    for m in t.modes.iter_mut().flatten() {
+        m.freq_hz *= 0.97;
+    }
+    let switched = RunParams::from_settings(&t).map(|q| rt.request(q));
+    rt.tick(&TickInput::default());
+    let stages = rt.status().stages;
+    let in_flight = rt.status().taps_in_flight;
+    let (counts, moving) = measure(rt, 1000);
+    let _ = writeln!(
+        buf,
+        "tick-cost {label} path={} transition taps_in_flight={in_flight} stages={stages} ticks=1000 moving={moving} accepted={} systick_counts={counts} instructions_per_tick~{}",
+        s.path.name(),
+        matches!(switched, Ok(Ok(_))),
+        counts as u64 * 40 / 1000
+    );
+    buf.flush();
+}
+
+/// SysTick counts of `n` ticks, and whether the move still runs after them.
+fn measure(rt: &mut Runtime, n: u32) -> (u32, bool) {
     let t0 = cortex_m::peripheral::SYST::get_current();
     for _ in 0..n {
         core::hint::black_box(rt.tick(core::hint::black_box(&TickInput::default())));
     }
     let t1 = cortex_m::peripheral::SYST::get_current();
-    let moving = rt.status().moving;
-    let counts = t0.wrapping_sub(t1) & 0x00ff_ffff;
-    let _ = writeln!(
-        buf,
-        "tick-cost {label} path={} taps={taps} ticks={n} moving={moving} systick_counts={counts} instructions_per_tick~{}",
-        s.path.name(),
-        counts as u64 * 40 / n as u64
-    );
-    buf.flush();
+    (t0.wrapping_sub(t1) & 0x00ff_ffff, rt.status().moving)
 }
 
 fn fail() -> ! {

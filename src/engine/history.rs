@@ -1,37 +1,30 @@
-//! Ring buffer of past reference samples (integer counts).
+//! Ring buffer of past reference samples (integer counts), newest first.
+//!
+//! The buffer is a plain `[i32; N]` (N a power of two) owned by the caller, so that the
+//! firmware can keep it in `.bss` and initialise it in place (see [`crate::runtime`]). Samples
+//! are stored in *descending* index order: the newest sample is at `head`, the one `d` ticks
+//! older at `(head + d) mod N`. A window of delays `0..lim` with `lim = N − head` is therefore
+//! one contiguous run `buf[head..]`, and the older delays `lim..N` continue at `buf[0..]`:
+//! a tap table sorted by delay splits into at most two runs, each read without wrapping
+//! (see [`crate::engine`]).
 
-/// The last `N` reference samples, `N` a power of two.
-///
-/// Samples older than the last [`History::reset`] read as the reset value: after a reset the
-/// history behaves as if the reference had been constant forever, in O(1) (no buffer fill
-/// inside the interrupt).
-#[derive(Clone, Debug)]
-pub struct History<const N: usize> {
-    buf: [i32; N],
-    /// Index of the newest sample.
+/// Position of the newest sample in a ring of `N` samples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Ring<const N: usize> {
     head: usize,
-    /// Samples pushed since the last reset (saturates at N).
-    len: usize,
-    /// Value of every sample older than the last reset.
-    fill: i32,
 }
 
-impl<const N: usize> History<N> {
+impl<const N: usize> Ring<N> {
     const POW2: () = assert!(
         N.is_power_of_two() && N >= 2,
         "history length must be a power of two"
     );
 
-    /// A history that reads `fill` everywhere.
-    pub const fn new(fill: i32) -> Self {
+    /// A ring whose newest sample is at index 0.
+    pub const fn new() -> Self {
         #[allow(clippy::let_unit_value)]
         let _ = Self::POW2;
-        History {
-            buf: [0; N],
-            head: 0,
-            len: 0,
-            fill,
-        }
+        Ring { head: 0 }
     }
 
     /// Capacity in samples.
@@ -39,41 +32,34 @@ impl<const N: usize> History<N> {
         N
     }
 
-    /// Forgets the past: every sample reads `value` until new samples are pushed.
-    pub fn reset(&mut self, value: i32) {
-        self.len = 0;
-        self.fill = value;
+    /// Index of the newest sample (always < N).
+    #[inline(always)]
+    pub fn head(&self) -> usize {
+        self.head & (N - 1)
     }
 
     /// Appends the newest sample.
-    #[inline]
-    pub fn push(&mut self, x: i32) {
-        self.head = (self.head + 1) & (N - 1);
-        if let Some(slot) = self.buf.get_mut(self.head) {
-            *slot = x;
-        }
-        if self.len < N {
-            self.len += 1;
-        }
+    #[inline(always)]
+    pub fn push(&mut self, buf: &mut [i32; N], x: i32) {
+        self.head = self.head.wrapping_sub(1) & (N - 1);
+        buf[self.head] = x;
     }
 
-    /// The sample `delay` ticks ago (0 = newest). Delays beyond what was pushed since the
-    /// last reset (or ≥ N) read the reset value. Never panics.
-    #[inline]
-    pub fn get(&self, delay: u32) -> i32 {
-        let d = delay as usize;
-        if d >= self.len {
-            return self.fill;
-        }
-        self.buf
-            .get((self.head + N - d) & (N - 1))
-            .copied()
-            .unwrap_or(self.fill)
+    /// The sample `delay` ticks ago (0 = newest), `delay` taken modulo N. Never panics.
+    #[inline(always)]
+    pub fn get(&self, buf: &[i32; N], delay: u32) -> i32 {
+        buf[(self.head + delay as usize) & (N - 1)]
     }
 
-    /// The newest sample.
-    #[inline]
-    pub fn newest(&self) -> i32 {
-        self.get(0)
+    /// Delays below this limit are stored at `head + delay` (no wrap): `N − head`.
+    #[inline(always)]
+    pub fn unwrapped_limit(&self) -> u32 {
+        (N - self.head()) as u32
+    }
+}
+
+impl<const N: usize> Default for Ring<N> {
+    fn default() -> Self {
+        Self::new()
     }
 }

@@ -62,6 +62,7 @@ pub struct TapTable {
     len: usize,
 }
 
+/// Padding beyond a table's length: delay 0, weight 0.
 const ZERO_TAP: Tap = Tap {
     delay: 0,
     w_q30: 0,
@@ -182,9 +183,30 @@ impl TapTable {
         self.taps.get(..self.len).unwrap_or(&[])
     }
 
-    /// Largest delay (ticks): the shaper's duration on the tick grid, rounded up.
+    /// Largest delay (ticks): the shaper's duration on the tick grid, rounded up. O(1): the
+    /// taps are sorted by strictly increasing delay (an invariant of every constructor).
     pub fn duration_ticks(&self) -> u32 {
-        self.taps().iter().map(|t| t.delay).max().unwrap_or(0)
+        self.taps().last().map(|t| t.delay).unwrap_or(0)
+    }
+
+    /// The taps followed by zero-weight taps (delay 0, weight 0) up to a multiple of four:
+    /// what the engine's four-tap loops read, with no remainder loop. The entries beyond
+    /// `len` are `ZERO_TAP` in every table (both constructors fill the array with it, and
+    /// nothing mutates a table), so they add exactly 0 (fixed) or ±0 (f32) to a sum.
+    #[inline(always)]
+    pub fn taps_padded(&self) -> &[Tap] {
+        let n = (self.len + 3) & !3;
+        self.taps.get(..n).unwrap_or(&self.taps)
+    }
+
+    /// Number of taps.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True for a table without taps (never produced by the constructors).
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
     }
 
     /// Σ|w|: bounds the shaped velocity relative to the reference's.
