@@ -452,8 +452,8 @@ impl Console {
             s.max_step_rate_hz,
             s.input_nm_per_count,
             s.source.name(),
-            Num(s.move_speed_mm_s as f64, 6),
-            Num(s.move_accel_mm_s2 as f64, 6),
+            Num(s.move_speed_mm_s as f64, 4),
+            Num(s.move_accel_mm_s2 as f64, 4),
             s.custom.len()
         );
         Ok(())

@@ -224,3 +224,74 @@ proptest! {
         }
     }
 }
+
+/// The console defects a new user ran into (issue: empty lines, extra arguments, Nyquist,
+/// number formatting, validation while shaping is off, still_ticks before the first move).
+#[test]
+fn every_line_gets_a_reply_and_commands_are_consistent() {
+    let mut b = Board::new();
+    for line in ["", "   ", "\t"] {
+        b.err(line, "syntax");
+    }
+    // Extra arguments are refused alike by every command that takes none.
+    for line in [
+        "status extra",
+        "zero extra",
+        "defaults 1",
+        "save extra",
+        "load x",
+        "help me",
+        "config x",
+        "shaper x",
+        "stop now",
+    ] {
+        b.err(line, "syntax");
+    }
+    // A mode at or above the tick's Nyquist frequency.
+    b.err("mode 1 zvd 5000 0.01", "range");
+    b.err("mode 1 zvd 500 0.01", "range");
+    b.ok("mode 1 zvd 499 0.01");
+    b.ok("clear 1");
+    // An absurd frequency gets a short error, not a 300-digit duration.
+    let (out, _) = b.cmd("mode 1 zvd 1e-308 0.01");
+    assert!(out.lines().last().unwrap().starts_with("err "), "{out}");
+    assert!(out.lines().all(|l| l.len() < 160), "{out}");
+    // Modes are validated when accepted, even while shaping is off.
+    b.ok("shaping off");
+    b.ok("mode 1 zvddd 1.1 0.01");
+    b.ok("mode 2 zvddd 6.9 0.01");
+    b.err("mode 3 zvddd 17.3 0.01", "shaper");
+    b.ok("shaping on");
+}
+
+#[test]
+fn status_before_the_first_move_and_number_formatting() {
+    let mut b = Board::new();
+    b.run(3);
+    let st = b.ok("status");
+    assert!(st.contains("still_ticks=3 "), "{st}");
+    assert!(st.contains("waiting=none") && st.contains("stages=1"), "{st}");
+    b.ok("move 68.04");
+    b.run(3000);
+    let st = b.ok("status");
+    assert!(
+        st.contains("reference_mm=68.04 ") && st.contains("setpoint_mm=68.04 "),
+        "{st}"
+    );
+    b.ok("speed 123.4");
+    let cfg = b.ok("config");
+    assert!(cfg.contains("speed_mm_s=123.4 "), "{cfg}");
+    // A rate change waits for standstill and says so.
+    b.ok("move 0");
+    b.run(10);
+    let out = b.ok("rate 2000");
+    assert!(
+        out.contains("applies=when-still waiting=rate"),
+        "{out}"
+    );
+    let st = b.ok("status");
+    assert!(st.contains("waiting=rate") && st.contains("pending=1"), "{st}");
+    b.run(3000);
+    let st = b.ok("status");
+    assert!(st.contains("tick_hz=2000") && st.contains("waiting=none"), "{st}");
+}

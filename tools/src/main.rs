@@ -58,8 +58,8 @@ struct VboardArgs {
     /// Also create this symlink to the pseudo-terminal (e.g. /tmp/ttyBEAM).
     #[arg(long)]
     link: Option<PathBuf>,
-    /// Run the tick loop this many times faster than real time.
-    #[arg(long, default_value_t = 1.0, value_parser = beamtools::tune::finite_f64)]
+    /// Run the tick loop this many times faster than real time (0.001 to 1000).
+    #[arg(long, default_value_t = 1.0, value_parser = parse_time_scale)]
     time_scale: f64,
     /// Attach a virtual rig (beam of this rig TOML on a servo carriage, camera on the tip)
     /// to the setpoint output; its camera writes --sensor-out.
@@ -134,6 +134,14 @@ fn run(command: Command) -> Result<()> {
         Command::Truth(a) => beamtools::truth::cli::truth(a),
         Command::BenchSim(a) => beamtools::model::bench::bench_sim(a),
     }
+}
+
+fn parse_time_scale(s: &str) -> std::result::Result<f64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number"))?;
+    board::check_time_scale(v)
 }
 
 fn vboard(a: VboardArgs) -> Result<()> {

@@ -96,35 +96,40 @@ impl Recording {
     /// increasing uniform time (within [`UNIFORM_TOLERANCE`]), every channel the same
     /// length as `time_s` and finite. Errors name the row (1-based data row) and column.
     pub fn validate(&self) -> Result<()> {
+        self.validate_gapped()?;
+        let dt = self.sample_interval_s();
+        for (k, w) in self.time_s.windows(2).enumerate() {
+            let d = w[1] - w[0];
+            if (d - dt).abs() > UNIFORM_TOLERANCE * dt {
+                bail!(
+                    "time_s is not uniformly sampled: step {} s at data row {} vs median {} s \
+                     (a gap or jitter; `identify` splits a recording at its gaps)",
+                    fmt_sig(d, 4),
+                    k + 2,
+                    fmt_sig(dt, 4)
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// [`Recording::validate`] without the uniform-step check: a recording with logging gaps
+    /// or jitter (strictly increasing, finite time; finite channels of the same length).
+    pub fn validate_gapped(&self) -> Result<()> {
         let n = self.time_s.len();
         if n < 2 {
             bail!("recording has {n} samples; at least 2 are needed");
         }
-        for (k, t) in self.time_s.iter().enumerate() {
-            if !t.is_finite() {
-                bail!("time_s is not finite at data row {}", k + 1);
-            }
+        if let Some(k) = self.time_s.iter().position(|t| !t.is_finite()) {
+            bail!("time_s is not finite (NaN or inf) at data row {}", k + 1);
         }
-        let dt = self.sample_interval_s();
-        for (k, w) in self.time_s.windows(2).enumerate() {
-            let d = w[1] - w[0];
-            if d <= 0.0 {
-                bail!(
-                    "time_s is not strictly increasing at data row {} ({} -> {})",
-                    k + 2,
-                    w[0],
-                    w[1]
-                );
-            }
-            if (d - dt).abs() > UNIFORM_TOLERANCE * dt {
-                bail!(
-                    "time_s is not uniformly sampled: step {:.6} s at data row {} vs median {:.6} s \
-                     (a gap or jitter; resample the recording first)",
-                    d,
-                    k + 2,
-                    dt
-                );
-            }
+        if let Some(k) = self.time_s.windows(2).position(|w| w[1] <= w[0]) {
+            bail!(
+                "time_s is not strictly increasing at data row {} ({} -> {})",
+                k + 2,
+                self.time_s[k],
+                self.time_s[k + 1]
+            );
         }
         for name in CHANNELS {
             if let Some(ch) = self.channel(name) {
@@ -142,12 +147,26 @@ impl Recording {
         Ok(())
     }
 
-    /// Reads a recording CSV and [validates](Recording::validate) it.
+    /// Reads a recording CSV and [validates](Recording::validate) it (uniform time).
     ///
-    /// Errors: unreadable file, no `time_s` column, a cell that is not a number (row and
+    /// Errors: unreadable file, no time column, a cell that is not a number (row and
     /// column named), a ragged row, non-uniform or non-increasing time, NaN/inf.
     pub fn read_csv(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
+        let rec = Self::read_csv_gapped(path, &mut |_| {})?;
+        rec.validate()
+            .with_context(|| format!("{}: invalid recording", path.display()))?;
+        Ok(rec)
+    }
+
+    /// Reads a recording CSV row by row (memory: the columns only, 8 bytes per value) and
+    /// checks it with [`Recording::validate_gapped`]: logging gaps and jitter are allowed
+    /// (see [`split_at_gaps`]). The time column is `time_s` (seconds) or `time_ms`
+    /// (milliseconds, converted with a note). `progress(rows)` is called every 2²⁰ rows.
+    ///
+    /// Errors: unreadable file, no time column (a `time`/`t` column is refused with the
+    /// hint to name its unit), a cell that is not a number, NaN/inf, non-increasing time.
+    pub fn read_csv_gapped(path: &Path, progress: &mut dyn FnMut(usize)) -> Result<Self> {
         let mut rdr = csv::ReaderBuilder::new()
             .trim(csv::Trim::All)
             .comment(Some(b'#'))
@@ -157,49 +176,93 @@ impl Recording {
             .headers()
             .with_context(|| format!("{}: no header row", path.display()))?
             .clone();
-        let time_col = headers.iter().position(|h| h == "time_s").ok_or_else(|| {
-            anyhow!(
-                "{}: no `time_s` column (header: {:?})",
-                path.display(),
-                headers
-            )
-        })?;
+        let names: Vec<&str> = headers.iter().collect();
+        let (time_col, time_scale) = time_column(&names)
+            .map_err(|e| anyhow!("{}: {e}", path.display()))?;
         let mut rec = Recording::default();
+        if time_scale != 1.0 {
+            rec.notes.push("time column `time_ms` in milliseconds, converted to seconds".into());
+        }
         let mut cols: Vec<(usize, &'static str)> = Vec::new();
-        for (i, h) in headers.iter().enumerate() {
+        for (i, h) in names.iter().enumerate() {
             if i == time_col {
                 continue;
             }
-            if let Some(name) = CHANNELS.iter().find(|c| **c == h) {
+            if let Some(name) = CHANNELS.iter().find(|c| *c == h) {
                 cols.push((i, name));
                 *rec.channel_slot(name).expect("known channel") = Some(Vec::new());
             } else {
                 rec.notes.push(format!("ignored column `{h}`"));
             }
         }
-        for (row, result) in rdr.records().enumerate() {
-            let record =
-                result.with_context(|| format!("{}: data row {}", path.display(), row + 1))?;
+        let mut slots: Vec<Vec<f64>> = vec![Vec::new(); cols.len()];
+        let mut record = csv::ByteRecord::new();
+        let mut row = 0usize;
+        loop {
+            let more = rdr
+                .read_byte_record(&mut record)
+                .map_err(|e| anyhow!("{}: data row {}: {}", path.display(), row + 1, csv_error(&e)))?;
+            if !more {
+                break;
+            }
+            row += 1;
             let cell = |i: usize, name: &str| -> Result<f64> {
-                let s = record
-                    .get(i)
-                    .ok_or_else(|| anyhow!("data row {}: missing column {name}", row + 1))?;
+                let b = record.get(i).ok_or_else(|| {
+                    anyhow!("{}: data row {row}: missing column {name}", path.display())
+                })?;
+                let s = std::str::from_utf8(b).unwrap_or("?");
                 s.parse::<f64>().map_err(|_| {
-                    anyhow!("data row {}, column {name}: `{s}` is not a number", row + 1)
+                    anyhow!(
+                        "{}: data row {row}, column {name}: `{s}` is not a number",
+                        path.display()
+                    )
                 })
             };
-            rec.time_s
-                .push(cell(time_col, "time_s").with_context(|| path.display().to_string())?);
-            for &(i, name) in &cols {
-                let v = cell(i, name).with_context(|| path.display().to_string())?;
-                rec.channel_slot(name)
-                    .and_then(|c| c.as_mut())
-                    .expect("allocated")
-                    .push(v);
+            rec.time_s.push(cell(time_col, names[time_col])? * time_scale);
+            for (slot, &(i, name)) in slots.iter_mut().zip(&cols) {
+                slot.push(cell(i, name)?);
+            }
+            if row % (1 << 20) == 0 {
+                progress(row);
             }
         }
-        rec.validate()
+        for (slot, &(_, name)) in slots.into_iter().zip(&cols) {
+            *rec.channel_slot(name).expect("known channel") = Some(slot);
+        }
+        rec.validate_gapped()
             .with_context(|| format!("{}: invalid recording", path.display()))?;
+        Ok(rec)
+    }
+
+    /// Reads any recording by its extension: `.npy` ([`Recording::read_npy`], the signal
+    /// row as `tip_pos_m` in the unit it was recorded in, with a note) or CSV (any other
+    /// extension, [`Recording::read_csv_gapped`]). Gaps and jitter are kept (see
+    /// [`split_at_gaps`]); a time base in milliseconds is refused with that hint when
+    /// nothing could be identified below its Nyquist frequency (see [`check_time_unit`]).
+    /// LabVIEW `.lvm` files are spectra here: read them with `ident::magspec::read_lvm`.
+    pub fn read_any(path: &Path, progress: &mut dyn FnMut(usize)) -> Result<Self> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("")
+            .to_ascii_lowercase();
+        let rec = if ext == "npy" {
+            let (t, x) = Self::read_npy(path)?;
+            Recording {
+                time_s: t,
+                tip_pos_m: Some(x),
+                notes: vec!["`.npy` [time; signal]: the signal row stands for the tip (unit as recorded)".into()],
+                ..Default::default()
+            }
+        } else if ext == "lvm" {
+            bail!(
+                "{}: a LabVIEW `.lvm` file is read as a magnitude spectrum by `identify`, not as a time recording",
+                path.display()
+            );
+        } else {
+            Self::read_csv_gapped(path, progress)?
+        };
+        check_time_unit(&rec).map_err(|e| anyhow!("{}: {e}", path.display()))?;
         Ok(rec)
     }
 
@@ -225,11 +288,12 @@ impl Recording {
         Ok(())
     }
 
-    /// Reads a NumPy `.npy` float64 array of shape (2, N): row 0 time (s), row 1 a signal.
+    /// Reads a NumPy `.npy` array of shape (2, N) or (N, 2) (float64, float32 or integer):
+    /// row 0 time (s), row 1 a signal.
     /// Returns `(time_s, signal)` as stored: the time base is **not** assumed uniform
     /// (the real accelerometer recordings have logging gaps); see [`resample_uniform`].
     ///
-    /// Errors: not a float64 array, wrong shape, NaN, non-increasing time.
+    /// Errors: not a numeric array, wrong shape, NaN, non-increasing time.
     pub fn read_npy(path: impl AsRef<Path>) -> Result<(Vec<f64>, Vec<f64>)> {
         let path = path.as_ref();
         let bytes =
@@ -238,9 +302,8 @@ impl Recording {
             .with_context(|| format!("{}: not a .npy file", path.display()))?;
         let shape = npy.shape().to_vec();
         let fortran = npy.order() == npyz::Order::Fortran;
-        let data: Vec<f64> = npy
-            .into_vec::<f64>()
-            .with_context(|| format!("{}: expected a float64 array", path.display()))?;
+        let data = npy_values(&bytes)
+            .ok_or_else(|| anyhow!("{}: expected a float or integer array (float64, float32, int8..int64, uint8..uint64)", path.display()))?;
         let (t, x): (Vec<f64>, Vec<f64>) = match shape.as_slice() {
             [2, n] => {
                 let n = *n as usize;
@@ -265,9 +328,9 @@ impl Recording {
                 }
             }
             s => bail!(
-                "{}: expected shape (2, N) [time; signal], got {:?}",
+                "{}: expected shape (2, N) [time; signal], got ({})",
                 path.display(),
-                s
+                s.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(", ")
             ),
         };
         if t.len() < 2 {
@@ -311,4 +374,268 @@ pub fn resample_uniform(t: &[f64], x: &[f64], rate_hz: f64) -> (Vec<f64>, Vec<f6
         xu.push(x[j] + a * (x[j + 1] - x[j]));
     }
     (tu, xu, max_gap)
+}
+
+/// The values of a `.npy` file as f64, whatever its numeric dtype (`None` if not numeric).
+fn npy_values(bytes: &[u8]) -> Option<Vec<f64>> {
+    fn conv<T: npyz::Deserialize + Into<f64>>(bytes: &[u8]) -> Option<Vec<f64>> {
+        let v = npyz::NpyFile::new(bytes).ok()?.into_vec::<T>().ok()?;
+        Some(v.into_iter().map(Into::into).collect())
+    }
+    fn conv64<T: npyz::Deserialize + Copy>(bytes: &[u8], f: fn(T) -> f64) -> Option<Vec<f64>> {
+        let v = npyz::NpyFile::new(bytes).ok()?.into_vec::<T>().ok()?;
+        Some(v.into_iter().map(f).collect())
+    }
+    conv::<f64>(bytes)
+        .or_else(|| conv::<f32>(bytes))
+        .or_else(|| conv64::<i64>(bytes, |v| v as f64))
+        .or_else(|| conv::<i32>(bytes))
+        .or_else(|| conv::<i16>(bytes))
+        .or_else(|| conv::<i8>(bytes))
+        .or_else(|| conv64::<u64>(bytes, |v| v as f64))
+        .or_else(|| conv::<u32>(bytes))
+        .or_else(|| conv::<u16>(bytes))
+        .or_else(|| conv::<u8>(bytes))
+}
+
+/// The time column of a CSV header and its scale to seconds: `time_s` (1) or `time_ms`
+/// (10⁻³). A column named `time` or `t` without a unit is refused with the hint.
+fn time_column(names: &[&str]) -> Result<(usize, f64)> {
+    if let Some(i) = names.iter().position(|h| *h == "time_s") {
+        return Ok((i, 1.0));
+    }
+    if let Some(i) = names.iter().position(|h| *h == "time_ms") {
+        return Ok((i, 1e-3));
+    }
+    if names.iter().any(|h| matches!(h.to_ascii_lowercase().as_str(), "time" | "t" | "timestamp")) {
+        bail!("the time column has no unit: name it `time_s` (seconds) or `time_ms` (milliseconds)");
+    }
+    bail!(
+        "no `time_s` column (header: {})",
+        names.join(", ")
+    )
+}
+
+/// A csv error without Rust debug text.
+fn csv_error(e: &csv::Error) -> String {
+    match e.kind() {
+        csv::ErrorKind::UnequalLengths { expected_len, len, .. } => {
+            format!("{len} fields where the header has {expected_len}")
+        }
+        csv::ErrorKind::Io(e) => e.to_string(),
+        csv::ErrorKind::Utf8 { .. } => "not valid UTF-8 text".into(),
+        _ => e.to_string(),
+    }
+}
+
+/// Lowest frequency (Hz) the identification looks at; a recording whose Nyquist frequency
+/// lies below it has nothing to identify.
+pub const F_MIN_HZ: f64 = 0.2;
+
+/// Refuses a time base that cannot be seconds: a median step so long that the Nyquist
+/// frequency falls below [`F_MIN_HZ`] (a time column in milliseconds read as seconds; a
+/// 100 Hz recording in ms has a "0.1 Hz" sample rate), with the hint to convert it.
+pub fn check_time_unit(rec: &Recording) -> Result<()> {
+    if rec.time_s.len() < 2 {
+        return Ok(());
+    }
+    let rate = rec.sample_rate_hz();
+    if 0.5 * rate < F_MIN_HZ {
+        bail!(
+            "the time steps are {} s (sample rate {} Hz, Nyquist below {F_MIN_HZ} Hz): is the time in milliseconds? \
+             Name the CSV column `time_ms`, or divide the time by 1000",
+            fmt_sig(1.0 / rate, 4),
+            fmt_sig(rate, 3)
+        );
+    }
+    Ok(())
+}
+
+/// `v` with `digits` significant digits, without exponent noise for ordinary magnitudes
+/// (`45.00000000000096` → `45.00`).
+pub fn fmt_sig(v: f64, digits: usize) -> String {
+    if !v.is_finite() {
+        return format!("{v}");
+    }
+    if v == 0.0 {
+        return "0".into();
+    }
+    let mag = v.abs().log10().floor() as i32;
+    if !(-4..=7).contains(&mag) {
+        return format!("{:.*e}", digits.saturating_sub(1), v);
+    }
+    let decimals = (digits as i32 - 1 - mag).max(0) as usize;
+    format!("{v:.decimals$}")
+}
+
+/// A logging gap: `time_s[index] - time_s[index - 1]` is `length_s`, far longer than the
+/// median step.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Gap {
+    /// Index of the first sample after the gap.
+    pub index: usize,
+    /// Time of the last sample before the gap (s).
+    pub start_s: f64,
+    /// Length of the time step over the gap (s).
+    pub length_s: f64,
+}
+
+/// The gaps of a time base: steps longer than `max_step_s`.
+pub fn find_gaps(time_s: &[f64], max_step_s: f64) -> Vec<Gap> {
+    time_s
+        .windows(2)
+        .enumerate()
+        .filter(|(_, w)| w[1] - w[0] > max_step_s)
+        .map(|(k, w)| Gap {
+            index: k + 1,
+            start_s: w[0],
+            length_s: w[1] - w[0],
+        })
+        .collect()
+}
+
+/// Splits `rec` at `gaps` into the clean segments between them (every channel cut alike).
+pub fn split_at_gaps(rec: &Recording, gaps: &[Gap]) -> Vec<Recording> {
+    let mut bounds = vec![0];
+    bounds.extend(gaps.iter().map(|g| g.index));
+    bounds.push(rec.len());
+    bounds
+        .windows(2)
+        .filter(|w| w[1] > w[0])
+        .map(|w| rec.slice(w[0]..w[1]))
+        .collect()
+}
+
+impl Recording {
+    /// The samples in `r`, every channel alike (notes kept).
+    pub fn slice(&self, r: std::ops::Range<usize>) -> Recording {
+        let cut = |c: &Option<Vec<f64>>| c.as_ref().map(|v| v[r.clone()].to_vec());
+        Recording {
+            time_s: self.time_s[r.clone()].to_vec(),
+            base_cmd_m: cut(&self.base_cmd_m),
+            base_pos_m: cut(&self.base_pos_m),
+            tip_pos_m: cut(&self.tip_pos_m),
+            force_n: cut(&self.force_n),
+            notes: self.notes.clone(),
+        }
+    }
+
+    /// The recording on a uniform grid at its median sample rate (linear interpolation of
+    /// every channel; use on a gap-free segment whose steps only jitter).
+    pub fn resampled_uniform(&self) -> Recording {
+        let rate = self.sample_rate_hz();
+        let re = |c: &Option<Vec<f64>>| {
+            c.as_ref()
+                .map(|v| resample_uniform(&self.time_s, v, rate).1)
+        };
+        let (t, _, _) = resample_uniform(&self.time_s, &self.time_s, rate);
+        Recording {
+            time_s: t,
+            base_cmd_m: re(&self.base_cmd_m),
+            base_pos_m: re(&self.base_pos_m),
+            tip_pos_m: re(&self.tip_pos_m),
+            force_n: re(&self.force_n),
+            notes: self.notes.clone(),
+        }
+    }
+
+    /// True when every step is within [`UNIFORM_TOLERANCE`] of the median.
+    pub fn is_uniform(&self) -> bool {
+        let dt = self.sample_interval_s();
+        self.time_s
+            .windows(2)
+            .all(|w| ((w[1] - w[0]) - dt).abs() <= UNIFORM_TOLERANCE * dt)
+    }
+}
+
+/// Anti-aliased decimation by `q`: a Hamming-windowed sinc low-pass (cut-off 0.4 × the new
+/// sample rate, 16 q + 1 taps, unit DC gain, zero phase) evaluated only at the kept samples,
+/// so the work is N × 16 and the memory the output. `q` ≤ 1 returns a copy.
+pub fn decimate_fir(x: &[f64], q: usize) -> Vec<f64> {
+    if q <= 1 {
+        return x.to_vec();
+    }
+    let half = 8 * q;
+    let fc = 0.4 / q as f64; // cycles per input sample
+    let mut h: Vec<f64> = (0..=2 * half)
+        .map(|i| {
+            let k = i as f64 - half as f64;
+            let sinc = if k == 0.0 {
+                2.0 * fc
+            } else {
+                (2.0 * std::f64::consts::PI * fc * k).sin() / (std::f64::consts::PI * k)
+            };
+            let w = 0.54 - 0.46 * (2.0 * std::f64::consts::PI * i as f64 / (2 * half) as f64).cos();
+            sinc * w
+        })
+        .collect();
+    let s: f64 = h.iter().sum();
+    h.iter_mut().for_each(|v| *v /= s);
+    let n = x.len();
+    (0..n)
+        .step_by(q)
+        .map(|c| {
+            // Edges: the signal is held at its end values.
+            h.iter()
+                .enumerate()
+                .map(|(i, hv)| {
+                    let k = (c + i).saturating_sub(half).min(n - 1);
+                    hv * x[k]
+                })
+                .sum()
+        })
+        .collect()
+}
+
+impl Recording {
+    /// Every channel [decimated](decimate_fir) by `q` (uniform recordings), time base kept.
+    pub fn decimated(&self, q: usize) -> Recording {
+        let d = |c: &Option<Vec<f64>>| c.as_ref().map(|v| decimate_fir(v, q));
+        Recording {
+            time_s: self.time_s.iter().step_by(q.max(1)).copied().collect(),
+            base_cmd_m: d(&self.base_cmd_m),
+            base_pos_m: d(&self.base_pos_m),
+            tip_pos_m: d(&self.tip_pos_m),
+            force_n: d(&self.force_n),
+            notes: self.notes.clone(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn decimation_keeps_the_band_and_removes_aliases() {
+        let rate = 1000.0;
+        let tone = |f: f64| -> Vec<f64> {
+            (0..20000)
+                .map(|k| (2.0 * std::f64::consts::PI * f * k as f64 / rate).sin())
+                .collect()
+        };
+        let rms = |v: &[f64]| (v[200..v.len() - 200].iter().map(|x| x * x).sum::<f64>() / (v.len() - 400) as f64).sqrt();
+        // q = 10: new rate 100 Hz, pass band to 40 Hz; 5 Hz kept, 170 Hz (would alias to 30 Hz) removed.
+        let kept = decimate_fir(&tone(5.0), 10);
+        assert_eq!(kept.len(), 2000);
+        assert!((rms(&kept) / std::f64::consts::FRAC_1_SQRT_2 - 1.0).abs() < 0.01, "{}", rms(&kept));
+        assert!(rms(&decimate_fir(&tone(170.0), 10)) < 0.01);
+    }
+
+    #[test]
+    fn gaps_split_and_numbers_print_plainly() {
+        let t = vec![0.0, 0.01, 0.02, 0.6, 0.61, 0.62, 0.63];
+        let g = find_gaps(&t, 0.05);
+        assert_eq!(g.len(), 1);
+        assert_eq!(g[0].index, 3);
+        let rec = Recording {
+            time_s: t.clone(),
+            tip_pos_m: Some(t.clone()),
+            ..Default::default()
+        };
+        let s = split_at_gaps(&rec, &g);
+        assert_eq!((s[0].len(), s[1].len()), (3, 4));
+        assert_eq!(fmt_sig(45.00000000000096, 4), "45.00");
+        assert_eq!(fmt_sig(0.0074, 2), "0.0074");
+    }
 }

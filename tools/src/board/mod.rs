@@ -135,10 +135,13 @@ impl VirtualBoard {
     }
 
     /// Serves the console on `port` forever (or until the peer closes it), ticking at the
-    /// board's tick rate × `time_scale` of wall-clock time.
+    /// board's tick rate × `time_scale` of wall-clock time ([`TickClock`]: a tick-rate change
+    /// takes effect from the moment it is applied, without a freeze or a burst).
+    /// Errors: an invalid `time_scale` ([`check_time_scale`]), a serial error.
     pub fn serve(&mut self, port: &mut dyn SerialPort, time_scale: f64) -> Result<()> {
+        check_time_scale(time_scale).map_err(|e| anyhow::anyhow!(e))?;
         let start = Instant::now();
-        let mut ticks_done: u64 = 0;
+        let mut clock = TickClock::new(0.0, self.rt.tick_rate_hz(), time_scale);
         let mut buf = [0u8; 256];
         port.set_timeout(Duration::from_millis(1))?;
         loop {
@@ -155,15 +158,141 @@ impl VirtualBoard {
                 Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
                 Err(e) => return Err(e).context("virtual board: serial read"),
             }
-            let due =
-                (start.elapsed().as_secs_f64() * time_scale * self.rt.tick_rate_hz() as f64) as u64;
-            // Bounded catch-up so a stalled host does not freeze the console.
-            let n = due.saturating_sub(ticks_done).min(200_000);
-            self.tick(n);
-            ticks_done += n;
-            if due > ticks_done + 200_000 {
-                ticks_done = due;
+            let now_s = start.elapsed().as_secs_f64();
+            for _ in 0..clock.due(now_s) {
+                self.tick(1); // drives the attached rig too
+                clock.ticked(now_s, self.rt.tick_rate_hz());
             }
+        }
+    }
+}
+
+/// Most ticks the virtual board catches up in one go; a larger backlog (a stalled host) is
+/// dropped, so the console never freezes behind it.
+pub const MAX_CATCH_UP_TICKS: u64 = 200_000;
+
+/// Accepted `--time-scale` range: from one thousandth to a thousand times real time.
+pub const TIME_SCALE_RANGE: (f64, f64) = (1e-3, 1e3);
+
+/// Checks a virtual-board time scale: finite and within [`TIME_SCALE_RANGE`] (0, negative,
+/// NaN, inf and tiny values would freeze the board or make it burst). Returns it.
+pub fn check_time_scale(s: f64) -> std::result::Result<f64, String> {
+    let (lo, hi) = TIME_SCALE_RANGE;
+    if s.is_finite() && (lo..=hi).contains(&s) {
+        Ok(s)
+    } else {
+        Err(format!(
+            "time scale must be a number from {lo} to {hi} (times real time), got {s}"
+        ))
+    }
+}
+
+/// Schedules the virtual board's ticks on wall-clock time: ticks due = time since the last
+/// tick-rate change × time scale × the rate in force since then (not since boot, which froze
+/// the board after a rate decrease and burst after an increase), with the catch-up bounded
+/// by [`MAX_CATCH_UP_TICKS`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TickClock {
+    /// Time (s) from which `rate_hz` counts.
+    epoch_s: f64,
+    rate_hz: u32,
+    scale: f64,
+    /// Ticks done since `epoch_s`.
+    done: u64,
+}
+
+impl TickClock {
+    /// A clock starting at `now_s` (s) at `rate_hz` × `scale`.
+    pub fn new(now_s: f64, rate_hz: u32, scale: f64) -> Self {
+        TickClock {
+            epoch_s: now_s,
+            rate_hz,
+            scale,
+            done: 0,
+        }
+    }
+
+    /// Ticks to run now (≤ [`MAX_CATCH_UP_TICKS`]; an older backlog is dropped).
+    pub fn due(&mut self, now_s: f64) -> u64 {
+        let due = ((now_s - self.epoch_s).max(0.0) * self.scale * self.rate_hz as f64) as u64;
+        if due > self.done + MAX_CATCH_UP_TICKS {
+            self.done = due - MAX_CATCH_UP_TICKS;
+        }
+        due.saturating_sub(self.done)
+    }
+
+    /// Records one tick done at `now_s` after which the board's rate is `rate_hz`: a changed
+    /// rate counts from `now_s` on.
+    pub fn ticked(&mut self, now_s: f64, rate_hz: u32) {
+        self.done += 1;
+        if rate_hz != self.rate_hz {
+            *self = TickClock::new(now_s, rate_hz, self.scale);
+        }
+    }
+
+    /// Tick rate the clock schedules (Hz).
+    pub fn rate_hz(&self) -> u32 {
+        self.rate_hz
+    }
+}
+
+#[cfg(test)]
+mod clock_tests {
+    use super::*;
+
+    /// Runs the clock like `serve` does, with the rate changing to `new_rate` once the board
+    /// has ticked `change_after` times; returns the ticks done by each of `times`.
+    fn run(times: &[f64], change_after: u64, new_rate: u32) -> Vec<u64> {
+        let mut c = TickClock::new(0.0, 1000, 1.0);
+        let mut rate = 1000;
+        let mut total = 0u64;
+        let mut out = vec![];
+        for &t in times {
+            for _ in 0..c.due(t) {
+                total += 1;
+                if total == change_after {
+                    rate = new_rate;
+                }
+                c.ticked(t, rate);
+            }
+            out.push(total);
+        }
+        out
+    }
+
+    #[test]
+    fn a_rate_decrease_does_not_freeze_the_board() {
+        // 10 s at 1 kHz, then `rate 500`: 0.1 s later ~50 more ticks (the old code: none for
+        // another 10 s).
+        let times: Vec<f64> = (1..=101).map(|k| k as f64 * 0.1).collect();
+        let done = run(&times, 10_000, 500);
+        let at_10 = done[99];
+        assert_eq!(at_10, 10_000);
+        assert!((49..=51).contains(&(done[100] - at_10)), "{}", done[100] - at_10);
+    }
+
+    #[test]
+    fn a_rate_increase_does_not_burst() {
+        // 10 s at 1 kHz, then `rate 10000`: 1 ms later ~10 ticks (the old code: 90 000).
+        let times = [5.0, 10.0, 10.001, 10.002];
+        let done = run(&times, 10_000, 10_000);
+        assert_eq!(done[1], 10_000);
+        assert!(done[2] - done[1] <= 11 && done[3] - done[2] <= 11, "{done:?}");
+    }
+
+    #[test]
+    fn a_stalled_host_catches_up_boundedly() {
+        let mut c = TickClock::new(0.0, 10_000, 1.0);
+        assert_eq!(c.due(1000.0), MAX_CATCH_UP_TICKS);
+    }
+
+    #[test]
+    fn time_scales_that_would_freeze_or_burst_are_refused() {
+        for s in [0.0, -1.0, f64::NAN, 1e-9, f64::INFINITY, 1e6] {
+            assert!(check_time_scale(s).is_err(), "{s}");
+        }
+        for s in [1e-3, 0.5, 1.0, 10.0, 1e3] {
+            assert_eq!(check_time_scale(s), Ok(s));
         }
     }
 }

@@ -1,11 +1,11 @@
 //! `identify`: modes of a free decay in a NumPy `.npy` ([time; signal]) or a recording CSV.
 
-use super::freedecay::{identify_free_decay, FreeDecayOptions, FreeDecayResult};
+use super::freedecay::{FreeDecayOptions, FreeDecayResult};
 use super::frf::{frf_of_recording, Detrend, InputChannel, OutputChannel, WelchOptions, Window};
 use super::protocol;
 use super::report;
 use super::sweep::{generate, SweepKind, SweepSpec, TipMode};
-use super::{identify_recording, IdentOptions, Method};
+use super::{IdentOptions, IdentifyOptions, Method, PathChoice, Stage};
 use crate::recording::Recording;
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -68,6 +68,10 @@ pub struct IdentifyArgs {
     /// Write the FRF plot (SVG) here (and `<name>-coherence.svg`).
     #[arg(long)]
     pub frf_plot: Option<PathBuf>,
+    /// Identification path: auto (decided from the recording and reported), frf (input/output
+    /// FRF), decay (free decay of the tip, after the base's last move).
+    #[arg(long, default_value = "auto")]
+    pub path: String,
 }
 
 /// The free-decay part of a recording: the tip deflection (tip − base, or tip alone) from the
@@ -180,23 +184,6 @@ pub fn options_of(a: &IdentifyArgs) -> Result<IdentOptions> {
     Ok(o)
 }
 
-/// True when `path` is a recording CSV with an excitation input (force or a moving base).
-fn is_input_output(path: &Path) -> bool {
-    if path.extension().is_some_and(|e| e == "npy") {
-        return false;
-    }
-    match Recording::read_csv(path) {
-        Ok(r) => {
-            r.force_n.is_some()
-                || r.base_pos_m
-                    .as_ref()
-                    .or(r.base_cmd_m.as_ref())
-                    .is_some_and(|b| b.iter().any(|v| (v - b[0]).abs() > 1e-9))
-        }
-        Err(_) => false,
-    }
-}
-
 /// `beamtool identify` on a magnitude spectrum (`.lvm`): [`super::magspec`], at most
 /// `--modes` (default 6) peaks ≥ 10 dB above their neighbourhood in `--f-min-hz..--f-max-hz`.
 fn identify_spectrum(a: &IdentifyArgs) -> Result<()> {
@@ -257,25 +244,46 @@ fn identify_spectrum(a: &IdentifyArgs) -> Result<()> {
     Ok(())
 }
 
-/// `beamtool identify`.
+/// The [`IdentifyOptions`] of the `identify` arguments.
+pub fn identify_options_of(a: &IdentifyArgs) -> Result<IdentifyOptions> {
+    for (name, v) in [("--f-min-hz", a.f_min_hz), ("--f-max-hz", a.f_max_hz)] {
+        if !v.is_finite() || v < 0.0 {
+            bail!("{name} {v}: want a finite frequency >= 0 Hz");
+        }
+    }
+    if a.f_max_hz <= a.f_min_hz {
+        bail!("--f-max-hz {} must exceed --f-min-hz {}", a.f_max_hz, a.f_min_hz);
+    }
+    let mut frf = options_of(a)?;
+    frf.progress = false;
+    Ok(IdentifyOptions {
+        path: PathChoice::from_name(&a.path)?,
+        frf,
+        decay: FreeDecayOptions {
+            f_min_hz: a.f_min_hz,
+            f_max_hz: a.f_max_hz,
+            ..Default::default()
+        },
+        ..Default::default()
+    })
+}
+
+/// Progress of [`super::identify`] as one line per stage on stderr (reading: every 2²⁰ rows).
+pub fn progress_line(stage: Stage) {
+    eprintln!("  .. {stage}");
+}
+
+/// `beamtool identify`: [`super::identify::identify_file`], then the table, the stabilisation
+/// diagram (FRF path), plots and JSON.
 pub fn identify(a: IdentifyArgs) -> Result<()> {
-    if a.recording
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("lvm"))
-    {
+    let opts = identify_options_of(&a)?;
+    if a.recording.extension().is_some_and(|e| e.eq_ignore_ascii_case("lvm")) {
         return identify_spectrum(&a);
     }
-    if is_input_output(&a.recording) && a.method != "free-decay" {
-        let rec = Recording::read_csv(&a.recording)?;
-        let opts = options_of(&a)?;
-        let (r, frf) = identify_recording(&rec, &opts)?;
-        println!(
-            "{}: {} samples at {:.1} Hz",
-            a.recording.display(),
-            rec.len(),
-            rec.sample_rate_hz()
-        );
-        print!("{}", report::table(&r));
+    let id = super::identify::identify_file(&a.recording, &opts, &mut progress_line)?;
+    println!("{}:", a.recording.display());
+    print!("{}", report::identification_table(&id));
+    if let Some((r, frf)) = &id.frf_result {
         for mr in &r.methods {
             if let Some(d) = &mr.diagram {
                 print!("{}", d.text(r.band_hz.0, r.band_hz.1, 72));
@@ -289,29 +297,18 @@ pub fn identify(a: IdentifyArgs) -> Result<()> {
             }
         }
         if let Some(p) = &a.frf_plot {
-            report::plot_frf(p, &frf, r.band_hz.0, r.band_hz.1)?;
+            report::plot_frf(p, frf, r.band_hz.0, r.band_hz.1)?;
             println!("FRF plot -> {}", p.display());
         }
-        if let Some(j) = &a.json {
-            std::fs::write(j, serde_json::to_string_pretty(&r)?)
-                .with_context(|| format!("cannot write {}", j.display()))?;
-            println!("JSON -> {}", j.display());
-        }
-        return Ok(());
     }
-    let (t, x, what) = free_decay_of(&a.recording)?;
-    let r = identify_free_decay(
-        &t,
-        &x,
-        &FreeDecayOptions {
-            f_min_hz: a.f_min_hz,
-            f_max_hz: a.f_max_hz,
-            ..Default::default()
-        },
-    )?;
-    print_result(&what, &r);
+    if let Some(r) = &id.decay_result {
+        println!(
+            "  mode 1 log decrement (eqs. 28-29, {} peaks): f = {:.4} Hz, zeta = {:.5}; damped-sinusoid fit: f = {:.4} Hz, zeta = {:.5}; decay {:.3}..{:.3} s",
+            r.log_decrement.2, r.log_decrement.0, r.log_decrement.1, r.sinusoid_fit.0, r.sinusoid_fit.1, r.segment_s.0, r.segment_s.1
+        );
+    }
     if let Some(j) = &a.json {
-        std::fs::write(j, serde_json::to_string_pretty(&r)?)
+        std::fs::write(j, serde_json::to_string_pretty(&id)?)
             .with_context(|| format!("cannot write {}", j.display()))?;
         println!("JSON -> {}", j.display());
     }

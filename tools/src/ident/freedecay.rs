@@ -246,6 +246,7 @@ pub fn identify_free_decay(
         .collect();
     let first = analyse_mode(&x, rate, f1, &mut warnings)?;
     let mut modes = vec![first.mode.clone()];
+    let mut not_decaying = Vec::new();
     for &fo in &other {
         match analyse_mode(&x, rate, fo, &mut Vec::new()) {
             // A genuine mode decays at the frequency of its own peak; a sidelobe or noise
@@ -260,8 +261,17 @@ pub fn identify_free_decay(
                 modes.push(m.mode)
             }
             Ok(_) => {}
-            Err(e) => warnings.push(format!("peak at {fo:.3} Hz: {e}")),
+            Err(_) => not_decaying.push(fo),
         }
+    }
+    if !not_decaying.is_empty() {
+        let (lo, hi) = not_decaying
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(l, h), f| (l.min(*f), h.max(*f)));
+        warnings.push(format!(
+            "{} spectral peak(s) at {lo:.3}..{hi:.3} Hz do not decay like a mode above the noise: not modes",
+            not_decaying.len()
+        ));
     }
     modes.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
     let (log_decrement, sinusoid_fit, segment_s) = (
@@ -357,8 +367,10 @@ fn analyse_mode(x: &[f64], rate: f64, f1: f64, warnings: &mut Vec<String>) -> Re
         && (fn_fit / fn_ld - 1.0).abs() < 0.05;
     if !fit_ok {
         warnings.push(format!(
-            "damped-sinusoid fit did not converge ({:?}); log decrement only",
-            report.termination
+            "damped-sinusoid fit rejected ({}; f {:.4} Hz, zeta {:.5}); log decrement only",
+            super::mlfit::termination_text(&report.termination),
+            fn_fit,
+            zeta_fit
         ));
     }
     let (freq, zeta) = if fit_ok {

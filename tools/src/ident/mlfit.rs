@@ -197,7 +197,7 @@ pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> R
         bail!("the fit diverged");
     };
     if !report.termination.was_successful() && report.objective_function.is_nan() {
-        bail!("the fit did not converge: {:?}", report.termination);
+        bail!("the fit did not converge ({})", termination_text(&report.termination));
     }
     let n_obs = r.len() as f64;
     let dof = (n_obs - n_par as f64).max(1.0);
@@ -332,5 +332,22 @@ mod tests {
             method: String::new(),
         };
         assert!(refine_modes(&frf, (0.5, 1.5), &[m]).is_err());
+    }
+}
+
+/// The Levenberg–Marquardt termination in words (no debug text in messages).
+pub fn termination_text(t: &levenberg_marquardt::TerminationReason) -> String {
+    use levenberg_marquardt::TerminationReason as T;
+    match t {
+        T::Converged { .. } => "converged".into(),
+        T::ResidualsZero => "zero residuals".into(),
+        T::Orthogonal => "residuals orthogonal to the Jacobian".into(),
+        T::LostPatience => "too many evaluations".into(),
+        T::NoImprovementPossible(s) => format!("no improvement possible ({s})"),
+        T::NoParameters => "no parameters".into(),
+        T::NoResiduals => "no residuals".into(),
+        T::WrongDimensions(s) => format!("wrong dimensions ({s})"),
+        T::Numerical(s) => format!("numerical problem ({s})"),
+        T::User(s) => s.to_string(),
     }
 }

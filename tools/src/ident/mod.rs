@@ -11,7 +11,9 @@
 //! - [`magspec`]: modes of a magnitude-only spectrum (LabVIEW `.lvm` of an impact test).
 //! - [`mlfit`]: maximum-likelihood (output-error) refinement of the modes on the FRF.
 //! - [`stabilisation`]: diagrams over model orders and automatic mode selection.
-//! - [`pipeline`]: [`identify_recording`] and [`identify_decay`], the public entry points.
+//! - [`identify`]: **the entry point** [`identify()`]: any recording (sweep, free decay, moves +
+//!   ring-down, with gaps), the path taken and why, only physical modes.
+//! - [`pipeline`]: [`identify_recording`] (the FRF path) and [`identify_decay`].
 //! - [`report`]: tables (text) and plots (SVG).
 //!
 //! # Public API
@@ -29,6 +31,7 @@ pub mod cli;
 pub mod denoise;
 pub mod freedecay;
 pub mod frf;
+pub mod identify;
 pub mod lsce;
 pub mod lscf;
 pub mod magspec;
@@ -42,6 +45,7 @@ pub mod spectrum;
 pub mod stabilisation;
 pub mod sweep;
 
+pub use identify::{identify, IdentPath, Identification, IdentifyOptions, PathChoice, Stage};
 pub use pipeline::{identify_decay, identify_recording, IdentOptions, IdentResult, Method};
 
 use serde::Serialize;

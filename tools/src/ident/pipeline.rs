@@ -199,11 +199,13 @@ fn to_estimates(modes: &[StableMode], method: &str) -> Vec<ModeEstimate> {
 }
 
 fn keep_best(modes: Vec<StableMode>, n: Option<usize>, band: (f64, f64)) -> Vec<StableMode> {
-    // Poles within 5 % of the band width from an edge model the truncation, not the beam.
+    // Poles at an edge model the truncation, not the beam: within 10 % of the lower edge's
+    // frequency (a fraction of the band width would drop a 1.1 Hz mode from a 0.1-40 Hz
+    // band) or 5 % of the band width below the upper edge.
     let e = 0.05 * (band.1 - band.0);
     let mut modes: Vec<StableMode> = modes
         .into_iter()
-        .filter(|m| m.freq_hz > band.0 + e && m.freq_hz < band.1 - e)
+        .filter(|m| m.freq_hz > 1.1 * band.0 && m.freq_hz < band.1 - e)
         .collect();
     if let Some(n) = n {
         modes.sort_by(|a, b| b.count.cmp(&a.count));
@@ -675,7 +677,7 @@ pub fn identify_recording(rec: &Recording, opts: &IdentOptions) -> Result<(Ident
     }
     let modes = combine(&methods);
     if modes.is_empty() {
-        bail!("no mode found in {:.3}..{:.3} Hz by {:?}; check the band, the excitation and the channels", band.0, band.1, opts.methods.iter().map(|m| m.name()).collect::<Vec<_>>());
+        bail!("no mode found in {:.3}..{:.3} Hz by {}; check the band, the excitation and the channels", band.0, band.1, opts.methods.iter().map(|m| m.name()).collect::<Vec<_>>().join(", "));
     }
     let rayleigh = (modes.len() >= 2).then(|| {
         let w = |m: &ModeEstimate| 2.0 * std::f64::consts::PI * m.freq_hz;

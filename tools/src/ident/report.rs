@@ -8,6 +8,61 @@ use anyhow::Result;
 use std::fmt::Write;
 use std::path::Path;
 
+/// An [`super::Identification`] as text: path and reason, the modes (f, ζ with 1-σ, at a
+/// precision matched to the σ), rejected estimates, Rayleigh coefficients, warnings.
+pub fn identification_table(id: &super::Identification) -> String {
+    use crate::recording::fmt_sig;
+    let mut s = String::new();
+    let _ = writeln!(s, "path: {} — {}", id.path, id.reason);
+    if id.sample_rate_hz.is_finite() {
+        let _ = writeln!(
+            s,
+            "used {}..{} s at {} Hz",
+            fmt_sig(id.span_s.0, 4),
+            fmt_sig(id.span_s.1, 4),
+            fmt_sig(id.sample_rate_hz, 5)
+        );
+    }
+    let _ = writeln!(
+        s,
+        "{:>4} {:>10} {:>9} {:>9} {:>9}  {}",
+        "mode", "f (Hz)", "+-1sd", "zeta", "+-1sd", "method"
+    );
+    for (i, m) in id.modes.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "{:>4} {:>10.4} {:>9.4} {:>9.5} {:>9.5}  {}",
+            i + 1,
+            m.freq_hz,
+            m.freq_hz_std,
+            m.zeta,
+            m.zeta_std,
+            m.method
+        );
+    }
+    for r in &id.rejected {
+        let _ = writeln!(
+            s,
+            "  rejected {} Hz (zeta {}): {}",
+            fmt_sig(r.mode.freq_hz, 5),
+            fmt_sig(r.mode.zeta, 3),
+            r.reason
+        );
+    }
+    if let Some((a1, a2)) = id.rayleigh {
+        let _ = writeln!(
+            s,
+            "Rayleigh damping from modes 1-2 (eq. 22): alpha1 = {} 1/s, alpha2 = {} s",
+            fmt_sig(a1, 4),
+            fmt_sig(a2, 4)
+        );
+    }
+    for w in &id.warnings {
+        let _ = writeln!(s, "warning: {w}");
+    }
+    s
+}
+
 /// The result as a table: combined modes, then each method, Rayleigh coefficients, warnings.
 pub fn table(r: &IdentResult) -> String {
     let mut s = String::new();

@@ -1,0 +1,758 @@
+//! The one identification entry point: [`identify`] takes any recording — a sweep or other
+//! broadband input/output recording, a free decay, or moves followed by a ring-down — and
+//! returns the modes (natural frequency Hz, damping ratio, both with 1-σ), the path it took
+//! and why, the modes it rejected and why, and warnings. It prints nothing; it reports its
+//! stages through a callback (the CLI draws the progress).
+//!
+//! Steps:
+//! 1. **Gaps** ([`gap_threshold_s`]): time steps longer than max(5 median steps, a tenth of
+//!    the dominant period) split the recording; the longest clean segment is used, with a
+//!    warning (interpolating across a 500 ms gap biased a 6 Hz decay by −8.6 %).
+//! 2. **Base stillness** ([`base_motion`]): the base's noise is measured where it ends
+//!    (1.4826 × MAD of the last 10 % of the recording); the base is still from the last
+//!    sample that leaves ±6 σ of its final position. A servo dithering by ±2 µm is still.
+//! 3. **Path** ([`choose_path`]): no input channel, or a base that never leaves its noise
+//!    band → free decay of the tip; a base that oscillates (≥ 6 reversals beyond its noise)
+//!    → FRF path (Welch H1, LSCF/LSCE stabilised over orders, ML refinement, paper §5.2);
+//!    moves (fewer reversals) followed by ≥ 3 s of stillness → free decay of the tip
+//!    deflection after the last move (log decrement eqs. 28–29 + damped-sinusoid fits).
+//! 4. **Only physical modes** ([`screen_modes`], FRF path): a mode must be stable at ≥ 25 %
+//!    of the model orders, show a peak in the output auto-spectrum ≥ 13 dB over its local
+//!    noise floor where the input has energy (within 40 dB of its in-band maximum), and have
+//!    a plausible damping ratio (10⁻⁴ ≤ ζ < `zeta_max`, 1-σ below ζ).
+//! 5. **Bounded memory**: the FRF of a recording longer than [`IdentifyOptions::max_segment`]
+//!    samples is a Welch average of Hamming-windowed segments of that length (paper Step 2).
+
+use super::freedecay::{identify_free_decay, FreeDecayOptions, FreeDecayResult};
+use super::frf::{Frf, InputChannel, Window};
+use super::pipeline::{identify_recording, IdentOptions, IdentResult};
+use super::spectrum::{amplitude_spectrum, peaks};
+use super::ModeEstimate;
+use crate::recording::{check_time_unit, find_gaps, fmt_sig, split_at_gaps, Recording, F_MIN_HZ};
+use anyhow::{bail, Result};
+use serde::Serialize;
+use std::borrow::Cow;
+use std::fmt;
+
+/// Which path to take.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum PathChoice {
+    /// Decide from the recording ([`choose_path`]).
+    Auto,
+    /// FRF of the input/output recording and the FRF estimators.
+    Frf,
+    /// Free decay of the tip (after the base's last move, if it moves).
+    Decay,
+}
+
+impl PathChoice {
+    /// `auto`, `frf`, `decay`.
+    pub fn from_name(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "auto" => Ok(PathChoice::Auto),
+            "frf" | "sweep" => Ok(PathChoice::Frf),
+            "decay" | "free-decay" | "ringdown" | "ring-down" => Ok(PathChoice::Decay),
+            _ => bail!("unknown identification path `{s}` (auto, frf, decay)"),
+        }
+    }
+}
+
+/// The path taken.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum IdentPath {
+    /// The whole (clean) recording is a free decay of the tip.
+    FreeDecay,
+    /// Free decay of the tip deflection after the base's last move.
+    RingDown,
+    /// FRF of the input/output recording.
+    Frf,
+    /// Peaks of a magnitude spectrum (LabVIEW `.lvm` of an impact test, [`super::magspec`]).
+    Spectrum,
+}
+
+impl fmt::Display for IdentPath {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            IdentPath::FreeDecay => "free decay",
+            IdentPath::RingDown => "ring-down after the last move",
+            IdentPath::Frf => "FRF (input/output)",
+            IdentPath::Spectrum => "magnitude spectrum",
+        })
+    }
+}
+
+/// Options of [`identify`].
+#[derive(Clone, Debug)]
+pub struct IdentifyOptions {
+    /// Path (default: auto).
+    pub path: PathChoice,
+    /// FRF path options (estimators, channels, Welch, band, orders).
+    pub frf: IdentOptions,
+    /// Free-decay path options (band).
+    pub decay: FreeDecayOptions,
+    /// Longest FRF segment (samples): longer recordings are Welch-averaged in Hamming
+    /// segments of this length (bounded memory).
+    pub max_segment: usize,
+}
+
+impl Default for IdentifyOptions {
+    fn default() -> Self {
+        IdentifyOptions {
+            path: PathChoice::Auto,
+            frf: IdentOptions::default(),
+            decay: FreeDecayOptions::default(),
+            max_segment: 1 << 19,
+        }
+    }
+}
+
+/// A stage of [`identify`], for progress reports.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Stage {
+    /// Reading the file (rows so far).
+    Reading(usize),
+    /// Checking the time base for gaps.
+    Gaps,
+    /// Classifying the excitation.
+    Excitation,
+    /// Estimating on the chosen path (with the number of samples).
+    Estimating(IdentPath, usize),
+    /// Screening the modes.
+    Screening,
+}
+
+impl fmt::Display for Stage {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Stage::Reading(n) => write!(f, "reading: {n} rows"),
+            Stage::Gaps => write!(f, "checking the time base for gaps"),
+            Stage::Excitation => write!(f, "classifying the excitation"),
+            Stage::Estimating(p, n) => write!(f, "estimating modes: {p}, {n} samples"),
+            Stage::Screening => write!(f, "screening the modes"),
+        }
+    }
+}
+
+/// A mode an estimator proposed that is not in the table, and why.
+#[derive(Clone, Debug, Serialize)]
+pub struct RejectedMode {
+    /// The estimate.
+    pub mode: ModeEstimate,
+    /// Why it is not a physical mode.
+    pub reason: String,
+}
+
+/// The base's motion ([`base_motion`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct BaseMotion {
+    /// Noise of the still base (m, 1.4826 × MAD of the last 10 % of the recording).
+    pub noise_m: f64,
+    /// Still band half-width (m): 6 × noise (at least 10⁻⁷ of the range).
+    pub still_band_m: f64,
+    /// Range of the base position (m).
+    pub range_m: f64,
+    /// First sample from which the base stays within the still band of its final position.
+    pub still_from: usize,
+    /// Direction reversals beyond the still band (or 0.5 % of the range) before `still_from`.
+    pub reversals: usize,
+    /// True when the base's final 10 % is itself still (noise < 5 % of the range).
+    pub ends_still: bool,
+}
+
+/// The result of [`identify`].
+#[derive(Clone, Debug, Serialize)]
+pub struct Identification {
+    /// Physical modes, ascending in frequency, with 1-σ.
+    pub modes: Vec<ModeEstimate>,
+    /// The path taken.
+    pub path: IdentPath,
+    /// Why this path, and what it used (segment, channels, method).
+    pub reason: String,
+    /// Rayleigh α1 (1/s), α2 (s) from the first two modes (eq. 22).
+    pub rayleigh: Option<(f64, f64)>,
+    /// Estimates not in the table, with the reason.
+    pub rejected: Vec<RejectedMode>,
+    /// Warnings (gaps, jitter, resolution, refinement, …).
+    pub warnings: Vec<String>,
+    /// Time span used (s).
+    pub span_s: (f64, f64),
+    /// Sample rate (Hz) of the span used.
+    pub sample_rate_hz: f64,
+    /// The base's motion, when the recording has a base channel.
+    pub base: Option<BaseMotion>,
+    /// FRF path: the estimators' full result.
+    #[serde(skip)]
+    pub frf_result: Option<(IdentResult, Frf)>,
+    /// Free-decay paths: the analysis.
+    #[serde(skip)]
+    pub decay_result: Option<FreeDecayResult>,
+}
+
+/// Reads the file at `path` ([`Recording::read_any`]: CSV, `.npy`; or a LabVIEW `.lvm`
+/// magnitude spectrum) and identifies it ([`identify`]; a spectrum by [`super::magspec`] in
+/// `opts.decay`'s band, at most 6 peaks ≥ 10 dB prominent).
+pub fn identify_file(
+    path: &std::path::Path,
+    opts: &IdentifyOptions,
+    progress: &mut dyn FnMut(Stage),
+) -> Result<Identification> {
+    let is_lvm = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("lvm"));
+    if is_lvm {
+        return identify_spectrum_file(path, opts);
+    }
+    let rec = Recording::read_any(path, &mut |n| progress(Stage::Reading(n)))?;
+    identify(&rec, opts, progress).map_err(|e| anyhow::anyhow!("{}: {e:#}", path.display()))
+}
+
+fn identify_spectrum_file(path: &std::path::Path, opts: &IdentifyOptions) -> Result<Identification> {
+    let s = super::magspec::read_lvm(path)?;
+    let mm = super::magspec::identify_magnitude_spectrum(
+        &s,
+        opts.decay.f_min_hz,
+        opts.decay.f_max_hz,
+        10.0,
+        6,
+    )?;
+    let mut warnings = Vec::new();
+    let modes: Vec<ModeEstimate> = mm
+        .iter()
+        .map(|m| {
+            if m.resolution_limited {
+                warnings.push(format!(
+                    "{} Hz: damping resolution-limited (half-power band {} lines); ζ is an upper bound",
+                    fmt_sig(m.freq_hz, 5),
+                    fmt_sig(m.half_power_lines, 2)
+                ));
+            }
+            ModeEstimate {
+                freq_hz: m.freq_hz,
+                zeta: m.zeta,
+                freq_hz_std: m.freq_hz_std,
+                zeta_std: m.zeta_std,
+                method: "magnitude spectrum".into(),
+            }
+        })
+        .collect();
+    if modes.is_empty() {
+        bail!("{}: no peak ≥ 10 dB prominent in the spectrum", path.display());
+    }
+    let df = s.freq_hz[1] - s.freq_hz[0];
+    Ok(Identification {
+        rayleigh: rayleigh(&modes, &mut warnings),
+        modes,
+        path: IdentPath::Spectrum,
+        reason: format!(
+            "a LabVIEW `.lvm` magnitude spectrum ({} lines, Δf = {} Hz): single-mode accelerance fits of its peaks",
+            s.freq_hz.len(),
+            fmt_sig(df, 3)
+        ),
+        rejected: vec![],
+        warnings,
+        span_s: (0.0, 1.0 / df),
+        sample_rate_hz: f64::NAN,
+        base: None,
+        frf_result: None,
+        decay_result: None,
+    })
+}
+
+/// Identifies the modes of `rec` (any recording: uniform or not, with gaps) along the path
+/// chosen by `opts.path`; `progress` is told each stage.
+///
+/// Errors: invalid recording (NaN, non-increasing time, a time base in ms), too short, no
+/// physical mode found on the path taken (the message names the path and why).
+pub fn identify(
+    rec: &Recording,
+    opts: &IdentifyOptions,
+    progress: &mut dyn FnMut(Stage),
+) -> Result<Identification> {
+    rec.validate_gapped()?;
+    check_time_unit(rec)?;
+    let mut warnings: Vec<String> = Vec::new();
+    progress(Stage::Gaps);
+    let mut seg = clean_segment(rec, &mut warnings);
+    if seg.len() < 64 {
+        bail!(
+            "the longest clean stretch of the recording has {} samples; identification needs at least 64",
+            seg.len()
+        );
+    }
+    progress(Stage::Excitation);
+    let base = base_channel(&seg).map(base_motion);
+    let (path, reason) = choose_path(&seg, base.as_ref(), opts);
+    let mut base = base;
+    let q = decimation_factor(&seg, path, opts);
+    if q > 1 {
+        let from_s = base.as_ref().map(|b| seg.time_s[b.still_from.min(seg.len() - 1)]);
+        let d = seg.decimated(q);
+        warnings.push(format!(
+            "long recording ({} samples at {} Hz): decimated by {q} to {} Hz (anti-aliased, FIR) before the {path} path",
+            seg.len(),
+            fmt_sig(seg.sample_rate_hz(), 5),
+            fmt_sig(d.sample_rate_hz(), 5)
+        ));
+        if let (Some(b), Some(t0)) = (base.as_mut(), from_s) {
+            b.still_from = d.time_s.partition_point(|t| *t < t0);
+        }
+        seg = Cow::Owned(d);
+    }
+    let rate = seg.sample_rate_hz();
+    let span = (seg.time_s[0], seg.time_s[seg.len() - 1]);
+    let mut out = Identification {
+        modes: vec![],
+        path,
+        reason,
+        rayleigh: None,
+        rejected: vec![],
+        warnings,
+        span_s: span,
+        sample_rate_hz: rate,
+        base,
+        frf_result: None,
+        decay_result: None,
+    };
+    match path {
+        IdentPath::Frf => {
+            progress(Stage::Estimating(path, seg.len()));
+            let fo = frf_options(&seg, opts, &mut out);
+            let (r, frf) = identify_recording(&seg, &fo)?;
+            progress(Stage::Screening);
+            let (kept, rejected) = screen_modes(&r, &frf, &fo);
+            out.modes = kept;
+            out.rejected = rejected;
+            out.warnings.extend(r.warnings.iter().cloned());
+            out.reason = format!("{}; FRF {} -> {}", out.reason, r.input, r.output);
+            out.frf_result = Some((r, frf));
+        }
+        IdentPath::FreeDecay | IdentPath::RingDown | IdentPath::Spectrum => {
+            let from = match (path, &out.base) {
+                (IdentPath::RingDown, Some(b)) => b.still_from,
+                _ => 0,
+            };
+            let (t, x) = tip_signal(&seg, from);
+            progress(Stage::Estimating(path, t.len()));
+            let r = identify_free_decay(&t, &x, &opts.decay)?;
+            out.modes = r.modes.clone();
+            out.warnings.extend(r.warnings.iter().cloned());
+            out.span_s = (t[0], t[t.len() - 1]);
+            out.decay_result = Some(r);
+        }
+    }
+    if out.modes.is_empty() {
+        bail!(
+            "no physical mode found on the {} path ({}){}",
+            out.path,
+            out.reason,
+            if out.rejected.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; rejected: {}",
+                    out.rejected
+                        .iter()
+                        .map(|r| format!("{} Hz ({})", fmt_sig(r.mode.freq_hz, 4), r.reason))
+                        .collect::<Vec<_>>()
+                        .join("; ")
+                )
+            }
+        );
+    }
+    out.rayleigh = rayleigh(&out.modes, &mut out.warnings);
+    Ok(out)
+}
+
+/// Rayleigh α1, α2 (eq. 22) of the first two modes; a negative coefficient is reported as a
+/// warning (the damping of these two modes is not of Rayleigh form).
+fn rayleigh(modes: &[ModeEstimate], warnings: &mut Vec<String>) -> Option<(f64, f64)> {
+    if modes.len() < 2 {
+        return None;
+    }
+    let w = |m: &ModeEstimate| 2.0 * std::f64::consts::PI * m.freq_hz;
+    let (a1, a2) = crate::model::galerkin::rayleigh_coefficients(
+        w(&modes[0]),
+        modes[0].zeta,
+        w(&modes[1]),
+        modes[1].zeta,
+    );
+    if a1 < 0.0 || a2 < 0.0 {
+        warnings.push(format!(
+            "Rayleigh coefficients α1 = {} 1/s, α2 = {} s: one is negative, so the damping of modes 1 and 2 is not of Rayleigh form (eq. 22)",
+            fmt_sig(a1, 4),
+            fmt_sig(a2, 4)
+        ));
+    }
+    Some((a1, a2))
+}
+
+/// Longest recording analysed at full rate (samples); longer ones are decimated when their
+/// content allows ([`decimation_factor`]).
+pub const MAX_FULL_RATE_SAMPLES: usize = 1 << 20;
+
+/// Decimation factor for a recording longer than [`MAX_FULL_RATE_SAMPLES`] (bounded memory
+/// and time), 1 otherwise. FRF path: the new Nyquist frequency stays ≥ 4 × the top of the
+/// input's band (where the Welch spectrum of the base acceleration — from the command when
+/// recorded — is within 30 dB of its maximum); free-decay paths: ≥ the highest frequency asked
+/// for (`opts.decay.f_max_hz`). At least 2¹⁶ samples are kept.
+pub fn decimation_factor(rec: &Recording, path: IdentPath, opts: &IdentifyOptions) -> usize {
+    let n = rec.len();
+    if n <= MAX_FULL_RATE_SAMPLES {
+        return 1;
+    }
+    let rate = rec.sample_rate_hz();
+    let f_keep = match path {
+        IdentPath::Frf => {
+            let x = rec.base_cmd_m.as_deref().or(rec.base_pos_m.as_deref());
+            match x.and_then(|x| input_band_top_hz(x, rate)) {
+                Some(f) => 4.0 * opts.frf.band_hz.map_or(f, |b| b.1.max(f)),
+                None => return 1,
+            }
+        }
+        _ => opts.decay.f_max_hz,
+    };
+    let q = (0.5 * rate / f_keep).floor() as usize;
+    q.min(n >> 16).max(1)
+}
+
+/// Top of the band (Hz) where the base acceleration's Welch spectrum (Hamming segments of
+/// 2¹⁶ samples) is within 30 dB of its maximum.
+fn input_band_top_hz(x: &[f64], rate: f64) -> Option<f64> {
+    let a: Vec<f64> = x.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]) * rate * rate).collect();
+    let wo = super::frf::WelchOptions {
+        nperseg: Some(1 << 16),
+        overlap: 0.5,
+        window: Window::Hamming,
+        detrend: super::frf::Detrend::Mean,
+        pad: 1,
+    };
+    let f = super::frf::welch(&a, &a, rate, &wo).ok()?;
+    let top = f.sxx.iter().skip(1).cloned().fold(0.0, f64::max);
+    let k = f.sxx.iter().rposition(|v| *v >= 1e-3 * top)?;
+    Some(f.freq_hz[k].max(f.df_hz()))
+}
+
+/// The base position channel: measured if present, else the command.
+fn base_channel(rec: &Recording) -> Option<&[f64]> {
+    rec.base_pos_m.as_deref().or(rec.base_cmd_m.as_deref())
+}
+
+/// Gap threshold (s): max(5 × the median step, a tenth of the period of the strongest
+/// spectral peak of the tip signal), so that the jitter of a real logger (steps of up to 30 ×
+/// the median, a small fraction of a period) is interpolated and a gap that loses phase is
+/// not. `None` when no step exceeds 5 × the median (no spectrum is computed then).
+pub fn gap_threshold_s(rec: &Recording) -> Option<f64> {
+    let dt = rec.sample_interval_s();
+    let longest = rec
+        .time_s
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .fold(0.0, f64::max);
+    if longest <= 5.0 * dt {
+        return None;
+    }
+    let (t, x) = tip_signal(rec, 0);
+    let rate = 1.0 / dt;
+    let (_, xu, _) = crate::recording::resample_uniform(&t, &x, rate);
+    let (f, mag) = amplitude_spectrum(&xu, rate);
+    let f_dom = peaks(&f, &mag, F_MIN_HZ, 0.45 * rate)
+        .first()
+        .map_or(F_MIN_HZ, |p| p.0);
+    Some((5.0 * dt).max(0.1 / f_dom))
+}
+
+/// The longest clean (gap-free) segment of `rec`, resampled if its steps jitter; warns.
+fn clean_segment<'a>(rec: &'a Recording, warnings: &mut Vec<String>) -> Cow<'a, Recording> {
+    let gaps = gap_threshold_s(rec).map_or(vec![], |th| find_gaps(&rec.time_s, th));
+    let seg = if gaps.is_empty() {
+        Cow::Borrowed(rec)
+    } else {
+        let segs = split_at_gaps(rec, &gaps);
+        let longest = segs
+            .iter()
+            .enumerate()
+            .max_by_key(|(_, s)| s.len())
+            .map(|(i, _)| i)
+            .unwrap_or(0);
+        let g = gaps
+            .iter()
+            .max_by(|a, b| a.length_s.total_cmp(&b.length_s))
+            .expect("non-empty");
+        let s = &segs[longest];
+        warnings.push(format!(
+            "{} logging gap(s) (longest {} s at t = {} s): split into {} clean segments; identified on the longest, {}..{} s ({} samples)",
+            gaps.len(),
+            fmt_sig(g.length_s, 3),
+            fmt_sig(g.start_s, 4),
+            segs.len(),
+            fmt_sig(s.time_s[0], 4),
+            fmt_sig(s.time_s[s.len() - 1], 4),
+            s.len()
+        ));
+        Cow::Owned(segs[longest].clone())
+    };
+    if seg.len() >= 2 && !seg.is_uniform() {
+        let dt = seg.sample_interval_s();
+        let longest = seg
+            .time_s
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .fold(0.0, f64::max);
+        warnings.push(format!(
+            "non-uniform time base (median step {} s, longest {} ms): resampled to {} Hz by linear interpolation",
+            fmt_sig(dt, 4),
+            fmt_sig(longest * 1e3, 3),
+            fmt_sig(1.0 / dt, 5)
+        ));
+        return Cow::Owned(seg.resampled_uniform());
+    }
+    seg
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+/// The base's noise, stillness and reversals. The noise is measured on the last 10 % of the
+/// recording (1.4826 × MAD about its median): a servo holding position dithers there by its
+/// encoder quantisation and the beam's reaction.
+pub fn base_motion(b: &[f64]) -> BaseMotion {
+    let n = b.len();
+    let tail_n = (n / 10).max(8).min(n);
+    let mut tail: Vec<f64> = b[n - tail_n..].to_vec();
+    let fin = median(&mut tail);
+    let mut dev: Vec<f64> = b[n - tail_n..].iter().map(|v| (v - fin).abs()).collect();
+    let noise = 1.4826 * median(&mut dev);
+    let (lo, hi) = b
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| (l.min(*v), h.max(*v)));
+    let range = hi - lo;
+    let band = (6.0 * noise).max(1e-7 * range).max(1e-12);
+    let still_from = b
+        .iter()
+        .rposition(|v| (v - fin).abs() > band)
+        .map_or(0, |k| k + 1);
+    // Reversals of direction with hysteresis: the base must travel `hyst` back.
+    let hyst = band.max(0.005 * range);
+    let (mut reversals, mut dir, mut ext) = (0usize, 0i8, b[0]);
+    for &v in &b[..still_from] {
+        match dir {
+            0 if (v - ext).abs() > hyst => {
+                dir = if v > ext { 1 } else { -1 };
+                ext = v;
+            }
+            0 => {}
+            1 if v > ext => ext = v,
+            -1 if v < ext => ext = v,
+            d if (v - ext).abs() > hyst => {
+                reversals += 1;
+                dir = -d;
+                ext = v;
+            }
+            _ => {}
+        }
+    }
+    BaseMotion {
+        noise_m: noise,
+        still_band_m: band,
+        range_m: range,
+        still_from,
+        reversals,
+        ends_still: noise < 0.05 * range || range == 0.0,
+    }
+}
+
+/// The path for `rec` and the reason.
+pub fn choose_path(
+    rec: &Recording,
+    base: Option<&BaseMotion>,
+    opts: &IdentifyOptions,
+) -> (IdentPath, String) {
+    let rate = rec.sample_rate_hz();
+    let force = rec.force_n.is_some();
+    let moves = base.is_some_and(|b| b.still_from > 0);
+    let ring_s = base.map_or(0.0, |b| (rec.len() - b.still_from) as f64 / rate);
+    match opts.path {
+        PathChoice::Frf => return (IdentPath::Frf, "FRF path asked for".into()),
+        PathChoice::Decay if moves => {
+            return (
+                IdentPath::RingDown,
+                format!("free decay asked for: tip deflection after the base's last move ({} s of ring-down)", fmt_sig(ring_s, 3)),
+            )
+        }
+        PathChoice::Decay => return (IdentPath::FreeDecay, "free decay asked for".into()),
+        PathChoice::Auto => {}
+    }
+    let Some(b) = base else {
+        return if force {
+            (IdentPath::Frf, "force input, no base channel: FRF of force -> tip".into())
+        } else {
+            (IdentPath::FreeDecay, "no base or force channel: the tip signal is a free decay".into())
+        };
+    };
+    let still = format!(
+        "±{} µm (6 × its noise {} µm, 1.4826 × MAD of the last 10 %)",
+        fmt_sig(b.still_band_m * 1e6, 3),
+        fmt_sig(b.noise_m * 1e6, 3)
+    );
+    if !moves {
+        return (
+            IdentPath::FreeDecay,
+            format!("the base never leaves {still}: the tip deflection is a free decay"),
+        );
+    }
+    if !b.ends_still {
+        return (
+            IdentPath::Frf,
+            format!(
+                "the base moves until the end of the recording (noise of its last 10 % is {} % of its range): input/output FRF",
+                fmt_sig(100.0 * b.noise_m / b.range_m, 2)
+            ),
+        );
+    }
+    if b.reversals >= 6 {
+        return (
+            IdentPath::Frf,
+            format!(
+                "the base oscillates ({} reversals, a sweep or other broadband input): input/output FRF",
+                b.reversals
+            ),
+        );
+    }
+    if ring_s >= 3.0 && rec.len() - b.still_from >= 64 {
+        return (
+            IdentPath::RingDown,
+            format!(
+                "the base moves ({} reversals: moves, not a sweep), then stays within {still} for {} s from t = {} s: free decay of the tip deflection",
+                b.reversals,
+                fmt_sig(ring_s, 3),
+                fmt_sig(rec.time_s[b.still_from], 4)
+            ),
+        );
+    }
+    (
+        IdentPath::Frf,
+        format!(
+            "the base moves and is still for only {} s at the end (a ring-down needs 3 s): input/output FRF",
+            fmt_sig(ring_s, 3)
+        ),
+    )
+}
+
+/// Time and tip signal from sample `from`: tip − base (measured, else commanded) when both
+/// exist, else the tip alone.
+fn tip_signal(rec: &Recording, from: usize) -> (Vec<f64>, Vec<f64>) {
+    let t = rec.time_s[from..].to_vec();
+    let x = match (rec.tip_pos_m.as_deref(), base_channel(rec)) {
+        (Some(tip), Some(b)) => tip[from..].iter().zip(&b[from..]).map(|(t, b)| t - b).collect(),
+        (Some(tip), None) => tip[from..].to_vec(),
+        (None, _) => vec![],
+    };
+    (t, x)
+}
+
+/// The FRF options for `rec`: force input when there is no base; Hamming-windowed Welch
+/// segments of `opts.max_segment` samples for long recordings.
+fn frf_options(rec: &Recording, opts: &IdentifyOptions, out: &mut Identification) -> IdentOptions {
+    let mut fo = opts.frf.clone();
+    if base_channel(rec).is_none() && rec.force_n.is_some() {
+        fo.input = InputChannel::Force;
+    }
+    if rec.len() > opts.max_segment && fo.welch.nperseg.is_none_or(|n| n > opts.max_segment) {
+        fo.welch.nperseg = Some(opts.max_segment);
+        fo.welch.window = Window::Hamming;
+        out.warnings.push(format!(
+            "long recording ({} samples): FRF averaged over Hamming-windowed segments of {} samples (50 % overlap)",
+            rec.len(),
+            opts.max_segment
+        ));
+    }
+    fo
+}
+
+/// Splits the FRF path's modes into physical ones and rejected ones (module doc, step 4).
+pub fn screen_modes(
+    r: &IdentResult,
+    frf: &Frf,
+    fo: &IdentOptions,
+) -> (Vec<ModeEstimate>, Vec<RejectedMode>) {
+    let diagram = r.methods.first().and_then(|m| m.diagram.as_ref());
+    let n_orders = diagram.map_or(0, |d| d.orders.len());
+    let band = frf.band(r.band_hz.0, r.band_hz.1);
+    let sxx_max = frf.sxx[band.clone()].iter().cloned().fold(0.0, f64::max);
+    let mut kept = Vec::new();
+    let mut rejected = Vec::new();
+    for m in &r.modes {
+        let count = diagram.and_then(|d| {
+            d.modes
+                .iter()
+                .min_by(|a, b| {
+                    (a.freq_hz - m.freq_hz)
+                        .abs()
+                        .total_cmp(&(b.freq_hz - m.freq_hz).abs())
+                })
+                .filter(|s| (s.freq_hz / m.freq_hz - 1.0).abs() < 0.02)
+                .map(|s| s.count)
+        });
+        let reason = if let Some(c) = count.filter(|c| 4 * c < n_orders) {
+            Some(format!("stable at only {c} of {n_orders} model orders"))
+        } else if !(m.zeta >= 1e-4 && m.zeta < fo.zeta_max) {
+            Some(format!(
+                "implausible damping ratio {} (expected 1e-4..{})",
+                fmt_sig(m.zeta, 3),
+                fo.zeta_max
+            ))
+        } else if m.zeta_std >= m.zeta {
+            Some(format!(
+                "damping not determined (ζ = {} ± {})",
+                fmt_sig(m.zeta, 3),
+                fmt_sig(m.zeta_std, 3)
+            ))
+        } else {
+            signal_reason(frf, m, sxx_max)
+        };
+        match reason {
+            Some(reason) => rejected.push(RejectedMode {
+                mode: m.clone(),
+                reason,
+            }),
+            None => kept.push(m.clone()),
+        }
+    }
+    (kept, rejected)
+}
+
+/// `None` when the output auto-spectrum peaks at the mode ≥ 13 dB (×20) over its local floor
+/// (median over 0.8–1.25 f outside the peak) and the input has energy there (≥ 10⁻⁴ of its
+/// in-band maximum); else the reason.
+fn signal_reason(frf: &Frf, m: &ModeEstimate, sxx_max: f64) -> Option<String> {
+    let df = frf.df_hz();
+    let idx = |f: f64| ((f / df).round().max(0.0) as usize).min(frf.freq_hz.len() - 1);
+    let half = (3.0 * df).max(2.0 * m.zeta * m.freq_hz);
+    let (a, b) = (idx(m.freq_hz - half), idx(m.freq_hz + half));
+    let peak = frf.syy[a..=b].iter().cloned().fold(0.0, f64::max);
+    let (la, lb) = (idx(0.8 * m.freq_hz), idx(1.25 * m.freq_hz));
+    let excl = 2.0 * half;
+    let mut floor: Vec<f64> = (la..=lb)
+        .filter(|&k| (frf.freq_hz[k] - m.freq_hz).abs() > excl)
+        .map(|k| frf.syy[k])
+        .collect();
+    if floor.len() >= 5 {
+        let fl = median(&mut floor);
+        if peak < 20.0 * fl {
+            return Some(format!(
+                "no resonance in the output spectrum ({} dB over its local floor; 13 dB needed)",
+                fmt_sig(10.0 * (peak / fl).log10(), 2)
+            ));
+        }
+    }
+    let sxx = frf.sxx[a..=b].iter().sum::<f64>() / (b - a + 1) as f64;
+    if sxx < 1e-4 * sxx_max {
+        return Some(format!(
+            "the input has no energy there ({} dB below its in-band maximum)",
+            fmt_sig(-10.0 * (sxx / sxx_max).log10(), 2)
+        ));
+    }
+    None
+}
