@@ -21,7 +21,8 @@
 //!    is restored, the user is told, and the run fails (non-zero exit).
 
 use crate::board::client::BoardClient;
-use crate::board::plan::{plan_move, MovePlan};
+use crate::board::plan::{plan_move, plan_sweep, MovePlan};
+use beamshaper::reference::SweepKind;
 use crate::board::rig::{read_sensor_log, RigSensors, VirtualRig};
 use crate::board::session::{BoardConfig, Session};
 use crate::ident::ModeEstimate;
@@ -37,6 +38,15 @@ use beamshaper::shaper::{residual_vibration, Impulse};
 use clap::Args;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
+
+/// Default excitation: exponential sweep band (Hz), the paper's §5.2 input (eq. 34).
+pub const SWEEP_BAND_HZ: (f64, f64) = (0.3, 15.0);
+/// Largest sweep amplitude (mm); the step-rate rule may lower it.
+pub const SWEEP_AMPLITUDE_MM: f64 = 5.0;
+/// Sweep duration (s) and the ring-down recorded after it (s).
+pub const SWEEP_DURATION_S: f64 = 90.0;
+/// See [`SWEEP_DURATION_S`].
+pub const SWEEP_TAIL_S: f64 = 20.0;
 
 /// The reference rig (`rigs/paper.toml`), embedded so every command works from any directory.
 pub const DEFAULT_RIG_TOML: &str = include_str!("../../rigs/paper.toml");
@@ -637,7 +647,6 @@ fn run_job(a: &TuneArgs, inputs: &Inputs, bench: &mut Bench, before: &BoardState
         Some(id) => (inputs.recording.clone().unwrap_or_default(), id),
         None => {
             let p = excite(a, bench, before, tick_hz)?;
-            println!("excitation: unshaped {} mm move on the board, 40 s recorded by the virtual rig's camera -> {}", a.move_mm, p.display());
             (p.clone(), identify_step(&p)?)
         }
     };
@@ -686,20 +695,29 @@ fn run_job(a: &TuneArgs, inputs: &Inputs, bench: &mut Bench, before: &BoardState
     Ok(passed)
 }
 
-/// Step 3: unshaped move on the board and its ring-down, recorded by the virtual rig.
+/// Step 3: the paper's exponential sine sweep (eq. 34) on the board, through its own
+/// reference generator, recorded by the virtual rig's camera, then 30 s of ring-down.
 fn excite(a: &TuneArgs, bench: &mut Bench, before: &BoardState, tick_hz: f64) -> Result<PathBuf> {
     let log = bench.sensor_log.clone().ok_or_else(|| anyhow!("no sensor to record the excitation"))?;
     let off = Settings { shaping_enabled: false, ..before.settings.clone() };
-    let plan = plan_move(&off, before.position_mm, a.move_mm, a.speed_mm_s, a.accel_mm_s2, 40.0)
-        .map_err(|e| anyhow!("excitation move: {e}"))?;
+    let plan = plan_sweep(&off, SweepKind::Exponential, SWEEP_BAND_HZ.0, SWEEP_BAND_HZ.1, SWEEP_AMPLITUDE_MM, SWEEP_DURATION_S)
+        .map_err(|e| anyhow!("excitation sweep: {e}"))?;
     let s = &mut bench.session;
     s.send(&crate::board::session::Command::Shaping(false))?;
     let st = s.status()?;
     wait_board(s, st.ticks, Duration::from_secs(10))?;
-    let (_, t0) = run_move(s, &plan, tick_hz, a.time_scale)?;
-    let rec = read_sensor_log(&log, t0 - 1.0, t0 + plan.observe_ticks as f64 / tick_hz)?;
-    let p = a.out.join("excitation-recording.csv");
+    let t0 = s.status()?.ticks as f64 / tick_hz;
+    let ticks = s.sweep(&plan).context("starting the sweep")?;
+    let end = t0 + ticks as f64 / tick_hz + SWEEP_TAIL_S;
+    let wall = Duration::from_secs_f64((end - t0) / bench.time_scale + 10.0);
+    wait_board(s, (end * tick_hz) as u64, wall)?;
+    let rec = read_sensor_log(&log, t0 - 1.0, end)?;
+    let p = a.out.join("sweep-recording.csv");
     rec.write_csv(&p)?;
+    println!(
+        "excitation: exponential sweep {}-{} Hz, {:.3} mm, {} s on the board (eq. 34, its own reference generator; {:.0} steps/s peak), {:.0} s recorded by the virtual rig's camera -> {}",
+        plan.f0_hz, plan.f1_hz, plan.amplitude_mm, plan.duration_s, plan.peak_step_rate_hz, end - t0 + 1.0, p.display()
+    );
     Ok(p)
 }
 

@@ -4,7 +4,8 @@
 //! cannot be captured or that the board would refuse is rejected before any motion starts.
 
 use beamshaper::config::Settings;
-use beamshaper::reference::{MoveError, TrapezoidMove};
+use beamshaper::output::{check_move_step_rate, check_step_rate};
+use beamshaper::reference::{trapezoid_peak_speed, MoveError, SineSweep, SweepKind, TrapezoidMove};
 use beamshaper::runtime::{CAPTURE_LEN, HISTORY_LEN};
 use thiserror::Error;
 
@@ -118,16 +119,20 @@ pub fn plan_move(
             .to_string(),
         )
     })?;
-    // The board's rule (runtime::start_move): peak reference speed × Σ|w| / step size.
-    let per_speed = taps.abs_weight_sum() as f64 / settings.step_nm as f64;
-    let need = mv.peak_speed() as f64 * per_speed;
+    // The board's own rule (core `output::check_move_step_rate`), against the limit minus the margin.
     let max = settings.max_step_rate_hz;
-    if need > STEP_RATE_USE * max as f64 {
+    let with_margin = (STEP_RATE_USE * max as f64).floor() as u32;
+    let distance_nm = (nm(target_mm) as i64 - nm(start_mm) as i64).unsigned_abs() as u32;
+    let (speed_nm_s, accel_nm_s2) = ((speed_mm_s * 1e6) as f32, (accel_mm_s2 * 1e6) as f32);
+    let need = trapezoid_peak_speed(distance_nm as f32, speed_nm_s, accel_nm_s2) as f64
+        * taps.abs_weight_sum() as f64
+        / settings.step_nm.max(1) as f64;
+    if let Err(e) = check_move_step_rate(&taps, settings.step_nm, with_margin, distance_nm, speed_nm_s, accel_nm_s2) {
         return Err(PlanError::StepRate {
-            need,
+            need: e.shaped_peak_steps_s as f64,
             max,
             pct: 100.0 * STEP_RATE_USE,
-            speed_ok: (STEP_RATE_USE * max as f64 / per_speed * 1e-6 * 0.999 * 10.0).floor() / 10.0,
+            speed_ok: (e.max_reference_speed_nm_s as f64 * 1e-6 * 0.999 * 10.0).floor() / 10.0,
         });
     }
     let move_ticks = mv.duration_ticks() as u64;
@@ -146,6 +151,67 @@ pub fn plan_move(
         observe_ticks,
         capture_every: every as u32,
         peak_step_rate_hz: need,
+    })
+}
+
+/// A planned sweep (`sweep lin|exp <f0> <f1> <amplitude_mm> <duration_s>`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SweepPlan {
+    /// Kind (eq. 33 linear, eq. 34 exponential).
+    pub kind: SweepKind,
+    /// Start and end frequencies (Hz).
+    pub f0_hz: f64,
+    /// End frequency (Hz).
+    pub f1_hz: f64,
+    /// Amplitude (mm) about the present position.
+    pub amplitude_mm: f64,
+    /// Duration (s).
+    pub duration_s: f64,
+    /// Shaped peak step rate bound (steps/s) by the board's rule.
+    pub peak_step_rate_hz: f64,
+}
+
+/// Plans a sweep from `f0_hz` to `f1_hz` over `duration_s` with the largest amplitude up to
+/// `amplitude_max_mm` that the board's step-rate rule (core `output::check_step_rate`,
+/// with the margin) allows under `settings`' shaper.
+pub fn plan_sweep(
+    settings: &Settings,
+    kind: SweepKind,
+    f0_hz: f64,
+    f1_hz: f64,
+    amplitude_max_mm: f64,
+    duration_s: f64,
+) -> Result<SweepPlan, PlanError> {
+    let taps = settings
+        .tap_table(HISTORY_LEN)
+        .map_err(|e| PlanError::Shaper(e.to_string()))?;
+    let tick_hz = settings.tick_rate_hz as f64;
+    let sweep = |amp_mm: f64| {
+        SineSweep::new(kind, 0, f0_hz, f1_hz, amp_mm * 1e6, duration_s, tick_hz)
+            .map_err(|e| PlanError::Argument(format!("the board cannot run this sweep ({})", match e {
+                beamshaper::reference::SweepError::Nyquist => "a frequency above a tenth of the tick rate",
+                beamshaper::reference::SweepError::Stroke => "amplitude beyond the stroke",
+                _ => "frequencies, amplitude and duration must be > 0, duration ≤ 3600 s",
+            })))
+    };
+    let per_mm = sweep(1.0)?.peak_speed() as f64 * taps.abs_weight_sum() as f64 / settings.step_nm.max(1) as f64;
+    let max = settings.max_step_rate_hz;
+    let amplitude_mm = amplitude_max_mm.min(STEP_RATE_USE * max as f64 / per_mm * 0.999);
+    let sw = sweep(amplitude_mm)?;
+    let with_margin = (STEP_RATE_USE * max as f64).floor() as u32;
+    check_step_rate(&taps, settings.step_nm, with_margin, sw.peak_speed()).map_err(|e| PlanError::StepRate {
+        need: e.shaped_peak_steps_s as f64,
+        max,
+        pct: 100.0 * STEP_RATE_USE,
+        speed_ok: e.max_reference_speed_nm_s as f64 * 1e-6,
+    })?;
+    Ok(SweepPlan {
+        kind,
+        f0_hz,
+        f1_hz,
+        amplitude_mm,
+        duration_s,
+        peak_step_rate_hz: amplitude_mm * per_mm,
     })
 }
 

@@ -38,6 +38,8 @@ pub enum Command {
         /// Acceleration (mm/s²).
         accel_mm_s2: f64,
     },
+    /// `sweep lin|exp <f0_hz> <f1_hz> <amplitude_mm> <duration_s>` about the present position.
+    Sweep(crate::board::plan::SweepPlan),
     /// `capture <every_n_ticks>`.
     Capture(u32),
     /// `dump <first> <count ≤ 32>`.
@@ -74,6 +76,15 @@ impl fmt::Display for Command {
                 speed_mm_s,
                 accel_mm_s2,
             } => write!(f, "move {target_mm} {speed_mm_s} {accel_mm_s2}"),
+            Command::Sweep(p) => write!(
+                f,
+                "sweep {} {} {} {} {}",
+                p.kind.name(),
+                p.f0_hz,
+                p.f1_hz,
+                p.amplitude_mm,
+                p.duration_s
+            ),
             Command::Capture(d) => write!(f, "capture {d}"),
             Command::Dump(first, n) => write!(f, "dump {first} {n}"),
             Command::Save => write!(f, "save"),
@@ -316,6 +327,13 @@ impl Session {
             speed_mm_s,
             accel_mm_s2,
         };
+        let r = self.send(&c)?;
+        num(&r, &c, "ticks")
+    }
+
+    /// Starts a sweep; returns its duration in ticks.
+    pub fn sweep(&mut self, plan: &crate::board::plan::SweepPlan) -> Result<u64, SessionError> {
+        let c = Command::Sweep(*plan);
         let r = self.send(&c)?;
         num(&r, &c, "ticks")
     }
