@@ -60,7 +60,7 @@ fn board_with_unsaved_change(dir: &Path, camera: Option<&Path>) -> (String, Path
 }
 
 #[test]
-fn default_run_sweeps_nothing_but_measures_everything_and_saves_only_after_the_camera_check() {
+fn default_run_sweeps_on_the_board_identifies_from_the_camera_and_saves_after_the_measured_check() {
     let out = tmpdir("tune");
     let outcome = tune(TuneArgs::new(None, &out)).unwrap();
     assert!(outcome.passed);
@@ -72,12 +72,16 @@ fn default_run_sweeps_nothing_but_measures_everything_and_saves_only_after_the_c
     let f2 = r["modes"][1]["freq_hz"].as_f64().unwrap();
     assert!((f1 / 1.10466 - 1.0).abs() < 0.002, "identified f1 {f1}");
     assert!((f2 / 6.9228 - 1.0).abs() < 0.002, "identified f2 {f2}");
+    for k in 0..2 {
+        let z = r["modes"][k]["zeta"].as_f64().unwrap();
+        assert!((z / 0.0074 - 1.0).abs() < 0.10, "identified zeta{} {z}", k + 1);
+    }
     assert!(r["impulses"].as_array().unwrap().len() >= 2);
     assert!(r["port"].as_str().unwrap().starts_with("/dev/"));
     assert!(r["units"]["freq_hz"].is_string());
     let saved = load_flash(&out.join("vboard-flash.bin")).unwrap().expect("saved settings");
     assert!(saved.modes[0].is_some());
-    for f in ["verification.svg", "sensitivity.svg", "excitation-recording.csv", "vboard-camera.csv"] {
+    for f in ["verification.svg", "sensitivity.svg", "sweep-recording.csv", "vboard-camera.csv"] {
         assert!(out.join(f).exists(), "{f}");
     }
 }

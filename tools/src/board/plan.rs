@@ -18,6 +18,11 @@ pub const SPEED_LIMIT_MM_S: f64 = 10_000.0;
 /// See [`SPEED_LIMIT_MM_S`].
 pub const ACCEL_LIMIT_MM_S2: f64 = 1.0e6;
 
+/// True when `observe_ticks` sampled every `every` ticks fit the board's capture buffer.
+pub fn capture_fits(observe_ticks: u64, every: u32) -> bool {
+    observe_ticks.div_ceil(every.max(1) as u64) <= CAPTURE_LEN as u64
+}
+
 /// A planned move.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MovePlan {
