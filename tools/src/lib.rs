@@ -15,5 +15,6 @@ pub mod measures;
 pub mod model;
 pub mod plot;
 pub mod recording;
+pub mod shaping;
 pub mod truth;
 pub mod tune;

@@ -61,6 +61,19 @@ struct VboardArgs {
     /// Run the tick loop this many times faster than real time (0.001 to 1000).
     #[arg(long, default_value_t = 1.0, value_parser = parse_time_scale)]
     time_scale: f64,
+    /// Attach a virtual rig (beam of this rig TOML on a servo carriage, camera on the tip)
+    /// to the setpoint output; its camera writes --sensor-out.
+    #[arg(long)]
+    rig: Option<PathBuf>,
+    /// Where the rig's camera writes what it saw (recording CSV, board time).
+    #[arg(long, default_value = "vboard-camera.csv")]
+    sensor_out: PathBuf,
+    /// Camera noise, 1 sigma (micrometres).
+    #[arg(long, default_value_t = 20.0, value_parser = beamtools::tune::finite_f64)]
+    camera_noise_um: f64,
+    /// Camera latency (ms).
+    #[arg(long, default_value_t = 20.0, value_parser = beamtools::tune::finite_f64)]
+    camera_latency_ms: f64,
 }
 
 #[derive(Args)]
@@ -94,10 +107,17 @@ struct ShaperArgs {
     v_tol: f64,
 }
 
-fn main() -> Result<()> {
+fn main() {
     let cli = Cli::parse();
-    match cli.command {
-        Command::Tune(a) => beamtools::tune::tune(a),
+    if let Err(e) = run(cli.command) {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run(command: Command) -> Result<()> {
+    match command {
+        Command::Tune(a) => beamtools::tune::tune(a).map(|_| ()),
         Command::Vboard(a) => vboard(a),
         Command::Console(a) => console(a),
         Command::Shaper(a) => shaper(a),
@@ -139,6 +159,20 @@ fn vboard(a: VboardArgs) -> Result<()> {
     );
     let mut boot = String::new();
     let mut b = board::VirtualBoard::boot(Some(a.flash), &mut boot);
+    if let Some(rig_path) = &a.rig {
+        let rig = beamtools::model::Rig::from_toml_file(rig_path)
+            .with_context(|| format!("rig file {}", rig_path.display()))?;
+        let mut sensors = board::rig::RigSensors::camera(&rig);
+        sensors.noise_m = a.camera_noise_um * 1e-6;
+        sensors.latency_s = a.camera_latency_ms * 1e-3;
+        let r = board::rig::VirtualRig::new(&rig, sensors, b.runtime().tick_rate_hz() as f64, &a.sensor_out)?;
+        b.attach_rig(r);
+        println!(
+            "virtual rig {} attached; its camera writes {}",
+            rig_path.display(),
+            a.sensor_out.display()
+        );
+    }
     print!("{boot}");
     b.serve(&mut master, a.time_scale)
 }

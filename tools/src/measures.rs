@@ -66,3 +66,180 @@ pub fn measure(
 pub fn percentage_vibration(shaped: &MoveMeasures, unshaped: &MoveMeasures) -> f64 {
     100.0 * shaped.residual_m / unshaped.residual_m
 }
+
+/// A move measured by a sensor: the window of a recording from the move's start.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeasuredMove {
+    /// Time since the command started to move (s).
+    pub time_s: Vec<f64>,
+    /// Commanded (shaped) base position (m).
+    pub command_m: Vec<f64>,
+    /// Measured tip position (m).
+    pub tip_m: Vec<f64>,
+    /// When the command reached the target (s, same clock as `time_s`).
+    pub command_end_s: f64,
+    /// max |tip − target| after `command_end_s` (m).
+    pub residual_m: f64,
+}
+
+/// Cuts the move `start_m → target_m` out of a recording with `base_cmd_m` and `tip_pos_m`
+/// (e.g. the virtual rig's camera log): from the first sample whose command left the start
+/// by more than 1 µm, `window_s` past the command's end. `None` if the recording does not
+/// contain a complete move to the target.
+pub fn cut_move(
+    time_s: &[f64],
+    command_m: &[f64],
+    tip_m: &[f64],
+    start_m: f64,
+    target_m: f64,
+    window_s: f64,
+) -> Option<MeasuredMove> {
+    let k0 = command_m.iter().position(|c| (c - start_m).abs() > 1e-6)?;
+    let k0 = k0.saturating_sub(1);
+    let k_end = k0
+        + command_m[k0..]
+            .iter()
+            .position(|c| (c - target_m).abs() < 1e-9)?;
+    let t_end = time_s[k_end] + window_s;
+    let k1 = k_end + time_s[k_end..].iter().take_while(|&&t| t <= t_end).count();
+    if time_s.get(k1.saturating_sub(1)).is_none_or(|t| *t < t_end - 2.0 * window_s / 100.0) {
+        return None;
+    }
+    let t0 = time_s[k0];
+    let residual_m = tip_m[k_end..k1]
+        .iter()
+        .map(|p| (p - target_m).abs())
+        .fold(0.0, f64::max);
+    Some(MeasuredMove {
+        time_s: time_s[k0..k1].iter().map(|t| t - t0).collect(),
+        command_m: command_m[k0..k1].to_vec(),
+        tip_m: tip_m[k0..k1].to_vec(),
+        command_end_s: time_s[k_end] - t0,
+        residual_m,
+    })
+}
+
+/// Percentage vibration (%) a shaper leaves on a **recorded** free vibration `x` (uniform
+/// step `dt_s`), by superposition of delayed copies (linearity): a shaped excitation's
+/// response is Σ A_i x(t − t_i). Returns 100 · max |Σ A_i x(t − t_i)| over t ∈ [T, T + W]
+/// (T the shaper's duration, W = `window_s`) / max |x(t)| over t ∈ [0, W]: each residual
+/// measured from the end of its own command, as the paper's V (eq. 27) and a measured move
+/// do; `x` taken about its mean. This is
+/// independent of any identified model, so it exposes a misidentified mode. `None` if the
+/// record is shorter than T + window.
+pub fn superposed_vibration_pct(
+    x: &[f64],
+    dt_s: f64,
+    impulses: &[(f64, f64)],
+    window_s: f64,
+) -> Option<f64> {
+    let mean = x.iter().sum::<f64>() / x.len().max(1) as f64;
+    let at = |t: f64| -> f64 {
+        let u = t / dt_s;
+        let k = u.floor() as usize;
+        let a = u - k as f64;
+        (1.0 - a) * (x[k] - mean) + a * (x[(k + 1).min(x.len() - 1)] - mean)
+    };
+    let dur = impulses.iter().map(|i| i.1).fold(0.0, f64::max);
+    let n = (window_s / dt_s) as usize;
+    if (dur + window_s) / dt_s + 2.0 > x.len() as f64 || n < 4 {
+        return None;
+    }
+    let (mut shaped, mut raw) = (0.0f64, 0.0f64);
+    for j in 0..n {
+        let t = dur + j as f64 * dt_s;
+        let s: f64 = impulses.iter().map(|&(a, ti)| a * at(t - ti)).sum();
+        shaped = shaped.max(s.abs());
+        raw = raw.max(at(j as f64 * dt_s).abs());
+    }
+    (raw > 0.0).then(|| 100.0 * shaped / raw)
+}
+
+/// [`superposed_vibration_pct`] on windows starting at 20 %, 40 % and 60 % of the record
+/// (away from the excitation transient and the record's ends); the largest (worst) value.
+pub fn superposed_vibration_worst_pct(
+    x: &[f64],
+    dt_s: f64,
+    impulses: &[(f64, f64)],
+    window_s: f64,
+) -> Option<f64> {
+    [0.2, 0.4, 0.6]
+        .iter()
+        .filter_map(|f| {
+            let k = (x.len() as f64 * f) as usize;
+            superposed_vibration_pct(&x[k..], dt_s, impulses, window_s)
+        })
+        .reduce(f64::max)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use beamshaper::shaper::{design, residual_vibration, ShaperKind};
+
+    /// On a recorded damped sine the superposition gives the design formula's V at the
+    /// true frequency, whatever frequency the shaper was designed for.
+    #[test]
+    fn superposition_on_a_recorded_decay_gives_the_true_percentage_vibration() {
+        let (f, z, dt) = (6.0, 0.01, 1e-3);
+        let w = 2.0 * std::f64::consts::PI * f;
+        let x: Vec<f64> = (0..20_000)
+            .map(|k| {
+                let t = k as f64 * dt;
+                (-z * w * t).exp() * (w * (1.0 - z * z).sqrt() * t).sin()
+            })
+            .collect();
+        for design_f in [6.0, 6.3, 9.4] {
+            let s = design(ShaperKind::Zv, design_f, z).unwrap();
+            let imps: Vec<(f64, f64)> = s.impulses().iter().map(|i| (i.amplitude, i.time_s)).collect();
+            let v = superposed_vibration_pct(&x, dt, &imps, 2.0).unwrap();
+            let expect = 100.0 * residual_vibration(&s, f, z);
+            assert!((v - expect).abs() < 0.02 * expect.max(10.0), "{design_f}: {v} vs {expect}");
+        }
+    }
+}
+
+/// Displacement (up to scale and sign) of a recorded **acceleration** `a` (uniform step
+/// `dt_s`) by double integration in the frequency domain, X(f) = −A(f)/(2πf)², with the
+/// components below `f_lo_hz` removed (drift, gravity offset). Mean removed first; Hann
+/// tapers over the first and last 5 % so the periodic extension has no jump (those parts
+/// of the result are not usable).
+pub fn displacement_from_acceleration(a: &[f64], dt_s: f64, f_lo_hz: f64) -> Vec<f64> {
+    use realfft::RealFftPlanner;
+    let n = a.len();
+    if n < 8 {
+        return a.to_vec();
+    }
+    let mean = a.iter().sum::<f64>() / n as f64;
+    let taper = (n / 20).max(1);
+    let hann = |u: f64| 0.5 - 0.5 * (std::f64::consts::PI * u.min(1.0)).cos();
+    let mut buf: Vec<f64> = a
+        .iter()
+        .enumerate()
+        .map(|(k, v)| (v - mean) * hann(k as f64 / taper as f64) * hann((n - k) as f64 / taper as f64))
+        .collect();
+    let mut planner = RealFftPlanner::<f64>::new();
+    let fwd = planner.plan_fft_forward(n);
+    let inv = planner.plan_fft_inverse(n);
+    let mut spec = fwd.make_output_vec();
+    if fwd.process(&mut buf, &mut spec).is_err() {
+        return a.to_vec();
+    }
+    let df = 1.0 / (n as f64 * dt_s);
+    for (k, c) in spec.iter_mut().enumerate() {
+        let f = k as f64 * df;
+        *c = if f < f_lo_hz || k == 0 {
+            realfft::num_complex::Complex64::new(0.0, 0.0)
+        } else {
+            -*c / ((2.0 * std::f64::consts::PI * f).powi(2) * n as f64)
+        };
+    }
+    if let Some(last) = spec.last_mut() {
+        last.im = 0.0;
+    }
+    let mut out = inv.make_output_vec();
+    if inv.process(&mut spec, &mut out).is_err() {
+        return a.to_vec();
+    }
+    out
+}

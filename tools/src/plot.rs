@@ -14,6 +14,18 @@ pub struct Series<'a> {
     pub y: &'a [f64],
 }
 
+/// Decorations that show a decision: horizontal limit lines, shaded x intervals, a fixed
+/// y range (so a small residual is drawn at a visible scale and large curves are clipped).
+#[derive(Clone, Debug, Default)]
+pub struct Marks {
+    /// Horizontal dashed lines: (y, legend label); a label is drawn once per distinct text.
+    pub hlines: Vec<(f64, String)>,
+    /// Shaded x intervals with a legend label.
+    pub shaded_x: Vec<(f64, f64, String)>,
+    /// Fixed y range.
+    pub y_range: Option<(f64, f64)>,
+}
+
 const COLORS: [RGBColor; 6] = [
     BLACK,
     RED,
@@ -32,6 +44,19 @@ pub fn lines(
     series: &[Series],
     log_y: bool,
 ) -> Result<()> {
+    lines_marked(path, title, x_label, y_label, series, log_y, &Marks::default())
+}
+
+/// [`lines`] with [`Marks`].
+pub fn lines_marked(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+    log_y: bool,
+    marks: &Marks,
+) -> Result<()> {
     let finite = |v: &&f64| v.is_finite() && (!log_y || **v > 0.0);
     let xs = series.iter().flat_map(|s| s.x.iter()).filter(finite);
     let (x0, x1) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
@@ -49,6 +74,7 @@ pub fn lines(
         y1 += 1.0;
     }
     let pad = 0.05 * (y1 - y0);
+    let (ya, yb) = marks.y_range.unwrap_or((y0 - pad, y1 + pad));
     let root = SVGBackend::new(path, (1000, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
     macro_rules! draw {
@@ -60,6 +86,18 @@ pub fn lines(
                 .y_desc(y_label)
                 .draw()
                 .map_err(|e| anyhow!("{e}"))?;
+            for (lo, hi, label) in &marks.shaded_x {
+                let (lo, hi) = (*lo, *hi);
+                let fill = RGBColor(120, 170, 255).mix(0.25);
+                chart
+                    .draw_series(std::iter::once(Rectangle::new(
+                        [(lo, ya), (hi, yb)],
+                        fill.filled(),
+                    )))
+                    .map_err(|e| anyhow!("{e}"))?
+                    .label(label.clone())
+                    .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], fill.filled()));
+            }
             for (i, s) in series.iter().enumerate() {
                 let c = COLORS[i % COLORS.len()];
                 chart
@@ -76,6 +114,30 @@ pub fn lines(
                         PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
                     });
             }
+            let mut seen: Vec<&str> = Vec::new();
+            for (k, (y, label)) in marks.hlines.iter().enumerate() {
+                let c = [RGBColor(0, 150, 0), RGBColor(200, 0, 200), RGBColor(120, 120, 120)]
+                    [seen.iter().position(|l| *l == label).unwrap_or(seen.len()) % 3];
+                let y = *y;
+                let dash: Vec<(f64, f64)> = (0..200)
+                    .filter(|i| i % 2 == 0)
+                    .flat_map(|i| {
+                        let a = x0 + (x1 - x0) * i as f64 / 200.0;
+                        let b = x0 + (x1 - x0) * (i + 1) as f64 / 200.0;
+                        [(a, y), (b, y)]
+                    })
+                    .collect();
+                let s = chart
+                    .draw_series(dash.chunks(2).map(|p| PathElement::new(p.to_vec(), c.stroke_width(2))))
+                    .map_err(|e| anyhow!("{e}"))?;
+                if !seen.contains(&label.as_str()) {
+                    s.label(label.clone()).legend(move |(x, yy)| {
+                        PathElement::new(vec![(x, yy), (x + 20, yy)], c.stroke_width(2))
+                    });
+                    seen.push(label);
+                }
+                let _ = k;
+            }
             chart
                 .configure_series_labels()
                 .background_style(WHITE.mix(0.8))
@@ -91,11 +153,11 @@ pub fn lines(
         .y_label_area_size(70);
     if log_y {
         draw!(b
-            .build_cartesian_2d(x0..x1, (y0.max(1e-300)..y1 * 1.5).log_scale())
+            .build_cartesian_2d(x0..x1, (ya.max(1e-300)..yb * 1.5).log_scale())
             .map_err(|e| anyhow!("{e}"))?);
     } else {
         draw!(b
-            .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad))
+            .build_cartesian_2d(x0..x1, ya..yb)
             .map_err(|e| anyhow!("{e}"))?);
     }
     root.present().map_err(|e| anyhow!("{e}"))?;

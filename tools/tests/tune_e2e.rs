@@ -1,29 +1,24 @@
-//! The main job end to end over a pseudo-terminal, and its failure modes: a malformed reply
-//! and a board that stops answering leave the board's saved configuration unchanged.
+//! The main job end to end over pseudo-terminals, and its failure modes. Every check that
+//! fails leaves the board's flash as it was and its running configuration as it was found.
 
 use beamtools::board::client::BoardClient;
-use beamtools::board::{load_flash, VirtualBoard};
-use beamtools::ident::ModeEstimate;
-use beamtools::tune::{candidates, program, tune, TuneArgs};
+use beamtools::board::rig::{RigSensors, VirtualRig};
+use beamtools::board::{load_flash, spawn_on_pty_with_rig, VirtualBoard};
+use beamtools::model::Rig;
+use beamtools::tune::{tune, TuneArgs, DEFAULT_RIG_TOML};
+use clap::Parser;
 use serialport::SerialPort;
 use std::io::{Read, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-/// The defaults of `beamtool tune` (2 % tolerance, 0 -> 50 mm at 200 mm/s, 2000 mm/s²,
-/// virtual board) with `recording` and output directory `out`.
-fn args(recording: Option<PathBuf>, out: &std::path::Path) -> TuneArgs {
-    TuneArgs {
-        recording,
-        rig: None,
-        tolerance_pct: 2.0,
-        min_band_pct: 2.0,
-        port: None,
-        move_mm: 50.0,
-        speed_mm_s: 200.0,
-        accel_mm_s2: 2000.0,
-        out: out.to_path_buf(),
-    }
+const REAL: &str = "../../shared/data/real/aluminium-cantilever";
+
+fn real(prefix: &str) -> PathBuf {
+    let dir = std::fs::read_dir(REAL).unwrap_or_else(|e| panic!("real data missing at {REAL}: {e}"));
+    dir.filter_map(|e| e.ok().map(|e| e.path()))
+        .find(|p| p.file_name().unwrap().to_string_lossy().starts_with(prefix))
+        .unwrap()
 }
 
 fn tmpdir(name: &str) -> PathBuf {
@@ -33,48 +28,119 @@ fn tmpdir(name: &str) -> PathBuf {
     d
 }
 
+fn json(out: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(out.join("tune.json")).unwrap()).unwrap()
+}
+
+/// The board's `config` reply lines (modes and settings), to compare running configurations.
+fn config_lines(port: &str) -> Vec<String> {
+    let mut c = BoardClient::open(port).unwrap();
+    let r = c.command("config").unwrap();
+    let mut v = r.info.clone();
+    v.push(r.ok);
+    v
+}
+
+/// A virtual board with a flash that holds `mode 1 zv 3.0 0.01` and runs, unsaved,
+/// `mode 1 zvd 2.5 0.02`; with the reference rig attached when `camera` is given.
+fn board_with_unsaved_change(dir: &Path, camera: Option<&Path>) -> (String, PathBuf, Vec<u8>) {
+    let flash = dir.join("flash.bin");
+    let mut boot = String::new();
+    let mut b = VirtualBoard::boot(Some(flash.clone()), &mut boot);
+    assert!(b.receive(b"mode 1 zv 3.0 0.01\nsave\n").contains("ok save"));
+    let bytes = std::fs::read(&flash).unwrap();
+    let rig = camera.map(|log| {
+        let rig = Rig::from_toml_str(DEFAULT_RIG_TOML).unwrap();
+        VirtualRig::new(&rig, RigSensors::camera(&rig), 1000.0, log).unwrap()
+    });
+    let port = spawn_on_pty_with_rig(Some(flash.clone()), 200.0, rig).unwrap();
+    let mut c = BoardClient::open(&port).unwrap();
+    c.command("mode 1 zvd 2.5 0.02").unwrap();
+    (port, flash, bytes)
+}
+
 #[test]
-fn tune_generates_identifies_programs_and_verifies_on_the_virtual_board() {
+fn default_run_sweeps_on_the_board_identifies_from_the_camera_and_saves_after_the_measured_check() {
     let out = tmpdir("tune");
-    tune(args(None, &out)).unwrap();
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("tune.json")).unwrap()).unwrap();
-    let pv = report["verification"]["percentage_vibration_pct"]
-        .as_f64()
-        .unwrap();
-    assert!(pv < 2.0, "verified percentage vibration {pv} %");
-    let f1 = report["modes"][0]["freq_hz"].as_f64().unwrap();
+    let outcome = tune(TuneArgs::new(None, &out)).unwrap();
+    assert!(outcome.passed);
+    let r = json(&out);
+    assert_eq!(r["passed"], true);
+    let measured = r["verification"]["measured_vibration_pct"].as_f64().unwrap();
+    assert!(measured < 2.0, "measured percentage vibration {measured} %");
+    let f1 = r["modes"][0]["freq_hz"].as_f64().unwrap();
+    let f2 = r["modes"][1]["freq_hz"].as_f64().unwrap();
     assert!((f1 / 1.10466 - 1.0).abs() < 0.002, "identified f1 {f1}");
-    // The board saved what was programmed.
-    let saved = load_flash(&out.join("vboard-flash.bin"))
-        .unwrap()
-        .expect("saved settings");
+    assert!((f2 / 6.9228 - 1.0).abs() < 0.002, "identified f2 {f2}");
+    for k in 0..2 {
+        let z = r["modes"][k]["zeta"].as_f64().unwrap();
+        assert!((z / 0.0074 - 1.0).abs() < 0.10, "identified zeta{} {z}", k + 1);
+    }
+    assert!(r["impulses"].as_array().unwrap().len() >= 2);
+    assert!(r["port"].as_str().unwrap().starts_with("/dev/"));
+    assert!(r["units"]["freq_hz"].is_string());
+    let saved = load_flash(&out.join("vboard-flash.bin")).unwrap().expect("saved settings");
     assert!(saved.modes[0].is_some());
-    assert!(out.join("verification.svg").exists() && out.join("sensitivity.svg").exists());
+    for f in ["verification.svg", "sensitivity.svg", "sweep-recording.csv", "vboard-camera.csv"] {
+        assert!(out.join(f).exists(), "{f}");
+    }
+}
+
+/// Repro: `tune <40 cm decay>.npy --rig rigs/paper.toml` simulated 97.9 % and saved. Now the
+/// camera of the rig measures it, the run fails, nothing is saved and the board runs the
+/// configuration it ran before (an unsaved one, so `load` would not have been right).
+#[test]
+fn a_failed_verification_exits_with_an_error_saves_nothing_and_restores_the_running_configuration() {
+    let dir = tmpdir("fail");
+    let camera = dir.join("camera.csv");
+    let (port, flash, saved_before) = board_with_unsaved_change(&dir, Some(&camera));
+    let running_before = config_lines(&port);
+    let mut a = TuneArgs::new(Some(real("40cm")), &dir.join("out"));
+    a.rig = Some(PathBuf::from("../rigs/paper.toml"));
+    a.port = Some(port.clone());
+    a.camera_log = Some(camera);
+    let err = format!("{:#}", tune(a).err().expect("must fail"));
+    assert!(err.contains("verification failed"), "{err}");
+    assert!(err.contains("previous configuration"), "{err}");
+    assert_eq!(std::fs::read(&flash).unwrap(), saved_before, "flash changed");
+    assert_eq!(config_lines(&port), running_before, "running configuration not restored");
+    let r = json(&dir.join("out"));
+    assert_eq!(r["passed"], false);
+    assert!(r["verification"]["measured_vibration_pct"].as_f64().unwrap() > 50.0);
 }
 
 #[test]
-fn tune_runs_on_a_real_aluminium_free_decay() {
-    let out = tmpdir("tune-real");
-    let rec = PathBuf::from("../../shared/data/real/aluminium-cantilever/50cm_adxl_08-12_11-47-59_adxl6cmfromtip2cmID.npy");
-    if !rec.exists() {
-        panic!("real data missing at {}", rec.display());
+fn the_real_aluminium_decays_pass_the_model_free_check() {
+    for (len, f_lo, f_hi) in [("40cm", 9.3, 9.5), ("50cm", 5.9, 6.2)] {
+        let out = tmpdir(&format!("real-{len}"));
+        tune(TuneArgs::new(Some(real(len)), &out)).unwrap();
+        let r = json(&out);
+        let f1 = r["modes"][0]["freq_hz"].as_f64().unwrap();
+        assert!((f_lo..f_hi).contains(&f1), "{len}: f1 {f1}");
+        let v = r["verification"]["superposed_vibration_pct"].as_f64().unwrap();
+        assert!(v < 2.0, "{len}: {v} %");
     }
-    tune(args(Some(rec), &out)).unwrap();
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("tune.json")).unwrap()).unwrap();
-    let f1 = report["modes"][0]["freq_hz"].as_f64().unwrap();
-    assert!((5.9..6.2).contains(&f1), "f1 {f1}");
-    assert!(
-        report["verification"]["percentage_vibration_pct"]
-            .as_f64()
-            .unwrap()
-            < 2.0
-    );
 }
 
-/// A board on a PTY that behaves like the virtual board for `good_lines` command lines, then
-/// either sends `garbage` (a malformed reply) or nothing at all.
+#[test]
+fn an_unreachable_board_is_a_clear_error_and_arguments_are_checked_first() {
+    let out = tmpdir("unreachable");
+    let mut a = TuneArgs::new(Some(real("50cm")), &out);
+    a.port = Some("/dev/does-not-exist".into());
+    let err = format!("{:#}", tune(a.clone()).err().unwrap());
+    assert!(err.contains("/dev/does-not-exist"), "{err}");
+    // A bad argument is refused before the port is even opened.
+    a.move_mm = 2000.0;
+    let err = format!("{:#}", tune(a.clone()).err().unwrap());
+    assert!(err.contains("--move-mm"), "{err}");
+    a.move_mm = 50.0;
+    a.rig = Some(out.join("missing.toml"));
+    let err = format!("{:#}", tune(a).err().unwrap());
+    assert!(err.contains("missing.toml"), "{err}");
+}
+
+/// A PTY nobody answers on, or one that answers like the board for `good_lines` lines and
+/// then sends garbage.
 fn faulty_board(flash: PathBuf, good_lines: usize, garbage: bool) -> String {
     let (mut master, slave) = serialport::TTYPort::pair().unwrap();
     let path = slave.name().unwrap();
@@ -103,58 +169,55 @@ fn faulty_board(flash: PathBuf, good_lines: usize, garbage: bool) -> String {
     path
 }
 
-fn modes() -> Vec<ModeEstimate> {
-    vec![
-        ModeEstimate {
-            freq_hz: 1.1,
-            zeta: 0.0074,
-            freq_hz_std: 0.001,
-            zeta_std: 0.0005,
-            method: "test".into(),
-        },
-        ModeEstimate {
-            freq_hz: 6.9,
-            zeta: 0.0074,
-            freq_hz_std: 0.01,
-            zeta_std: 0.0005,
-            method: "test".into(),
-        },
-    ]
+#[test]
+fn a_silent_board_is_a_clear_error_and_nothing_moves() {
+    let dir = tmpdir("silent");
+    let port = faulty_board(dir.join("flash.bin"), 0, false);
+    let mut a = TuneArgs::new(Some(real("50cm")), &dir);
+    a.port = Some(port);
+    let err = format!("{:#}", tune(a).err().unwrap());
+    assert!(err.contains("stopped answering"), "{err}");
 }
 
-fn saved_flash(dir: &PathBuf) -> (PathBuf, Vec<u8>) {
-    // A board whose flash already holds a configuration.
+#[test]
+fn a_malformed_reply_while_programming_is_a_clear_error_and_the_flash_is_unchanged() {
+    let dir = tmpdir("malformed");
     let flash = dir.join("flash.bin");
     let mut boot = String::new();
     let mut b = VirtualBoard::boot(Some(flash.clone()), &mut boot);
-    let r = b.receive(b"mode 1 zv 3.0 0.01\nsave\n");
-    assert!(r.contains("ok save"), "{r}");
-    let bytes = std::fs::read(&flash).unwrap();
-    (flash, bytes)
-}
-
-#[test]
-fn a_malformed_reply_is_a_clear_error_and_the_saved_configuration_is_unchanged() {
-    let dir = tmpdir("malformed");
-    let (flash, before) = saved_flash(&dir);
-    let port = faulty_board(flash.clone(), 2, true);
-    let mut c = BoardClient::open(&port).unwrap();
-    c.set_timeout(Duration::from_millis(800));
-    let best = &candidates(&modes(), 0.02, 0.02)[0];
-    let err = format!("{:#}", program(&mut c, best).unwrap_err());
+    assert!(b.receive(b"mode 1 zv 3.0 0.01\nsave\n").contains("ok save"));
+    let before = std::fs::read(&flash).unwrap();
+    // config + status + shaper… are answered, then garbage from the programming on.
+    let port = faulty_board(flash.clone(), 4, true);
+    let mut a = TuneArgs::new(Some(real("50cm")), &dir.join("out"));
+    a.port = Some(port);
+    let err = format!("{:#}", tune(a).err().unwrap());
     assert!(err.contains("malformed reply"), "{err}");
+    assert!(err.contains("COULD NOT RESTORE") || err.contains("previous configuration"), "{err}");
     assert_eq!(std::fs::read(&flash).unwrap(), before);
 }
 
+#[derive(Parser)]
+struct Cli {
+    #[command(flatten)]
+    a: TuneArgs,
+}
+
+/// Repro: `--move-mm -50` failed ("unexpected argument '-5'"), `--tolerance-pct nan` was
+/// accepted; `--move-mm 0`, `--speed-mm-s 0` and a tolerance below what can be verified
+/// are refused before any board is touched.
 #[test]
-fn a_board_that_stops_answering_is_a_clear_error_and_the_saved_configuration_is_unchanged() {
-    let dir = tmpdir("silent");
-    let (flash, before) = saved_flash(&dir);
-    let port = faulty_board(flash.clone(), 3, false);
-    let mut c = BoardClient::open(&port).unwrap();
-    c.set_timeout(Duration::from_millis(800));
-    let best = &candidates(&modes(), 0.02, 0.02)[0];
-    let err = format!("{:#}", program(&mut c, best).unwrap_err());
-    assert!(err.contains("stopped answering"), "{err}");
-    assert_eq!(std::fs::read(&flash).unwrap(), before);
+fn options_accept_negative_numbers_refuse_non_finite_and_impossible_values() {
+    let p = |args: &[&str]| Cli::try_parse_from(std::iter::once("tune").chain(args.iter().copied()));
+    assert_eq!(p(&["--move-mm", "-50"]).unwrap().a.move_mm, -50.0);
+    assert!(p(&["--tolerance-pct", "nan"]).is_err());
+    assert!(p(&["--speed-mm-s", "inf"]).is_err());
+    let out = tmpdir("opts");
+    for bad in [["--move-mm", "0"], ["--speed-mm-s", "0"], ["--accel-mm-s2", "-3"], ["--tolerance-pct", "0.01"]] {
+        let mut a = p(&bad).unwrap().a;
+        a.out = out.clone();
+        a.port = Some("/dev/does-not-exist".into());
+        let err = format!("{:#}", tune(a).err().unwrap());
+        assert!(err.contains(bad[0]), "{bad:?}: {err}");
+    }
 }

@@ -7,6 +7,9 @@
 //! over the old one, so an interrupted save leaves the previous record intact.
 
 pub mod client;
+pub mod plan;
+pub mod rig;
+pub mod session;
 
 use anyhow::{Context, Result};
 use beamshaper::config::Settings;
@@ -23,6 +26,8 @@ pub struct VirtualBoard {
     console: Console,
     flash: Option<PathBuf>,
     lines: LineBuffer,
+    rig: Option<rig::VirtualRig>,
+    rig_error: Option<String>,
 }
 
 /// Reads the emulated flash: `Ok(None)` if there is no record, `Err` if it is corrupt.
@@ -58,7 +63,19 @@ impl VirtualBoard {
             console,
             flash,
             lines: LineBuffer::new(),
+            rig: None,
+            rig_error: None,
         }
+    }
+
+    /// Attaches a virtual rig to the setpoint output: from now on every tick drives it.
+    pub fn attach_rig(&mut self, rig: rig::VirtualRig) {
+        self.rig = Some(rig);
+    }
+
+    /// Why the attached rig stopped (its sensor log could not be written), if it did.
+    pub fn rig_error(&self) -> Option<&str> {
+        self.rig_error.as_deref()
     }
 
     /// Feeds received bytes; returns the reply text of every completed line.
@@ -99,7 +116,16 @@ impl VirtualBoard {
     /// Advances `n` ticks.
     pub fn tick(&mut self, n: u64) {
         for _ in 0..n {
-            self.rt.tick(&TickInput::default());
+            let out = self.rt.tick(&TickInput::default());
+            if let Some(r) = self.rig.as_mut() {
+                let step_nm = self.rt.params().step_nm.max(1) as i64;
+                let steps = (out.setpoint_counts as i64).div_euclid(step_nm);
+                let res = r.tick(out.setpoint_counts as f64 * 1e-9, (steps * step_nm) as f64 * 1e-9);
+                if let Err(e) = res {
+                    self.rig_error = Some(format!("{e:#}"));
+                    self.rig = None;
+                }
+            }
         }
     }
 
@@ -134,7 +160,7 @@ impl VirtualBoard {
             }
             let now_s = start.elapsed().as_secs_f64();
             for _ in 0..clock.due(now_s) {
-                self.rt.tick(&TickInput::default());
+                self.tick(1); // drives the attached rig too
                 clock.ticked(now_s, self.rt.tick_rate_hz());
             }
         }
@@ -275,6 +301,15 @@ mod clock_tests {
 /// background thread. Returns the slave device path (e.g. `/dev/pts/5`) to open with
 /// [`client::BoardClient::open`], exactly like a real board's `/dev/ttyACM0`.
 pub fn spawn_on_pty(flash: Option<PathBuf>, time_scale: f64) -> Result<String> {
+    spawn_on_pty_with_rig(flash, time_scale, None)
+}
+
+/// [`spawn_on_pty`] with a virtual rig attached to the board's setpoint output.
+pub fn spawn_on_pty_with_rig(
+    flash: Option<PathBuf>,
+    time_scale: f64,
+    rig: Option<rig::VirtualRig>,
+) -> Result<String> {
     let (mut master, slave) =
         serialport::TTYPort::pair().context("cannot create a pseudo-terminal")?;
     let path = slave.name().context("pseudo-terminal has no name")?;
@@ -284,6 +319,9 @@ pub fn spawn_on_pty(flash: Option<PathBuf>, time_scale: f64) -> Result<String> {
         let _keep = slave;
         let mut boot = String::new();
         let mut board = VirtualBoard::boot(flash, &mut boot);
+        if let Some(r) = rig {
+            board.attach_rig(r);
+        }
         let _ = master.write_all(boot.as_bytes());
         let _ = board.serve(&mut master, time_scale);
     });

@@ -19,13 +19,15 @@
 //! 4. **Only physical modes** ([`screen_modes`], FRF path): a mode must be stable at ≥ 25 %
 //!    of the model orders, show a peak in the output auto-spectrum ≥ 13 dB over its local
 //!    noise floor where the input has energy (within 40 dB of its in-band maximum), and have
-//!    a plausible damping ratio (10⁻⁴ ≤ ζ < `zeta_max`, 1-σ below ζ).
+//!    a plausible damping ratio (10⁻⁴ ≤ ζ < `zeta_max`, 1-σ below ζ); of two modes within
+//!    5 % the one stable at fewer orders is a split peak.
+//!    The maximum-likelihood refinement then runs on the kept modes only.
 //! 5. **Bounded memory**: the FRF of a recording longer than [`IdentifyOptions::max_segment`]
 //!    samples is a Welch average of Hamming-windowed segments of that length (paper Step 2).
 
 use super::freedecay::{identify_free_decay, FreeDecayOptions, FreeDecayResult};
 use super::frf::{Frf, InputChannel, Window};
-use super::pipeline::{identify_recording, IdentOptions, IdentResult};
+use super::pipeline::{identify_recording, refine_estimates, IdentOptions, IdentResult, Method};
 use super::spectrum::{amplitude_spectrum, peaks};
 use super::ModeEstimate;
 use crate::recording::{check_time_unit, find_gaps, fmt_sig, split_at_gaps, Recording, F_MIN_HZ};
@@ -119,6 +121,8 @@ pub enum Stage {
     Estimating(IdentPath, usize),
     /// Screening the modes.
     Screening,
+    /// Maximum-likelihood refinement of this many modes.
+    Refining(usize),
 }
 
 impl fmt::Display for Stage {
@@ -129,6 +133,7 @@ impl fmt::Display for Stage {
             Stage::Excitation => write!(f, "classifying the excitation"),
             Stage::Estimating(p, n) => write!(f, "estimating modes: {p}, {n} samples"),
             Stage::Screening => write!(f, "screening the modes"),
+            Stage::Refining(n) => write!(f, "maximum-likelihood refinement of {n} mode(s)"),
         }
     }
 }
@@ -155,7 +160,9 @@ pub struct BaseMotion {
     pub still_from: usize,
     /// Direction reversals beyond the still band (or 0.5 % of the range) before `still_from`.
     pub reversals: usize,
-    /// True when the base's final 10 % is itself still (noise < 5 % of the range).
+    /// True when the base's final 10 % is itself still (its noise < 5 % of the range), or the
+    /// base never moves beyond 20 × its noise (range against the larger of the tail's noise
+    /// and the sample-to-sample noise, 1.4826 × MAD of second differences / √6).
     pub ends_still: bool,
 }
 
@@ -316,13 +323,20 @@ pub fn identify(
     match path {
         IdentPath::Frf => {
             progress(Stage::Estimating(path, seg.len()));
-            let fo = frf_options(&seg, opts, &mut out);
+            let mut fo = frf_options(&seg, opts, &mut out);
+            // The ML refinement runs on the screened modes only (faster, and a spurious
+            // estimate cannot pull a physical one).
+            let ml = std::mem::replace(&mut fo.ml_refine, false);
             let (r, frf) = identify_recording(&seg, &fo)?;
             progress(Stage::Screening);
-            let (kept, rejected) = screen_modes(&r, &frf, &fo);
+            let (mut kept, rejected) = screen_modes(&r, &frf, &fo);
+            out.warnings.extend(r.warnings.iter().cloned());
+            if ml && matches!(r.methods.first().map(|m| m.method), Some(Method::Lscf | Method::Lsce)) {
+                progress(Stage::Refining(kept.len()));
+                refine_estimates(&frf, r.band_hz, &mut kept, "FRF", &mut out.warnings);
+            }
             out.modes = kept;
             out.rejected = rejected;
-            out.warnings.extend(r.warnings.iter().cloned());
             out.reason = format!("{}; FRF {} -> {}", out.reason, r.input, r.output);
             out.frf_result = Some((r, frf));
         }
@@ -361,6 +375,44 @@ pub fn identify(
     }
     out.rayleigh = rayleigh(&out.modes, &mut out.warnings);
     Ok(out)
+}
+
+/// The free-decay part of `rec` as (time s, signal, description): the longest clean segment
+/// (split at gaps, jitter resampled), from where the base is still within its noise band
+/// ([`base_motion`]) when it moves, tip − base (or the tip alone). For callers that run
+/// their own free-decay analysis (the diagnosis).
+///
+/// Errors: invalid recording, no tip channel, fewer than 64 samples after the base is still.
+pub fn free_decay_signal(rec: &Recording) -> Result<(Vec<f64>, Vec<f64>, String)> {
+    rec.validate_gapped()?;
+    check_time_unit(rec)?;
+    if rec.tip_pos_m.is_none() {
+        bail!("no tip_pos_m column to identify from");
+    }
+    let mut warnings = Vec::new();
+    let seg = clean_segment(rec, &mut warnings);
+    let base = base_channel(&seg).map(base_motion);
+    let from = base.as_ref().map_or(0, |b| b.still_from);
+    let (t, x) = tip_signal(&seg, from);
+    if t.len() < 64 {
+        bail!(
+            "only {} samples after the base is still (within ±{} µm of its final position); a free decay needs at least 64",
+            t.len(),
+            fmt_sig(base.map_or(0.0, |b| b.still_band_m) * 1e6, 3)
+        );
+    }
+    let mut what = match &base {
+        Some(b) => format!(
+            "tip deflection from t = {} s (base still within ±{} µm)",
+            fmt_sig(t[0], 4),
+            fmt_sig(b.still_band_m * 1e6, 3)
+        ),
+        None => "the tip signal".to_string(),
+    };
+    for w in warnings {
+        what += &format!("; {w}");
+    }
+    Ok((t, x, what))
 }
 
 /// Rayleigh α1, α2 (eq. 22) of the first two modes; a negative coefficient is reported as a
@@ -553,13 +605,17 @@ pub fn base_motion(b: &[f64]) -> BaseMotion {
             _ => {}
         }
     }
+    // Sample-to-sample noise: 1.4826 × MAD of the second differences / √6 (white noise).
+    let mut d2: Vec<f64> = b.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]).abs()).collect();
+    let noise_hf = if d2.is_empty() { 0.0 } else { 1.4826 * median(&mut d2) / 6f64.sqrt() };
+    let moves = range > 20.0 * noise_hf && range > 0.0;
     BaseMotion {
         noise_m: noise,
         still_band_m: band,
         range_m: range,
-        still_from,
+        still_from: if moves { still_from } else { 0 },
         reversals,
-        ends_still: noise < 0.05 * range || range == 0.0,
+        ends_still: !moves || noise < 0.05 * range,
     }
 }
 
@@ -596,12 +652,6 @@ pub fn choose_path(
         fmt_sig(b.still_band_m * 1e6, 3),
         fmt_sig(b.noise_m * 1e6, 3)
     );
-    if !moves {
-        return (
-            IdentPath::FreeDecay,
-            format!("the base never leaves {still}: the tip deflection is a free decay"),
-        );
-    }
     if !b.ends_still {
         return (
             IdentPath::Frf,
@@ -609,6 +659,12 @@ pub fn choose_path(
                 "the base moves until the end of the recording (noise of its last 10 % is {} % of its range): input/output FRF",
                 fmt_sig(100.0 * b.noise_m / b.range_m, 2)
             ),
+        );
+    }
+    if !moves {
+        return (
+            IdentPath::FreeDecay,
+            format!("the base never leaves {still} (range {} µm, within its noise): the tip deflection is a free decay", fmt_sig(b.range_m * 1e6, 3)),
         );
     }
     if b.reversals >= 6 {
@@ -717,10 +773,28 @@ pub fn screen_modes(
                 mode: m.clone(),
                 reason,
             }),
-            None => kept.push(m.clone()),
+            None => kept.push((m.clone(), count.unwrap_or(0))),
         }
     }
-    (kept, rejected)
+    // A planar beam's bending modes are far apart (ratio ≥ 2.8): of two kept modes within 5 %
+    // the one with fewer stable poles is a split of the other's peak.
+    let mut out: Vec<ModeEstimate> = Vec::new();
+    for (i, (m, c)) in kept.iter().enumerate() {
+        let better = kept.iter().enumerate().find(|(j, (o, oc))| {
+            *j != i && (o.freq_hz / m.freq_hz - 1.0).abs() < 0.05 && (oc > c || (oc == c && *j < i))
+        });
+        match better {
+            Some((_, (o, oc))) => rejected.push(RejectedMode {
+                mode: m.clone(),
+                reason: format!(
+                    "within 5 % of the better-supported {} Hz mode ({oc} stable poles against {c}): a split peak",
+                    fmt_sig(o.freq_hz, 5)
+                ),
+            }),
+            None => out.push(m.clone()),
+        }
+    }
+    (out, rejected)
 }
 
 /// `None` when the output auto-spectrum peaks at the mode ≥ 13 dB (×20) over its local floor

@@ -709,9 +709,23 @@ fn refine_in_place(frf: &Frf, band: (f64, f64), m: &mut MethodResult, warnings: 
     if !matches!(m.method, Method::Lscf | Method::Lsce) || m.modes.is_empty() {
         return;
     }
-    match super::mlfit::refine_modes(frf, band, &m.modes) {
+    refine_estimates(frf, band, &mut m.modes, m.method.name(), warnings);
+}
+
+/// [`refine_in_place`] on a list of estimates (`method` names them in the warning).
+pub fn refine_estimates(
+    frf: &Frf,
+    band: (f64, f64),
+    modes: &mut [ModeEstimate],
+    method: &str,
+    warnings: &mut Vec<String>,
+) {
+    if modes.is_empty() {
+        return;
+    }
+    match super::mlfit::refine_modes(frf, band, modes) {
         Ok(r) => {
-            for (e, q) in m.modes.iter_mut().zip(&r.modes) {
+            for (e, q) in modes.iter_mut().zip(&r.modes) {
                 e.freq_hz_std = e.freq_hz_std.hypot(q.freq_hz_std);
                 e.zeta_std = e.zeta_std.hypot(q.zeta_std);
                 e.freq_hz = q.freq_hz;
@@ -720,8 +734,7 @@ fn refine_in_place(frf: &Frf, band: (f64, f64), m: &mut MethodResult, warnings: 
             }
         }
         Err(e) => warnings.push(format!(
-            "maximum-likelihood refinement skipped ({e}); {} estimates kept",
-            m.method.name()
+            "maximum-likelihood refinement skipped ({e:#}); {method} estimates kept"
         )),
     }
 }

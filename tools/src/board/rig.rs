@@ -1,0 +1,216 @@
+//! A virtual rig that measures: the beam of a rig file ([`crate::model`]) clamped on a
+//! servo-driven carriage that follows the board's step output, and a tip sensor that records
+//! what it sees, so that the host's checks work on measurements, not on the identified modes.
+//!
+//! Per board tick (period `dt`):
+//! - **carriage**: the drive follows the emitted step position `r` (setpoint rounded down to
+//!   whole steps, as [`beamshaper::output::StepOutput`] emits it) as a second-order servo
+//!   `ẍ + 2ζ_s ω_s ẋ + ω_s² x = ω_s² r` (default 25 Hz, ζ_s = 0.8), exact zero-order-hold
+//!   discretisation;
+//! - **beam**: clamped-base modes of the rig's Galerkin model, `η̈ + 2ζω η̇ + ω² η = −Γ ÿ`,
+//!   driven by the carriage's velocity change each tick (the same scheme as
+//!   [`crate::model::sim::BaseMotionSim`]), tip = x + Σ φ_r(l) η_r;
+//! - **sensors**: an encoder on the carriage (quantised to `encoder_m`) and a camera on the
+//!   tip at `sample_rate_hz` with a `latency_s` delay and Gaussian noise `noise_m`.
+//!
+//! The sensor writes a recording CSV (`time_s` = board time, `base_cmd_m` = shaped setpoint,
+//! `base_pos_m` = encoder, `tip_pos_m` = camera), one flushed line per frame, so another
+//! process can read it while the board runs ([`read_sensor_log`]).
+
+use crate::model::sim::mode_zoh;
+use crate::model::{BeamModel, ModelOptions, Rig};
+use crate::recording::Recording;
+use anyhow::{bail, Context, Result};
+use nalgebra::{Matrix2, Vector2};
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+use std::collections::VecDeque;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Sensor and servo parameters of the virtual rig.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RigSensors {
+    /// Camera frame rate (Hz); default the rig file's `[sensors] sample_rate_hz`.
+    pub sample_rate_hz: f64,
+    /// Camera latency (s).
+    pub latency_s: f64,
+    /// Camera noise, 1 σ (m).
+    pub noise_m: f64,
+    /// Encoder resolution (m).
+    pub encoder_m: f64,
+    /// Servo bandwidth (Hz) and damping ratio.
+    pub servo_hz: f64,
+    /// Servo damping ratio.
+    pub servo_zeta: f64,
+    /// Noise seed.
+    pub seed: u64,
+}
+
+impl RigSensors {
+    /// A Keyence-like camera (the paper's §5.1): 20 ms latency, 20 µm noise, 1 µm encoder,
+    /// 25 Hz servo; frame rate from the rig file (100 Hz if absent).
+    pub fn camera(rig: &Rig) -> Self {
+        RigSensors {
+            sample_rate_hz: rig.sensors.as_ref().map_or(100.0, |s| s.sample_rate_hz),
+            latency_s: 0.02,
+            noise_m: 20e-6,
+            encoder_m: 1e-6,
+            servo_hz: 25.0,
+            servo_zeta: 0.8,
+            seed: 11,
+        }
+    }
+}
+
+/// The simulated beam, carriage and sensors, advanced one board tick at a time.
+pub struct VirtualRig {
+    dt: f64,
+    servo_phi: Matrix2<f64>,
+    servo_gamma: Vector2<f64>,
+    servo_w2: f64,
+    carriage: Vector2<f64>,
+    phi: Vec<Matrix2<f64>>,
+    participation: Vec<f64>,
+    tip_per_mode: Vec<f64>,
+    eta: Vec<Vector2<f64>>,
+    frame_every: u64,
+    latency: VecDeque<f64>,
+    latency_ticks: usize,
+    noise: Normal<f64>,
+    rng: rand::rngs::StdRng,
+    sensors: RigSensors,
+    ticks: u64,
+    out: std::io::BufWriter<std::fs::File>,
+    path: PathBuf,
+}
+
+impl VirtualRig {
+    /// Builds the rig of `rig` for a board ticking at `tick_hz`, writing the sensor log to
+    /// `log`. Errors: no beam, unusable model, sensor rate not a divisor-friendly fraction of
+    /// the tick rate (must be ≤ tick rate), unwritable log.
+    pub fn new(rig: &Rig, sensors: RigSensors, tick_hz: f64, log: &Path) -> Result<Self> {
+        let s = &sensors;
+        if !(s.sample_rate_hz > 0.0 && s.sample_rate_hz <= tick_hz) {
+            bail!(
+                "sensor rate {} Hz must be > 0 and at most the board's tick rate {tick_hz} Hz",
+                s.sample_rate_hz
+            );
+        }
+        if !(s.latency_s >= 0.0 && s.noise_m >= 0.0 && s.encoder_m > 0.0 && s.servo_hz > 0.0) {
+            bail!("sensor latency, noise, encoder resolution and servo bandwidth must be positive");
+        }
+        let model = BeamModel::new(rig, &ModelOptions::default())?;
+        let modes = model.clamped_modes()?;
+        let dt = 1.0 / tick_hz;
+        let ws = 2.0 * std::f64::consts::PI * s.servo_hz;
+        let (servo_phi, servo_gamma) = mode_zoh(ws, s.servo_zeta, dt);
+        let phi = modes
+            .omega_rad_s
+            .iter()
+            .zip(&modes.zeta)
+            .map(|(&w, &z)| mode_zoh(w, z, dt).0)
+            .collect();
+        let file = std::fs::File::create(log)
+            .with_context(|| format!("cannot create the sensor log {}", log.display()))?;
+        let mut out = std::io::BufWriter::new(file);
+        writeln!(out, "time_s,base_cmd_m,base_pos_m,tip_pos_m")?;
+        out.flush()?;
+        let latency_ticks = (s.latency_s * tick_hz).round() as usize;
+        Ok(VirtualRig {
+            dt,
+            servo_phi,
+            servo_gamma,
+            servo_w2: ws * ws,
+            carriage: Vector2::zeros(),
+            eta: vec![Vector2::zeros(); modes.omega_rad_s.len()],
+            phi,
+            participation: modes.participation.clone(),
+            tip_per_mode: modes.tip.clone(),
+            frame_every: (tick_hz / s.sample_rate_hz).round().max(1.0) as u64,
+            latency: VecDeque::from(vec![0.0; latency_ticks + 1]),
+            latency_ticks,
+            noise: Normal::new(0.0, s.noise_m.max(1e-30))?,
+            rng: rand::rngs::StdRng::seed_from_u64(s.seed),
+            sensors,
+            ticks: 0,
+            out,
+            path: log.to_path_buf(),
+        })
+    }
+
+    /// The sensor log's path.
+    pub fn log_path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Advances one tick with the board's shaped setpoint (m) and its emitted step position (m).
+    pub fn tick(&mut self, setpoint_m: f64, step_pos_m: f64) -> Result<()> {
+        let v_before = self.carriage[1];
+        self.carriage = self.servo_phi * self.carriage + self.servo_gamma * (self.servo_w2 * step_pos_m);
+        let dv = self.carriage[1] - v_before;
+        let mut tip = self.carriage[0];
+        for r in 0..self.eta.len() {
+            self.eta[r][1] -= self.participation[r] * dv;
+            self.eta[r] = self.phi[r] * self.eta[r];
+            tip += self.tip_per_mode[r] * self.eta[r][0];
+        }
+        self.latency.push_back(tip);
+        while self.latency.len() > self.latency_ticks + 1 {
+            self.latency.pop_front();
+        }
+        self.ticks += 1;
+        if self.ticks % self.frame_every == 0 {
+            let seen = self.latency.front().copied().unwrap_or(tip) + self.noise.sample(&mut self.rng);
+            let q = self.sensors.encoder_m;
+            let enc = (self.carriage[0] / q).round() * q;
+            writeln!(
+                self.out,
+                "{:.6},{:.9},{:.9},{:.9}",
+                self.ticks as f64 * self.dt,
+                setpoint_m,
+                enc,
+                seen
+            )?;
+            self.out.flush()?;
+        }
+        Ok(())
+    }
+}
+
+/// Reads the sensor log written so far (complete lines only) between board times
+/// `from_s` and `to_s`. Errors: unreadable file, a complete line that does not parse.
+pub fn read_sensor_log(path: &Path, from_s: f64, to_s: f64) -> Result<Recording> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read the sensor log {}", path.display()))?;
+    let complete = match text.rfind('\n') {
+        Some(i) => &text[..=i],
+        None => "",
+    };
+    let mut rec = Recording {
+        base_cmd_m: Some(Vec::new()),
+        base_pos_m: Some(Vec::new()),
+        tip_pos_m: Some(Vec::new()),
+        ..Default::default()
+    };
+    for (i, line) in complete.lines().enumerate().skip(1) {
+        let v: Vec<f64> = line
+            .split(',')
+            .map(|c| c.trim().parse::<f64>())
+            .collect::<std::result::Result<_, _>>()
+            .ok()
+            .filter(|v: &Vec<f64>| v.len() == 4)
+            .with_context(|| format!("{} line {}: `{line}` is not 4 numbers", path.display(), i + 1))?;
+        if v[0] < from_s || v[0] > to_s {
+            continue;
+        }
+        rec.time_s.push(v[0]);
+        for (ch, x) in [&mut rec.base_cmd_m, &mut rec.base_pos_m, &mut rec.tip_pos_m]
+            .into_iter()
+            .zip(&v[1..])
+        {
+            ch.as_mut().expect("allocated").push(*x);
+        }
+    }
+    Ok(rec)
+}

@@ -1,0 +1,156 @@
+//! Choosing the shortest robust shaper over the core's designs.
+//!
+//! Every shaper kind of [`beamshaper::shaper`] for mode 1 alone, and for modes 1 + 2 by
+//! convolution (paper §4), is scored by its **worst-case percentage vibration** V (paper
+//! eq. 27, `residual_vibration`) over the uncertainty band of every identified mode:
+//! f ∈ f̂·[1 − b, 1 + b] with b = max(2σ_f/f̂, `min_band`), ζ ∈ [ζ̂ − 2σ_ζ, ζ̂ + 2σ_ζ]. The
+//! shortest candidate whose worst case is within the tolerance and that the board can run
+//! (tap table fits its history at its tick rate) wins. The core's `shaper` module stays the
+//! one place that designs and convolves; this module only designs through it and ranks.
+
+use crate::ident::ModeEstimate;
+use beamshaper::config::{ModeSetting, Settings};
+use beamshaper::shaper::{design, residual_vibration, Shaper, ShaperKind};
+
+/// A candidate: one core shaper design per shaped mode, and their convolution.
+#[derive(Clone, Debug)]
+pub struct Candidate {
+    /// Description, e.g. `ZVD(1.100 Hz) * EI(6.900 Hz)`.
+    pub name: String,
+    /// The mode settings that program it (slot 1, 2, …).
+    pub modes: Vec<ModeSetting>,
+    /// The combined shaper.
+    pub shaper: Shaper,
+    /// Worst-case percentage vibration over the bands of all modes (%).
+    pub worst_pct: f64,
+}
+
+/// One checked band: the frequency interval (Hz) and damping interval of a mode.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Band {
+    /// Frequency interval (Hz).
+    pub freq_hz: (f64, f64),
+    /// Damping-ratio interval.
+    pub zeta: (f64, f64),
+}
+
+/// The band checked for mode `m` (see the module docs). `min_band` is a fraction (0.02 = 2 %).
+pub fn band(m: &ModeEstimate, min_band: f64) -> Band {
+    let half = (2.0 * m.freq_hz_std / m.freq_hz).max(min_band);
+    Band {
+        freq_hz: (m.freq_hz * (1.0 - half), m.freq_hz * (1.0 + half)),
+        zeta: (
+            (m.zeta - 2.0 * m.zeta_std).max(0.0),
+            (m.zeta + 2.0 * m.zeta_std).min(0.99),
+        ),
+    }
+}
+
+/// Worst V (%) of `s` over the bands of `modes` (61 frequencies × 3 damping ratios each).
+pub fn worst_case_pct(s: &Shaper, modes: &[ModeEstimate], min_band: f64) -> f64 {
+    let mut worst = 0.0f64;
+    for m in modes {
+        let b = band(m, min_band);
+        for i in 0..=60 {
+            let f = b.freq_hz.0 + (b.freq_hz.1 - b.freq_hz.0) * i as f64 / 60.0;
+            for z in [b.zeta.0, m.zeta, b.zeta.1] {
+                worst = worst.max(100.0 * residual_vibration(s, f, z));
+            }
+        }
+    }
+    worst
+}
+
+/// All candidates (mode 1 alone; modes 1 and 2), sorted by duration then worst case.
+/// `v_tol` (fraction) is the EI kinds' design tolerance. Errors: none; kinds the core
+/// cannot design at these modes are skipped.
+pub fn candidates(modes: &[ModeEstimate], v_tol: f64, min_band: f64) -> Vec<Candidate> {
+    let mut out = Vec::new();
+    let kinds = ShaperKind::all(v_tol.clamp(0.01, 0.2));
+    let setting = |kind: ShaperKind, m: &ModeEstimate| ModeSetting {
+        kind,
+        freq_hz: m.freq_hz,
+        zeta: m.zeta,
+    };
+    let label = |k: ShaperKind, f: f64| format!("{}({f:.3} Hz)", k.name().to_uppercase());
+    let Some(m1) = modes.first() else {
+        return out;
+    };
+    for &k1 in &kinds {
+        let Ok(s1) = design(k1, m1.freq_hz, m1.zeta) else {
+            continue;
+        };
+        out.push(Candidate {
+            name: label(k1, m1.freq_hz),
+            modes: vec![setting(k1, m1)],
+            worst_pct: worst_case_pct(&s1, modes, min_band),
+            shaper: s1.clone(),
+        });
+        let Some(m2) = modes.get(1) else { continue };
+        for &k2 in &kinds {
+            let Ok(s2) = design(k2, m2.freq_hz, m2.zeta) else {
+                continue;
+            };
+            let Ok(s) = s1.convolve(&s2) else { continue };
+            out.push(Candidate {
+                name: format!("{} * {}", label(k1, m1.freq_hz), label(k2, m2.freq_hz)),
+                modes: vec![setting(k1, m1), setting(k2, m2)],
+                worst_pct: worst_case_pct(&s, modes, min_band),
+                shaper: s,
+            });
+        }
+    }
+    out.sort_by(|a, b| {
+        a.shaper
+            .duration_s()
+            .total_cmp(&b.shaper.duration_s())
+            .then(a.worst_pct.total_cmp(&b.worst_pct))
+    });
+    out
+}
+
+/// The board settings `base` with the candidate's modes in slots 1.. and shaping on.
+pub fn settings_with(base: &Settings, c: &Candidate) -> Settings {
+    let mut s = base.clone();
+    s.modes = [None; beamshaper::config::MAX_MODES];
+    for (slot, m) in s.modes.iter_mut().zip(&c.modes) {
+        *slot = Some(*m);
+    }
+    s.custom.clear();
+    s.shaping_enabled = true;
+    s
+}
+
+/// V(f) (%) of `s` at damping `zeta` for each frequency of `freqs_hz`.
+pub fn sensitivity(s: &Shaper, freqs_hz: &[f64], zeta: f64) -> Vec<f64> {
+    freqs_hz
+        .iter()
+        .map(|&f| 100.0 * residual_vibration(s, f, zeta))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn m(f: f64, sf: f64) -> ModeEstimate {
+        ModeEstimate {
+            freq_hz: f,
+            zeta: 0.0074,
+            freq_hz_std: sf,
+            zeta_std: 0.0005,
+            method: "test".into(),
+        }
+    }
+
+    #[test]
+    fn shortest_candidate_meets_its_worst_case_and_is_sorted() {
+        let modes = [m(1.1, 0.001), m(6.9, 0.01)];
+        let c = candidates(&modes, 0.02, 0.02);
+        assert!(c.windows(2).all(|w| w[0].shaper.duration_s() <= w[1].shaper.duration_s()));
+        let best = c.iter().find(|c| c.worst_pct <= 2.0).unwrap();
+        assert_eq!(best.modes.len(), 2, "{}", best.name);
+        // The worst case is attained somewhere in the band, and V at the nominal is smaller.
+        assert!(100.0 * residual_vibration(&best.shaper, 1.1, 0.0074) <= best.worst_pct);
+    }
+}
