@@ -34,8 +34,9 @@ enum Command {
     BenchSim(beamtools::model::bench::BenchArgs),
     /// Identify natural frequencies and damping ratios from a free decay (.npy or CSV).
     Identify(beamtools::ident::cli::IdentifyArgs),
-    /// Make a sine-sweep excitation (eqs. 33-34) as a command CSV, within stroke/accel/tip limits.
-    Sweep(beamtools::ident::cli::SweepArgs),
+    /// Make a sine-sweep excitation (eqs. 33-34) as a command CSV, within stroke/accel/tip
+    /// limits; with --port, run it on the board so a camera can record it.
+    Sweep(SweepCmd),
     /// Welch H1/H2/coherence FRF of a recording (paper Step 2).
     Frf(beamtools::ident::cli::FrfArgs),
     /// Reproduce the paper's Table 1 (sweep identification) on the simulated rig.
@@ -74,6 +75,15 @@ struct VboardArgs {
     /// Camera latency (ms).
     #[arg(long, default_value_t = 20.0, value_parser = beamtools::tune::finite_f64)]
     camera_latency_ms: f64,
+}
+
+#[derive(Args)]
+struct SweepCmd {
+    #[command(flatten)]
+    design: beamtools::ident::cli::SweepArgs,
+    /// Run the sweep on this board (its own reference generator) instead of writing a CSV.
+    #[arg(long)]
+    port: Option<String>,
 }
 
 #[derive(Args)]
@@ -125,7 +135,16 @@ fn run(command: Command) -> Result<()> {
         Command::Modes(a) => beamtools::model::cli::modes(a),
         Command::Table2(a) => beamtools::model::cli::table2(a),
         Command::Identify(a) => beamtools::ident::cli::identify(a),
-        Command::Sweep(a) => beamtools::ident::cli::sweep(a),
+        Command::Sweep(SweepCmd { design, port: None }) => beamtools::ident::cli::sweep(design),
+        Command::Sweep(SweepCmd { design, port: Some(p) }) => {
+            println!("sweeping on {p}; record base and tip now (the sweep is sized and checked first)");
+            let plan = beamtools::tune::board_sweep(&design, &p)?;
+            println!(
+                "done: {} sweep {}-{} Hz, amplitude {:.3} mm, {:.1} s ({:.0} steps/s peak); give the recording to `beamtool tune --port {p} RECORDING`",
+                plan.kind.name(), plan.f0_hz, plan.f1_hz, plan.amplitude_mm, plan.duration_s, plan.peak_step_rate_hz
+            );
+            Ok(())
+        }
         Command::Frf(a) => beamtools::ident::cli::frf(a),
         Command::Table1(a) => beamtools::ident::cli::table1(a),
         Command::Diagnose(a) => beamtools::diagnose::cli::diagnose(a),

@@ -159,15 +159,26 @@ pub fn superposed_vibration_pct(
 /// (after the excitation's transient), keeping only windows whose vibration is still at least
 /// 20 % of the record's largest excursion — so a part that does not decay (noise, a
 /// disturbance) of up to 0.4 % of the excursion adds at most 2 % to the window's V; the
-/// largest (worst) value of those. `None` if no window qualifies.
+/// largest (worst) value of those. Windows whose white-noise contribution to V,
+/// 3σ·√(ΣA_i²)/amplitude (σ from the median successive difference), exceeds
+/// `resolution_pct` are left out too: they cannot resolve the tolerance. `None` if no window
+/// qualifies.
 pub fn superposed_vibration_worst_pct(
     x: &[f64],
     dt_s: f64,
     impulses: &[(f64, f64)],
     window_s: f64,
+    resolution_pct: f64,
 ) -> Option<f64> {
     let n = x.len();
-    let mean = x.iter().sum::<f64>() / n.max(1) as f64;
+    if n < 16 {
+        return None;
+    }
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let mut d: Vec<f64> = x.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    d.sort_by(f64::total_cmp);
+    let sigma = d[d.len() / 2] / (0.6745 * std::f64::consts::SQRT_2);
+    let gain = impulses.iter().map(|i| i.0 * i.0).sum::<f64>().sqrt();
     let peak = x.iter().map(|v| (v - mean).abs()).fold(0.0, f64::max);
     let w = (window_s / dt_s) as usize;
     [0.1, 0.2, 0.3, 0.4, 0.5, 0.6]
@@ -175,7 +186,8 @@ pub fn superposed_vibration_worst_pct(
         .filter_map(|f| {
             let k = (n as f64 * f) as usize;
             let raw = x.get(k..k + w)?.iter().map(|v| (v - mean).abs()).fold(0.0, f64::max);
-            (raw >= 0.2 * peak).then(|| superposed_vibration_pct(&x[k..], dt_s, impulses, window_s))?
+            let resolves = 100.0 * 3.0 * sigma * gain <= resolution_pct * raw;
+            (raw >= 0.2 * peak && resolves).then(|| superposed_vibration_pct(&x[k..], dt_s, impulses, window_s))?
         })
         .reduce(f64::max)
 }

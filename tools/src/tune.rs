@@ -470,6 +470,7 @@ impl Verification {
 
 /// Step 7: verification (see the module docs). Ends with the carriage where it started.
 pub fn verify(
+    tol: f64,
     bench: &mut Bench,
     inputs: &Inputs,
     id: &IdentifiedModes,
@@ -492,7 +493,7 @@ pub fn verify(
                 true => displacement_from_acceleration(&x, dt, 0.5 * id.modes[0].freq_hz),
                 false => x,
             };
-            superposed_vibration_worst_pct(&pos, dt, &imps, d.window_s)
+            superposed_vibration_worst_pct(&pos, dt, &imps, d.window_s, tol / 2.0)
         });
     let ts = bench.time_scale;
     let m1 = &id.modes[0];
@@ -670,15 +671,16 @@ fn run_job(a: &TuneArgs, inputs: &Inputs, bench: &mut Bench, before: &BoardState
     sensitivity_plot(a, &shaped_modes, &d)?;
     program(&mut bench.session, &d.best)?;
     println!("programmed {} and read the table back: {} impulses identical", bench.port, d.best.shaper.len());
-    let v = verify(bench, inputs, &id, &d, tick_hz)?;
+    let v = verify(a.tolerance_pct, bench, inputs, &id, &d, tick_hz)?;
     let passed = v.passed(a.tolerance_pct);
     let fmt = |p: Option<f64>| p.map_or("-".to_string(), |p| format!("{p:.2} %"));
     println!("verification (percentage vibration, tolerance {} %):", a.tolerance_pct);
     println!("  measured by the camera          {}", fmt(v.measured_pct));
     println!(
-        "  shaper on the recorded vibration {} (model-free superposition{})",
+        "  shaper on the recorded vibration {} (model-free superposition{}; - = no free vibration that resolves {} %)",
         fmt(v.superposed_pct),
-        if inputs.acceleration { ", acceleration integrated twice" } else { "" }
+        if inputs.acceleration { ", acceleration integrated twice" } else { "" },
+        a.tolerance_pct / 2.0
     );
     println!("  rig model ({})  {}", inputs.rig_label, fmt(v.rig_model_pct));
     println!("  predicted at the identified modes {:.2} %", v.predicted_pct);
@@ -848,4 +850,35 @@ pub fn generate_recording(rig: &Rig, path: &Path) -> Result<()> {
         *v += noise.sample(&mut rng);
     }
     rec.write_csv(path)
+}
+
+/// `beamtool sweep --port …`: runs the sweep of `a` (eq. 33 or 34, band, rate) on a board
+/// through its own reference generator, about its present position, so that the user's
+/// camera can record it for `tune --port … <recording>`. The amplitude is the largest within
+/// `--stroke-mm`, the base acceleration `--accel-max` at the top frequency and the board's
+/// step-rate rule with the 5 % margin. Waits until the sweep has ended. Changes no setting.
+pub fn board_sweep(a: &crate::ident::cli::SweepArgs, port: &str) -> Result<crate::board::plan::SweepPlan> {
+    let kind = match a.kind.as_str() {
+        "exponential" | "exp" => SweepKind::Exponential,
+        "linear" | "lin" => SweepKind::Linear,
+        k => bail!("unknown sweep kind `{k}` (linear or exponential)"),
+    };
+    let (fa, fb) = (a.f_a_hz, a.f_b_hz);
+    if !(fa > 0.0 && fb > fa && a.rate.is_finite() && a.rate != 0.0) {
+        bail!("need 0 < --f-a-hz < --f-b-hz and a non-zero --rate");
+    }
+    let duration_s = match kind {
+        SweepKind::Exponential => (fb / fa).log2() * 60.0 / a.rate.abs(),
+        SweepKind::Linear => (fb - fa) / a.rate.abs(),
+    };
+    let (f0, f1) = if a.rate > 0.0 { (fa, fb) } else { (fb, fa) };
+    let accel_limited_mm = a.accel_max / (2.0 * std::f64::consts::PI * fb).powi(2) * 1e3;
+    let mut s = Session::open(port)?;
+    let board = read_board(&mut s)?;
+    let plan = plan_sweep(&board.settings, kind, f0, f1, a.stroke_mm.min(accel_limited_mm), duration_s)
+        .map_err(|e| anyhow!("{e}"))?;
+    let st = s.status()?;
+    let ticks = s.sweep(&plan).context("starting the sweep")?;
+    wait_board(&mut s, st.ticks + ticks, Duration::from_secs_f64(ticks as f64 / st.tick_hz + 30.0))?;
+    Ok(plan)
 }
