@@ -131,9 +131,18 @@ fn run(command: Command) -> Result<()> {
         Command::Vboard(a) => vboard(a),
         Command::Console(a) => console(a),
         Command::Shaper(a) => shaper(a),
-        Command::Simulate(a) => beamtools::model::cli::simulate(a),
-        Command::Modes(a) => beamtools::model::cli::modes(a),
-        Command::Table2(a) => beamtools::model::cli::table2(a),
+        Command::Simulate(mut a) => {
+            default_rig(&mut a.rig)?;
+            beamtools::model::cli::simulate(a)
+        }
+        Command::Modes(mut a) => {
+            default_rig(&mut a.rig)?;
+            beamtools::model::cli::modes(a)
+        }
+        Command::Table2(mut a) => {
+            default_rig(&mut a.rig)?;
+            beamtools::model::cli::table2(a)
+        }
         Command::Identify(a) => beamtools::ident::cli::identify(a),
         Command::Sweep(SweepCmd { design, port: None }) => beamtools::ident::cli::sweep(design),
         Command::Sweep(SweepCmd { design, port: Some(p) }) => {
@@ -146,12 +155,18 @@ fn run(command: Command) -> Result<()> {
             Ok(())
         }
         Command::Frf(a) => beamtools::ident::cli::frf(a),
-        Command::Table1(a) => beamtools::ident::cli::table1(a),
+        Command::Table1(mut a) => {
+            default_rig(&mut a.rig)?;
+            beamtools::ident::cli::table1(a)
+        }
         Command::Diagnose(a) => beamtools::diagnose::cli::diagnose(a),
         Command::DiagnoseProof(a) => beamtools::diagnose::cli::proof(a),
         Command::DiagnoseLengths(a) => beamtools::diagnose::cli::diagnose_lengths(a),
         Command::Truth(a) => beamtools::truth::cli::truth(a),
-        Command::BenchSim(a) => beamtools::model::bench::bench_sim(a),
+        Command::BenchSim(mut a) => {
+            default_rig(&mut a.rig)?;
+            beamtools::model::bench::bench_sim(a)
+        }
     }
 }
 
@@ -161,6 +176,29 @@ fn parse_time_scale(s: &str) -> std::result::Result<f64, String> {
         .parse()
         .map_err(|_| format!("`{s}` is not a number"))?;
     board::check_time_scale(v)
+}
+
+/// The commands' default `--rig ../rigs/paper.toml` is relative to `tools/`. From any other
+/// directory: the `rigs/paper.toml` beside the binary (its checkout), else the built-in copy.
+fn default_rig(rig: &mut PathBuf) -> Result<()> {
+    if rig.as_path() != std::path::Path::new("../rigs/paper.toml") || rig.exists() {
+        return Ok(());
+    }
+    let beside = std::env::current_exe().ok().and_then(|exe| {
+        exe.ancestors()
+            .map(|d| d.join("rigs/paper.toml"))
+            .find(|p| p.exists())
+    });
+    *rig = match beside {
+        Some(p) => p,
+        None => {
+            let p = std::env::temp_dir().join(format!("beamtool-paper-{}.toml", std::process::id()));
+            std::fs::write(&p, beamtools::tune::DEFAULT_RIG_TOML)
+                .with_context(|| format!("cannot write the built-in rig to {}", p.display()))?;
+            p
+        }
+    };
+    Ok(())
 }
 
 fn vboard(a: VboardArgs) -> Result<()> {
