@@ -17,7 +17,14 @@ fn beamtool(args: &[&str]) -> std::process::Output {
 fn commands_run_from_any_directory_and_fail_with_plain_messages() {
     let m = beamtool(&["modes"]);
     assert!(m.status.success(), "{}", String::from_utf8_lossy(&m.stderr));
-    let t = beamtool(&["tune", "--move-mm", "-50", "--port", "/dev/does-not-exist", "--out", "/tmp/beamtool-cli-test"]);
+    let rec = std::fs::read_dir("../../shared/data/real/aluminium-cantilever")
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.file_name().unwrap().to_string_lossy().starts_with("50cm"))
+        .unwrap();
+    let rec = std::fs::canonicalize(rec).unwrap();
+    let rec = rec.to_str().unwrap();
+    let t = beamtool(&["tune", rec, "--move-mm", "-50", "--port", "/dev/does-not-exist", "--out", "/tmp/beamtool-cli-test"]);
     let err = String::from_utf8_lossy(&t.stderr);
     assert_eq!(t.status.code(), Some(1), "{err}");
     assert!(err.starts_with("error: ") && err.contains("/dev/does-not-exist"), "{err}");
