@@ -208,7 +208,8 @@ impl Settings {
     pub fn tap_table(&self, history_len: usize) -> Result<TapTable, ConfigError> {
         self.validate()?;
         let nyquist_hz = 0.5 * self.tick_rate_hz as f64;
-        if self.modes.iter().flatten().any(|m| !(m.freq_hz < nyquist_hz)) {
+        let below = |f: f64| f < nyquist_hz; // false for NaN too
+        if self.modes.iter().flatten().any(|m| !below(m.freq_hz)) {
             return Err(ConfigError::Range(
                 "mode frequency (must be below the tick's Nyquist frequency, tick rate / 2)",
             ));

@@ -359,7 +359,7 @@ impl SineSweep {
             return Err(SweepError::Stroke);
         }
         let n_total = libm::round(duration_s * tick_rate_hz);
-        if !(n_total >= 2.0 && n_total < 4.0e9) {
+        if !(2.0..4.0e9).contains(&n_total) {
             return Err(SweepError::Profile);
         }
         let n_total = n_total as u32;

@@ -272,7 +272,9 @@ impl RuntimeError {
             RuntimeError::Sweep(SweepError::Stroke) => {
                 "position +- amplitude leaves the stroke (+-1000 mm)"
             }
-            RuntimeError::StepRate(_) => "shaped move would exceed the maximum step rate",
+            RuntimeError::StepRate(_) => {
+                "the shaped reference would exceed the maximum step rate (maxrate)"
+            }
             RuntimeError::Switch(SwitchError::Budget { .. }) => {
                 "old and new shaper together would exceed the tap budget of 256 taps per tick; \
                  retry when the running transition has ended"
@@ -538,6 +540,7 @@ impl State {
 
     /// Next-tick apply: the table by superposition, the step-rate limit and DAC span as they
     /// are. Gives `p` back (nothing changed) if the engine refuses the switch.
+    #[allow(clippy::result_large_err)] // the parameters themselves, handed back to stay pending
     fn apply_now(&mut self, p: RunParams) -> Result<(), RunParams> {
         if *self.engine.taps() != p.taps && self.engine.switch(p.taps.clone()).is_err() {
             return Err(p);

@@ -295,3 +295,4 @@ fn status_before_the_first_move_and_number_formatting() {
     let st = b.ok("status");
     assert!(st.contains("tick_hz=2000") && st.contains("waiting=none"), "{st}");
 }
+

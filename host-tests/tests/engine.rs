@@ -218,8 +218,10 @@ fn step_output_accounting_across_negative_positions() {
     assert_eq!((c.pulses, s.emitted(), s.rate_faults()), (27, 25, 1));
 }
 
-/// Changing the shaper during a move: the change waits until the reference has been still
-/// for the old shaper's duration, the setpoint never jumps, and the final position is exact.
+/// Changing the shaper together with the tick rate and numeric path during a move: such a
+/// change waits until the reference has been still for the old shaper's duration (a change of
+/// the shaper alone applies at the next tick: `tests/switch.rs`), the setpoint never jumps,
+/// and the final position is exact.
 #[test]
 fn shaper_change_while_moving_never_jumps() {
     let mut a = Settings::DEFAULT;
@@ -330,4 +332,15 @@ fn stepdir_pass_through_unwraps_the_16_bit_counter_and_shapes_it() {
     }
     assert_eq!(rt.status().setpoint_counts, 150_000_000);
     assert_eq!(rt.step_output().emitted(), 150_000);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+    /// The engine's cheap rounding equals `roundf` (halves away from zero) in the i32 range.
+    #[test]
+    fn round_f32_matches_roundf(x in -2.1e9f32..2.1e9, frac in prop::sample::select(vec![0.0f32, 0.5, -0.5, 0.49999997, 0.50000006, 0.25])) {
+        for v in [x, x.trunc() + frac, frac, -frac] {
+            prop_assert_eq!(beamshaper::engine::round_f32(v), v.round() as i32, "{}", v);
+        }
+    }
 }

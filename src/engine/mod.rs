@@ -124,18 +124,6 @@ impl Stage {
             hold: 0,
         }
     }
-
-    /// The sample this stage sees `d` ticks ago.
-    #[inline(always)]
-    fn sample<const N: usize>(&self, ring: &Ring<N>, buf: &[i32; N], d: u32) -> i32 {
-        if self.closed && d < self.skip {
-            self.hold
-        } else if d >= self.valid {
-            self.fill
-        } else {
-            ring.get(buf, d)
-        }
-    }
 }
 
 /// The engine without its history buffer: the tables in flight, the ring position and the
@@ -390,16 +378,37 @@ impl<const N: usize> EngineState<N> {
         x0.wrapping_add(round_f32(acc))
     }
 
-    /// Any state (transition, or window reaching back before a reset): every stage with its
-    /// clamps, per tap.
+    /// The tap ranges of stage `s` this tick: `[0, a)` read its held value (closed stages),
+    /// `[a, b)` live samples, `[b, len)` its fill value. Binary searches on the sorted taps.
+    #[inline(always)]
+    fn ranges(s: &Stage) -> (&[Tap], &[Tap], &[Tap]) {
+        let taps = s.taps.taps();
+        let a = if s.closed {
+            taps.partition_point(|t| t.delay < s.skip)
+        } else {
+            0
+        };
+        let b = taps.partition_point(|t| t.delay < s.valid).max(a);
+        let (held, rest) = taps.split_at(a);
+        let (live, filled) = rest.split_at(b - a);
+        (held, live, filled)
+    }
+
+    /// Any state (transition, or window reaching back before a reset): every stage, its
+    /// taps split by its clamps into held, live and filled ranges (the constant ranges as one
+    /// weight sum times the value).
     fn general_fixed(&self, buf: &[i32; N]) -> i32 {
         let mut acc: i64 = 0;
         for k in 0..self.count {
             let s = &self.stages[self.idx(k)];
-            for t in s.taps.taps() {
-                let v = s.sample(&self.ring, buf, t.delay);
-                acc = acc.wrapping_add(t.w_q30 as i64 * v as i64);
+            let (held, live, filled) = Self::ranges(s);
+            let w_held: i64 = held.iter().map(|t| t.w_q30 as i64).sum();
+            let w_filled: i64 = filled.iter().map(|t| t.w_q30 as i64).sum();
+            acc = acc.wrapping_add(w_held.wrapping_mul(s.hold as i64));
+            for t in live {
+                acc = acc.wrapping_add(t.w_q30 as i64 * self.ring.get(buf, t.delay) as i64);
             }
+            acc = acc.wrapping_add(w_filled.wrapping_mul(s.fill as i64));
             if k > 0 {
                 acc = acc.wrapping_sub((s.fill as i64) << WEIGHT_FRAC_BITS);
             }
@@ -412,11 +421,14 @@ impl<const N: usize> EngineState<N> {
         let mut acc = 0.0f32;
         for k in 0..self.count {
             let s = &self.stages[self.idx(k)];
+            // Held samples equal `c` for a closed stage: their differences are 0.
             let c = if s.closed { s.hold } else { x0 };
-            for t in s.taps.taps() {
-                let v = s.sample(&self.ring, buf, t.delay);
-                acc += t.w_f32 * v.wrapping_sub(c) as f32;
+            let (_, live, filled) = Self::ranges(s);
+            for t in live {
+                acc += t.w_f32 * self.ring.get(buf, t.delay).wrapping_sub(c) as f32;
             }
+            let w_filled: f32 = filled.iter().map(|t| t.w_f32).sum();
+            acc += w_filled * s.fill.wrapping_sub(c) as f32;
         }
         x0.wrapping_add(round_f32(acc))
     }

@@ -246,3 +246,35 @@ fn recording_formats_and_messages() {
     let e = format!("{:#}", identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap_err());
     assert!(e.contains("milliseconds"), "{e}");
 }
+
+/// `.lvm` works wherever a recording is read: the entry point reads it as a spectrum.
+#[test]
+fn lvm_spectrum_through_the_entry_point() {
+    let p = PathBuf::from("../../shared/data/real/steel-cantilever/FFT_data_impulse_test.lvm");
+    if !p.exists() {
+        eprintln!("skipped: {} not present", p.display());
+        return;
+    }
+    let o = IdentifyOptions {
+        decay: beamtools::ident::freedecay::FreeDecayOptions {
+            f_min_hz: 1.0,
+            f_max_hz: 1000.0,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let id = identify_file(&p, &o, &mut no_progress()).unwrap();
+    assert_eq!(id.path, IdentPath::Spectrum);
+    assert!((id.modes[0].freq_hz - 6.6).abs() < 0.05, "{:?}", id.modes);
+    // The free-decay signal of a dithering move starts where the base is still.
+    let m = model();
+    let sim = BaseMotionSim::new(&m, 1e-3).unwrap();
+    let (y, _) = trapezoid_reference(0.0, 0.02, 0.2, 2.0, 1000.0, 10.0).unwrap();
+    let mut rec = beamtools::model::cli::decimate(&sim.recording(&y, 0.0), 100.0);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(4);
+    for v in rec.base_pos_m.as_mut().unwrap().iter_mut() {
+        *v += rng.gen_range(-2e-6..2e-6);
+    }
+    let (t, _, what) = beamtools::ident::identify::free_decay_signal(&rec).unwrap();
+    assert!((0.15..0.3).contains(&t[0]), "{} {what}", t[0]);
+}

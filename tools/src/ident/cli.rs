@@ -74,48 +74,13 @@ pub struct IdentifyArgs {
     pub path: String,
 }
 
-/// The free-decay part of a recording: the tip deflection (tip − base, or tip alone) from the
-/// last sample at which the base moved. Returns (time, signal, description).
+/// The free-decay part of a recording file (CSV, `.npy`): [`super::identify::free_decay_signal`]
+/// (gaps split, base still within its noise band). Returns (time, signal, description).
 pub fn free_decay_of(path: &Path) -> Result<(Vec<f64>, Vec<f64>, String)> {
-    if path.extension().is_some_and(|e| e == "npy") {
-        let (t, x) = Recording::read_npy(path)?;
-        return Ok((t, x, format!("{} (row 1 of the .npy)", path.display())));
-    }
-    let rec = Recording::read_csv(path)?;
-    let tip = rec
-        .tip_pos_m
-        .as_ref()
-        .with_context(|| format!("{}: no tip_pos_m column to identify from", path.display()))?;
-    let base = rec.base_pos_m.as_ref().or(rec.base_cmd_m.as_ref());
-    let (sig, start) = match base {
-        Some(b) => {
-            let moved = b
-                .windows(2)
-                .rposition(|w| (w[1] - w[0]).abs() > 1e-9)
-                .map_or(0, |k| k + 1);
-            (
-                tip.iter().zip(b).map(|(t, b)| t - b).collect::<Vec<_>>(),
-                moved,
-            )
-        }
-        None => (tip.clone(), 0),
-    };
-    if rec.len() - start < 64 {
-        bail!(
-            "{}: only {} samples after the base stopped moving; a free decay needs more",
-            path.display(),
-            rec.len() - start
-        );
-    }
-    Ok((
-        rec.time_s[start..].to_vec(),
-        sig[start..].to_vec(),
-        format!(
-            "{}: tip deflection from t = {:.3} s (base still)",
-            path.display(),
-            rec.time_s[start]
-        ),
-    ))
+    let rec = Recording::read_any(path, &mut |_| {})?;
+    let (t, x, what) = super::identify::free_decay_signal(&rec)
+        .map_err(|e| anyhow::anyhow!("{}: {e:#}", path.display()))?;
+    Ok((t, x, format!("{}: {what}", path.display())))
 }
 
 /// Prints a result as a table a controls engineer expects.

@@ -363,6 +363,44 @@ pub fn identify(
     Ok(out)
 }
 
+/// The free-decay part of `rec` as (time s, signal, description): the longest clean segment
+/// (split at gaps, jitter resampled), from where the base is still within its noise band
+/// ([`base_motion`]) when it moves, tip − base (or the tip alone). For callers that run
+/// their own free-decay analysis (the diagnosis).
+///
+/// Errors: invalid recording, no tip channel, fewer than 64 samples after the base is still.
+pub fn free_decay_signal(rec: &Recording) -> Result<(Vec<f64>, Vec<f64>, String)> {
+    rec.validate_gapped()?;
+    check_time_unit(rec)?;
+    if rec.tip_pos_m.is_none() {
+        bail!("no tip_pos_m column to identify from");
+    }
+    let mut warnings = Vec::new();
+    let seg = clean_segment(rec, &mut warnings);
+    let base = base_channel(&seg).map(base_motion);
+    let from = base.as_ref().map_or(0, |b| b.still_from);
+    let (t, x) = tip_signal(&seg, from);
+    if t.len() < 64 {
+        bail!(
+            "only {} samples after the base is still (within ±{} µm of its final position); a free decay needs at least 64",
+            t.len(),
+            fmt_sig(base.map_or(0.0, |b| b.still_band_m) * 1e6, 3)
+        );
+    }
+    let mut what = match &base {
+        Some(b) => format!(
+            "tip deflection from t = {} s (base still within ±{} µm)",
+            fmt_sig(t[0], 4),
+            fmt_sig(b.still_band_m * 1e6, 3)
+        ),
+        None => "the tip signal".to_string(),
+    };
+    for w in warnings {
+        what += &format!("; {w}");
+    }
+    Ok((t, x, what))
+}
+
 /// Rayleigh α1, α2 (eq. 22) of the first two modes; a negative coefficient is reported as a
 /// warning (the damping of these two modes is not of Rayleigh form).
 fn rayleigh(modes: &[ModeEstimate], warnings: &mut Vec<String>) -> Option<(f64, f64)> {
