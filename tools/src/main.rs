@@ -145,8 +145,13 @@ fn run(command: Command) -> Result<()> {
         }
         Command::Identify(a) => beamtools::ident::cli::identify(a),
         Command::Sweep(SweepCmd { design, port: None }) => beamtools::ident::cli::sweep(design),
-        Command::Sweep(SweepCmd { design, port: Some(p) }) => {
-            println!("sweeping on {p}; record base and tip now (the sweep is sized and checked first)");
+        Command::Sweep(SweepCmd {
+            design,
+            port: Some(p),
+        }) => {
+            println!(
+                "sweeping on {p}; record base and tip now (the sweep is sized and checked first)"
+            );
             let plan = beamtools::tune::board_sweep(&design, &p)?;
             println!(
                 "done: {} sweep {}-{} Hz, amplitude {:.3} mm, {:.1} s ({:.0} steps/s peak); give the recording to `beamtool tune --port {p} RECORDING`",
@@ -192,7 +197,8 @@ fn default_rig(rig: &mut PathBuf) -> Result<()> {
     *rig = match beside {
         Some(p) => p,
         None => {
-            let p = std::env::temp_dir().join(format!("beamtool-paper-{}.toml", std::process::id()));
+            let p =
+                std::env::temp_dir().join(format!("beamtool-paper-{}.toml", std::process::id()));
             std::fs::write(&p, beamtools::tune::DEFAULT_RIG_TOML)
                 .with_context(|| format!("cannot write the built-in rig to {}", p.display()))?;
             p
@@ -222,7 +228,12 @@ fn vboard(a: VboardArgs) -> Result<()> {
         let mut sensors = board::rig::RigSensors::camera(&rig);
         sensors.noise_m = a.camera_noise_um * 1e-6;
         sensors.latency_s = a.camera_latency_ms * 1e-3;
-        let r = board::rig::VirtualRig::new(&rig, sensors, b.runtime().tick_rate_hz() as f64, &a.sensor_out)?;
+        let r = board::rig::VirtualRig::new(
+            &rig,
+            sensors,
+            b.runtime().tick_rate_hz() as f64,
+            &a.sensor_out,
+        )?;
         b.attach_rig(r);
         println!(
             "virtual rig {} attached; its camera writes {}",

@@ -102,7 +102,10 @@ pub fn cut_move(
             .position(|c| (c - target_m).abs() < 1e-9)?;
     let t_end = time_s[k_end] + window_s;
     let k1 = k_end + time_s[k_end..].iter().take_while(|&&t| t <= t_end).count();
-    if time_s.get(k1.saturating_sub(1)).is_none_or(|t| *t < t_end - 2.0 * window_s / 100.0) {
+    if time_s
+        .get(k1.saturating_sub(1))
+        .is_none_or(|t| *t < t_end - 2.0 * window_s / 100.0)
+    {
         return None;
     }
     let t0 = time_s[k0];
@@ -185,9 +188,14 @@ pub fn superposed_vibration_worst_pct(
         .iter()
         .filter_map(|f| {
             let k = (n as f64 * f) as usize;
-            let raw = x.get(k..k + w)?.iter().map(|v| (v - mean).abs()).fold(0.0, f64::max);
+            let raw = x
+                .get(k..k + w)?
+                .iter()
+                .map(|v| (v - mean).abs())
+                .fold(0.0, f64::max);
             let resolves = 100.0 * 3.0 * sigma * gain <= resolution_pct * raw;
-            (raw >= 0.2 * peak && resolves).then(|| superposed_vibration_pct(&x[k..], dt_s, impulses, window_s))?
+            (raw >= 0.2 * peak && resolves)
+                .then(|| superposed_vibration_pct(&x[k..], dt_s, impulses, window_s))?
         })
         .reduce(f64::max)
 }
@@ -209,7 +217,9 @@ pub fn displacement_from_acceleration(a: &[f64], dt_s: f64, f_lo_hz: f64) -> Vec
     let mut buf: Vec<f64> = a
         .iter()
         .enumerate()
-        .map(|(k, v)| (v - mean) * hann(k as f64 / taper as f64) * hann((n - k) as f64 / taper as f64))
+        .map(|(k, v)| {
+            (v - mean) * hann(k as f64 / taper as f64) * hann((n - k) as f64 / taper as f64)
+        })
         .collect();
     let mut planner = RealFftPlanner::<f64>::new();
     let fwd = planner.plan_fft_forward(n);

@@ -24,11 +24,26 @@ fn commands_run_from_any_directory_and_fail_with_plain_messages() {
         .unwrap();
     let rec = std::fs::canonicalize(rec).unwrap();
     let rec = rec.to_str().unwrap();
-    let t = beamtool(&["tune", rec, "--move-mm", "-50", "--port", "/dev/does-not-exist", "--out", "/tmp/beamtool-cli-test"]);
+    let t = beamtool(&[
+        "tune",
+        rec,
+        "--move-mm",
+        "-50",
+        "--port",
+        "/dev/does-not-exist",
+        "--out",
+        "/tmp/beamtool-cli-test",
+    ]);
     let err = String::from_utf8_lossy(&t.stderr);
     assert_eq!(t.status.code(), Some(1), "{err}");
-    assert!(err.starts_with("error: ") && err.contains("/dev/does-not-exist"), "{err}");
-    assert!(!err.contains("Error {") && !err.contains("backtrace") && !err.contains("Os {"), "{err}");
+    assert!(
+        err.starts_with("error: ") && err.contains("/dev/does-not-exist"),
+        "{err}"
+    );
+    assert!(
+        !err.contains("Error {") && !err.contains("backtrace") && !err.contains("Os {"),
+        "{err}"
+    );
     let n = beamtool(&["tune", "--tolerance-pct", "nan"]);
     assert!(!n.status.success());
     assert!(String::from_utf8_lossy(&n.stderr).contains("not a finite number"));
