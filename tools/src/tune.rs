@@ -386,10 +386,49 @@ pub struct Design {
     pub unshaped: MovePlan,
     /// Settling window observed after each move (s).
     pub window_s: f64,
+    /// Shorter candidates refused because they leave more than the tolerance of the recorded
+    /// free vibration (model-free superposition), with that percentage.
+    pub refused_on_recording: Vec<String>,
 }
 
-/// Step 5: the shortest robust shaper whose verification move the board can run.
-pub fn design(a: &TuneArgs, modes: &[ModeEstimate], board: &BoardState) -> Result<Design> {
+/// The user's recorded free vibration as tip position (m) at a uniform step (s), for the
+/// model-free check: an accelerometer's signal integrated twice (high-passed at half the first
+/// identified natural frequency). `None` when the input has none (generated sweep, or a
+/// recording that ends moving).
+pub fn recorded_free_position(inputs: &Inputs, f1_hz: f64) -> Option<(Vec<f64>, f64)> {
+    let (x, dt) = inputs.recording.as_deref().and_then(free_vibration)?;
+    let pos = match inputs.acceleration {
+        true => displacement_from_acceleration(&x, dt, 0.5 * f1_hz),
+        false => x,
+    };
+    Some((pos, dt))
+}
+
+/// The shaper applied to a recorded free vibration by superposition (model-free), in %.
+fn superposed_pct(
+    recorded: &(Vec<f64>, f64),
+    shaper: &Candidate,
+    window_s: f64,
+    tol: f64,
+) -> Option<f64> {
+    let imps: Vec<(f64, f64)> = shaper
+        .shaper
+        .impulses()
+        .iter()
+        .map(|i| (i.amplitude, i.time_s))
+        .collect();
+    superposed_vibration_worst_pct(&recorded.0, recorded.1, &imps, window_s, tol / 2.0)
+}
+
+/// Step 5: the shortest robust shaper whose verification move the board can run and, when the
+/// input holds a recorded free vibration, that leaves that vibration within the tolerance
+/// (model-free superposition): the data, not only the identified modes, must agree.
+pub fn design(
+    a: &TuneArgs,
+    modes: &[ModeEstimate],
+    board: &BoardState,
+    recorded: Option<&(Vec<f64>, f64)>,
+) -> Result<Design> {
     let tol = a.tolerance_pct;
     let f1 = modes[0].freq_hz;
     let window_s = (6.0 / f1).clamp(2.0, 20.0);
@@ -409,9 +448,20 @@ pub fn design(a: &TuneArgs, modes: &[ModeEstimate], board: &BoardState) -> Resul
     .map_err(|e| anyhow!("unshaped reference move: {e}"))?;
     let mut feasible = Vec::new();
     let mut why = Vec::new();
+    let mut refused_on_recording = Vec::new();
     for c in candidates(modes, tol / 100.0, a.min_band_pct / 100.0) {
         if c.worst_pct > tol {
             continue;
+        }
+        if let Some(p) = recorded.and_then(|r| superposed_pct(r, &c, window_s, tol)) {
+            if p > tol {
+                let line = format!("{}: leaves {p:.2} % of the recorded vibration", c.name);
+                if feasible.is_empty() {
+                    refused_on_recording.push(line.clone());
+                }
+                why.push(line);
+                continue;
+            }
         }
         match plan_move(
             &settings_with(&board.settings, &c),
@@ -439,6 +489,7 @@ pub fn design(a: &TuneArgs, modes: &[ModeEstimate], board: &BoardState) -> Resul
         shaped,
         unshaped,
         window_s,
+        refused_on_recording,
     })
 }
 
@@ -520,6 +571,7 @@ pub fn verify(
     inputs: &Inputs,
     id: &IdentifiedModes,
     d: &Design,
+    recorded: Option<&(Vec<f64>, f64)>,
     tick_hz: f64,
 ) -> Result<Verification> {
     let predicted_pct = id
@@ -528,24 +580,7 @@ pub fn verify(
         .take(d.best.modes.len())
         .map(|m| 100.0 * residual_vibration(&d.best.shaper, m.freq_hz, m.zeta))
         .fold(0.0, f64::max);
-    let imps: Vec<(f64, f64)> = d
-        .best
-        .shaper
-        .impulses()
-        .iter()
-        .map(|i| (i.amplitude, i.time_s))
-        .collect();
-    let superposed_pct = inputs
-        .recording
-        .as_deref()
-        .and_then(free_vibration)
-        .and_then(|(x, dt)| {
-            let pos = match inputs.acceleration {
-                true => displacement_from_acceleration(&x, dt, 0.5 * id.modes[0].freq_hz),
-                false => x,
-            };
-            superposed_vibration_worst_pct(&pos, dt, &imps, d.window_s, tol / 2.0)
-        });
+    let superposed_pct = recorded.and_then(|r| superposed_pct(r, &d.best, d.window_s, tol));
     let ts = bench.time_scale;
     let m1 = &id.modes[0];
     let settle = (1000f64.ln() / (2.0 * std::f64::consts::PI * m1.freq_hz * m1.zeta.max(1e-4)))
@@ -770,7 +805,8 @@ fn run_job(
         println!("  {line}");
     }
     let shaped_modes: Vec<ModeEstimate> = id.modes.iter().take(2).cloned().collect();
-    let d = design(a, &shaped_modes, before)?;
+    let recorded = recorded_free_position(inputs, id.modes[0].freq_hz);
+    let d = design(a, &shaped_modes, before, recorded.as_ref())?;
     println!(
         "shaper: {} — {} impulses, {:.4} s, worst-case V {:.2} % (tolerance {} % over f ± max(2σ, {} %), ζ ± 2σ); verification move {:.1} -> {:.1} mm at {} mm/s, {:.0} steps/s of {}",
         d.best.name, d.best.shaper.len(), d.best.shaper.duration_s(), d.best.worst_pct, a.tolerance_pct, a.min_band_pct,
@@ -784,6 +820,9 @@ fn run_job(
             c.worst_pct
         );
     }
+    for r in &d.refused_on_recording {
+        println!("  refused (shorter) {r}");
+    }
     sensitivity_plot(a, &shaped_modes, &d)?;
     program(&mut bench.session, &d.best)?;
     println!(
@@ -791,7 +830,15 @@ fn run_job(
         bench.port,
         d.best.shaper.len()
     );
-    let v = verify(a.tolerance_pct, bench, inputs, &id, &d, tick_hz)?;
+    let v = verify(
+        a.tolerance_pct,
+        bench,
+        inputs,
+        &id,
+        &d,
+        recorded.as_ref(),
+        tick_hz,
+    )?;
     let passed = v.passed(a.tolerance_pct);
     let fmt = |p: Option<f64>| p.map_or("-".to_string(), |p| format!("{p:.2} %"));
     println!(
