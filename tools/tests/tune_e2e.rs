@@ -139,7 +139,7 @@ fn a_failed_verification_exits_with_an_error_saves_nothing_and_restores_the_runn
 
 #[test]
 fn the_real_aluminium_decays_pass_the_model_free_check() {
-    for (len, f_lo, f_hi) in [("40cm", 9.3, 9.5), ("50cm", 5.9, 6.2)] {
+    for (len, f_lo, f_hi) in [("40cm", 9.3, 9.5), ("50cm", 5.9, 6.2), ("60cm", 4.1, 4.4)] {
         let out = tmpdir(&format!("real-{len}"));
         tune(TuneArgs::new(Some(real(len)), &out)).unwrap();
         let r = json(&out);
