@@ -163,7 +163,7 @@ pub fn superposed_vibration_pct(
 /// 20 % of the record's largest excursion — so a part that does not decay (noise, a
 /// disturbance) of up to 0.4 % of the excursion adds at most 2 % to the window's V; the
 /// largest (worst) value of those. Windows whose white-noise contribution to V,
-/// 3σ·√(ΣA_i²)/amplitude (σ from the median successive difference), exceeds
+/// 3σ·√(ΣA_i²)/amplitude (σ from the median third difference), exceeds
 /// `resolution_pct` are left out too: they cannot resolve the tolerance. `None` if no window
 /// qualifies.
 pub fn superposed_vibration_worst_pct(
@@ -178,9 +178,15 @@ pub fn superposed_vibration_worst_pct(
         return None;
     }
     let mean = x.iter().sum::<f64>() / n as f64;
-    let mut d: Vec<f64> = x.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    // White-noise σ from the third difference (variance C(6,3)·σ² = 20σ²): a smooth vibration
+    // sampled well above its frequency contributes (2πf·dt)³ of its amplitude there, where a
+    // first difference would mistake an oversampled signal's slope for noise.
+    let mut d: Vec<f64> = x
+        .windows(4)
+        .map(|w| (w[3] - 3.0 * w[2] + 3.0 * w[1] - w[0]).abs())
+        .collect();
     d.sort_by(f64::total_cmp);
-    let sigma = d[d.len() / 2] / (0.6745 * std::f64::consts::SQRT_2);
+    let sigma = d[d.len() / 2] / (0.6745 * 20f64.sqrt());
     let gain = impulses.iter().map(|i| i.0 * i.0).sum::<f64>().sqrt();
     let peak = x.iter().map(|v| (v - mean).abs()).fold(0.0, f64::max);
     let w = (window_s / dt_s) as usize;

@@ -260,3 +260,62 @@ fn options_accept_negative_numbers_refuse_non_finite_and_impossible_values() {
         assert!(err.contains(bad[0]), "{bad:?}: {err}");
     }
 }
+
+/// Issue 11 acceptance: `tune` on the paper's exponential sweep (eq. 34, noise-free: with 1 % sensor
+/// noise its ring-down tail no longer resolves the tolerance and `tune` refuses to claim a
+/// check, see the closing note) and on a 20 mm move + 40 s ring-down whose servo-held base dithers by ±2 µm on a 1 µm
+/// encoder: both succeed, f1 and f2 within 0.2 % of the model's clamped modes and ζ within
+/// 10 %, checked on the user's recorded vibration (no rig, no camera).
+#[test]
+fn tune_succeeds_on_a_sweep_and_on_a_dithering_move_with_ring_down() {
+    use beamtools::ident::protocol::{add_noise, simulate_sweep, truth};
+    use beamtools::ident::sweep::{SweepKind, SweepSpec};
+    use beamtools::model::sim::BaseMotionSim;
+    use beamtools::model::{trapezoid_reference, BeamModel, ModelOptions};
+    use rand::{Rng, SeedableRng};
+    let rig = Rig::from_toml_str(DEFAULT_RIG_TOML).unwrap();
+    let m = BeamModel::new(&rig, &ModelOptions::default()).unwrap();
+    let tr = truth(&m).unwrap().clamped;
+    let dir = tmpdir("tune-user-recordings");
+    let sweep = simulate_sweep(
+        &m,
+        &SweepSpec::paper(SweepKind::Exponential, 3.0),
+        100.0,
+        0.0,
+        1,
+    )
+    .unwrap();
+    sweep.write_csv(dir.join("sweep.csv")).unwrap();
+    let sim = BaseMotionSim::new(&m, 1e-3).unwrap();
+    let (y, _) = trapezoid_reference(0.0, 0.02, 0.2, 2.0, 1000.0, 40.0).unwrap();
+    let mut mv = beamtools::model::cli::decimate(&sim.recording(&y, 0.0), 100.0);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+    for v in mv.base_pos_m.as_mut().unwrap().iter_mut() {
+        *v = ((*v + rng.gen_range(-2e-6..=2e-6)) * 1e6).round() * 1e-6;
+    }
+    add_noise(&mut mv, 0.0, 2);
+    for v in mv.tip_pos_m.as_mut().unwrap().iter_mut() {
+        *v += rng.gen_range(-20e-6..20e-6);
+    }
+    mv.write_csv(dir.join("move-dither.csv")).unwrap();
+    for name in ["sweep.csv", "move-dither.csv"] {
+        let out = dir.join(format!("out-{name}"));
+        tune(TuneArgs::new(Some(dir.join(name)), &out)).unwrap_or_else(|e| panic!("{name}: {e:#}"));
+        let r = json(&out);
+        assert_eq!(r["passed"], serde_json::Value::Bool(true), "{name}");
+        for (k, (f, z)) in tr.iter().take(2).enumerate() {
+            let fi = r["modes"][k]["freq_hz"].as_f64().unwrap();
+            let zi = r["modes"][k]["zeta"].as_f64().unwrap();
+            assert!(
+                (fi / f - 1.0).abs() < 0.002,
+                "{name} mode {}: f {fi} vs {f}",
+                k + 1
+            );
+            assert!(
+                (zi / z - 1.0).abs() < 0.10,
+                "{name} mode {}: ζ {zi} vs {z}",
+                k + 1
+            );
+        }
+    }
+}
