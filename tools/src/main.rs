@@ -34,8 +34,9 @@ enum Command {
     BenchSim(beamtools::model::bench::BenchArgs),
     /// Identify natural frequencies and damping ratios from a free decay (.npy or CSV).
     Identify(beamtools::ident::cli::IdentifyArgs),
-    /// Make a sine-sweep excitation (eqs. 33-34) as a command CSV, within stroke/accel/tip limits.
-    Sweep(beamtools::ident::cli::SweepArgs),
+    /// Make a sine-sweep excitation (eqs. 33-34) as a command CSV, within stroke/accel/tip
+    /// limits; with --port, run it on the board so a camera can record it.
+    Sweep(SweepCmd),
     /// Welch H1/H2/coherence FRF of a recording (paper Step 2).
     Frf(beamtools::ident::cli::FrfArgs),
     /// Reproduce the paper's Table 1 (sweep identification) on the simulated rig.
@@ -74,6 +75,15 @@ struct VboardArgs {
     /// Camera latency (ms).
     #[arg(long, default_value_t = 20.0, value_parser = beamtools::tune::finite_f64)]
     camera_latency_ms: f64,
+}
+
+#[derive(Args)]
+struct SweepCmd {
+    #[command(flatten)]
+    design: beamtools::ident::cli::SweepArgs,
+    /// Run the sweep on this board (its own reference generator) instead of writing a CSV.
+    #[arg(long)]
+    port: Option<String>,
 }
 
 #[derive(Args)]
@@ -121,18 +131,47 @@ fn run(command: Command) -> Result<()> {
         Command::Vboard(a) => vboard(a),
         Command::Console(a) => console(a),
         Command::Shaper(a) => shaper(a),
-        Command::Simulate(a) => beamtools::model::cli::simulate(a),
-        Command::Modes(a) => beamtools::model::cli::modes(a),
-        Command::Table2(a) => beamtools::model::cli::table2(a),
+        Command::Simulate(mut a) => {
+            default_rig(&mut a.rig)?;
+            beamtools::model::cli::simulate(a)
+        }
+        Command::Modes(mut a) => {
+            default_rig(&mut a.rig)?;
+            beamtools::model::cli::modes(a)
+        }
+        Command::Table2(mut a) => {
+            default_rig(&mut a.rig)?;
+            beamtools::model::cli::table2(a)
+        }
         Command::Identify(a) => beamtools::ident::cli::identify(a),
-        Command::Sweep(a) => beamtools::ident::cli::sweep(a),
+        Command::Sweep(SweepCmd { design, port: None }) => beamtools::ident::cli::sweep(design),
+        Command::Sweep(SweepCmd {
+            design,
+            port: Some(p),
+        }) => {
+            println!(
+                "sweeping on {p}; record base and tip now (the sweep is sized and checked first)"
+            );
+            let plan = beamtools::tune::board_sweep(&design, &p)?;
+            println!(
+                "done: {} sweep {}-{} Hz, amplitude {:.3} mm, {:.1} s ({:.0} steps/s peak); give the recording to `beamtool tune --port {p} RECORDING`",
+                plan.kind.name(), plan.f0_hz, plan.f1_hz, plan.amplitude_mm, plan.duration_s, plan.peak_step_rate_hz
+            );
+            Ok(())
+        }
         Command::Frf(a) => beamtools::ident::cli::frf(a),
-        Command::Table1(a) => beamtools::ident::cli::table1(a),
+        Command::Table1(mut a) => {
+            default_rig(&mut a.rig)?;
+            beamtools::ident::cli::table1(a)
+        }
         Command::Diagnose(a) => beamtools::diagnose::cli::diagnose(a),
         Command::DiagnoseProof(a) => beamtools::diagnose::cli::proof(a),
         Command::DiagnoseLengths(a) => beamtools::diagnose::cli::diagnose_lengths(a),
         Command::Truth(a) => beamtools::truth::cli::truth(a),
-        Command::BenchSim(a) => beamtools::model::bench::bench_sim(a),
+        Command::BenchSim(mut a) => {
+            default_rig(&mut a.rig)?;
+            beamtools::model::bench::bench_sim(a)
+        }
     }
 }
 
@@ -142,6 +181,30 @@ fn parse_time_scale(s: &str) -> std::result::Result<f64, String> {
         .parse()
         .map_err(|_| format!("`{s}` is not a number"))?;
     board::check_time_scale(v)
+}
+
+/// The commands' default `--rig ../rigs/paper.toml` is relative to `tools/`. From any other
+/// directory: the `rigs/paper.toml` beside the binary (its checkout), else the built-in copy.
+fn default_rig(rig: &mut PathBuf) -> Result<()> {
+    if rig.as_path() != std::path::Path::new("../rigs/paper.toml") || rig.exists() {
+        return Ok(());
+    }
+    let beside = std::env::current_exe().ok().and_then(|exe| {
+        exe.ancestors()
+            .map(|d| d.join("rigs/paper.toml"))
+            .find(|p| p.exists())
+    });
+    *rig = match beside {
+        Some(p) => p,
+        None => {
+            let p =
+                std::env::temp_dir().join(format!("beamtool-paper-{}.toml", std::process::id()));
+            std::fs::write(&p, beamtools::tune::DEFAULT_RIG_TOML)
+                .with_context(|| format!("cannot write the built-in rig to {}", p.display()))?;
+            p
+        }
+    };
+    Ok(())
 }
 
 fn vboard(a: VboardArgs) -> Result<()> {
@@ -165,7 +228,12 @@ fn vboard(a: VboardArgs) -> Result<()> {
         let mut sensors = board::rig::RigSensors::camera(&rig);
         sensors.noise_m = a.camera_noise_um * 1e-6;
         sensors.latency_s = a.camera_latency_ms * 1e-3;
-        let r = board::rig::VirtualRig::new(&rig, sensors, b.runtime().tick_rate_hz() as f64, &a.sensor_out)?;
+        let r = board::rig::VirtualRig::new(
+            &rig,
+            sensors,
+            b.runtime().tick_rate_hz() as f64,
+            &a.sensor_out,
+        )?;
         b.attach_rig(r);
         println!(
             "virtual rig {} attached; its camera writes {}",

@@ -44,7 +44,15 @@ pub fn lines(
     series: &[Series],
     log_y: bool,
 ) -> Result<()> {
-    lines_marked(path, title, x_label, y_label, series, log_y, &Marks::default())
+    lines_marked(
+        path,
+        title,
+        x_label,
+        y_label,
+        series,
+        log_y,
+        &Marks::default(),
+    )
 }
 
 /// [`lines`] with [`Marks`].
@@ -96,7 +104,9 @@ pub fn lines_marked(
                     )))
                     .map_err(|e| anyhow!("{e}"))?
                     .label(label.clone())
-                    .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], fill.filled()));
+                    .legend(move |(x, y)| {
+                        Rectangle::new([(x, y - 5), (x + 20, y + 5)], fill.filled())
+                    });
             }
             for (i, s) in series.iter().enumerate() {
                 let c = COLORS[i % COLORS.len()];
@@ -116,8 +126,11 @@ pub fn lines_marked(
             }
             let mut seen: Vec<&str> = Vec::new();
             for (k, (y, label)) in marks.hlines.iter().enumerate() {
-                let c = [RGBColor(0, 150, 0), RGBColor(200, 0, 200), RGBColor(120, 120, 120)]
-                    [seen.iter().position(|l| *l == label).unwrap_or(seen.len()) % 3];
+                let c = [
+                    RGBColor(0, 150, 0),
+                    RGBColor(200, 0, 200),
+                    RGBColor(120, 120, 120),
+                ][seen.iter().position(|l| *l == label).unwrap_or(seen.len()) % 3];
                 let y = *y;
                 let dash: Vec<(f64, f64)> = (0..200)
                     .filter(|i| i % 2 == 0)
@@ -128,7 +141,10 @@ pub fn lines_marked(
                     })
                     .collect();
                 let s = chart
-                    .draw_series(dash.chunks(2).map(|p| PathElement::new(p.to_vec(), c.stroke_width(2))))
+                    .draw_series(
+                        dash.chunks(2)
+                            .map(|p| PathElement::new(p.to_vec(), c.stroke_width(2))),
+                    )
                     .map_err(|e| anyhow!("{e}"))?;
                 if !seen.contains(&label.as_str()) {
                     s.label(label.clone()).legend(move |(x, yy)| {

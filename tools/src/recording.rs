@@ -177,11 +177,12 @@ impl Recording {
             .with_context(|| format!("{}: no header row", path.display()))?
             .clone();
         let names: Vec<&str> = headers.iter().collect();
-        let (time_col, time_scale) = time_column(&names)
-            .map_err(|e| anyhow!("{}: {e}", path.display()))?;
+        let (time_col, time_scale) =
+            time_column(&names).map_err(|e| anyhow!("{}: {e}", path.display()))?;
         let mut rec = Recording::default();
         if time_scale != 1.0 {
-            rec.notes.push("time column `time_ms` in milliseconds, converted to seconds".into());
+            rec.notes
+                .push("time column `time_ms` in milliseconds, converted to seconds".into());
         }
         let mut cols: Vec<(usize, &'static str)> = Vec::new();
         for (i, h) in names.iter().enumerate() {
@@ -199,9 +200,14 @@ impl Recording {
         let mut record = csv::ByteRecord::new();
         let mut row = 0usize;
         loop {
-            let more = rdr
-                .read_byte_record(&mut record)
-                .map_err(|e| anyhow!("{}: data row {}: {}", path.display(), row + 1, csv_error(&e)))?;
+            let more = rdr.read_byte_record(&mut record).map_err(|e| {
+                anyhow!(
+                    "{}: data row {}: {}",
+                    path.display(),
+                    row + 1,
+                    csv_error(&e)
+                )
+            })?;
             if !more {
                 break;
             }
@@ -218,7 +224,8 @@ impl Recording {
                     )
                 })
             };
-            rec.time_s.push(cell(time_col, names[time_col])? * time_scale);
+            rec.time_s
+                .push(cell(time_col, names[time_col])? * time_scale);
             for (slot, &(i, name)) in slots.iter_mut().zip(&cols) {
                 slot.push(cell(i, name)?);
             }
@@ -251,7 +258,10 @@ impl Recording {
             Recording {
                 time_s: t,
                 tip_pos_m: Some(x),
-                notes: vec!["`.npy` [time; signal]: the signal row stands for the tip (unit as recorded)".into()],
+                notes: vec![
+                    "`.npy` [time; signal]: the signal row stands for the tip (unit as recorded)"
+                        .into(),
+                ],
                 ..Default::default()
             }
         } else if ext == "lvm" {
@@ -330,7 +340,10 @@ impl Recording {
             s => bail!(
                 "{}: expected shape (2, N) [time; signal], got ({})",
                 path.display(),
-                s.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(", ")
+                s.iter()
+                    .map(|d| d.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ),
         };
         if t.len() < 2 {
@@ -407,19 +420,23 @@ fn time_column(names: &[&str]) -> Result<(usize, f64)> {
     if let Some(i) = names.iter().position(|h| *h == "time_ms") {
         return Ok((i, 1e-3));
     }
-    if names.iter().any(|h| matches!(h.to_ascii_lowercase().as_str(), "time" | "t" | "timestamp")) {
-        bail!("the time column has no unit: name it `time_s` (seconds) or `time_ms` (milliseconds)");
+    if names
+        .iter()
+        .any(|h| matches!(h.to_ascii_lowercase().as_str(), "time" | "t" | "timestamp"))
+    {
+        bail!(
+            "the time column has no unit: name it `time_s` (seconds) or `time_ms` (milliseconds)"
+        );
     }
-    bail!(
-        "no `time_s` column (header: {})",
-        names.join(", ")
-    )
+    bail!("no `time_s` column (header: {})", names.join(", "))
 }
 
 /// A csv error without Rust debug text.
 fn csv_error(e: &csv::Error) -> String {
     match e.kind() {
-        csv::ErrorKind::UnequalLengths { expected_len, len, .. } => {
+        csv::ErrorKind::UnequalLengths {
+            expected_len, len, ..
+        } => {
             format!("{len} fields where the header has {expected_len}")
         }
         csv::ErrorKind::Io(e) => e.to_string(),
@@ -614,11 +631,18 @@ mod tests {
                 .map(|k| (2.0 * std::f64::consts::PI * f * k as f64 / rate).sin())
                 .collect()
         };
-        let rms = |v: &[f64]| (v[200..v.len() - 200].iter().map(|x| x * x).sum::<f64>() / (v.len() - 400) as f64).sqrt();
+        let rms = |v: &[f64]| {
+            (v[200..v.len() - 200].iter().map(|x| x * x).sum::<f64>() / (v.len() - 400) as f64)
+                .sqrt()
+        };
         // q = 10: new rate 100 Hz, pass band to 40 Hz; 5 Hz kept, 170 Hz (would alias to 30 Hz) removed.
         let kept = decimate_fir(&tone(5.0), 10);
         assert_eq!(kept.len(), 2000);
-        assert!((rms(&kept) / std::f64::consts::FRAC_1_SQRT_2 - 1.0).abs() < 0.01, "{}", rms(&kept));
+        assert!(
+            (rms(&kept) / std::f64::consts::FRAC_1_SQRT_2 - 1.0).abs() < 0.01,
+            "{}",
+            rms(&kept)
+        );
         assert!(rms(&decimate_fir(&tone(170.0), 10)) < 0.01);
     }
 

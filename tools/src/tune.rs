@@ -22,11 +22,12 @@
 
 use crate::board::client::BoardClient;
 use crate::board::plan::{plan_move, plan_sweep, MovePlan};
-use beamshaper::reference::SweepKind;
 use crate::board::rig::{read_sensor_log, RigSensors, VirtualRig};
 use crate::board::session::{BoardConfig, Session};
 use crate::ident::ModeEstimate;
-use crate::measures::{cut_move, displacement_from_acceleration, superposed_vibration_worst_pct, MeasuredMove};
+use crate::measures::{
+    cut_move, displacement_from_acceleration, superposed_vibration_worst_pct, MeasuredMove,
+};
 use crate::model::sim::BaseMotionSim;
 use crate::model::{BeamModel, ModelOptions, Rig};
 use crate::plot::{lines_marked, Marks, Series};
@@ -34,6 +35,7 @@ use crate::recording::Recording;
 use crate::shaping::{band, candidates, sensitivity, settings_with, Candidate};
 use anyhow::{anyhow, bail, Context, Result};
 use beamshaper::config::Settings;
+use beamshaper::reference::SweepKind;
 use beamshaper::shaper::{residual_vibration, Impulse};
 use clap::Args;
 use std::path::{Path, PathBuf};
@@ -158,19 +160,31 @@ pub fn check_inputs(a: &TuneArgs) -> Result<Inputs> {
         bail!("--tolerance-pct must be between 0.2 and 50 % (got {}); a tighter tolerance cannot be verified against sensor noise", a.tolerance_pct);
     }
     if !(0.0..=50.0).contains(&a.min_band_pct) {
-        bail!("--min-band-pct must be between 0 and 50 % (got {})", a.min_band_pct);
+        bail!(
+            "--min-band-pct must be between 0 and 50 % (got {})",
+            a.min_band_pct
+        );
     }
     if a.move_mm.abs() < 1e-3 || a.move_mm.abs() > crate::board::plan::TARGET_LIMIT_MM {
         bail!("--move-mm {} cannot be verified: the move must be between 0.001 and 1000 mm long (either sign) and end within the board's ±1000 mm", a.move_mm);
     }
     if !(a.speed_mm_s > 0.0 && a.speed_mm_s <= crate::board::plan::SPEED_LIMIT_MM_S) {
-        bail!("--speed-mm-s must be > 0 and at most 10000 mm/s (got {})", a.speed_mm_s);
+        bail!(
+            "--speed-mm-s must be > 0 and at most 10000 mm/s (got {})",
+            a.speed_mm_s
+        );
     }
     if !(a.accel_mm_s2 > 0.0 && a.accel_mm_s2 <= crate::board::plan::ACCEL_LIMIT_MM_S2) {
-        bail!("--accel-mm-s2 must be > 0 and at most 1e6 mm/s² (got {})", a.accel_mm_s2);
+        bail!(
+            "--accel-mm-s2 must be > 0 and at most 1e6 mm/s² (got {})",
+            a.accel_mm_s2
+        );
     }
     if !(a.time_scale >= 1.0 && a.time_scale <= 1000.0) {
-        bail!("--time-scale must be between 1 and 1000 (got {})", a.time_scale);
+        bail!(
+            "--time-scale must be between 1 and 1000 (got {})",
+            a.time_scale
+        );
     }
     let (rig, rig_label) = match &a.rig {
         Some(p) => (
@@ -185,9 +199,11 @@ pub fn check_inputs(a: &TuneArgs) -> Result<Inputs> {
     BeamModel::new(&rig, &ModelOptions::default())
         .with_context(|| format!("rig {rig_label}: no usable beam model"))?;
     if let Some(r) = &a.recording {
-        std::fs::File::open(r).with_context(|| format!("cannot read the recording {}", r.display()))?;
+        std::fs::File::open(r)
+            .with_context(|| format!("cannot read the recording {}", r.display()))?;
     }
-    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
     Ok(Inputs {
         rig,
         rig_label,
@@ -196,7 +212,10 @@ pub fn check_inputs(a: &TuneArgs) -> Result<Inputs> {
         acceleration: match a.signal {
             Signal::Acceleration => true,
             Signal::Position => false,
-            Signal::Auto => a.recording.as_ref().is_some_and(|p| p.extension().is_some_and(|e| e == "npy")),
+            Signal::Auto => a
+                .recording
+                .as_ref()
+                .is_some_and(|p| p.extension().is_some_and(|e| e == "npy")),
         },
     })
 }
@@ -332,7 +351,10 @@ pub fn free_vibration(path: &Path) -> Option<(Vec<f64>, f64)> {
     let (sig, start): (Vec<f64>, usize) = match base {
         Some(b) => {
             let last = *b.last()?;
-            let moved = b.iter().rposition(|v| (v - last).abs() > 20e-6).map_or(0, |k| k + 1);
+            let moved = b
+                .iter()
+                .rposition(|v| (v - last).abs() > 20e-6)
+                .map_or(0, |k| k + 1);
             (tip.iter().zip(b).map(|(t, b)| t - b).collect(), moved)
         }
         None => (tip.clone(), 0),
@@ -347,7 +369,8 @@ pub fn free_vibration(path: &Path) -> Option<(Vec<f64>, f64)> {
     let (_, xu, _) = crate::recording::resample_uniform(t, x, 1.0 / dt);
     let mean = xu.iter().sum::<f64>() / xu.len() as f64;
     let half = &xu[..xu.len() / 2];
-    let k = (0..half.len()).max_by(|&i, &j| (half[i] - mean).abs().total_cmp(&(half[j] - mean).abs()))?;
+    let k = (0..half.len())
+        .max_by(|&i, &j| (half[i] - mean).abs().total_cmp(&(half[j] - mean).abs()))?;
     Some((xu[k..].to_vec(), dt))
 }
 
@@ -363,10 +386,49 @@ pub struct Design {
     pub unshaped: MovePlan,
     /// Settling window observed after each move (s).
     pub window_s: f64,
+    /// Shorter candidates refused because they leave more than the tolerance of the recorded
+    /// free vibration (model-free superposition), with that percentage.
+    pub refused_on_recording: Vec<String>,
 }
 
-/// Step 5: the shortest robust shaper whose verification move the board can run.
-pub fn design(a: &TuneArgs, modes: &[ModeEstimate], board: &BoardState) -> Result<Design> {
+/// The user's recorded free vibration as tip position (m) at a uniform step (s), for the
+/// model-free check: an accelerometer's signal integrated twice (high-passed at half the first
+/// identified natural frequency). `None` when the input has none (generated sweep, or a
+/// recording that ends moving).
+pub fn recorded_free_position(inputs: &Inputs, f1_hz: f64) -> Option<(Vec<f64>, f64)> {
+    let (x, dt) = inputs.recording.as_deref().and_then(free_vibration)?;
+    let pos = match inputs.acceleration {
+        true => displacement_from_acceleration(&x, dt, 0.5 * f1_hz),
+        false => x,
+    };
+    Some((pos, dt))
+}
+
+/// The shaper applied to a recorded free vibration by superposition (model-free), in %.
+fn superposed_pct(
+    recorded: &(Vec<f64>, f64),
+    shaper: &Candidate,
+    window_s: f64,
+    tol: f64,
+) -> Option<f64> {
+    let imps: Vec<(f64, f64)> = shaper
+        .shaper
+        .impulses()
+        .iter()
+        .map(|i| (i.amplitude, i.time_s))
+        .collect();
+    superposed_vibration_worst_pct(&recorded.0, recorded.1, &imps, window_s, tol / 2.0)
+}
+
+/// Step 5: the shortest robust shaper whose verification move the board can run and, when the
+/// input holds a recorded free vibration, that leaves that vibration within the tolerance
+/// (model-free superposition): the data, not only the identified modes, must agree.
+pub fn design(
+    a: &TuneArgs,
+    modes: &[ModeEstimate],
+    board: &BoardState,
+    recorded: Option<&(Vec<f64>, f64)>,
+) -> Result<Design> {
     let tol = a.tolerance_pct;
     let f1 = modes[0].freq_hz;
     let window_s = (6.0 / f1).clamp(2.0, 20.0);
@@ -375,15 +437,40 @@ pub fn design(a: &TuneArgs, modes: &[ModeEstimate], board: &BoardState) -> Resul
         ..board.settings.clone()
     };
     let start = board.position_mm;
-    let unshaped = plan_move(&off, start, a.move_mm, a.speed_mm_s, a.accel_mm_s2, window_s)
-        .map_err(|e| anyhow!("unshaped reference move: {e}"))?;
+    let unshaped = plan_move(
+        &off,
+        start,
+        a.move_mm,
+        a.speed_mm_s,
+        a.accel_mm_s2,
+        window_s,
+    )
+    .map_err(|e| anyhow!("unshaped reference move: {e}"))?;
     let mut feasible = Vec::new();
     let mut why = Vec::new();
+    let mut refused_on_recording = Vec::new();
     for c in candidates(modes, tol / 100.0, a.min_band_pct / 100.0) {
         if c.worst_pct > tol {
             continue;
         }
-        match plan_move(&settings_with(&board.settings, &c), start + a.move_mm, -a.move_mm, a.speed_mm_s, a.accel_mm_s2, window_s) {
+        if let Some(p) = recorded.and_then(|r| superposed_pct(r, &c, window_s, tol)) {
+            if p > tol {
+                let line = format!("{}: leaves {p:.2} % of the recorded vibration", c.name);
+                if feasible.is_empty() {
+                    refused_on_recording.push(line.clone());
+                }
+                why.push(line);
+                continue;
+            }
+        }
+        match plan_move(
+            &settings_with(&board.settings, &c),
+            start + a.move_mm,
+            -a.move_mm,
+            a.speed_mm_s,
+            a.accel_mm_s2,
+            window_s,
+        ) {
             Ok(p) => feasible.push((c, p)),
             Err(e) => why.push(format!("{}: {e}", c.name)),
         }
@@ -402,6 +489,7 @@ pub fn design(a: &TuneArgs, modes: &[ModeEstimate], board: &BoardState) -> Resul
         shaped,
         unshaped,
         window_s,
+        refused_on_recording,
     })
 }
 
@@ -414,7 +502,10 @@ fn wait_board(s: &mut Session, until_tick: u64, timeout: Duration) -> Result<u64
             return Ok(st.ticks);
         }
         if Instant::now() > end {
-            bail!("the board did not finish within {:.0} s (wall clock)", timeout.as_secs_f64());
+            bail!(
+                "the board did not finish within {:.0} s (wall clock)",
+                timeout.as_secs_f64()
+            );
         }
         std::thread::sleep(Duration::from_millis(20));
     }
@@ -422,7 +513,12 @@ fn wait_board(s: &mut Session, until_tick: u64, timeout: Duration) -> Result<u64
 
 /// Runs `plan` and waits for its observation window; returns the captured setpoints (m) and
 /// the board time (s) at which the move was sent.
-fn run_move(s: &mut Session, plan: &MovePlan, tick_hz: f64, time_scale: f64) -> Result<(Vec<f64>, f64)> {
+fn run_move(
+    s: &mut Session,
+    plan: &MovePlan,
+    tick_hz: f64,
+    time_scale: f64,
+) -> Result<(Vec<f64>, f64)> {
     let st = s.status()?;
     let cap = s.capture(plan.capture_every)?;
     s.start_move(plan.target_mm, plan.speed_mm_s, plan.accel_mm_s2)
@@ -470,10 +566,12 @@ impl Verification {
 
 /// Step 7: verification (see the module docs). Ends with the carriage where it started.
 pub fn verify(
+    tol: f64,
     bench: &mut Bench,
     inputs: &Inputs,
     id: &IdentifiedModes,
     d: &Design,
+    recorded: Option<&(Vec<f64>, f64)>,
     tick_hz: f64,
 ) -> Result<Verification> {
     let predicted_pct = id
@@ -482,28 +580,22 @@ pub fn verify(
         .take(d.best.modes.len())
         .map(|m| 100.0 * residual_vibration(&d.best.shaper, m.freq_hz, m.zeta))
         .fold(0.0, f64::max);
-    let imps: Vec<(f64, f64)> = d.best.shaper.impulses().iter().map(|i| (i.amplitude, i.time_s)).collect();
-    let superposed_pct = inputs
-        .recording
-        .as_deref()
-        .and_then(free_vibration)
-        .and_then(|(x, dt)| {
-            let pos = match inputs.acceleration {
-                true => displacement_from_acceleration(&x, dt, 0.5 * id.modes[0].freq_hz),
-                false => x,
-            };
-            superposed_vibration_worst_pct(&pos, dt, &imps, d.window_s)
-        });
+    let superposed_pct = recorded.and_then(|r| superposed_pct(r, &d.best, d.window_s, tol));
     let ts = bench.time_scale;
     let m1 = &id.modes[0];
-    let settle = (1000f64.ln() / (2.0 * std::f64::consts::PI * m1.freq_hz * m1.zeta.max(1e-4))).clamp(5.0, 400.0);
+    let settle = (1000f64.ln() / (2.0 * std::f64::consts::PI * m1.freq_hz * m1.zeta.max(1e-4)))
+        .clamp(5.0, 400.0);
     let s = &mut bench.session;
     let here = s.status()?.setpoint_mm;
     let log = bench.sensor_log.clone();
     let (moves, sp) = match &log {
         None => {
             // Out unshaped-free: the shaped shaper both ways, captured on the way back.
-            let out = MovePlan { start_mm: here, target_mm: d.shaped.start_mm, ..d.shaped };
+            let out = MovePlan {
+                start_mm: here,
+                target_mm: d.shaped.start_mm,
+                ..d.shaped
+            };
             run_move(s, &out, tick_hz, ts)?;
             (None, run_move(s, &d.shaped, tick_hz, ts)?.0)
         }
@@ -511,7 +603,11 @@ pub fn verify(
             // Unshaped reference (shaping off) from the start position, then the shaped move back.
             s.send(&crate::board::session::Command::Shaping(false))?;
             if (here - d.unshaped.start_mm).abs() > 1e-6 {
-                let back = MovePlan { start_mm: here, target_mm: d.unshaped.start_mm, ..d.unshaped };
+                let back = MovePlan {
+                    start_mm: here,
+                    target_mm: d.unshaped.start_mm,
+                    ..d.unshaped
+                };
                 run_move(s, &back, tick_hz, ts)?;
             }
             ring_down(s, settle, tick_hz, ts)?;
@@ -520,10 +616,22 @@ pub fn verify(
             program(s, &d.best)?;
             let (sp, t_s) = run_move(s, &d.shaped, tick_hz, ts)?;
             let cut = |t0: f64, p: &MovePlan| -> Result<MeasuredMove> {
-                let rec = read_sensor_log(log, t0 - 0.05, t0 + p.observe_ticks as f64 / tick_hz + 1.0)?;
-                let (t, c, tip) = (&rec.time_s, rec.base_cmd_m.as_deref().unwrap_or(&[]), rec.tip_pos_m.as_deref().unwrap_or(&[]));
-                cut_move(t, c, tip, p.start_mm * 1e-3, p.target_mm * 1e-3, d.window_s)
-                    .ok_or_else(|| anyhow!("the camera log {} does not contain the move to {} mm", log.display(), p.target_mm))
+                let rec =
+                    read_sensor_log(log, t0 - 0.05, t0 + p.observe_ticks as f64 / tick_hz + 1.0)?;
+                let (t, c, tip) = (
+                    &rec.time_s,
+                    rec.base_cmd_m.as_deref().unwrap_or(&[]),
+                    rec.tip_pos_m.as_deref().unwrap_or(&[]),
+                );
+                cut_move(t, c, tip, p.start_mm * 1e-3, p.target_mm * 1e-3, d.window_s).ok_or_else(
+                    || {
+                        anyhow!(
+                            "the camera log {} does not contain the move to {} mm",
+                            log.display(),
+                            p.target_mm
+                        )
+                    },
+                )
             };
             (Some((cut(t_u, &d.unshaped)?, cut(t_s, &d.shaped)?)), sp)
         }
@@ -533,7 +641,9 @@ pub fn verify(
         false => None,
     };
     Ok(Verification {
-        measured_pct: moves.as_ref().map(|(mu, ms)| 100.0 * ms.residual_m / mu.residual_m),
+        measured_pct: moves
+            .as_ref()
+            .map(|(mu, ms)| 100.0 * ms.residual_m / mu.residual_m),
         superposed_pct,
         rig_model_pct,
         moves,
@@ -548,29 +658,55 @@ fn rig_model_pct(inputs: &Inputs, sp: &[f64], d: &Design, tick_hz: f64) -> Resul
     let model = BeamModel::new(&inputs.rig, &ModelOptions::default())?;
     let sim = BaseMotionSim::new(&model, dt)?;
     let (s0, s1) = (d.shaped.start_mm * 1e-3, d.shaped.target_mm * 1e-3);
-    let (refm, _) = crate::model::trapezoid_reference(s0, s1, d.shaped.speed_mm_s * 1e-3, d.shaped.accel_mm_s2 * 1e-3, 1.0 / dt, d.window_s + d.best.shaper.duration_s())?;
-    let k0 = sp.iter().position(|v| (v - s0).abs() > 1e-6).unwrap_or(0).saturating_sub(1);
+    let (refm, _) = crate::model::trapezoid_reference(
+        s0,
+        s1,
+        d.shaped.speed_mm_s * 1e-3,
+        d.shaped.accel_mm_s2 * 1e-3,
+        1.0 / dt,
+        d.window_s + d.best.shaper.duration_s(),
+    )?;
+    let k0 = sp
+        .iter()
+        .position(|v| (v - s0).abs() > 1e-6)
+        .unwrap_or(0)
+        .saturating_sub(1);
     let shaped = &sp[k0..];
     let resid = |y: &[f64]| -> f64 {
         let (w, _) = sim.run(y);
-        let end = y.iter().rposition(|v| (v - s1).abs() > 1e-9).map_or(0, |k| k + 1);
-        w[end..].iter().zip(&y[end..]).map(|(w, y)| (y + w - s1).abs()).fold(0.0, f64::max)
+        let end = y
+            .iter()
+            .rposition(|v| (v - s1).abs() > 1e-9)
+            .map_or(0, |k| k + 1);
+        w[end..]
+            .iter()
+            .zip(&y[end..])
+            .map(|(w, y)| (y + w - s1).abs())
+            .fold(0.0, f64::max)
     };
     Ok(100.0 * resid(shaped) / resid(&refm))
 }
 
 /// Step 6: programs the candidate and compares the read-back table impulse by impulse.
 pub fn program(s: &mut Session, c: &Candidate) -> Result<()> {
-    s.program(&c.modes, &[], true).context("programming the board")?;
+    s.program(&c.modes, &[], true)
+        .context("programming the board")?;
     let back = s.impulses().context("reading the table back")?;
     if back.len() != c.shaper.len() {
-        bail!("read-back table has {} impulses, designed {}", back.len(), c.shaper.len());
+        bail!(
+            "read-back table has {} impulses, designed {}",
+            back.len(),
+            c.shaper.len()
+        );
     }
     for (b, i) in back.iter().zip(c.shaper.impulses()) {
         if (b.amplitude - i.amplitude).abs() > 1e-12 || (b.time_s - i.time_s).abs() > 1e-12 {
             bail!(
                 "read-back impulse {:.6} at {:.6} s differs from the designed {:.6} at {:.6} s",
-                b.amplitude, b.time_s, i.amplitude, i.time_s
+                b.amplitude,
+                b.time_s,
+                i.amplitude,
+                i.time_s
             );
         }
     }
@@ -581,7 +717,8 @@ pub fn program(s: &mut Session, c: &Candidate) -> Result<()> {
 fn restore(s: &mut Session, before: &BoardState) -> String {
     let modes: Vec<_> = before.config.modes.iter().flatten().copied().collect();
     let r = if before.config.custom_len > 0 && !modes.is_empty() {
-        s.load().map(|_| "reloaded the saved configuration (`load`)")
+        s.load()
+            .map(|_| "reloaded the saved configuration (`load`)")
     } else {
         s.program(&modes, &before.custom, before.config.shaping)
             .map(|_| "reprogrammed the configuration read at the start")
@@ -620,7 +757,11 @@ pub fn tune(a: TuneArgs) -> Result<TuneOutcome> {
     let before = read_board(&mut bench.session)?;
     println!(
         "board {}: tick {} Hz, step {} nm, max {} steps/s, at {:.3} mm, shaping {}",
-        bench.port, before.config.tick_hz, before.config.step_nm, before.config.max_step_rate_hz, before.position_mm,
+        bench.port,
+        before.config.tick_hz,
+        before.config.step_nm,
+        before.config.max_step_rate_hz,
+        before.position_mm,
         if before.config.shaping { "on" } else { "off" }
     );
     let result = run_job(&a, &inputs, &mut bench, &before, pre);
@@ -641,7 +782,13 @@ pub fn tune(a: TuneArgs) -> Result<TuneOutcome> {
     }
 }
 
-fn run_job(a: &TuneArgs, inputs: &Inputs, bench: &mut Bench, before: &BoardState, pre: Option<IdentifiedModes>) -> Result<bool> {
+fn run_job(
+    a: &TuneArgs,
+    inputs: &Inputs,
+    bench: &mut Bench,
+    before: &BoardState,
+    pre: Option<IdentifiedModes>,
+) -> Result<bool> {
     let tick_hz = before.config.tick_hz as f64;
     let (input_path, id) = match pre {
         Some(id) => (inputs.recording.clone().unwrap_or_default(), id),
@@ -658,39 +805,90 @@ fn run_job(a: &TuneArgs, inputs: &Inputs, bench: &mut Bench, before: &BoardState
         println!("  {line}");
     }
     let shaped_modes: Vec<ModeEstimate> = id.modes.iter().take(2).cloned().collect();
-    let d = design(a, &shaped_modes, before)?;
+    let recorded = recorded_free_position(inputs, id.modes[0].freq_hz);
+    let d = design(a, &shaped_modes, before, recorded.as_ref())?;
     println!(
         "shaper: {} — {} impulses, {:.4} s, worst-case V {:.2} % (tolerance {} % over f ± max(2σ, {} %), ζ ± 2σ); verification move {:.1} -> {:.1} mm at {} mm/s, {:.0} steps/s of {}",
         d.best.name, d.best.shaper.len(), d.best.shaper.duration_s(), d.best.worst_pct, a.tolerance_pct, a.min_band_pct,
         d.shaped.start_mm, d.shaped.target_mm, d.shaped.speed_mm_s, d.shaped.peak_step_rate_hz, before.config.max_step_rate_hz
     );
     for c in &d.runners_up {
-        println!("  runner-up {:<40} {:.4} s, worst V {:.2} %", c.name, c.shaper.duration_s(), c.worst_pct);
+        println!(
+            "  runner-up {:<40} {:.4} s, worst V {:.2} %",
+            c.name,
+            c.shaper.duration_s(),
+            c.worst_pct
+        );
+    }
+    for r in &d.refused_on_recording {
+        println!("  refused (shorter) {r}");
     }
     sensitivity_plot(a, &shaped_modes, &d)?;
     program(&mut bench.session, &d.best)?;
-    println!("programmed {} and read the table back: {} impulses identical", bench.port, d.best.shaper.len());
-    let v = verify(bench, inputs, &id, &d, tick_hz)?;
+    println!(
+        "programmed {} and read the table back: {} impulses identical",
+        bench.port,
+        d.best.shaper.len()
+    );
+    let v = verify(
+        a.tolerance_pct,
+        bench,
+        inputs,
+        &id,
+        &d,
+        recorded.as_ref(),
+        tick_hz,
+    )?;
     let passed = v.passed(a.tolerance_pct);
     let fmt = |p: Option<f64>| p.map_or("-".to_string(), |p| format!("{p:.2} %"));
-    println!("verification (percentage vibration, tolerance {} %):", a.tolerance_pct);
+    println!(
+        "verification (percentage vibration, tolerance {} %):",
+        a.tolerance_pct
+    );
     println!("  measured by the camera          {}", fmt(v.measured_pct));
     println!(
-        "  shaper on the recorded vibration {} (model-free superposition{})",
+        "  shaper on the recorded vibration {} (model-free superposition{}; - = no free vibration that resolves {} %)",
         fmt(v.superposed_pct),
-        if inputs.acceleration { ", acceleration integrated twice" } else { "" }
+        if inputs.acceleration { ", acceleration integrated twice" } else { "" },
+        a.tolerance_pct / 2.0
     );
-    println!("  rig model ({})  {}", inputs.rig_label, fmt(v.rig_model_pct));
-    println!("  predicted at the identified modes {:.2} %", v.predicted_pct);
-    println!("  -> {}", if passed { "PASS" } else if v.measured_pct.is_none() && v.superposed_pct.is_none() { "FAIL: nothing measured the shaper (no camera log and no recorded free vibration)" } else { "FAIL" });
+    println!(
+        "  rig model ({})  {}",
+        inputs.rig_label,
+        fmt(v.rig_model_pct)
+    );
+    println!(
+        "  predicted at the identified modes {:.2} %",
+        v.predicted_pct
+    );
+    println!(
+        "  -> {}",
+        if passed {
+            "PASS"
+        } else if v.measured_pct.is_none() && v.superposed_pct.is_none() {
+            "FAIL: nothing measured the shaper (no camera log and no recorded free vibration)"
+        } else {
+            "FAIL"
+        }
+    );
     if let Some((mu, ms)) = &v.moves {
-        println!("  residual after the command: unshaped {:.3} mm, shaped {:.3} mm", mu.residual_m * 1e3, ms.residual_m * 1e3);
+        println!(
+            "  residual after the command: unshaped {:.3} mm, shaped {:.3} mm",
+            mu.residual_m * 1e3,
+            ms.residual_m * 1e3
+        );
         verification_plot(a, mu, ms)?;
     }
     report(a, bench, &input_path, &id, &d, &v, passed)?;
     if passed {
-        bench.session.save().context("saving the configuration on the board")?;
-        println!("saved on the board; report {}", a.out.join("tune.json").display());
+        bench
+            .session
+            .save()
+            .context("saving the configuration on the board")?;
+        println!(
+            "saved on the board; report {}",
+            a.out.join("tune.json").display()
+        );
     }
     Ok(passed)
 }
@@ -698,10 +896,23 @@ fn run_job(a: &TuneArgs, inputs: &Inputs, bench: &mut Bench, before: &BoardState
 /// Step 3: the paper's exponential sine sweep (eq. 34) on the board, through its own
 /// reference generator, recorded by the virtual rig's camera, then 30 s of ring-down.
 fn excite(a: &TuneArgs, bench: &mut Bench, before: &BoardState, tick_hz: f64) -> Result<PathBuf> {
-    let log = bench.sensor_log.clone().ok_or_else(|| anyhow!("no sensor to record the excitation"))?;
-    let off = Settings { shaping_enabled: false, ..before.settings.clone() };
-    let plan = plan_sweep(&off, SweepKind::Exponential, SWEEP_BAND_HZ.0, SWEEP_BAND_HZ.1, SWEEP_AMPLITUDE_MM, SWEEP_DURATION_S)
-        .map_err(|e| anyhow!("excitation sweep: {e}"))?;
+    let log = bench
+        .sensor_log
+        .clone()
+        .ok_or_else(|| anyhow!("no sensor to record the excitation"))?;
+    let off = Settings {
+        shaping_enabled: false,
+        ..before.settings.clone()
+    };
+    let plan = plan_sweep(
+        &off,
+        SweepKind::Exponential,
+        SWEEP_BAND_HZ.0,
+        SWEEP_BAND_HZ.1,
+        SWEEP_AMPLITUDE_MM,
+        SWEEP_DURATION_S,
+    )
+    .map_err(|e| anyhow!("excitation sweep: {e}"))?;
     let s = &mut bench.session;
     s.send(&crate::board::session::Command::Shaping(false))?;
     let st = s.status()?;
@@ -726,10 +937,21 @@ fn sensitivity_plot(a: &TuneArgs, modes: &[ModeEstimate], d: &Design) -> Result<
     let f: Vec<f64> = (1..=800).map(|i| fmax * i as f64 / 800.0).collect();
     let z = modes[0].zeta;
     let v_best = sensitivity(&d.best.shaper, &f, z);
-    let mut series = vec![Series { label: format!("{} (chosen)", d.best.name), x: &f, y: &v_best }];
-    let v_r = d.runners_up.first().map(|r| (r.name.clone(), sensitivity(&r.shaper, &f, z)));
+    let mut series = vec![Series {
+        label: format!("{} (chosen)", d.best.name),
+        x: &f,
+        y: &v_best,
+    }];
+    let v_r = d
+        .runners_up
+        .first()
+        .map(|r| (r.name.clone(), sensitivity(&r.shaper, &f, z)));
     if let Some((n, v)) = &v_r {
-        series.push(Series { label: n.clone(), x: &f, y: v });
+        series.push(Series {
+            label: n.clone(),
+            x: &f,
+            y: v,
+        });
     }
     let marks = Marks {
         hlines: vec![(a.tolerance_pct, format!("tolerance {} %", a.tolerance_pct))],
@@ -738,18 +960,39 @@ fn sensitivity_plot(a: &TuneArgs, modes: &[ModeEstimate], d: &Design) -> Result<
             .enumerate()
             .map(|(i, m)| {
                 let b = band(m, a.min_band_pct / 100.0);
-                (b.freq_hz.0, b.freq_hz.1, format!("checked band, mode {}", i + 1))
+                (
+                    b.freq_hz.0,
+                    b.freq_hz.1,
+                    format!("checked band, mode {}", i + 1),
+                )
             })
             .collect(),
-        y_range: Some((0.0, 100.0f64.min(8.0 * a.tolerance_pct).max(2.0 * a.tolerance_pct))),
+        y_range: Some((
+            0.0,
+            100.0f64
+                .min(8.0 * a.tolerance_pct)
+                .max(2.0 * a.tolerance_pct),
+        )),
     };
-    let clip = |v: &[f64]| v.iter().map(|x| x.min(marks.y_range.unwrap().1)).collect::<Vec<_>>();
+    let clip = |v: &[f64]| {
+        v.iter()
+            .map(|x| x.min(marks.y_range.unwrap().1))
+            .collect::<Vec<_>>()
+    };
     let (c0, c1) = (clip(&v_best), v_r.as_ref().map(|(_, v)| clip(v)));
     series[0].y = &c0;
     if let (Some(c1), Some(s)) = (&c1, series.get_mut(1)) {
         s.y = c1;
     }
-    lines_marked(&a.out.join("sensitivity.svg"), &format!("percentage vibration V(f) at zeta {z:.4}"), "frequency (Hz)", "percentage vibration V (%)", &series, false, &marks)
+    lines_marked(
+        &a.out.join("sensitivity.svg"),
+        &format!("percentage vibration V(f) at zeta {z:.4}"),
+        "frequency (Hz)",
+        "percentage vibration V (%)",
+        &series,
+        false,
+        &marks,
+    )
 }
 
 fn verification_plot(a: &TuneArgs, mu: &MeasuredMove, ms: &MeasuredMove) -> Result<()> {
@@ -757,19 +1000,36 @@ fn verification_plot(a: &TuneArgs, mu: &MeasuredMove, ms: &MeasuredMove) -> Resu
     let target_s = *ms.command_m.last().unwrap_or(&0.0);
     let band_mm = 0.02 * a.move_mm.abs();
     let tol_mm = a.tolerance_pct / 100.0 * mu.residual_m * 1e3;
-    let lim = (3.0 * band_mm).max(3.0 * tol_mm).max(1.3 * ms.residual_m * 1e3);
+    let lim = (3.0 * band_mm)
+        .max(3.0 * tol_mm)
+        .max(1.3 * ms.residual_m * 1e3);
     // Both residuals with the sign of the shaped move, clipped to the visible range.
     let sgn = a.move_mm.signum();
     let res = |m: &MeasuredMove, tgt: f64, s: f64| -> Vec<f64> {
-        m.tip_m.iter().map(|p| ((p - tgt) * s * 1e3).clamp(-lim, lim)).collect()
+        m.tip_m
+            .iter()
+            .map(|p| ((p - tgt) * s * 1e3).clamp(-lim, lim))
+            .collect()
     };
     let (ru, rs) = (res(mu, target_u, sgn), res(ms, target_s, -sgn));
     let marks = Marks {
         hlines: vec![
-            (band_mm, format!("±{band_mm:.2} mm settling band (2 % of the move)")),
-            (-band_mm, format!("±{band_mm:.2} mm settling band (2 % of the move)")),
-            (tol_mm, format!("±tolerance: {} % of the unshaped residual", a.tolerance_pct)),
-            (-tol_mm, format!("±tolerance: {} % of the unshaped residual", a.tolerance_pct)),
+            (
+                band_mm,
+                format!("±{band_mm:.2} mm settling band (2 % of the move)"),
+            ),
+            (
+                -band_mm,
+                format!("±{band_mm:.2} mm settling band (2 % of the move)"),
+            ),
+            (
+                tol_mm,
+                format!("±tolerance: {} % of the unshaped residual", a.tolerance_pct),
+            ),
+            (
+                -tol_mm,
+                format!("±tolerance: {} % of the unshaped residual", a.tolerance_pct),
+            ),
         ],
         shaded_x: vec![],
         y_range: Some((-lim, lim)),
@@ -780,16 +1040,38 @@ fn verification_plot(a: &TuneArgs, mu: &MeasuredMove, ms: &MeasuredMove) -> Resu
         "time since the command started (s)",
         "tip − target (mm)",
         &[
-            Series { label: format!("unshaped (residual {:.2} mm)", mu.residual_m * 1e3), x: &mu.time_s, y: &ru },
-            Series { label: format!("shaped (residual {:.3} mm)", ms.residual_m * 1e3), x: &ms.time_s, y: &rs },
+            Series {
+                label: format!("unshaped (residual {:.2} mm)", mu.residual_m * 1e3),
+                x: &mu.time_s,
+                y: &ru,
+            },
+            Series {
+                label: format!("shaped (residual {:.3} mm)", ms.residual_m * 1e3),
+                x: &ms.time_s,
+                y: &rs,
+            },
         ],
         false,
         &marks,
     )
 }
 
-fn report(a: &TuneArgs, bench: &Bench, input: &Path, id: &IdentifiedModes, d: &Design, v: &Verification, passed: bool) -> Result<()> {
-    let imps: Vec<_> = d.best.shaper.impulses().iter().map(|i| serde_json::json!({"amplitude": i.amplitude, "time_s": i.time_s})).collect();
+fn report(
+    a: &TuneArgs,
+    bench: &Bench,
+    input: &Path,
+    id: &IdentifiedModes,
+    d: &Design,
+    v: &Verification,
+    passed: bool,
+) -> Result<()> {
+    let imps: Vec<_> = d
+        .best
+        .shaper
+        .impulses()
+        .iter()
+        .map(|i| serde_json::json!({"amplitude": i.amplitude, "time_s": i.time_s}))
+        .collect();
     let r = serde_json::json!({
         "passed": passed,
         "input": input.display().to_string(),
@@ -834,7 +1116,10 @@ pub fn generate_recording(rig: &Rig, path: &Path) -> Result<()> {
     let (y, _) = crate::model::trapezoid_reference(0.0, 0.05, 0.2, 2.0, SIM_RATE_HZ, 30.0)?;
     let full = sim.recording(&y, 0.0);
     let every = (SIM_RATE_HZ / rig.sample_rate_hz()).round().max(1.0) as usize;
-    let pick = |v: &Option<Vec<f64>>| v.as_ref().map(|v| v.iter().step_by(every).copied().collect::<Vec<_>>());
+    let pick = |v: &Option<Vec<f64>>| {
+        v.as_ref()
+            .map(|v| v.iter().step_by(every).copied().collect::<Vec<_>>())
+    };
     let mut rec = Recording {
         time_s: full.time_s.iter().step_by(every).copied().collect(),
         base_cmd_m: pick(&full.base_cmd_m),
@@ -848,4 +1133,49 @@ pub fn generate_recording(rig: &Rig, path: &Path) -> Result<()> {
         *v += noise.sample(&mut rng);
     }
     rec.write_csv(path)
+}
+
+/// `beamtool sweep --port …`: runs the sweep of `a` (eq. 33 or 34, band, rate) on a board
+/// through its own reference generator, about its present position, so that the user's
+/// camera can record it for `tune --port … <recording>`. The amplitude is the largest within
+/// `--stroke-mm`, the base acceleration `--accel-max` at the top frequency and the board's
+/// step-rate rule with the 5 % margin. Waits until the sweep has ended. Changes no setting.
+pub fn board_sweep(
+    a: &crate::ident::cli::SweepArgs,
+    port: &str,
+) -> Result<crate::board::plan::SweepPlan> {
+    let kind = match a.kind.as_str() {
+        "exponential" | "exp" => SweepKind::Exponential,
+        "linear" | "lin" => SweepKind::Linear,
+        k => bail!("unknown sweep kind `{k}` (linear or exponential)"),
+    };
+    let (fa, fb) = (a.f_a_hz, a.f_b_hz);
+    if !(fa > 0.0 && fb > fa && a.rate.is_finite() && a.rate != 0.0) {
+        bail!("need 0 < --f-a-hz < --f-b-hz and a non-zero --rate");
+    }
+    let duration_s = match kind {
+        SweepKind::Exponential => (fb / fa).log2() * 60.0 / a.rate.abs(),
+        SweepKind::Linear => (fb - fa) / a.rate.abs(),
+    };
+    let (f0, f1) = if a.rate > 0.0 { (fa, fb) } else { (fb, fa) };
+    let accel_limited_mm = a.accel_max / (2.0 * std::f64::consts::PI * fb).powi(2) * 1e3;
+    let mut s = Session::open(port)?;
+    let board = read_board(&mut s)?;
+    let plan = plan_sweep(
+        &board.settings,
+        kind,
+        f0,
+        f1,
+        a.stroke_mm.min(accel_limited_mm),
+        duration_s,
+    )
+    .map_err(|e| anyhow!("{e}"))?;
+    let st = s.status()?;
+    let ticks = s.sweep(&plan).context("starting the sweep")?;
+    wait_board(
+        &mut s,
+        st.ticks + ticks,
+        Duration::from_secs_f64(ticks as f64 / st.tick_hz + 30.0),
+    )?;
+    Ok(plan)
 }

@@ -30,7 +30,9 @@ fn check(id: &Identification, truth: &[(f64, f64)], n_checked: usize, f_tol: f64
     let table = beamtools::ident::report::identification_table(id);
     for m in &id.modes {
         assert!(
-            truth.iter().any(|(f, _)| (m.freq_hz / f - 1.0).abs() < 0.01),
+            truth
+                .iter()
+                .any(|(f, _)| (m.freq_hz / f - 1.0).abs() < 0.01),
             "spurious mode {} Hz\n{table}",
             m.freq_hz
         );
@@ -41,8 +43,16 @@ fn check(id: &Identification, truth: &[(f64, f64)], n_checked: usize, f_tol: f64
             .iter()
             .find(|m| (m.freq_hz / f - 1.0).abs() < 0.01)
             .unwrap_or_else(|| panic!("mode {f} Hz missing\n{table}"));
-        assert!((m.freq_hz / f - 1.0).abs() < f_tol, "f {} vs {f}\n{table}", m.freq_hz);
-        assert!((m.zeta / z - 1.0).abs() < z_tol, "ζ {} vs {z}\n{table}", m.zeta);
+        assert!(
+            (m.freq_hz / f - 1.0).abs() < f_tol,
+            "f {} vs {f}\n{table}",
+            m.freq_hz
+        );
+        assert!(
+            (m.zeta / z - 1.0).abs() < z_tol,
+            "ζ {} vs {z}\n{table}",
+            m.zeta
+        );
     }
 }
 
@@ -124,7 +134,10 @@ fn decay_6hz(rate: f64, dur: f64) -> (Vec<f64>, Vec<f64>) {
     (0..(dur * rate) as usize)
         .map(|k| {
             let t = k as f64 / rate;
-            (t, 1e-3 * (-z * w * t).exp() * (wd * t).cos() + rng.gen_range(-2e-6..2e-6))
+            (
+                t,
+                1e-3 * (-z * w * t).exp() * (wd * t).cos() + rng.gen_range(-2e-6..2e-6),
+            )
         })
         .unzip()
 }
@@ -142,7 +155,11 @@ fn a_logging_gap_splits_the_recording() {
     let id = identify(&rec, &IdentifyOptions::default(), &mut no_progress()).unwrap();
     assert_eq!(id.path, IdentPath::FreeDecay);
     check(&id, &[(6.0, 0.005)], 1, 0.002, 0.10);
-    assert!(id.warnings.iter().any(|w| w.contains("logging gap")), "{:?}", id.warnings);
+    assert!(
+        id.warnings.iter().any(|w| w.contains("logging gap")),
+        "{:?}",
+        id.warnings
+    );
     assert!(id.span_s.0 > 2.4, "{:?}", id.span_s);
 }
 
@@ -180,14 +197,25 @@ fn real_aluminium_decays() {
         let p = PathBuf::from(dir).join(name);
         let id = identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap();
         assert_eq!(id.path, IdentPath::FreeDecay);
-        assert!((id.modes[0].freq_hz / f1 - 1.0).abs() < 0.002, "{name}: {:?}", id.modes);
+        assert!(
+            (id.modes[0].freq_hz / f1 - 1.0).abs() < 0.002,
+            "{name}: {:?}",
+            id.modes
+        );
         // Second mode near the cantilever ratio (6.3-6.6 × f1).
         let r = id.modes[1].freq_hz / id.modes[0].freq_hz;
         assert!((6.2..6.7).contains(&r), "{name}: ratio {r}");
     }
 }
 
-fn write_npy(path: &PathBuf, descr: &str, bytes_per: usize, t: &[f64], x: &[f64], enc: fn(f64) -> Vec<u8>) {
+fn write_npy(
+    path: &PathBuf,
+    descr: &str,
+    bytes_per: usize,
+    t: &[f64],
+    x: &[f64],
+    enc: fn(f64) -> Vec<u8>,
+) {
     let mut h = format!(
         "{{'descr': '{descr}', 'fortran_order': False, 'shape': (2, {}), }}",
         t.len()
@@ -215,13 +243,22 @@ fn recording_formats_and_messages() {
     let p = tmp("f32.npy");
     write_npy(&p, "<f4", 4, &t, &x, |v| (v as f32).to_le_bytes().to_vec());
     let id = identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap();
-    assert!((id.modes[0].freq_hz / 6.0 - 1.0).abs() < 0.002, "{:?}", id.modes);
+    assert!(
+        (id.modes[0].freq_hz / 6.0 - 1.0).abs() < 0.002,
+        "{:?}",
+        id.modes
+    );
     // int16: time in ms (integers), signal in µm: refused with the ms hint.
     let p = tmp("i16.npy");
     let ti: Vec<f64> = t.iter().map(|v| (v * 1000.0).round()).collect();
     let xi: Vec<f64> = x.iter().map(|v| (v * 1e6).round()).collect();
-    write_npy(&p, "<i2", 2, &ti[..3000], &xi[..3000], |v| (v as i16).to_le_bytes().to_vec());
-    let e = format!("{:#}", identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap_err());
+    write_npy(&p, "<i2", 2, &ti[..3000], &xi[..3000], |v| {
+        (v as i16).to_le_bytes().to_vec()
+    });
+    let e = format!(
+        "{:#}",
+        identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap_err()
+    );
     assert!(e.contains("milliseconds"), "{e}");
     // CSV with time_ms: recognised.
     let p = tmp("ms.csv");
@@ -234,18 +271,41 @@ fn recording_formats_and_messages() {
     assert!((id.modes[0].freq_hz / 6.0 - 1.0).abs() < 0.002);
     // Unit-less time column: refused with the hint; no debug text.
     std::fs::write(&p, s.replacen("time_ms", "time", 1)).unwrap();
-    let e = format!("{:#}", identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap_err());
+    let e = format!(
+        "{:#}",
+        identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap_err()
+    );
     assert!(e.contains("time_ms") && !e.contains("StringRecord"), "{e}");
     std::fs::write(&p, "a,b\n1,2\n").unwrap();
-    let e = format!("{:#}", identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap_err());
-    assert!(e.contains("no `time_s` column (header: a, b)") && !e.contains("StringRecord"), "{e}");
+    let e = format!(
+        "{:#}",
+        identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap_err()
+    );
+    assert!(
+        e.contains("no `time_s` column (header: a, b)") && !e.contains("StringRecord"),
+        "{e}"
+    );
     // NaN refused with the row named.
-    std::fs::write(&p, s.replacen("\n5,", "\nNaN,", 1).replacen("time_ms", "time_s", 1)).unwrap();
-    let e = format!("{:#}", identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap_err());
-    assert!(e.contains("not finite") || e.contains("not a number"), "{e}");
+    std::fs::write(
+        &p,
+        s.replacen("\n5,", "\nNaN,", 1)
+            .replacen("time_ms", "time_s", 1),
+    )
+    .unwrap();
+    let e = format!(
+        "{:#}",
+        identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap_err()
+    );
+    assert!(
+        e.contains("not finite") || e.contains("not a number"),
+        "{e}"
+    );
     // A time base in ms named time_s: refused with the hint.
     std::fs::write(&p, s.replacen("time_ms", "time_s", 1)).unwrap();
-    let e = format!("{:#}", identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap_err());
+    let e = format!(
+        "{:#}",
+        identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap_err()
+    );
     assert!(e.contains("milliseconds"), "{e}");
 }
 

@@ -15,7 +15,8 @@ use std::time::Duration;
 const REAL: &str = "../../shared/data/real/aluminium-cantilever";
 
 fn real(prefix: &str) -> PathBuf {
-    let dir = std::fs::read_dir(REAL).unwrap_or_else(|e| panic!("real data missing at {REAL}: {e}"));
+    let dir =
+        std::fs::read_dir(REAL).unwrap_or_else(|e| panic!("real data missing at {REAL}: {e}"));
     dir.filter_map(|e| e.ok().map(|e| e.path()))
         .find(|p| p.file_name().unwrap().to_string_lossy().starts_with(prefix))
         .unwrap()
@@ -66,7 +67,9 @@ fn default_run_sweeps_on_the_board_identifies_from_the_camera_and_saves_after_th
     assert!(outcome.passed);
     let r = json(&out);
     assert_eq!(r["passed"], true);
-    let measured = r["verification"]["measured_vibration_pct"].as_f64().unwrap();
+    let measured = r["verification"]["measured_vibration_pct"]
+        .as_f64()
+        .unwrap();
     assert!(measured < 2.0, "measured percentage vibration {measured} %");
     let f1 = r["modes"][0]["freq_hz"].as_f64().unwrap();
     let f2 = r["modes"][1]["freq_hz"].as_f64().unwrap();
@@ -74,14 +77,25 @@ fn default_run_sweeps_on_the_board_identifies_from_the_camera_and_saves_after_th
     assert!((f2 / 6.9228 - 1.0).abs() < 0.002, "identified f2 {f2}");
     for k in 0..2 {
         let z = r["modes"][k]["zeta"].as_f64().unwrap();
-        assert!((z / 0.0074 - 1.0).abs() < 0.10, "identified zeta{} {z}", k + 1);
+        assert!(
+            (z / 0.0074 - 1.0).abs() < 0.10,
+            "identified zeta{} {z}",
+            k + 1
+        );
     }
     assert!(r["impulses"].as_array().unwrap().len() >= 2);
     assert!(r["port"].as_str().unwrap().starts_with("/dev/"));
     assert!(r["units"]["freq_hz"].is_string());
-    let saved = load_flash(&out.join("vboard-flash.bin")).unwrap().expect("saved settings");
+    let saved = load_flash(&out.join("vboard-flash.bin"))
+        .unwrap()
+        .expect("saved settings");
     assert!(saved.modes[0].is_some());
-    for f in ["verification.svg", "sensitivity.svg", "sweep-recording.csv", "vboard-camera.csv"] {
+    for f in [
+        "verification.svg",
+        "sensitivity.svg",
+        "sweep-recording.csv",
+        "vboard-camera.csv",
+    ] {
         assert!(out.join(f).exists(), "{f}");
     }
 }
@@ -90,7 +104,8 @@ fn default_run_sweeps_on_the_board_identifies_from_the_camera_and_saves_after_th
 /// camera of the rig measures it, the run fails, nothing is saved and the board runs the
 /// configuration it ran before (an unsaved one, so `load` would not have been right).
 #[test]
-fn a_failed_verification_exits_with_an_error_saves_nothing_and_restores_the_running_configuration() {
+fn a_failed_verification_exits_with_an_error_saves_nothing_and_restores_the_running_configuration()
+{
     let dir = tmpdir("fail");
     let camera = dir.join("camera.csv");
     let (port, flash, saved_before) = board_with_unsaved_change(&dir, Some(&camera));
@@ -102,22 +117,37 @@ fn a_failed_verification_exits_with_an_error_saves_nothing_and_restores_the_runn
     let err = format!("{:#}", tune(a).err().expect("must fail"));
     assert!(err.contains("verification failed"), "{err}");
     assert!(err.contains("previous configuration"), "{err}");
-    assert_eq!(std::fs::read(&flash).unwrap(), saved_before, "flash changed");
-    assert_eq!(config_lines(&port), running_before, "running configuration not restored");
+    assert_eq!(
+        std::fs::read(&flash).unwrap(),
+        saved_before,
+        "flash changed"
+    );
+    assert_eq!(
+        config_lines(&port),
+        running_before,
+        "running configuration not restored"
+    );
     let r = json(&dir.join("out"));
     assert_eq!(r["passed"], false);
-    assert!(r["verification"]["measured_vibration_pct"].as_f64().unwrap() > 50.0);
+    assert!(
+        r["verification"]["measured_vibration_pct"]
+            .as_f64()
+            .unwrap()
+            > 50.0
+    );
 }
 
 #[test]
 fn the_real_aluminium_decays_pass_the_model_free_check() {
-    for (len, f_lo, f_hi) in [("40cm", 9.3, 9.5), ("50cm", 5.9, 6.2)] {
+    for (len, f_lo, f_hi) in [("40cm", 9.3, 9.5), ("50cm", 5.9, 6.2), ("60cm", 4.1, 4.4)] {
         let out = tmpdir(&format!("real-{len}"));
         tune(TuneArgs::new(Some(real(len)), &out)).unwrap();
         let r = json(&out);
         let f1 = r["modes"][0]["freq_hz"].as_f64().unwrap();
         assert!((f_lo..f_hi).contains(&f1), "{len}: f1 {f1}");
-        let v = r["verification"]["superposed_vibration_pct"].as_f64().unwrap();
+        let v = r["verification"]["superposed_vibration_pct"]
+            .as_f64()
+            .unwrap();
         assert!(v < 2.0, "{len}: {v} %");
     }
 }
@@ -193,7 +223,10 @@ fn a_malformed_reply_while_programming_is_a_clear_error_and_the_flash_is_unchang
     a.port = Some(port);
     let err = format!("{:#}", tune(a).err().unwrap());
     assert!(err.contains("malformed reply"), "{err}");
-    assert!(err.contains("COULD NOT RESTORE") || err.contains("previous configuration"), "{err}");
+    assert!(
+        err.contains("COULD NOT RESTORE") || err.contains("previous configuration"),
+        "{err}"
+    );
     assert_eq!(std::fs::read(&flash).unwrap(), before);
 }
 
@@ -208,16 +241,81 @@ struct Cli {
 /// are refused before any board is touched.
 #[test]
 fn options_accept_negative_numbers_refuse_non_finite_and_impossible_values() {
-    let p = |args: &[&str]| Cli::try_parse_from(std::iter::once("tune").chain(args.iter().copied()));
+    let p =
+        |args: &[&str]| Cli::try_parse_from(std::iter::once("tune").chain(args.iter().copied()));
     assert_eq!(p(&["--move-mm", "-50"]).unwrap().a.move_mm, -50.0);
     assert!(p(&["--tolerance-pct", "nan"]).is_err());
     assert!(p(&["--speed-mm-s", "inf"]).is_err());
     let out = tmpdir("opts");
-    for bad in [["--move-mm", "0"], ["--speed-mm-s", "0"], ["--accel-mm-s2", "-3"], ["--tolerance-pct", "0.01"]] {
+    for bad in [
+        ["--move-mm", "0"],
+        ["--speed-mm-s", "0"],
+        ["--accel-mm-s2", "-3"],
+        ["--tolerance-pct", "0.01"],
+    ] {
         let mut a = p(&bad).unwrap().a;
         a.out = out.clone();
         a.port = Some("/dev/does-not-exist".into());
         let err = format!("{:#}", tune(a).err().unwrap());
         assert!(err.contains(bad[0]), "{bad:?}: {err}");
+    }
+}
+
+/// Issue 11 acceptance: `tune` on the paper's exponential sweep (eq. 34, noise-free: with 1 % sensor
+/// noise its ring-down tail no longer resolves the tolerance and `tune` refuses to claim a
+/// check, see the closing note) and on a 20 mm move + 40 s ring-down whose servo-held base dithers by ±2 µm on a 1 µm
+/// encoder: both succeed, f1 and f2 within 0.2 % of the model's clamped modes and ζ within
+/// 10 %, checked on the user's recorded vibration (no rig, no camera).
+#[test]
+fn tune_succeeds_on_a_sweep_and_on_a_dithering_move_with_ring_down() {
+    use beamtools::ident::protocol::{add_noise, simulate_sweep, truth};
+    use beamtools::ident::sweep::{SweepKind, SweepSpec};
+    use beamtools::model::sim::BaseMotionSim;
+    use beamtools::model::{trapezoid_reference, BeamModel, ModelOptions};
+    use rand::{Rng, SeedableRng};
+    let rig = Rig::from_toml_str(DEFAULT_RIG_TOML).unwrap();
+    let m = BeamModel::new(&rig, &ModelOptions::default()).unwrap();
+    let tr = truth(&m).unwrap().clamped;
+    let dir = tmpdir("tune-user-recordings");
+    let sweep = simulate_sweep(
+        &m,
+        &SweepSpec::paper(SweepKind::Exponential, 3.0),
+        100.0,
+        0.0,
+        1,
+    )
+    .unwrap();
+    sweep.write_csv(dir.join("sweep.csv")).unwrap();
+    let sim = BaseMotionSim::new(&m, 1e-3).unwrap();
+    let (y, _) = trapezoid_reference(0.0, 0.02, 0.2, 2.0, 1000.0, 40.0).unwrap();
+    let mut mv = beamtools::model::cli::decimate(&sim.recording(&y, 0.0), 100.0);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+    for v in mv.base_pos_m.as_mut().unwrap().iter_mut() {
+        *v = ((*v + rng.gen_range(-2e-6..=2e-6)) * 1e6).round() * 1e-6;
+    }
+    add_noise(&mut mv, 0.0, 2);
+    for v in mv.tip_pos_m.as_mut().unwrap().iter_mut() {
+        *v += rng.gen_range(-20e-6..20e-6);
+    }
+    mv.write_csv(dir.join("move-dither.csv")).unwrap();
+    for name in ["sweep.csv", "move-dither.csv"] {
+        let out = dir.join(format!("out-{name}"));
+        tune(TuneArgs::new(Some(dir.join(name)), &out)).unwrap_or_else(|e| panic!("{name}: {e:#}"));
+        let r = json(&out);
+        assert_eq!(r["passed"], serde_json::Value::Bool(true), "{name}");
+        for (k, (f, z)) in tr.iter().take(2).enumerate() {
+            let fi = r["modes"][k]["freq_hz"].as_f64().unwrap();
+            let zi = r["modes"][k]["zeta"].as_f64().unwrap();
+            assert!(
+                (fi / f - 1.0).abs() < 0.002,
+                "{name} mode {}: f {fi} vs {f}",
+                k + 1
+            );
+            assert!(
+                (zi / z - 1.0).abs() < 0.10,
+                "{name} mode {}: ζ {zi} vs {z}",
+                k + 1
+            );
+        }
     }
 }

@@ -1,12 +1,12 @@
 //! Planned moves are moves the board accepts: the planner applies the core's step-rate rule
 //! (with a 5 % margin) to the very tap table the board builds, and fits the capture buffer.
 
-use beamtools::board::plan::{plan_move, capture_fits};
+use beamshaper::config::Settings;
+use beamtools::board::plan::{capture_fits, plan_move};
 use beamtools::board::session::Command;
 use beamtools::board::VirtualBoard;
 use beamtools::ident::ModeEstimate;
 use beamtools::shaping::{candidates, settings_with};
-use beamshaper::config::Settings;
 
 fn mode(f: f64) -> ModeEstimate {
     ModeEstimate {
@@ -24,7 +24,12 @@ fn mode(f: f64) -> ModeEstimate {
 #[test]
 fn every_planned_move_is_accepted_by_the_board() {
     let mut accepted = 0;
-    for (f1, f2) in [(1.104_660_9, 6.922_813), (1.1, 6.9), (1.104_3, 6.923_9), (9.4065, 61.9487)] {
+    for (f1, f2) in [
+        (1.104_660_9, 6.922_813),
+        (1.1, 6.9),
+        (1.104_3, 6.923_9),
+        (9.4065, 61.9487),
+    ] {
         for c in candidates(&[mode(f1), mode(f2)], 0.05, 0.02) {
             for speed in [100.0, 150.0, 190.0, 200.0] {
                 let s = settings_with(&Settings::DEFAULT, &c);
@@ -42,9 +47,17 @@ fn every_planned_move_is_accepted_by_the_board() {
                     continue; // a shaper the board cannot hold; tune never plans it
                 }
                 b.tick(20_000);
-                let mv = Command::Move { target_mm: p.target_mm, speed_mm_s: speed, accel_mm_s2: 2000.0 };
+                let mv = Command::Move {
+                    target_mm: p.target_mm,
+                    speed_mm_s: speed,
+                    accel_mm_s2: 2000.0,
+                };
                 let r = b.receive(format!("{mv}\n").as_bytes());
-                assert!(r.starts_with("ok move"), "{} at {speed} mm/s: planned, but the board said {r}", c.name);
+                assert!(
+                    r.starts_with("ok move"),
+                    "{} at {speed} mm/s: planned, but the board said {r}",
+                    c.name
+                );
                 accepted += 1;
             }
         }

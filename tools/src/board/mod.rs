@@ -120,7 +120,10 @@ impl VirtualBoard {
             if let Some(r) = self.rig.as_mut() {
                 let step_nm = self.rt.params().step_nm.max(1) as i64;
                 let steps = (out.setpoint_counts as i64).div_euclid(step_nm);
-                let res = r.tick(out.setpoint_counts as f64 * 1e-9, (steps * step_nm) as f64 * 1e-9);
+                let res = r.tick(
+                    out.setpoint_counts as f64 * 1e-9,
+                    (steps * step_nm) as f64 * 1e-9,
+                );
                 if let Err(e) = res {
                     self.rig_error = Some(format!("{e:#}"));
                     self.rig = None;
@@ -268,7 +271,11 @@ mod clock_tests {
         let done = run(&times, 10_000, 500);
         let at_10 = done[99];
         assert_eq!(at_10, 10_000);
-        assert!((49..=51).contains(&(done[100] - at_10)), "{}", done[100] - at_10);
+        assert!(
+            (49..=51).contains(&(done[100] - at_10)),
+            "{}",
+            done[100] - at_10
+        );
     }
 
     #[test]
@@ -277,7 +284,10 @@ mod clock_tests {
         let times = [5.0, 10.0, 10.001, 10.002];
         let done = run(&times, 10_000, 10_000);
         assert_eq!(done[1], 10_000);
-        assert!(done[2] - done[1] <= 11 && done[3] - done[2] <= 11, "{done:?}");
+        assert!(
+            done[2] - done[1] <= 11 && done[3] - done[2] <= 11,
+            "{done:?}"
+        );
     }
 
     #[test]

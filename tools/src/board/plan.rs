@@ -132,7 +132,14 @@ pub fn plan_move(
     let need = trapezoid_peak_speed(distance_nm as f32, speed_nm_s, accel_nm_s2) as f64
         * taps.abs_weight_sum() as f64
         / settings.step_nm.max(1) as f64;
-    if let Err(e) = check_move_step_rate(&taps, settings.step_nm, with_margin, distance_nm, speed_nm_s, accel_nm_s2) {
+    if let Err(e) = check_move_step_rate(
+        &taps,
+        settings.step_nm,
+        with_margin,
+        distance_nm,
+        speed_nm_s,
+        accel_nm_s2,
+    ) {
         return Err(PlanError::StepRate {
             need: e.shaped_peak_steps_s as f64,
             max,
@@ -192,23 +199,31 @@ pub fn plan_sweep(
         .map_err(|e| PlanError::Shaper(e.to_string()))?;
     let tick_hz = settings.tick_rate_hz as f64;
     let sweep = |amp_mm: f64| {
-        SineSweep::new(kind, 0, f0_hz, f1_hz, amp_mm * 1e6, duration_s, tick_hz)
-            .map_err(|e| PlanError::Argument(format!("the board cannot run this sweep ({})", match e {
-                beamshaper::reference::SweepError::Nyquist => "a frequency above a tenth of the tick rate",
-                beamshaper::reference::SweepError::Stroke => "amplitude beyond the stroke",
-                _ => "frequencies, amplitude and duration must be > 0, duration ≤ 3600 s",
-            })))
+        SineSweep::new(kind, 0, f0_hz, f1_hz, amp_mm * 1e6, duration_s, tick_hz).map_err(|e| {
+            PlanError::Argument(format!(
+                "the board cannot run this sweep ({})",
+                match e {
+                    beamshaper::reference::SweepError::Nyquist =>
+                        "a frequency above a tenth of the tick rate",
+                    beamshaper::reference::SweepError::Stroke => "amplitude beyond the stroke",
+                    _ => "frequencies, amplitude and duration must be > 0, duration ≤ 3600 s",
+                }
+            ))
+        })
     };
-    let per_mm = sweep(1.0)?.peak_speed() as f64 * taps.abs_weight_sum() as f64 / settings.step_nm.max(1) as f64;
+    let per_mm = sweep(1.0)?.peak_speed() as f64 * taps.abs_weight_sum() as f64
+        / settings.step_nm.max(1) as f64;
     let max = settings.max_step_rate_hz;
     let amplitude_mm = amplitude_max_mm.min(STEP_RATE_USE * max as f64 / per_mm * 0.999);
     let sw = sweep(amplitude_mm)?;
     let with_margin = (STEP_RATE_USE * max as f64).floor() as u32;
-    check_step_rate(&taps, settings.step_nm, with_margin, sw.peak_speed()).map_err(|e| PlanError::StepRate {
-        need: e.shaped_peak_steps_s as f64,
-        max,
-        pct: 100.0 * STEP_RATE_USE,
-        speed_ok: e.max_reference_speed_nm_s as f64 * 1e-6,
+    check_step_rate(&taps, settings.step_nm, with_margin, sw.peak_speed()).map_err(|e| {
+        PlanError::StepRate {
+            need: e.shaped_peak_steps_s as f64,
+            max,
+            pct: 100.0 * STEP_RATE_USE,
+            speed_ok: e.max_reference_speed_nm_s as f64 * 1e-6,
+        }
     })?;
     Ok(SweepPlan {
         kind,

@@ -147,7 +147,8 @@ impl VirtualRig {
     /// Advances one tick with the board's shaped setpoint (m) and its emitted step position (m).
     pub fn tick(&mut self, setpoint_m: f64, step_pos_m: f64) -> Result<()> {
         let v_before = self.carriage[1];
-        self.carriage = self.servo_phi * self.carriage + self.servo_gamma * (self.servo_w2 * step_pos_m);
+        self.carriage =
+            self.servo_phi * self.carriage + self.servo_gamma * (self.servo_w2 * step_pos_m);
         let dv = self.carriage[1] - v_before;
         let mut tip = self.carriage[0];
         for r in 0..self.eta.len() {
@@ -161,7 +162,8 @@ impl VirtualRig {
         }
         self.ticks += 1;
         if self.ticks % self.frame_every == 0 {
-            let seen = self.latency.front().copied().unwrap_or(tip) + self.noise.sample(&mut self.rng);
+            let seen =
+                self.latency.front().copied().unwrap_or(tip) + self.noise.sample(&mut self.rng);
             let q = self.sensors.encoder_m;
             let enc = (self.carriage[0] / q).round() * q;
             writeln!(
@@ -200,7 +202,13 @@ pub fn read_sensor_log(path: &Path, from_s: f64, to_s: f64) -> Result<Recording>
             .collect::<std::result::Result<_, _>>()
             .ok()
             .filter(|v: &Vec<f64>| v.len() == 4)
-            .with_context(|| format!("{} line {}: `{line}` is not 4 numbers", path.display(), i + 1))?;
+            .with_context(|| {
+                format!(
+                    "{} line {}: `{line}` is not 4 numbers",
+                    path.display(),
+                    i + 1
+                )
+            })?;
         if v[0] < from_s || v[0] > to_s {
             continue;
         }

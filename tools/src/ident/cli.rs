@@ -217,7 +217,11 @@ pub fn identify_options_of(a: &IdentifyArgs) -> Result<IdentifyOptions> {
         }
     }
     if a.f_max_hz <= a.f_min_hz {
-        bail!("--f-max-hz {} must exceed --f-min-hz {}", a.f_max_hz, a.f_min_hz);
+        bail!(
+            "--f-max-hz {} must exceed --f-min-hz {}",
+            a.f_max_hz,
+            a.f_min_hz
+        );
     }
     let mut frf = options_of(a)?;
     frf.progress = false;
@@ -242,7 +246,10 @@ pub fn progress_line(stage: Stage) {
 /// diagram (FRF path), plots and JSON.
 pub fn identify(a: IdentifyArgs) -> Result<()> {
     let opts = identify_options_of(&a)?;
-    if a.recording.extension().is_some_and(|e| e.eq_ignore_ascii_case("lvm")) {
+    if a.recording
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("lvm"))
+    {
         return identify_spectrum(&a);
     }
     let id = super::identify::identify_file(&a.recording, &opts, &mut progress_line)?;

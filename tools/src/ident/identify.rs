@@ -213,7 +213,10 @@ pub fn identify_file(
     identify(&rec, opts, progress).map_err(|e| anyhow::anyhow!("{}: {e:#}", path.display()))
 }
 
-fn identify_spectrum_file(path: &std::path::Path, opts: &IdentifyOptions) -> Result<Identification> {
+fn identify_spectrum_file(
+    path: &std::path::Path,
+    opts: &IdentifyOptions,
+) -> Result<Identification> {
     let s = super::magspec::read_lvm(path)?;
     let mm = super::magspec::identify_magnitude_spectrum(
         &s,
@@ -243,7 +246,10 @@ fn identify_spectrum_file(path: &std::path::Path, opts: &IdentifyOptions) -> Res
         })
         .collect();
     if modes.is_empty() {
-        bail!("{}: no peak ≥ 10 dB prominent in the spectrum", path.display());
+        bail!(
+            "{}: no peak ≥ 10 dB prominent in the spectrum",
+            path.display()
+        );
     }
     let df = s.freq_hz[1] - s.freq_hz[0];
     Ok(Identification {
@@ -292,7 +298,9 @@ pub fn identify(
     let mut base = base;
     let q = decimation_factor(&seg, path, opts);
     if q > 1 {
-        let from_s = base.as_ref().map(|b| seg.time_s[b.still_from.min(seg.len() - 1)]);
+        let from_s = base
+            .as_ref()
+            .map(|b| seg.time_s[b.still_from.min(seg.len() - 1)]);
         let d = seg.decimated(q);
         warnings.push(format!(
             "long recording ({} samples at {} Hz): decimated by {q} to {} Hz (anti-aliased, FIR) before the {path} path",
@@ -331,7 +339,12 @@ pub fn identify(
             progress(Stage::Screening);
             let (mut kept, rejected) = screen_modes(&r, &frf, &fo);
             out.warnings.extend(r.warnings.iter().cloned());
-            if ml && matches!(r.methods.first().map(|m| m.method), Some(Method::Lscf | Method::Lsce)) {
+            if ml
+                && matches!(
+                    r.methods.first().map(|m| m.method),
+                    Some(Method::Lscf | Method::Lsce)
+                )
+            {
                 progress(Stage::Refining(kept.len()));
                 refine_estimates(&frf, r.band_hz, &mut kept, "FRF", &mut out.warnings);
             }
@@ -470,7 +483,10 @@ pub fn decimation_factor(rec: &Recording, path: IdentPath, opts: &IdentifyOption
 /// Top of the band (Hz) where the base acceleration's Welch spectrum (Hamming segments of
 /// 2¹⁶ samples) is within 30 dB of its maximum.
 fn input_band_top_hz(x: &[f64], rate: f64) -> Option<f64> {
-    let a: Vec<f64> = x.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]) * rate * rate).collect();
+    let a: Vec<f64> = x
+        .windows(3)
+        .map(|w| (w[2] - 2.0 * w[1] + w[0]) * rate * rate)
+        .collect();
     let wo = super::frf::WelchOptions {
         nperseg: Some(1 << 16),
         overlap: 0.5,
@@ -578,7 +594,9 @@ pub fn base_motion(b: &[f64]) -> BaseMotion {
     let noise = 1.4826 * median(&mut dev);
     let (lo, hi) = b
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| (l.min(*v), h.max(*v)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+            (l.min(*v), h.max(*v))
+        });
     let range = hi - lo;
     let band = (6.0 * noise).max(1e-7 * range).max(1e-12);
     let still_from = b
@@ -606,8 +624,15 @@ pub fn base_motion(b: &[f64]) -> BaseMotion {
         }
     }
     // Sample-to-sample noise: 1.4826 × MAD of the second differences / √6 (white noise).
-    let mut d2: Vec<f64> = b.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]).abs()).collect();
-    let noise_hf = if d2.is_empty() { 0.0 } else { 1.4826 * median(&mut d2) / 6f64.sqrt() };
+    let mut d2: Vec<f64> = b
+        .windows(3)
+        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
+        .collect();
+    let noise_hf = if d2.is_empty() {
+        0.0
+    } else {
+        1.4826 * median(&mut d2) / 6f64.sqrt()
+    };
     let moves = range > 20.0 * noise_hf && range > 0.0;
     BaseMotion {
         noise_m: noise,
@@ -642,9 +667,15 @@ pub fn choose_path(
     }
     let Some(b) = base else {
         return if force {
-            (IdentPath::Frf, "force input, no base channel: FRF of force -> tip".into())
+            (
+                IdentPath::Frf,
+                "force input, no base channel: FRF of force -> tip".into(),
+            )
         } else {
-            (IdentPath::FreeDecay, "no base or force channel: the tip signal is a free decay".into())
+            (
+                IdentPath::FreeDecay,
+                "no base or force channel: the tip signal is a free decay".into(),
+            )
         };
     };
     let still = format!(
@@ -701,7 +732,11 @@ pub fn choose_path(
 fn tip_signal(rec: &Recording, from: usize) -> (Vec<f64>, Vec<f64>) {
     let t = rec.time_s[from..].to_vec();
     let x = match (rec.tip_pos_m.as_deref(), base_channel(rec)) {
-        (Some(tip), Some(b)) => tip[from..].iter().zip(&b[from..]).map(|(t, b)| t - b).collect(),
+        (Some(tip), Some(b)) => tip[from..]
+            .iter()
+            .zip(&b[from..])
+            .map(|(t, b)| t - b)
+            .collect(),
         (Some(tip), None) => tip[from..].to_vec(),
         (None, _) => vec![],
     };

@@ -197,7 +197,10 @@ pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> R
         bail!("the fit diverged");
     };
     if !report.termination.was_successful() && report.objective_function.is_nan() {
-        bail!("the fit did not converge ({})", termination_text(&report.termination));
+        bail!(
+            "the fit did not converge ({})",
+            termination_text(&report.termination)
+        );
     }
     let n_obs = r.len() as f64;
     let dof = (n_obs - n_par as f64).max(1.0);

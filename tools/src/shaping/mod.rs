@@ -147,7 +147,9 @@ mod tests {
     fn shortest_candidate_meets_its_worst_case_and_is_sorted() {
         let modes = [m(1.1, 0.001), m(6.9, 0.01)];
         let c = candidates(&modes, 0.02, 0.02);
-        assert!(c.windows(2).all(|w| w[0].shaper.duration_s() <= w[1].shaper.duration_s()));
+        assert!(c
+            .windows(2)
+            .all(|w| w[0].shaper.duration_s() <= w[1].shaper.duration_s()));
         let best = c.iter().find(|c| c.worst_pct <= 2.0).unwrap();
         assert_eq!(best.modes.len(), 2, "{}", best.name);
         // The worst case is attained somewhere in the band, and V at the nominal is smaller.
