@@ -191,7 +191,15 @@ impl Console {
         let mut action = Action::None;
         let takes_no_args = matches!(
             cmd,
-            "help" | "status" | "shaper" | "config" | "zero" | "defaults" | "save" | "load" | "stop"
+            "help"
+                | "status"
+                | "shaper"
+                | "config"
+                | "zero"
+                | "defaults"
+                | "save"
+                | "load"
+                | "stop"
         );
         if takes_no_args && !args.is_empty() {
             let _ = writeln!(out, "err syntax: {cmd} takes no arguments");

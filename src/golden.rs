@@ -160,7 +160,13 @@ pub fn write_golden(out: &mut impl Write) -> Result {
             }
             if k == 3000 {
                 let _ = rt.request(pa.clone());
-                let _ = rt.start_sweep(crate::reference::SweepKind::Exponential, 0.5, 9.0, 3.0e6, 2.5);
+                let _ = rt.start_sweep(
+                    crate::reference::SweepKind::Exponential,
+                    0.5,
+                    9.0,
+                    3.0e6,
+                    2.5,
+                );
             }
             let o = rt.tick(&TickInput::default());
             h = fnv(h, o.setpoint_counts);

@@ -106,7 +106,11 @@ pub struct DacMirror {
 impl DacMirror {
     /// Mirror with full scale ±`span_counts`.
     pub const fn new(span_counts: i32) -> Self {
-        let span = if span_counts < 4096 { 4096 } else { span_counts } as i64;
+        let span = if span_counts < 4096 {
+            4096
+        } else {
+            span_counts
+        } as i64;
         DacMirror {
             k: ((2048i64 << 32) / span) as i32,
         }
@@ -146,7 +150,12 @@ pub fn check_step_rate(
     max_step_rate_hz: u32,
     peak_speed_nm_s: f32,
 ) -> Result<(), StepRateExceeded> {
-    check_step_rate_gain(taps.abs_weight_sum(), step_nm, max_step_rate_hz, peak_speed_nm_s)
+    check_step_rate_gain(
+        taps.abs_weight_sum(),
+        step_nm,
+        max_step_rate_hz,
+        peak_speed_nm_s,
+    )
 }
 
 /// [`check_step_rate`] with the gain `Σ|w|` given (e.g. a transition's, see

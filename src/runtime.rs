@@ -25,9 +25,7 @@
 
 use crate::config::{Settings, Source};
 use crate::engine::{EngineState, NumericPath, SwitchError, TapTable};
-use crate::output::{
-    check_move_step_rate, DacMirror, StepCommand, StepOutput, StepRateExceeded,
-};
+use crate::output::{check_move_step_rate, DacMirror, StepCommand, StepOutput, StepRateExceeded};
 use crate::reference::{
     MoveError, SineSweep, StepDirCounter, SweepError, SweepKind, TrapezoidMove, POSITION_LIMIT,
 };
@@ -732,11 +730,7 @@ impl Runtime {
         st.setpoint = 0;
         st.stepdir_offset = -st.stepdir.steps() * st.params.input_nm_per_count as i64;
         st.engine.reset(0);
-        st.steps = StepOutput::new(
-            st.params.step_nm as i32,
-            st.params.max_pulses_per_tick(),
-            0,
-        );
+        st.steps = StepOutput::new(st.params.step_nm as i32, st.params.max_pulses_per_tick(), 0);
         Ok(())
     }
 

@@ -270,7 +270,10 @@ fn status_before_the_first_move_and_number_formatting() {
     b.run(3);
     let st = b.ok("status");
     assert!(st.contains("still_ticks=3 "), "{st}");
-    assert!(st.contains("waiting=none") && st.contains("stages=1"), "{st}");
+    assert!(
+        st.contains("waiting=none") && st.contains("stages=1"),
+        "{st}"
+    );
     b.ok("move 68.04");
     b.run(3000);
     let st = b.ok("status");
@@ -285,14 +288,16 @@ fn status_before_the_first_move_and_number_formatting() {
     b.ok("move 0");
     b.run(10);
     let out = b.ok("rate 2000");
-    assert!(
-        out.contains("applies=when-still waiting=rate"),
-        "{out}"
-    );
+    assert!(out.contains("applies=when-still waiting=rate"), "{out}");
     let st = b.ok("status");
-    assert!(st.contains("waiting=rate") && st.contains("pending=1"), "{st}");
+    assert!(
+        st.contains("waiting=rate") && st.contains("pending=1"),
+        "{st}"
+    );
     b.run(3000);
     let st = b.ok("status");
-    assert!(st.contains("tick_hz=2000") && st.contains("waiting=none"), "{st}");
+    assert!(
+        st.contains("tick_hz=2000") && st.contains("waiting=none"),
+        "{st}"
+    );
 }
-

@@ -143,7 +143,10 @@ fn sweep_refusals_are_checked_before_it_starts() {
     b.run(10);
     // 10 mm at 8 Hz: ~0.5 m/s peak = 500 000 steps/s > 20 000.
     let (out, _) = b.cmd("sweep exp 0.5 8 10 20");
-    assert!(out.contains("err step-rate:") && out.contains("# shaped peak"), "{out}");
+    assert!(
+        out.contains("err step-rate:") && out.contains("# shaped peak"),
+        "{out}"
+    );
     b.ok("sweep exp 0.5 8 0.2 20");
 }
 

@@ -120,7 +120,10 @@ fn a_switch_mid_move_is_continuous_and_ends_exactly_at_the_target() {
                 .map(|n| (y[n + 1] as i64 - y[n] as i64).abs())
                 .max()
                 .unwrap();
-            assert!(around <= unswitched, "{path:?}: step {around} at the switch");
+            assert!(
+                around <= unswitched,
+                "{path:?}: step {around} at the switch"
+            );
             assert_eq!(*y.last().unwrap(), 50_000_000, "{path:?} at {at}");
         }
     }
@@ -250,7 +253,10 @@ fn residual_vibration_after_a_mid_move_retune_stays_within_the_worse_shaper() {
     let (y_new, _) = run_switched(&[new.clone()], &[], &x, NumericPath::Fixed);
     let (r_old, r_new) = (residual_tip(&y_old), residual_tip(&y_new));
     let r_none = residual_tip(&x);
-    assert!(r_new < r_old && r_old < 0.5 * r_none, "{r_none} {r_old} {r_new}");
+    assert!(
+        r_new < r_old && r_old < 0.5 * r_none,
+        "{r_none} {r_old} {r_new}"
+    );
     for at in [50usize, 200, 400, 550, 700, 1200] {
         let (y, _) = run_switched(&[old.clone(), new.clone()], &[at], &x, NumericPath::Fixed);
         let r = residual_tip(&y);
@@ -315,7 +321,10 @@ fn step_dir_pass_through_that_is_never_still_applies_the_change() {
     // 3000 nm per tick in; during the transition the two windows overlap (ZVD 1.1 Hz ->
     // ZVDD 1.3 Hz: gain 1.25), never a jump.
     assert!(gain > 1.0 && gain < 1.3, "{gain}");
-    assert!(max_step as f64 <= gain * 3_000.0 + 2.0, "{max_step} (gain {gain})");
+    assert!(
+        max_step as f64 <= gain * 3_000.0 + 2.0,
+        "{max_step} (gain {gain})"
+    );
     // A rate change still waits for standstill, and says so.
     let mut r = s.clone();
     r.tick_rate_hz = 2000;
@@ -390,10 +399,17 @@ fn mode_during_a_move_on_the_console_applies_at_the_next_tick_without_a_jump() {
     let cap: Vec<i32> = b.rt.capture().samples().to_vec();
     assert!(cap.len() > 3000);
     let unswitched = 100_000; // 100 mm/s at 1 kHz: the reference's own per-tick change
-    assert!(max_tick_change(&cap) <= unswitched, "{}", max_tick_change(&cap));
+    assert!(
+        max_tick_change(&cap) <= unswitched,
+        "{}",
+        max_tick_change(&cap)
+    );
     assert_eq!(*cap.last().unwrap(), 50_000_000);
     let st = b.ok("status");
-    assert!(st.contains("stages=1") && st.contains("waiting=none"), "{st}");
+    assert!(
+        st.contains("stages=1") && st.contains("waiting=none"),
+        "{st}"
+    );
 }
 
 #[test]

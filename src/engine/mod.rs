@@ -251,7 +251,13 @@ impl<const N: usize> EngineState<N> {
                 .map(|t| libm::fabsf(t.w_f32))
                 .sum()
         };
-        let mut best = tail(1) + new.taps().iter().filter(|t| t.delay < 1).map(|t| libm::fabsf(t.w_f32)).sum::<f32>();
+        let mut best = tail(1)
+            + new
+                .taps()
+                .iter()
+                .filter(|t| t.delay < 1)
+                .map(|t| libm::fabsf(t.w_f32))
+                .sum::<f32>();
         let mut head = 0.0f32;
         for t in new.taps() {
             head += libm::fabsf(t.w_f32);
