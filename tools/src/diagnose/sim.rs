@@ -237,33 +237,9 @@ fn coupled_servo(
         acc_row[2 + 2 * j] = c.gamma[j] * om * om / m_eff;
         acc_row[3 + 2 * j] = c.gamma[j] * 2.0 * z * om / m_eff;
     }
-    let mut a = nalgebra::DMatrix::<f64>::zeros(dim, dim);
-    a[(0, 1)] = 1.0;
-    for i in 0..dim {
-        a[(1, i)] = acc_row[i];
-    }
-    for j in 0..nm {
-        let (om, z) = (c.omega[j], c.zeta[j]);
-        let (q, qd) = (2 + 2 * j, 3 + 2 * j);
-        a[(q, qd)] = 1.0;
-        for i in 0..dim {
-            a[(qd, i)] = -c.gamma[j] * acc_row[i];
-        }
-        a[(qd, qd)] -= 2.0 * z * om;
-        a[(qd, q)] -= om * om;
-    }
-    a[(ri, vi)] = 1.0;
-    // a parameter set far outside the band (ω dt ≫ 1) or non-finite: refuse (the matrix
-    // exponential's scaling-and-squaring would not end on an infinite norm)
-    let ad = a * dt;
-    let norm = ad.amax();
-    if !(norm.is_finite() && norm < 1e4) {
+    let Some(phi) = root_transition(&acc_row, c, dt) else {
         return vec![f64::NAN; n];
-    }
-    let phi = ad.exp();
-    if !phi.iter().all(|v| v.is_finite()) {
-        return vec![f64::NAN; n];
-    }
+    };
     let mut zv = nalgebra::DVector::<f64>::zeros(dim);
     zv[0] = r[0];
     let mut y = Vec::with_capacity(n);
@@ -293,6 +269,39 @@ fn coupled_servo(
     y
 }
 
+/// One sample interval's transition matrix exp(A·dt) of a beam root driven through a coupled
+/// carriage: state z = [y_r, ẏ_r, (η_j, η̇_j)…, u, u̇] where `acc_row` gives ÿ_r as a linear
+/// form of z, each mode obeys η̈_j + 2ζ_jω_j η̇_j + ω_j² η_j = −Γ_j ÿ_r, and the drive u moves
+/// at constant u̇ over the interval. `None` for a parameter set far outside the band (ω·dt ≫ 1)
+/// or non-finite (the matrix exponential's scaling-and-squaring would not end on an infinite
+/// norm).
+fn root_transition(acc_row: &[f64], c: &BeamCache, dt: f64) -> Option<nalgebra::DMatrix<f64>> {
+    let dim = acc_row.len();
+    let mut a = nalgebra::DMatrix::<f64>::zeros(dim, dim);
+    a[(0, 1)] = 1.0;
+    for i in 0..dim {
+        a[(1, i)] = acc_row[i];
+    }
+    for j in 0..c.omega.len() {
+        let (om, z) = (c.omega[j], c.zeta[j]);
+        let (q, qd) = (2 + 2 * j, 3 + 2 * j);
+        a[(q, qd)] = 1.0;
+        for i in 0..dim {
+            a[(qd, i)] = -c.gamma[j] * acc_row[i];
+        }
+        a[(qd, qd)] -= 2.0 * z * om;
+        a[(qd, q)] -= om * om;
+    }
+    a[(dim - 2, dim - 1)] = 1.0;
+    let ad = a * dt;
+    let norm = ad.amax();
+    if !(norm.is_finite() && norm < 1e4) {
+        return None;
+    }
+    let phi = ad.exp();
+    phi.iter().all(|v| v.is_finite()).then_some(phi)
+}
+
 /// Beam-root position behind a mount: a mass m_m on a spring–damper from the carriage y, loaded
 /// by the beam (as the truth plant, `tools/src/truth/plant.rs`):
 /// `(m_m + m_b − ΣΓ²) ÿ_r = k (y − y_r) + c (ẏ − ẏ_r) + Σ Γ_j (2ζ_jω_j η̇_j + ω_j² η_j)`,
@@ -319,33 +328,9 @@ fn coupled_mount(y: &[f64], dt: f64, omega: f64, zeta: f64, m_m: f64, c: &BeamCa
         acc_row[2 + 2 * j] = c.gamma[j] * om * om / m_eff;
         acc_row[3 + 2 * j] = c.gamma[j] * 2.0 * z * om / m_eff;
     }
-    let mut a = nalgebra::DMatrix::<f64>::zeros(dim, dim);
-    a[(0, 1)] = 1.0;
-    for i in 0..dim {
-        a[(1, i)] = acc_row[i];
-    }
-    for j in 0..nm {
-        let (om, z) = (c.omega[j], c.zeta[j]);
-        let (q, qd) = (2 + 2 * j, 3 + 2 * j);
-        a[(q, qd)] = 1.0;
-        for i in 0..dim {
-            a[(qd, i)] = -c.gamma[j] * acc_row[i];
-        }
-        a[(qd, qd)] -= 2.0 * z * om;
-        a[(qd, q)] -= om * om;
-    }
-    a[(yi, vi)] = 1.0;
-    // a parameter set far outside the band (ω dt ≫ 1) or non-finite: refuse (the matrix
-    // exponential's scaling-and-squaring would not end on an infinite norm)
-    let ad = a * dt;
-    let norm = ad.amax();
-    if !(norm.is_finite() && norm < 1e4) {
+    let Some(phi) = root_transition(&acc_row, c, dt) else {
         return vec![f64::NAN; n];
-    }
-    let phi = ad.exp();
-    if !phi.iter().all(|v| v.is_finite()) {
-        return vec![f64::NAN; n];
-    }
+    };
     let mut zv = nalgebra::DVector::<f64>::zeros(dim);
     zv[0] = y[0];
     let mut out = Vec::with_capacity(n);
