@@ -111,23 +111,29 @@ pub struct Diagnosis {
     pub assumptions: Vec<String>,
 }
 
+/// The recorded signal of channel `c` (0 base position m, 1 tip deflection tip − drive m,
+/// 2 force N) that a residual is normalised by; empty when the channel is missing.
+pub fn channel_signal(d: &Prepared, c: usize) -> Vec<f64> {
+    let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
+    match c {
+        0 => d.base_m.clone().unwrap_or_default(),
+        1 => d
+            .tip_m
+            .as_ref()
+            .map(|t| t.iter().zip(drive).map(|(a, b)| a - b).collect())
+            .unwrap_or_default(),
+        _ => d.force_n.clone().unwrap_or_default(),
+    }
+}
+
 /// Per-channel NRMSE of a prediction: rms(residual) / rms(signal − mean); the tip signal is the
 /// deflection tip − base.
 pub fn nrmse(d: &Prepared, pred: &Prediction) -> [f64; 3] {
     let r = residuals(d, pred);
-    let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
     let mut out = [f64::NAN; 3];
     for c in 0..3 {
         let Some(res) = &r[c] else { continue };
-        let sig: Vec<f64> = match c {
-            0 => d.base_m.clone().unwrap_or_default(),
-            1 => d
-                .tip_m
-                .as_ref()
-                .map(|t| t.iter().zip(drive).map(|(a, b)| a - b).collect())
-                .unwrap_or_default(),
-            _ => d.force_n.clone().unwrap_or_default(),
-        };
+        let sig = channel_signal(d, c);
         let m = sig.iter().sum::<f64>() / sig.len() as f64;
         let s = (sig.iter().map(|x| (x - m).powi(2)).sum::<f64>() / sig.len() as f64).sqrt();
         let e = (res.iter().map(|x| x * x).sum::<f64>() / res.len() as f64).sqrt();

@@ -110,16 +110,7 @@ pub fn assess(
         if !(q > LJUNG_BOX_CRITICAL && ratio > NOISE_FACTOR) {
             continue;
         }
-        let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
-        let sig: Vec<f64> = match c {
-            0 => d.base_m.clone().unwrap_or_default(),
-            1 => d
-                .tip_m
-                .as_ref()
-                .map(|t| t.iter().zip(drive).map(|(a, b)| a - b).collect())
-                .unwrap_or_default(),
-            _ => d.force_n.clone().unwrap_or_default(),
-        };
+        let sig = super::channel_signal(d, c);
         let ms = sig.iter().sum::<f64>() / sig.len().max(1) as f64;
         let ss = rms(&sig.iter().map(|x| x - ms).collect::<Vec<_>>());
         let nrmse = e / ss.max(1e-300);

@@ -3,6 +3,7 @@
 
 use super::frf::Frf;
 use super::pipeline::IdentResult;
+use super::ModeEstimate;
 use crate::plot::{lines, Series};
 use anyhow::Result;
 use std::fmt::Write;
@@ -23,23 +24,7 @@ pub fn identification_table(id: &super::Identification) -> String {
             fmt_sig(id.sample_rate_hz, 5)
         );
     }
-    let _ = writeln!(
-        s,
-        "{:>4} {:>10} {:>9} {:>9} {:>9}  {}",
-        "mode", "f (Hz)", "+-1sd", "zeta", "+-1sd", "method"
-    );
-    for (i, m) in id.modes.iter().enumerate() {
-        let _ = writeln!(
-            s,
-            "{:>4} {:>10.4} {:>9.4} {:>9.5} {:>9.5}  {}",
-            i + 1,
-            m.freq_hz,
-            m.freq_hz_std,
-            m.zeta,
-            m.zeta_std,
-            m.method
-        );
-    }
+    mode_rows(&mut s, &id.modes);
     for r in &id.rejected {
         let _ = writeln!(
             s,
@@ -63,23 +48,15 @@ pub fn identification_table(id: &super::Identification) -> String {
     s
 }
 
-/// The result as a table: combined modes, then each method, Rayleigh coefficients, warnings.
-pub fn table(r: &IdentResult) -> String {
-    let mut s = String::new();
-    let _ = writeln!(s, "FRF: {} -> {}", r.input, r.output);
-    if r.df_hz.is_finite() {
-        let _ = writeln!(
-            s,
-            "band {:.3}..{:.3} Hz, line spacing {:.5} Hz, {} average(s)",
-            r.band_hz.0, r.band_hz.1, r.df_hz, r.n_averages
-        );
-    }
+/// The mode table: a header, then one row per mode (natural frequency in Hz, damping ratio,
+/// each with its 1-σ, and the method that gave it).
+fn mode_rows(s: &mut String, modes: &[ModeEstimate]) {
     let _ = writeln!(
         s,
         "{:>4} {:>10} {:>9} {:>9} {:>9}  {}",
         "mode", "f (Hz)", "+-1sd", "zeta", "+-1sd", "method"
     );
-    for (i, m) in r.modes.iter().enumerate() {
+    for (i, m) in modes.iter().enumerate() {
         let _ = writeln!(
             s,
             "{:>4} {:>10.4} {:>9.4} {:>9.5} {:>9.5}  {}",
@@ -91,6 +68,20 @@ pub fn table(r: &IdentResult) -> String {
             m.method
         );
     }
+}
+
+/// The result as a table: combined modes, then each method, Rayleigh coefficients, warnings.
+pub fn table(r: &IdentResult) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "FRF: {} -> {}", r.input, r.output);
+    if r.df_hz.is_finite() {
+        let _ = writeln!(
+            s,
+            "band {:.3}..{:.3} Hz, line spacing {:.5} Hz, {} average(s)",
+            r.band_hz.0, r.band_hz.1, r.df_hz, r.n_averages
+        );
+    }
+    mode_rows(&mut s, &r.modes);
     if r.methods.len() > 1 {
         let _ = writeln!(s, "per method:");
         for mr in &r.methods {
