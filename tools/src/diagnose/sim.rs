@@ -232,12 +232,7 @@ fn coupled_servo(
     acc_row[1] = -m_tot * 2.0 * zeta * omega / m_eff;
     acc_row[ri] = m_tot * omega * omega / m_eff;
     acc_row[vi] = m_tot * 2.0 * zeta * omega * kv / m_eff;
-    for j in 0..nm {
-        let (om, z) = (c.omega[j], c.zeta[j]);
-        acc_row[2 + 2 * j] = c.gamma[j] * om * om / m_eff;
-        acc_row[3 + 2 * j] = c.gamma[j] * 2.0 * z * om / m_eff;
-    }
-    let Some(phi) = root_transition(&acc_row, c, dt) else {
+    let Some(phi) = root_transition(&mut acc_row, m_eff, c, dt) else {
         return vec![f64::NAN; n];
     };
     let mut zv = nalgebra::DVector::<f64>::zeros(dim);
@@ -271,12 +266,23 @@ fn coupled_servo(
 
 /// One sample interval's transition matrix exp(A·dt) of a beam root driven through a coupled
 /// carriage: state z = [y_r, ẏ_r, (η_j, η̇_j)…, u, u̇] where `acc_row` gives ÿ_r as a linear
-/// form of z, each mode obeys η̈_j + 2ζ_jω_j η̇_j + ω_j² η_j = −Γ_j ÿ_r, and the drive u moves
+/// form of z (the caller sets the carriage terms; the beam's reaction
+/// Σ Γ_j (ω_j² η_j + 2ζ_jω_j η̇_j) / m_eff is filled in here), each mode obeys η̈_j + 2ζ_jω_j η̇_j + ω_j² η_j = −Γ_j ÿ_r, and the drive u moves
 /// at constant u̇ over the interval. `None` for a parameter set far outside the band (ω·dt ≫ 1)
 /// or non-finite (the matrix exponential's scaling-and-squaring would not end on an infinite
 /// norm).
-fn root_transition(acc_row: &[f64], c: &BeamCache, dt: f64) -> Option<nalgebra::DMatrix<f64>> {
+fn root_transition(
+    acc_row: &mut [f64],
+    m_eff: f64,
+    c: &BeamCache,
+    dt: f64,
+) -> Option<nalgebra::DMatrix<f64>> {
     let dim = acc_row.len();
+    for j in 0..c.omega.len() {
+        let (om, z) = (c.omega[j], c.zeta[j]);
+        acc_row[2 + 2 * j] = c.gamma[j] * om * om / m_eff;
+        acc_row[3 + 2 * j] = c.gamma[j] * 2.0 * z * om / m_eff;
+    }
     let mut a = nalgebra::DMatrix::<f64>::zeros(dim, dim);
     a[(0, 1)] = 1.0;
     for i in 0..dim {
@@ -323,12 +329,7 @@ fn coupled_mount(y: &[f64], dt: f64, omega: f64, zeta: f64, m_m: f64, c: &BeamCa
     acc_row[1] = -cd / m_eff;
     acc_row[yi] = k / m_eff;
     acc_row[vi] = cd / m_eff;
-    for j in 0..nm {
-        let (om, z) = (c.omega[j], c.zeta[j]);
-        acc_row[2 + 2 * j] = c.gamma[j] * om * om / m_eff;
-        acc_row[3 + 2 * j] = c.gamma[j] * 2.0 * z * om / m_eff;
-    }
-    let Some(phi) = root_transition(&acc_row, c, dt) else {
+    let Some(phi) = root_transition(&mut acc_row, m_eff, c, dt) else {
         return vec![f64::NAN; n];
     };
     let mut zv = nalgebra::DVector::<f64>::zeros(dim);
