@@ -8,6 +8,7 @@
 
 use crate::engine::{NumericPath, TapError, TapTable};
 use crate::shaper::{design, Impulse, Shaper, ShaperError, ShaperKind};
+use serde::{Deserialize, Serialize};
 
 /// Shaper slots (modes) that can be convolved.
 pub const MAX_MODES: usize = 4;
@@ -19,7 +20,7 @@ pub const SETTINGS_MAX_BYTES: usize = 512;
 pub const TICK_RATE_RANGE_HZ: (u32, u32) = (500, 10_000);
 
 /// One mode's shaper: kind, natural frequency (Hz) and damping ratio.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ModeSetting {
     /// Shaper kind (EI kinds carry V_tol).
     pub kind: ShaperKind,
@@ -30,7 +31,7 @@ pub struct ModeSetting {
 }
 
 /// Where the reference comes from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Source {
     /// Point-to-point moves commanded from the console.
     Internal,
@@ -48,8 +49,8 @@ impl Source {
     }
 }
 
-/// All persistent parameters.
-#[derive(Clone, Debug, PartialEq)]
+/// All persistent parameters (stored as a record of format [`SETTINGS_VERSION`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Settings {
     /// Shaper per mode slot (convolved in slot order).
     pub modes: [Option<ModeSetting>; MAX_MODES],
@@ -92,8 +93,14 @@ pub enum ConfigError {
     Taps(TapError),
     /// A field out of its range; names the field.
     Range(&'static str),
-    /// Encoded record: wrong magic/version, truncated, or checksum mismatch.
+    /// Encoded record: truncated, checksum mismatch, wrong magic or undecodable body.
     Corrupt,
+    /// Encoded record intact but of another format version (e.g. 1, the format before
+    /// [`SETTINGS_VERSION`] 2); names the version found.
+    Version {
+        /// Version byte of the record.
+        found: u8,
+    },
     /// Buffer too small to encode.
     Buffer,
 }
@@ -107,6 +114,7 @@ impl ConfigError {
             ConfigError::Taps(_) => "shaper",
             ConfigError::Range(_) => "range",
             ConfigError::Corrupt => "corrupt",
+            ConfigError::Version { .. } => "version",
             ConfigError::Buffer => "buffer",
         }
     }
@@ -119,8 +127,8 @@ impl core::fmt::Display for ConfigError {
             ConfigError::Taps(TapError::TooLong { duration_s, max_s }) => write!(
                 f,
                 "shaper lasts {} s, the buffer holds {} s at this tick rate",
-                crate::console::Num(*duration_s, 4),
-                crate::console::Num(*max_s, 4)
+                crate::protocol::Num(*duration_s, 4),
+                crate::protocol::Num(*max_s, 4)
             ),
             ConfigError::Taps(TapError::TickRate) => f.write_str("tick rate invalid"),
             ConfigError::Taps(TapError::AmplitudeRange) => {
@@ -128,8 +136,12 @@ impl core::fmt::Display for ConfigError {
             }
             ConfigError::Range(field) => write!(f, "{field} out of range"),
             ConfigError::Corrupt => {
-                f.write_str("stored settings corrupt (magic, version or checksum)")
+                f.write_str("stored settings corrupt (length, checksum, magic or body)")
             }
+            ConfigError::Version { found } => write!(
+                f,
+                "stored settings are format version {found}, this firmware reads version {SETTINGS_VERSION}"
+            ),
             ConfigError::Buffer => f.write_str("buffer too small"),
         }
     }
@@ -218,105 +230,35 @@ impl Settings {
         TapTable::from_shaper(&s, self.tick_rate_hz as f64, history_len).map_err(ConfigError::Taps)
     }
 
-    /// Serialises into `buf` (little-endian, magic `BSH`, version, fields, CRC-32/ISO-HDLC
-    /// of everything before it). Returns the number of bytes written.
+    /// Serialises into `buf` as a settings record (see [`SETTINGS_VERSION`] for the layout).
+    /// Returns the number of bytes written. Errors: [`ConfigError::Buffer`] if `buf` is too
+    /// small ([`SETTINGS_MAX_BYTES`] always suffices).
     pub fn encode(&self, buf: &mut [u8]) -> Result<usize, ConfigError> {
-        let mut w = Writer { buf, pos: 0 };
-        w.bytes(&MAGIC)?;
-        w.u8(VERSION)?;
-        for m in self.modes.iter() {
-            match m {
-                None => w.u8(0)?,
-                Some(m) => {
-                    w.u8(kind_code(m.kind))?;
-                    w.f64(m.kind.v_tol().unwrap_or(0.0))?;
-                    w.f64(m.freq_hz)?;
-                    w.f64(m.zeta)?;
-                }
-            }
-        }
-        w.u8(self.custom.len() as u8)?;
-        for i in self.custom.iter() {
-            w.f64(i.amplitude)?;
-            w.f64(i.time_s)?;
-        }
-        w.u8(self.shaping_enabled as u8)?;
-        w.u8(match self.path {
-            NumericPath::Fixed => 0,
-            NumericPath::F32 => 1,
-        })?;
-        w.u32(self.tick_rate_hz)?;
-        w.u32(self.step_nm)?;
-        w.u32(self.max_step_rate_hz)?;
-        w.u32(self.input_nm_per_count)?;
-        w.u8(match self.source {
-            Source::Internal => 0,
-            Source::StepDir => 1,
-        })?;
-        w.f32(self.move_speed_mm_s)?;
-        w.f32(self.move_accel_mm_s2)?;
-        w.f32(self.dac_span_mm)?;
-        let crc = CRC.checksum(w.buf.get(..w.pos).ok_or(ConfigError::Buffer)?);
-        w.u32(crc)?;
-        Ok(w.pos)
+        let header = buf.get_mut(..HEADER_LEN).ok_or(ConfigError::Buffer)?;
+        header[..MAGIC.len()].copy_from_slice(&MAGIC);
+        header[MAGIC.len()] = SETTINGS_VERSION;
+        let body = buf.get_mut(HEADER_LEN..).ok_or(ConfigError::Buffer)?;
+        let end = HEADER_LEN
+            + postcard::to_slice(self, body)
+                .map_err(|_| ConfigError::Buffer)?
+                .len();
+        let crc = CRC.checksum(buf.get(..end).ok_or(ConfigError::Buffer)?);
+        buf.get_mut(end..end + CRC_LEN)
+            .ok_or(ConfigError::Buffer)?
+            .copy_from_slice(&crc.to_le_bytes());
+        Ok(end + CRC_LEN)
     }
 
     /// Parses a record written by [`Settings::encode`] and validates it (including the
-    /// shaper design). Errors: [`ConfigError::Corrupt`] for a bad magic, version, length or
-    /// checksum; any validation error for a record that decodes but is out of range.
+    /// shaper design). Errors: [`ConfigError::Corrupt`] for a bad length, checksum, magic or
+    /// body; [`ConfigError::Version`] for an intact record of another format version (e.g. a
+    /// version-1 record of the old hand-written format); any validation error for a record
+    /// that decodes but is out of range.
     pub fn decode(bytes: &[u8]) -> Result<Settings, ConfigError> {
-        if bytes.len() < 8 {
-            return Err(ConfigError::Corrupt);
-        }
-        let (body, crc) = bytes.split_at(bytes.len() - 4);
-        let crc = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
-        if CRC.checksum(body) != crc {
-            return Err(ConfigError::Corrupt);
-        }
-        let mut r = Reader { buf: body, pos: 0 };
-        if r.take(3)? != MAGIC || r.u8()? != VERSION {
-            return Err(ConfigError::Corrupt);
-        }
-        let mut s = Settings::DEFAULT;
-        for slot in s.modes.iter_mut() {
-            let code = r.u8()?;
-            if code != 0 {
-                let v_tol = r.f64()?;
-                let kind = kind_from_code(code, v_tol).ok_or(ConfigError::Corrupt)?;
-                *slot = Some(ModeSetting {
-                    kind,
-                    freq_hz: r.f64()?,
-                    zeta: r.f64()?,
-                });
-            }
-        }
-        let n = r.u8()? as usize;
-        for _ in 0..n {
-            let imp = Impulse {
-                amplitude: r.f64()?,
-                time_s: r.f64()?,
-            };
-            s.custom.push(imp).map_err(|_| ConfigError::Corrupt)?;
-        }
-        s.shaping_enabled = r.u8()? != 0;
-        s.path = match r.u8()? {
-            0 => NumericPath::Fixed,
-            1 => NumericPath::F32,
-            _ => return Err(ConfigError::Corrupt),
-        };
-        s.tick_rate_hz = r.u32()?;
-        s.step_nm = r.u32()?;
-        s.max_step_rate_hz = r.u32()?;
-        s.input_nm_per_count = r.u32()?;
-        s.source = match r.u8()? {
-            0 => Source::Internal,
-            1 => Source::StepDir,
-            _ => return Err(ConfigError::Corrupt),
-        };
-        s.move_speed_mm_s = r.f32()?;
-        s.move_accel_mm_s2 = r.f32()?;
-        s.dac_span_mm = r.f32()?;
-        if r.pos != body.len() {
+        let body = record_body(bytes)?;
+        let (s, rest) =
+            postcard::take_from_bytes::<Settings>(body).map_err(|_| ConfigError::Corrupt)?;
+        if !rest.is_empty() {
             return Err(ConfigError::Corrupt);
         }
         s.validate()?;
@@ -325,96 +267,37 @@ impl Settings {
     }
 }
 
+/// The body of a record whose checksum, magic and version are right.
+fn record_body(bytes: &[u8]) -> Result<&[u8], ConfigError> {
+    let signed_len = bytes
+        .len()
+        .checked_sub(CRC_LEN)
+        .filter(|&n| n >= HEADER_LEN)
+        .ok_or(ConfigError::Corrupt)?;
+    let (signed, crc) = bytes.split_at(signed_len);
+    if crc != CRC.checksum(signed).to_le_bytes() {
+        return Err(ConfigError::Corrupt);
+    }
+    let (header, body) = signed.split_at(HEADER_LEN);
+    if header[..MAGIC.len()] != MAGIC {
+        return Err(ConfigError::Corrupt);
+    }
+    match header[MAGIC.len()] {
+        SETTINGS_VERSION => Ok(body),
+        found => Err(ConfigError::Version { found }),
+    }
+}
+
+/// Format version of the settings record. Layout: magic `BSH` (3 bytes), this version
+/// (1 byte), the [`Settings`] in postcard (serde's compact no_std format: varint integers,
+/// little-endian floats, enums by variant index), then the CRC-32/ISO-HDLC of everything
+/// before it (4 bytes, little-endian).
+///
+/// Version 1 was a hand-written little-endian layout; its records are refused with
+/// [`ConfigError::Version`] (the defaults stay in force until the next `save`). Any change of
+/// [`Settings`] or the types in it changes the body, so it must bump this version.
+pub const SETTINGS_VERSION: u8 = 2;
+const HEADER_LEN: usize = MAGIC.len() + 1;
+const CRC_LEN: usize = 4;
 const MAGIC: [u8; 3] = *b"BSH";
-const VERSION: u8 = 1;
 const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
-
-fn kind_code(k: ShaperKind) -> u8 {
-    match k {
-        ShaperKind::Zv => 1,
-        ShaperKind::Zvd => 2,
-        ShaperKind::Zvdd => 3,
-        ShaperKind::Zvddd => 4,
-        ShaperKind::Mzv => 5,
-        ShaperKind::Ei { .. } => 6,
-        ShaperKind::Ei2Hump { .. } => 7,
-        ShaperKind::Ei3Hump { .. } => 8,
-        ShaperKind::UmZv => 9,
-    }
-}
-
-fn kind_from_code(c: u8, v_tol: f64) -> Option<ShaperKind> {
-    Some(match c {
-        1 => ShaperKind::Zv,
-        2 => ShaperKind::Zvd,
-        3 => ShaperKind::Zvdd,
-        4 => ShaperKind::Zvddd,
-        5 => ShaperKind::Mzv,
-        6 => ShaperKind::Ei { v_tol },
-        7 => ShaperKind::Ei2Hump { v_tol },
-        8 => ShaperKind::Ei3Hump { v_tol },
-        9 => ShaperKind::UmZv,
-        _ => return None,
-    })
-}
-
-struct Writer<'a> {
-    buf: &'a mut [u8],
-    pos: usize,
-}
-
-impl Writer<'_> {
-    fn bytes(&mut self, b: &[u8]) -> Result<(), ConfigError> {
-        let end = self.pos + b.len();
-        self.buf
-            .get_mut(self.pos..end)
-            .ok_or(ConfigError::Buffer)?
-            .copy_from_slice(b);
-        self.pos = end;
-        Ok(())
-    }
-    fn u8(&mut self, v: u8) -> Result<(), ConfigError> {
-        self.bytes(&[v])
-    }
-    fn u32(&mut self, v: u32) -> Result<(), ConfigError> {
-        self.bytes(&v.to_le_bytes())
-    }
-    fn f32(&mut self, v: f32) -> Result<(), ConfigError> {
-        self.bytes(&v.to_le_bytes())
-    }
-    fn f64(&mut self, v: f64) -> Result<(), ConfigError> {
-        self.bytes(&v.to_le_bytes())
-    }
-}
-
-struct Reader<'a> {
-    buf: &'a [u8],
-    pos: usize,
-}
-
-impl<'a> Reader<'a> {
-    fn take(&mut self, n: usize) -> Result<&'a [u8], ConfigError> {
-        let s = self
-            .buf
-            .get(self.pos..self.pos + n)
-            .ok_or(ConfigError::Corrupt)?;
-        self.pos += n;
-        Ok(s)
-    }
-    fn u8(&mut self) -> Result<u8, ConfigError> {
-        Ok(self.take(1)?[0])
-    }
-    fn u32(&mut self) -> Result<u32, ConfigError> {
-        let b = self.take(4)?;
-        Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-    }
-    fn f32(&mut self) -> Result<f32, ConfigError> {
-        Ok(f32::from_bits(self.u32()?))
-    }
-    fn f64(&mut self) -> Result<f64, ConfigError> {
-        let b = self.take(8)?;
-        let mut a = [0u8; 8];
-        a.copy_from_slice(b);
-        Ok(f64::from_le_bytes(a))
-    }
-}

@@ -1,21 +1,25 @@
-//! The operator's serial console: line assembly, parsing and execution (no heap, no panic).
+//! The operator's serial console: line assembly and execution (no heap, no panic).
 //!
-//! Protocol (115200 8N1, lines end in `\n`, `\r` or `\r\n`): every line, an empty one too,
-//! gets one or more reply lines; informational lines start with `# `, and the **last line** is either
-//! `ok <command> [key=value …]` or `err <code>: <message>`. Codes: `unknown`, `syntax`,
-//! `range`, `shaper`, `too-long`, `busy`, `source`, `step-rate`, `budget`, `garbage`,
-//! `line-too-long`,
-//! `storage`, `corrupt`. On `err` nothing changes.
+//! Transport: 115200 8N1, lines end in `\n`, `\r` or `\r\n`; every line, an empty one too,
+//! gets one or more reply lines. The commands and the reply lines are those of
+//! [`crate::protocol`] (parsed by [`Command::parse`], replies written by its reply types):
+//! informational lines start with `# `, and the **last line** is either
+//! `ok <command> [key=value …]` or `err <code>: <message>` (codes:
+//! [`crate::protocol::ErrorCode`]). On `err` nothing changes.
 //!
 //! Parameter changes are validated and their shaper is designed here, in thread context;
 //! the runtime only receives a finished [`RunParams`] (see [`crate::runtime`] for when it
 //! takes effect).
 
-use crate::config::{ModeSetting, Settings, Source, MAX_CUSTOM_IMPULSES, MAX_MODES};
-use crate::engine::NumericPath;
-use crate::reference::SweepKind;
+use crate::config::{Settings, MAX_MODES};
+pub use crate::protocol::Num;
+use crate::protocol::{
+    CaptureReply, Command, ConfigReply, DumpReply, ModeLine, MoveReply, Refusal, StatusReply,
+    SweepArgs, SweepReply, DUMP_MAX,
+};
 use crate::runtime::{RunParams, Runtime};
-use crate::shaper::{residual_vibration, Impulse, ShaperKind};
+use crate::shaper::residual_vibration;
+use crate::storage::StorageError;
 use core::fmt::Write;
 
 /// Longest accepted line (bytes, without the terminator).
@@ -101,11 +105,8 @@ pub enum Action {
 pub struct Console {
     settings: Settings,
 }
-
-/// A console error: code and message.
-struct CmdErr(&'static str, &'static str);
-
-type CmdResult = Result<(), CmdErr>;
+/// The result of executing one command.
+type CmdResult = Result<(), Refusal>;
 
 const HELP: &[&str] = &[
     "help | status | shaper | config",
@@ -131,9 +132,9 @@ impl Console {
 
     /// Boot: applies `loaded` settings (or the defaults) to the runtime and says which on
     /// `out`. `loaded` is the storage result: `Ok(Some)` a record, `Ok(None)` no record,
-    /// `Err` a corrupt or unreadable record.
-    pub fn boot<E: core::fmt::Display>(
-        loaded: Result<Option<Settings>, E>,
+    /// `Err` a corrupt, unreadable or old-format record (named in a `# boot:` line).
+    pub fn boot(
+        loaded: Result<Option<Settings>, StorageError>,
         rt: &mut impl RuntimeAccess,
         stepdir_count: u16,
         out: &mut impl Write,
@@ -176,75 +177,120 @@ impl Console {
                 return Action::None;
             }
         };
-        let mut words = text.split_ascii_whitespace();
-        let Some(cmd) = words.next() else {
-            let _ = writeln!(out, "err syntax: empty line (try help)");
-            return Action::None;
-        };
-        let mut args: heapless::Vec<&str, 24> = heapless::Vec::new();
-        for w in words {
-            if args.push(w).is_err() {
-                let _ = writeln!(out, "err syntax: too many arguments");
-                return Action::None;
+        match Command::parse(text).and_then(|c| self.execute(c, rt, out)) {
+            Ok(action) => action,
+            Err(refusal) => {
+                let _ = writeln!(out, "{refusal}");
+                Action::None
             }
         }
-        let mut action = Action::None;
-        let takes_no_args = matches!(
-            cmd,
-            "help"
-                | "status"
-                | "shaper"
-                | "config"
-                | "zero"
-                | "defaults"
-                | "save"
-                | "load"
-                | "stop"
-        );
-        if takes_no_args && !args.is_empty() {
-            let _ = writeln!(out, "err syntax: {cmd} takes no arguments");
-            return Action::None;
-        }
-        let r = match cmd {
-            "help" => self.help(out),
-            "status" => self.status(rt, out),
-            "shaper" => self.show_shaper(rt, out),
-            "config" => self.show_config(out),
-            "mode" => self.cmd_mode(&args, rt, out),
-            "clear" => self.cmd_clear(&args, rt, out),
-            "custom" => self.cmd_custom(&args, rt, out),
-            "shaping" => self.cmd_shaping(&args, rt, out),
-            "path" => self.cmd_path(&args, rt, out),
-            "rate" | "step" | "maxrate" | "input" => self.cmd_uint(cmd, &args, rt, out),
-            "speed" | "accel" => self.cmd_motion_default(cmd, &args, out),
-            "source" => self.cmd_source(&args, rt, out),
-            "move" => self.cmd_move(&args, rt, out),
-            "sweep" => self.cmd_sweep(&args, rt, out),
-            "stop" => self.cmd_stop(&args, rt, out),
-            "capture" => self.cmd_capture(&args, rt, out),
-            "dump" => self.cmd_dump(&args, rt, out),
-            "zero" => rt
+    }
+
+    /// Executes a parsed command; the glue's work for `save` and `load`.
+    fn execute(
+        &mut self,
+        command: Command,
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> Result<Action, Refusal> {
+        match command {
+            Command::Help => self.help(out),
+            Command::Status => self.status(rt, out),
+            Command::Shaper => self.show_shaper(rt, out),
+            Command::Config => self.show_config(out),
+            Command::Speed(v) => self.cmd_motion_default(Some(v), None, out),
+            Command::Accel(v) => self.cmd_motion_default(None, Some(v), out),
+            Command::Move {
+                target_mm,
+                speed_mm_s,
+                accel_mm_s2,
+            } => self.cmd_move(target_mm, speed_mm_s, accel_mm_s2, rt, out),
+            Command::Sweep(a) => self.cmd_sweep(&a, rt, out),
+            Command::Stop => {
+                let ticks = rt.with(|r| r.stop());
+                let _ = writeln!(out, "ok stop ticks_to_rest={ticks}");
+                Ok(())
+            }
+            Command::Zero => rt
                 .with(|r| r.zero())
-                .map_err(|e| CmdErr(e.code(), e.message()))
+                .map_err(|e| Refusal::new(e.code(), e.message()))
                 .map(|_| {
                     let _ = writeln!(out, "ok zero");
                 }),
-            "defaults" => self.commit(Settings::DEFAULT, rt, out, "defaults"),
-            "save" | "load" => {
-                action = if cmd == "save" {
-                    Action::Save
-                } else {
-                    Action::Load
-                };
-                Ok(())
-            }
-            _ => Err(CmdErr("unknown", "unknown command (try help)")),
-        };
-        if let Err(CmdErr(code, msg)) = r {
-            let _ = writeln!(out, "err {code}: {msg}");
-            return Action::None;
+            Command::Capture(every) => self.cmd_capture(every, rt, out),
+            Command::Dump { first, count } => self.cmd_dump(first, count, rt, out),
+            Command::Save => return Ok(Action::Save),
+            Command::Load => return Ok(Action::Load),
+            Command::Defaults => self.commit(Settings::DEFAULT, rt, out, "defaults"),
+            change => self.change_settings(change, rt, out),
         }
-        action
+        .map(|()| Action::None)
+    }
+
+    /// The commands that edit the settings: a copy is edited, then committed.
+    fn change_settings(
+        &mut self,
+        command: Command,
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
+        let mut new = self.settings.clone();
+        let slot_range = || Refusal::new("range", "mode slot must be 1..4");
+        let what = match command {
+            Command::Mode(slot, m) => {
+                // Design once here for a precise error before the combined shaper is checked.
+                crate::shaper::design(m.kind, m.freq_hz, m.zeta)
+                    .map_err(|e| Refusal::new("range", e.message()))?;
+                *new.modes
+                    .get_mut(slot.wrapping_sub(1))
+                    .ok_or_else(slot_range)? = Some(m);
+                "mode"
+            }
+            Command::Clear(None) => {
+                new.modes = [None; MAX_MODES];
+                "clear"
+            }
+            Command::Clear(Some(slot)) => {
+                *new.modes
+                    .get_mut(slot.wrapping_sub(1))
+                    .ok_or_else(slot_range)? = None;
+                "clear"
+            }
+            Command::Custom(list) => {
+                new.custom = list;
+                "custom"
+            }
+            Command::Shaping(on) => {
+                new.shaping_enabled = on;
+                "shaping"
+            }
+            Command::Path(p) => {
+                new.path = p;
+                "path"
+            }
+            Command::Source(src) => {
+                new.source = src;
+                "source"
+            }
+            Command::Rate(v) => {
+                new.tick_rate_hz = v;
+                "rate"
+            }
+            Command::Step(v) => {
+                new.step_nm = v;
+                "step"
+            }
+            Command::MaxRate(v) => {
+                new.max_step_rate_hz = v;
+                "maxrate"
+            }
+            Command::Input(v) => {
+                new.input_nm_per_count = v;
+                "input"
+            }
+            _ => return Err(Refusal::new("unknown", "unknown command (try help)")),
+        };
+        self.commit(new, rt, out, what)
     }
 
     /// Reports the outcome of a save the glue performed after [`Action::Save`].
@@ -255,26 +301,28 @@ impl Console {
         };
     }
 
-    /// Applies the settings the glue loaded after [`Action::Load`].
-    pub fn finish_load<E: core::fmt::Display>(
+    /// Applies the settings the glue loaded after [`Action::Load`]. A refused record leaves
+    /// the settings in force and answers `err corrupt:`, `err version:` (another format
+    /// version) or `err storage:`, after a `# load:` line naming the problem.
+    pub fn finish_load(
         &mut self,
-        result: Result<Option<Settings>, E>,
+        result: Result<Option<Settings>, StorageError>,
         rt: &mut impl RuntimeAccess,
         out: &mut impl Write,
     ) {
         let r = match result {
             Ok(Some(s)) => self.commit(s, rt, out, "load"),
-            Ok(None) => Err(CmdErr("storage", "no saved settings")),
+            Ok(None) => Err(Refusal::new("storage", "no saved settings")),
             Err(e) => {
                 let _ = writeln!(out, "# load: {e}");
-                Err(CmdErr(
-                    "corrupt",
+                Err(Refusal::new(
+                    e.code(),
                     "stored settings unusable; settings unchanged",
                 ))
             }
         };
-        if let Err(CmdErr(code, msg)) = r {
-            let _ = writeln!(out, "err {code}: {msg}");
+        if let Err(refusal) = r {
+            let _ = writeln!(out, "{refusal}");
         }
     }
 
@@ -293,7 +341,7 @@ impl Console {
             if let crate::config::ConfigError::Taps(_) = e {
                 let _ = writeln!(out, "# {e} ({} Hz)", new.tick_rate_hz);
             }
-            CmdErr(e.code(), config_message(&e))
+            Refusal::new(e.code(), config_message(&e))
         };
         if !new.shaping_enabled {
             let mut on = new.clone();
@@ -321,7 +369,7 @@ impl Console {
                         crate::engine::MAX_STAGES
                     );
                 }
-                return Err(CmdErr(e.code(), e.message()));
+                return Err(Refusal::new(e.code(), e.message()));
             }
         };
         self.settings = new;
@@ -350,27 +398,8 @@ impl Console {
         let s = rt.with(|r| r.status());
         let _ = writeln!(
             out,
-            "ok status ticks={} reference_mm={} setpoint_mm={} emitted_steps={} moving={} pending={} \
-             waiting={} stages={} taps_in_flight={} still_ticks={} step_rate_faults={} tick_hz={} \
-             path={} taps={} duration_ticks={} source={} shaping={} changes={}",
-            s.ticks,
-            Num(s.reference_counts as f64 * 1e-6, 6),
-            Num(s.setpoint_counts as f64 * 1e-6, 6),
-            s.emitted_steps,
-            s.moving as u8,
-            s.pending as u8,
-            s.waiting.names(),
-            s.stages,
-            s.taps_in_flight,
-            s.still_ticks,
-            s.step_rate_faults,
-            s.tick_rate_hz,
-            s.path.name(),
-            s.taps,
-            s.duration_ticks,
-            s.source.name(),
-            if self.settings.shaping_enabled { "on" } else { "off" },
-            s.applied_changes,
+            "{}",
+            StatusReply::new(&s, self.settings.shaping_enabled)
         );
         Ok(())
     }
@@ -380,7 +409,7 @@ impl Console {
         let shaper = self
             .settings
             .shaper()
-            .map_err(|e| CmdErr(e.code(), config_message(&e)))?;
+            .map_err(|e| Refusal::new(e.code(), config_message(&e)))?;
         for (i, imp) in shaper.impulses().iter().enumerate() {
             let _ = writeln!(
                 out,
@@ -427,261 +456,70 @@ impl Console {
     }
 
     fn show_config(&self, out: &mut impl Write) -> CmdResult {
-        let s = &self.settings;
-        for (slot, m) in s.modes.iter().enumerate() {
-            match m {
-                Some(m) => {
-                    let _ = write!(
-                        out,
-                        "# mode {} {} {} {}",
-                        slot + 1,
-                        m.kind.name(),
-                        m.freq_hz,
-                        m.zeta
-                    );
-                    if let Some(v) = m.kind.v_tol() {
-                        let _ = write!(out, " {v}");
-                    }
-                    let _ = writeln!(out);
-                }
-                None => {
-                    let _ = writeln!(out, "# mode {} none", slot + 1);
-                }
-            }
+        for (i, mode) in self.settings.modes.iter().enumerate() {
+            let line = ModeLine {
+                slot: i + 1,
+                mode: *mode,
+            };
+            let _ = writeln!(out, "# {line}");
         }
-        let _ = writeln!(
-            out,
-            "ok config shaping={} path={} tick_hz={} step_nm={} maxrate={} input_nm={} source={} speed_mm_s={} \
-             accel_mm_s2={} custom={}",
-            if s.shaping_enabled { "on" } else { "off" },
-            s.path.name(),
-            s.tick_rate_hz,
-            s.step_nm,
-            s.max_step_rate_hz,
-            s.input_nm_per_count,
-            s.source.name(),
-            Num(s.move_speed_mm_s as f64, 4),
-            Num(s.move_accel_mm_s2 as f64, 4),
-            s.custom.len()
-        );
+        let _ = writeln!(out, "{}", ConfigReply::new(&self.settings));
         Ok(())
     }
 
-    fn cmd_mode(
+    fn cmd_motion_default(
         &mut self,
-        args: &[&str],
-        rt: &mut impl RuntimeAccess,
+        speed_mm_s: Option<f64>,
+        accel_mm_s2: Option<f64>,
         out: &mut impl Write,
     ) -> CmdResult {
-        if !(4..=5).contains(&args.len()) {
-            return Err(CmdErr(
-                "syntax",
-                "mode <1-4> <kind> <freq_hz> <zeta> [v_tol]",
-            ));
+        let mut new = self.settings.clone();
+        if let Some(v) = speed_mm_s {
+            new.move_speed_mm_s = v as f32;
         }
-        let slot = parse_slot(args[0])?;
-        let v_tol = match args.get(4) {
-            Some(v) => parse_f64(v)?,
-            None => crate::shaper::design::DEFAULT_V_TOL,
-        };
-        let kind =
-            ShaperKind::from_name(args[1], v_tol).ok_or(CmdErr("syntax", "unknown shaper kind"))?;
-        if args.len() == 5 && kind.v_tol().is_none() {
-            return Err(CmdErr("syntax", "v_tol only applies to ei, 2hei, 3hei"));
-        }
-        let freq_hz = parse_f64(args[2])?;
-        let zeta = parse_f64(args[3])?;
-        // Design once here for a precise error before the combined shaper is checked.
-        crate::shaper::design(kind, freq_hz, zeta).map_err(|e| CmdErr("range", e.message()))?;
-        let mut new = self.settings.clone();
-        new.modes[slot] = Some(ModeSetting {
-            kind,
-            freq_hz,
-            zeta,
-        });
-        self.commit(new, rt, out, "mode")
-    }
-
-    fn cmd_clear(
-        &mut self,
-        args: &[&str],
-        rt: &mut impl RuntimeAccess,
-        out: &mut impl Write,
-    ) -> CmdResult {
-        let mut new = self.settings.clone();
-        match args {
-            ["all"] => new.modes = [None; MAX_MODES],
-            [s] => new.modes[parse_slot(s)?] = None,
-            _ => return Err(CmdErr("syntax", "clear <1-4|all>")),
-        }
-        self.commit(new, rt, out, "clear")
-    }
-
-    fn cmd_custom(
-        &mut self,
-        args: &[&str],
-        rt: &mut impl RuntimeAccess,
-        out: &mut impl Write,
-    ) -> CmdResult {
-        let mut new = self.settings.clone();
-        new.custom.clear();
-        if args != ["clear"] {
-            if args.is_empty() || args.len() > MAX_CUSTOM_IMPULSES {
-                return Err(CmdErr(
-                    "syntax",
-                    "custom <a>@<t_s> ... (1 to 16 impulses) | custom clear",
-                ));
-            }
-            for a in args {
-                let (amp, t) = a
-                    .split_once('@')
-                    .ok_or(CmdErr("syntax", "impulse must be <amplitude>@<time_s>"))?;
-                let imp = Impulse {
-                    amplitude: parse_f64(amp)?,
-                    time_s: parse_f64(t)?,
-                };
-                if imp.time_s < 0.0 {
-                    return Err(CmdErr("range", "impulse time must be >= 0"));
-                }
-                let _ = new.custom.push(imp);
-            }
-        }
-        self.commit(new, rt, out, "custom")
-    }
-
-    fn cmd_shaping(
-        &mut self,
-        args: &[&str],
-        rt: &mut impl RuntimeAccess,
-        out: &mut impl Write,
-    ) -> CmdResult {
-        let mut new = self.settings.clone();
-        new.shaping_enabled = match args {
-            ["on"] => true,
-            ["off"] => false,
-            _ => return Err(CmdErr("syntax", "shaping on|off")),
-        };
-        self.commit(new, rt, out, "shaping")
-    }
-
-    fn cmd_path(
-        &mut self,
-        args: &[&str],
-        rt: &mut impl RuntimeAccess,
-        out: &mut impl Write,
-    ) -> CmdResult {
-        let mut new = self.settings.clone();
-        new.path = match args {
-            ["fixed"] => NumericPath::Fixed,
-            ["f32"] => NumericPath::F32,
-            _ => return Err(CmdErr("syntax", "path fixed|f32")),
-        };
-        self.commit(new, rt, out, "path")
-    }
-
-    fn cmd_source(
-        &mut self,
-        args: &[&str],
-        rt: &mut impl RuntimeAccess,
-        out: &mut impl Write,
-    ) -> CmdResult {
-        let mut new = self.settings.clone();
-        new.source = match args {
-            ["internal"] => Source::Internal,
-            ["stepdir"] => Source::StepDir,
-            _ => return Err(CmdErr("syntax", "source internal|stepdir")),
-        };
-        self.commit(new, rt, out, "source")
-    }
-
-    fn cmd_uint(
-        &mut self,
-        cmd: &str,
-        args: &[&str],
-        rt: &mut impl RuntimeAccess,
-        out: &mut impl Write,
-    ) -> CmdResult {
-        let [v] = args else {
-            return Err(CmdErr("syntax", "expected one integer argument"));
-        };
-        let v: u32 = v
-            .parse()
-            .map_err(|_| CmdErr("syntax", "expected a non-negative integer"))?;
-        let mut new = self.settings.clone();
-        match cmd {
-            "rate" => new.tick_rate_hz = v,
-            "step" => new.step_nm = v,
-            "maxrate" => new.max_step_rate_hz = v,
-            _ => new.input_nm_per_count = v,
-        }
-        self.commit(new, rt, out, cmd)
-    }
-
-    fn cmd_motion_default(&mut self, cmd: &str, args: &[&str], out: &mut impl Write) -> CmdResult {
-        let [v] = args else {
-            return Err(CmdErr("syntax", "expected one number"));
-        };
-        let v = parse_f64(v)? as f32;
-        let mut new = self.settings.clone();
-        if cmd == "speed" {
-            new.move_speed_mm_s = v;
-        } else {
-            new.move_accel_mm_s2 = v;
+        if let Some(v) = accel_mm_s2 {
+            new.move_accel_mm_s2 = v as f32;
         }
         new.validate()
-            .map_err(|e| CmdErr(e.code(), config_message(&e)))?;
+            .map_err(|e| Refusal::new(e.code(), config_message(&e)))?;
         self.settings = new;
-        let _ = writeln!(out, "ok {cmd}");
+        let what = if speed_mm_s.is_some() {
+            "speed"
+        } else {
+            "accel"
+        };
+        let _ = writeln!(out, "ok {what}");
         Ok(())
     }
 
     fn cmd_capture(
         &mut self,
-        args: &[&str],
+        every: u32,
         rt: &mut impl RuntimeAccess,
         out: &mut impl Write,
     ) -> CmdResult {
-        let [d] = args else {
-            return Err(CmdErr("syntax", "capture <every_n_ticks>"));
-        };
-        let d: u32 = d
-            .parse()
-            .map_err(|_| CmdErr("syntax", "expected a positive integer"))?;
-        if !(1..=10_000).contains(&d) {
-            return Err(CmdErr("range", "decimation must be 1..10000 ticks"));
-        }
         let tick_hz = rt.with(|r| {
-            r.arm_capture(d);
+            r.arm_capture(every);
             r.tick_rate_hz()
         });
-        let _ = writeln!(
-            out,
-            "ok capture every_ticks={d} sample_rate_hz={} capacity={}",
-            tick_hz as f64 / d as f64,
-            crate::runtime::CAPTURE_LEN
-        );
+        let reply = CaptureReply {
+            every_ticks: every,
+            sample_rate_hz: tick_hz as f64 / every.max(1) as f64,
+            capacity: crate::runtime::CAPTURE_LEN,
+        };
+        let _ = writeln!(out, "{reply}");
         Ok(())
     }
 
     fn cmd_dump(
         &mut self,
-        args: &[&str],
+        first: usize,
+        count: usize,
         rt: &mut impl RuntimeAccess,
         out: &mut impl Write,
     ) -> CmdResult {
-        let [first, count] = args else {
-            return Err(CmdErr("syntax", "dump <first> <count>"));
-        };
-        let first: usize = first
-            .parse()
-            .map_err(|_| CmdErr("syntax", "expected an integer"))?;
-        let count: usize = count
-            .parse()
-            .map_err(|_| CmdErr("syntax", "expected an integer"))?;
-        if count > 32 {
-            return Err(CmdErr("range", "count must be <= 32"));
-        }
-        let mut vals = [0i32; 32];
+        let mut vals = [0i32; DUMP_MAX];
+        let count = count.min(DUMP_MAX);
         let (total, armed, n) = rt.with(|r| {
             let c = r.capture();
             let s = c.samples();
@@ -691,11 +529,13 @@ impl Console {
             }
             (s.len(), c.armed(), n)
         });
-        let _ = write!(
-            out,
-            "ok dump first={first} n={n} total={total} armed={} values=",
-            armed as u8
-        );
+        let reply = DumpReply {
+            first,
+            n,
+            total,
+            armed,
+        };
+        let _ = write!(out, "{reply}");
         for (i, v) in vals.iter().take(n).enumerate() {
             let _ = write!(out, "{}{v}", if i == 0 { "" } else { "," });
         }
@@ -705,30 +545,19 @@ impl Console {
 
     fn cmd_move(
         &mut self,
-        args: &[&str],
+        target_mm: f64,
+        speed_mm_s: Option<f64>,
+        accel_mm_s2: Option<f64>,
         rt: &mut impl RuntimeAccess,
         out: &mut impl Write,
     ) -> CmdResult {
-        if args.is_empty() || args.len() > 3 {
-            return Err(CmdErr(
-                "syntax",
-                "move <target_mm> [speed_mm_s] [accel_mm_s2]",
-            ));
-        }
-        let target_mm = parse_f64(args[0])?;
-        let speed = match args.get(1) {
-            Some(v) => parse_f64(v)?,
-            None => self.settings.move_speed_mm_s as f64,
-        };
-        let accel = match args.get(2) {
-            Some(v) => parse_f64(v)?,
-            None => self.settings.move_accel_mm_s2 as f64,
-        };
+        let speed = speed_mm_s.unwrap_or(self.settings.move_speed_mm_s as f64);
+        let accel = accel_mm_s2.unwrap_or(self.settings.move_accel_mm_s2 as f64);
         if !(target_mm.abs() <= 1000.0) {
-            return Err(CmdErr("range", "target outside +-1000 mm"));
+            return Err(Refusal::new("range", "target outside +-1000 mm"));
         }
         if !(speed > 0.0 && speed <= 10_000.0 && accel > 0.0 && accel <= 1.0e6) {
-            return Err(CmdErr(
+            return Err(Refusal::new(
                 "range",
                 "speed (0..10000 mm/s) and accel (0..1e6 mm/s^2) must be > 0",
             ));
@@ -737,13 +566,26 @@ impl Console {
         let ticks = rt
             .with(|r| r.start_move(target, (speed * 1e6) as f32, (accel * 1e6) as f32))
             .map_err(|e| runtime_err(e, out))?;
-        let _ = writeln!(out, "ok move target_mm={target_mm} ticks={ticks}");
+        let _ = writeln!(out, "{}", MoveReply { target_mm, ticks });
+        Ok(())
+    }
+
+    fn cmd_sweep(
+        &mut self,
+        a: &SweepArgs,
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
+        let ticks = rt
+            .with(|r| r.start_sweep(a.kind, a.f0_hz, a.f1_hz, a.amplitude_mm * 1e6, a.duration_s))
+            .map_err(|e| runtime_err(e, out))?;
+        let _ = writeln!(out, "{}", SweepReply { args: *a, ticks });
         Ok(())
     }
 }
 
 /// A runtime refusal as a console error; a step-rate refusal first names the limit.
-fn runtime_err(e: crate::runtime::RuntimeError, out: &mut impl Write) -> CmdErr {
+fn runtime_err(e: crate::runtime::RuntimeError, out: &mut impl Write) -> Refusal {
     if let crate::runtime::RuntimeError::StepRate(x) = e {
         let _ = writeln!(
             out,
@@ -753,112 +595,7 @@ fn runtime_err(e: crate::runtime::RuntimeError, out: &mut impl Write) -> CmdErr 
             Num(x.max_reference_speed_nm_s as f64 * 1e-6, 3),
         );
     }
-    CmdErr(e.code(), e.message())
-}
-
-/// A number printed with at most `.1` decimals, trailing zeros removed (`68.04`, not
-/// `68.03999999999999`; `1e-308` as `0`): the console's number format.
-pub struct Num(pub f64, pub usize);
-
-impl core::fmt::Display for Num {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        let mut buf: heapless::String<48> = heapless::String::new();
-        let v = self.0;
-        if !v.is_finite() {
-            return write!(f, "{v}");
-        }
-        if v.abs() >= 1e15 {
-            // m·10^e with 1 ≤ |m| < 10, by repeated division (≤ 308 steps, no log table).
-            let (mut m, mut e) = (v, 0u32);
-            while m.abs() >= 10.0 {
-                m /= 10.0;
-                e += 1;
-            }
-            return write!(f, "{}e{e}", Num(m, 3));
-        }
-        if write!(buf, "{:.*}", self.1.min(12), v).is_err() {
-            return write!(f, "{v}");
-        }
-        let mut t: &str = &buf;
-        if t.contains('.') {
-            t = t.trim_end_matches('0').trim_end_matches('.');
-        }
-        if t == "-0" {
-            t = "0";
-        }
-        f.write_str(t)
-    }
-}
-
-impl Console {
-    fn cmd_sweep(
-        &mut self,
-        args: &[&str],
-        rt: &mut impl RuntimeAccess,
-        out: &mut impl Write,
-    ) -> CmdResult {
-        let [kind, f0, f1, amp, dur] = args else {
-            return Err(CmdErr(
-                "syntax",
-                "sweep lin|exp <f0_hz> <f1_hz> <amplitude_mm> <duration_s>",
-            ));
-        };
-        let kind = match *kind {
-            "lin" => SweepKind::Linear,
-            "exp" => SweepKind::Exponential,
-            _ => return Err(CmdErr("syntax", "sweep kind must be lin or exp")),
-        };
-        let (f0, f1, amp, dur) = (
-            parse_f64(f0)?,
-            parse_f64(f1)?,
-            parse_f64(amp)?,
-            parse_f64(dur)?,
-        );
-        if !(amp > 0.0 && amp <= 1000.0) {
-            return Err(CmdErr("range", "amplitude must be in (0, 1000] mm"));
-        }
-        let ticks = rt
-            .with(|r| r.start_sweep(kind, f0, f1, amp * 1e6, dur))
-            .map_err(|e| runtime_err(e, out))?;
-        let _ = writeln!(
-            out,
-            "ok sweep kind={} f0_hz={} f1_hz={} amplitude_mm={} ticks={ticks}",
-            kind.name(),
-            Num(f0, 6),
-            Num(f1, 6),
-            Num(amp, 6)
-        );
-        Ok(())
-    }
-
-    fn cmd_stop(
-        &mut self,
-        args: &[&str],
-        rt: &mut impl RuntimeAccess,
-        out: &mut impl Write,
-    ) -> CmdResult {
-        let _ = args;
-        let ticks = rt.with(|r| r.stop());
-        let _ = writeln!(out, "ok stop ticks_to_rest={ticks}");
-        Ok(())
-    }
-}
-
-fn parse_f64(s: &str) -> Result<f64, CmdErr> {
-    let v: f64 = s
-        .parse()
-        .map_err(|_| CmdErr("syntax", "expected a number"))?;
-    if !v.is_finite() {
-        return Err(CmdErr("range", "number must be finite"));
-    }
-    Ok(v)
-}
-
-fn parse_slot(s: &str) -> Result<usize, CmdErr> {
-    match s.parse::<usize>() {
-        Ok(n) if (1..=MAX_MODES).contains(&n) => Ok(n - 1),
-        _ => Err(CmdErr("range", "mode slot must be 1..4")),
-    }
+    Refusal::new(e.code(), e.message())
 }
 
 /// Static messages for configuration errors (the console cannot format into a `&'static`).
@@ -874,6 +611,7 @@ fn config_message(e: &crate::config::ConfigError) -> &'static str {
         C::Taps(TapError::AmplitudeRange) => "sum of |amplitudes| above 3.9",
         C::Range(f) => f,
         C::Corrupt => "stored settings corrupt",
+        C::Version { .. } => "stored settings of another format version",
         C::Buffer => "buffer too small",
     }
 }

@@ -13,6 +13,7 @@ pub mod console;
 pub mod engine;
 pub mod golden;
 pub mod output;
+pub mod protocol;
 pub mod reference;
 pub mod runtime;
 pub mod shaper;

@@ -2,9 +2,11 @@
 //! map (a key–value log across ≥ 2 flash pages; each item carries a CRC, and an interrupted
 //! write leaves the previous item readable).
 //!
-//! The record itself is [`Settings::encode`]: magic, version, fields and a CRC-32, validated
-//! again on load ([`Settings::decode`]), so a record that survives the flash layer but is
-//! invalid or out of range is still refused.
+//! The record itself is [`Settings::encode`]: magic, format version, the settings in postcard
+//! and a CRC-32, validated again on load ([`Settings::decode`]), so a record that survives the
+//! flash layer but is invalid or out of range is still refused ([`StorageError::Corrupt`]), and
+//! an intact record of another format version (the old hand-written version 1) is refused
+//! as [`StorageError::Version`].
 //!
 //! `sequential-storage` silently skips an item whose own CRC fails. So that a damaged record
 //! is reported as [`StorageError::Corrupt`] rather than "never saved", [`load_settings`]
@@ -12,7 +14,7 @@
 //! flash without a valid record (bit rot, or power lost during the very first save) is
 //! `Corrupt`.
 
-use crate::config::{Settings, SETTINGS_MAX_BYTES};
+use crate::config::{ConfigError, Settings, SETTINGS_MAX_BYTES, SETTINGS_VERSION};
 use core::ops::Range;
 use embedded_storage_async::nor_flash::NorFlash;
 use sequential_storage::cache::Cache;
@@ -29,8 +31,10 @@ pub const STORAGE_BUFFER_BYTES: usize = SETTINGS_MAX_BYTES + 16;
 pub enum StorageError {
     /// The flash driver reported an error.
     Flash,
-    /// The record (or the flash log) is corrupt.
+    /// The record (or the flash log) is corrupt, or the record is out of range.
     Corrupt,
+    /// The record is intact but of another format version (the version found).
+    Version(u8),
     /// No space left even after garbage collection.
     Full,
     /// The flash range is not whole erase pages, or fewer than two.
@@ -39,14 +43,43 @@ pub enum StorageError {
     Other,
 }
 
+impl StorageError {
+    /// Short code for the console (`err <code>: …`): `version` for [`StorageError::Version`],
+    /// `corrupt` for a corrupt record, `storage` otherwise.
+    pub fn code(&self) -> &'static str {
+        match self {
+            StorageError::Version(_) => "version",
+            StorageError::Corrupt => "corrupt",
+            _ => "storage",
+        }
+    }
+}
+
+/// A record the settings codec refused: another format version or anything else (corrupt).
+impl From<ConfigError> for StorageError {
+    fn from(e: ConfigError) -> Self {
+        match e {
+            ConfigError::Version { found } => StorageError::Version(found),
+            _ => StorageError::Corrupt,
+        }
+    }
+}
+
 impl core::fmt::Display for StorageError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        if let StorageError::Version(found) = self {
+            return write!(
+                f,
+                "stored settings are format version {found}, this firmware reads version \
+                 {SETTINGS_VERSION} (save to replace them)"
+            );
+        }
         f.write_str(match self {
             StorageError::Flash => "flash driver error",
             StorageError::Corrupt => "stored settings corrupt",
             StorageError::Full => "settings storage full",
             StorageError::Range => "settings flash range is not at least two whole pages",
-            StorageError::Other => "settings storage error",
+            StorageError::Version(_) | StorageError::Other => "settings storage error",
         })
     }
 }
@@ -55,6 +88,9 @@ fn map_err<E>(e: sequential_storage::Error<E>) -> StorageError {
     match e {
         sequential_storage::Error::Storage { .. } => StorageError::Flash,
         sequential_storage::Error::Corrupted { .. } => StorageError::Corrupt,
+        sequential_storage::Error::SerializationError(SerializationError::Custom(code)) => {
+            StorageError::Version(code as u8)
+        }
         sequential_storage::Error::SerializationError(_) => StorageError::Corrupt,
         sequential_storage::Error::FullStorage => StorageError::Full,
         _ => StorageError::Other,
@@ -74,7 +110,11 @@ impl<'a> Value<'a> for Record {
     fn deserialize_from(buffer: &'a [u8]) -> Result<(Self, usize), SerializationError> {
         Settings::decode(buffer)
             .map(|s| (Record(s), buffer.len()))
-            .map_err(|_| SerializationError::InvalidFormat)
+            .map_err(|e| match e {
+                // The only custom code: the version byte of an intact record of another format.
+                ConfigError::Version { found } => SerializationError::Custom(found as i32),
+                _ => SerializationError::InvalidFormat,
+            })
     }
 }
 
@@ -112,7 +152,8 @@ pub async fn save_settings<S: NorFlash>(
 }
 
 /// Loads the settings from `range` of `flash`: `Ok(None)` if the range is erased (nothing
-/// was ever saved), `Err(Corrupt)` if it holds data but no valid settings record.
+/// was ever saved), `Err(Version(v))` if the newest record is intact but of format version
+/// `v` ≠ [`SETTINGS_VERSION`], `Err(Corrupt)` if it holds data but no valid settings record.
 pub async fn load_settings<S: NorFlash>(
     flash: &mut S,
     range: Range<u32>,

@@ -51,7 +51,7 @@ impl Board {
     pub fn new() -> Self {
         let mut rt = Box::new(Runtime::new());
         let mut boot = String::new();
-        let console = Console::boot::<&str>(Ok(None), &mut *rt, 0, &mut boot);
+        let console = Console::boot(Ok(None), &mut *rt, 0, &mut boot);
         assert!(boot.contains("no saved settings, using defaults"), "{boot}");
         Board { rt, console }
     }

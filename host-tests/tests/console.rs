@@ -3,6 +3,7 @@
 use beamshaper::config::Settings;
 use beamshaper::console::{Action, LineBuffer, LineError, LINE_MAX};
 use beamshaper::runtime::TickInput;
+use beamshaper::storage::StorageError;
 use beamshaper_host_tests::Board;
 use proptest::prelude::*;
 
@@ -111,7 +112,7 @@ fn save_and_load_are_delegated_to_the_glue() {
     let before = b.console.settings().clone();
     let mut out = String::new();
     b.console
-        .finish_load::<&str>(Err("checksum mismatch"), &mut *b.rt, &mut out);
+        .finish_load(Err(StorageError::Corrupt), &mut *b.rt, &mut out);
     assert!(
         out.lines().last().unwrap().starts_with("err corrupt:"),
         "{out}"
@@ -119,7 +120,7 @@ fn save_and_load_are_delegated_to_the_glue() {
     assert_eq!(&before, b.console.settings());
     let mut out = String::new();
     b.console
-        .finish_load::<&str>(Ok(Some(Settings::DEFAULT)), &mut *b.rt, &mut out);
+        .finish_load(Ok(Some(Settings::DEFAULT)), &mut *b.rt, &mut out);
     assert!(out.starts_with("ok load"), "{out}");
     assert_eq!(b.console.settings(), &Settings::DEFAULT);
 }

@@ -61,7 +61,7 @@ pub const MAX_STAGES: usize = 4;
 pub const TAP_BUDGET: usize = 2 * MAX_TAPS;
 
 /// Which arithmetic the tick uses.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum NumericPath {
     /// Q2.30 weights, i64 accumulation, exact unity DC gain.
     Fixed,

@@ -26,7 +26,7 @@ use super::{Impulse, Shaper, ShaperError, MAX_IMPULSES};
 use core::f64::consts::PI;
 
 /// Which single-mode shaper to design.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum ShaperKind {
     /// Zero vibration, 2 impulses (paper eq. 30).
     Zv,

@@ -24,7 +24,7 @@ pub const MAX_IMPULSES: usize = 64;
 pub const MERGE_TOLERANCE_S: f64 = 1e-9;
 
 /// One impulse of a shaper: amplitude (dimensionless) at a time (s) after the first impulse.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Impulse {
     /// Amplitude `A_i` (dimensionless; the amplitudes of a shaper sum to 1).
     pub amplitude: f64,

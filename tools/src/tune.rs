@@ -1175,7 +1175,7 @@ pub fn board_sweep(
     wait_board(
         &mut s,
         st.ticks + ticks,
-        Duration::from_secs_f64(ticks as f64 / st.tick_hz + 30.0),
+        Duration::from_secs_f64(ticks as f64 / f64::from(st.tick_hz) + 30.0),
     )?;
     Ok(plan)
 }

@@ -49,8 +49,8 @@ fn every_planned_move_is_accepted_by_the_board() {
                 b.tick(20_000);
                 let mv = Command::Move {
                     target_mm: p.target_mm,
-                    speed_mm_s: speed,
-                    accel_mm_s2: 2000.0,
+                    speed_mm_s: Some(speed),
+                    accel_mm_s2: Some(2000.0),
                 };
                 let r = b.receive(format!("{mv}\n").as_bytes());
                 assert!(

@@ -1,9 +1,10 @@
 //! Serial-console client for the board (real or virtual), on the `serialport` crate.
 //!
-//! Speaks the console protocol of [`beamshaper::console`]: one command line out, reply lines
-//! back until a final `ok …` or `err <code>: …` line.
+//! Speaks the console protocol of [`beamshaper::protocol`]: one command line out, reply lines
+//! back (classified by [`ReplyLine`]) until a final `ok …` or `err <code>: …` line.
 
 use anyhow::{anyhow, bail, Context, Result};
+use beamshaper::protocol::ReplyLine;
 use serialport::SerialPort;
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
@@ -18,11 +19,9 @@ pub struct Reply {
 }
 
 impl Reply {
-    /// Value of `key=` in the `ok` line.
+    /// Value of `key=` in the `ok` line ([`beamshaper::protocol::field`]).
     pub fn field(&self, key: &str) -> Option<&str> {
-        self.ok
-            .split_whitespace()
-            .find_map(|w| w.strip_prefix(key).and_then(|r| r.strip_prefix('=')))
+        beamshaper::protocol::field(&self.ok, key)
     }
 
     /// Numeric value of `key=` in the `ok` line.
@@ -112,16 +111,17 @@ impl BoardClient {
             let l = self
                 .read_line(deadline)
                 .with_context(|| format!("waiting for the reply to `{line}`"))?;
-            if let Some(rest) = l.strip_prefix("# ") {
-                info.push(rest.to_string());
-            } else if l.starts_with("ok ") || l == "ok" {
-                return Ok(Reply { info, ok: l });
-            } else if let Some(e) = l.strip_prefix("err ") {
-                bail!("board refused `{line}`: {e}");
-            } else if l.is_empty() {
-                continue;
-            } else {
-                bail!("malformed reply to `{line}`: `{l}` (expected `# …`, `ok …` or `err …`)");
+            match ReplyLine::parse(&l) {
+                ReplyLine::Info(text) => info.push(text.to_string()),
+                ReplyLine::Ok(_) => return Ok(Reply { info, ok: l }),
+                ReplyLine::Err(..) => {
+                    let e = l.strip_prefix("err ").unwrap_or(&l);
+                    bail!("board refused `{line}`: {e}");
+                }
+                ReplyLine::Other("") => continue,
+                ReplyLine::Other(_) => {
+                    bail!("malformed reply to `{line}`: `{l}` (expected `# …`, `ok …` or `err …`)")
+                }
             }
         }
     }

@@ -15,6 +15,7 @@ use anyhow::{Context, Result};
 use beamshaper::config::Settings;
 use beamshaper::console::{Action, Console, LineBuffer, LineError};
 use beamshaper::runtime::{Runtime, TickInput};
+use beamshaper::storage::StorageError;
 use serialport::SerialPort;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -30,14 +31,14 @@ pub struct VirtualBoard {
     rig_error: Option<String>,
 }
 
-/// Reads the emulated flash: `Ok(None)` if there is no record, `Err` if it is corrupt.
-pub fn load_flash(path: &Path) -> std::result::Result<Option<Settings>, String> {
+/// Reads the emulated flash: `Ok(None)` if there is no record; `Err(Version)` for an intact
+/// record of another format version, `Err(Corrupt)` for a corrupt or invalid one,
+/// `Err(Flash)` if the file cannot be read.
+pub fn load_flash(path: &Path) -> std::result::Result<Option<Settings>, StorageError> {
     match std::fs::read(path) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-        Err(e) => Err(format!("cannot read {}: {e}", path.display())),
-        Ok(bytes) => Settings::decode(&bytes)
-            .map(Some)
-            .map_err(|e| e.to_string()),
+        Err(_) => Err(StorageError::Flash),
+        Ok(bytes) => Ok(Some(Settings::decode(&bytes)?)),
     }
 }
 
