@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The project's test command: the no_std core under std (host-tests/) and the host tools (tools/).
-# Each crate is built for the machine running cargo (their .cargo/config.toml sets host-tuple).
+# Each crate is built for the machine running cargo (their .cargo/config.toml sets host-tuple);
+# both are members of one host workspace (tools/Cargo.toml) with one lock file, tools/Cargo.lock.
 # Ends with one summary line over both crates: "tests: N passed, M failed".
 set -euo pipefail
 cd "$(dirname "$0")"
