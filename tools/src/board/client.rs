@@ -9,29 +9,14 @@ use serialport::SerialPort;
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
-/// A reply: the informational `# ` lines and the final `ok …` line.
+/// A reply: the informational `# ` lines and the final `ok …` line (read its fields with the
+/// core's reply types, [`beamshaper::protocol`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Reply {
     /// Informational lines (without the `# `).
     pub info: Vec<String>,
     /// The final line, starting with `ok `.
     pub ok: String,
-}
-
-impl Reply {
-    /// Value of `key=` in the `ok` line ([`beamshaper::protocol::field`]).
-    pub fn field(&self, key: &str) -> Option<&str> {
-        beamshaper::protocol::field(&self.ok, key)
-    }
-
-    /// Numeric value of `key=` in the `ok` line.
-    pub fn number(&self, key: &str) -> Result<f64> {
-        let v = self
-            .field(key)
-            .ok_or_else(|| anyhow!("reply has no `{key}=`: {}", self.ok))?;
-        v.parse()
-            .map_err(|_| anyhow!("reply field {key}=`{v}` is not a number: {}", self.ok))
-    }
 }
 
 /// A console connection.

@@ -1,0 +1,537 @@
+//! The console's wire language, defined once for the board and the host: a [`Command`] is
+//! parsed from a line by the board ([`Command::parse`]) and written as a line by the host
+//! (`Display`); the replies the host reads are typed ([`StatusReply`], [`ConfigReply`],
+//! [`ModeLine`], [`ShaperReply`], [`MoveReply`], [`SweepReply`], [`CaptureReply`],
+//! [`DumpReply`]), written by the board (`Display`) and parsed by the host (`parse`).
+//!
+//! Syntax: a command is a name and arguments separated by blanks (at most
+//! [`MAX_ARGUMENTS`]); numbers are Rust's `f64`/integer text (the host writes floats in the
+//! shortest text that reads back to the same `f64`). A reply is zero or more `# …` lines and a
+//! last line `ok <command> [key=value …]` or `err <code>: <message>` ([`ErrorCode`]). Values
+//! contain no blanks; lists are comma separated (`impulses=a@t,…`, `values=v,…`).
+//!
+//! No heap: lists are `heapless`, parsing borrows the line. Parsing never panics.
+
+use crate::config::{ModeSetting, Source, MAX_CUSTOM_IMPULSES, MAX_MODES};
+use crate::engine::NumericPath;
+use crate::reference::SweepKind;
+use crate::shaper::{design::DEFAULT_V_TOL, Impulse, ShaperKind};
+use core::fmt;
+
+mod reply;
+pub use reply::{
+    field, value, CaptureReply, ConfigReply, DumpReply, ModeLine, MoveReply, Num, ReplyError,
+    ReplyLine, ShaperReply, StatusReply, SweepReply,
+};
+
+/// Most arguments a command line may have.
+pub const MAX_ARGUMENTS: usize = 24;
+/// Most setpoints one `dump` returns.
+pub const DUMP_MAX: usize = 32;
+/// Capture decimations `capture` accepts (ticks).
+pub const CAPTURE_EVERY_RANGE: (u32, u32) = (1, 10_000);
+
+/// A console command (one line).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Command {
+    /// `help`.
+    Help,
+    /// `status`: [`StatusReply`].
+    Status,
+    /// `shaper`: the combined impulse table, [`ShaperReply`].
+    Shaper,
+    /// `config`: [`ModeLine`]s and [`ConfigReply`].
+    Config,
+    /// `mode <slot 1-4> <kind> <freq_hz> <zeta> [v_tol]` (v_tol for the EI kinds only).
+    Mode(usize, ModeSetting),
+    /// `clear <1-4>` (`Some(slot)`) or `clear all` (`None`).
+    Clear(Option<usize>),
+    /// `custom <a>@<t_s> …` (1 to 16 impulses); empty = `custom clear`.
+    Custom(heapless::Vec<Impulse, MAX_CUSTOM_IMPULSES>),
+    /// `shaping on|off`.
+    Shaping(bool),
+    /// `path fixed|f32`.
+    Path(NumericPath),
+    /// `source internal|stepdir`.
+    Source(Source),
+    /// `rate <tick_hz>`.
+    Rate(u32),
+    /// `step <nm_per_step>`.
+    Step(u32),
+    /// `maxrate <steps_per_s>`.
+    MaxRate(u32),
+    /// `input <nm_per_count>`.
+    Input(u32),
+    /// `speed <mm_s>`: default move speed.
+    Speed(f64),
+    /// `accel <mm_s2>`: default move acceleration.
+    Accel(f64),
+    /// `move <target_mm> [speed_mm_s] [accel_mm_s2]` (the defaults where absent; a given
+    /// acceleration needs a given speed): [`MoveReply`].
+    Move {
+        /// Absolute target (mm).
+        target_mm: f64,
+        /// Peak speed (mm/s).
+        speed_mm_s: Option<f64>,
+        /// Acceleration (mm/s²).
+        accel_mm_s2: Option<f64>,
+    },
+    /// `sweep lin|exp <f0_hz> <f1_hz> <amplitude_mm> <duration_s>` about the present
+    /// position: [`SweepReply`].
+    Sweep(SweepArgs),
+    /// `stop`.
+    Stop,
+    /// `zero`.
+    Zero,
+    /// `capture <every_n_ticks>`: [`CaptureReply`].
+    Capture(u32),
+    /// `dump <first> <count ≤ 32>`: [`DumpReply`].
+    Dump {
+        /// First sample.
+        first: usize,
+        /// Samples wanted.
+        count: usize,
+    },
+    /// `save`.
+    Save,
+    /// `load`.
+    Load,
+    /// `defaults`.
+    Defaults,
+}
+
+/// Arguments of `sweep` (paper eqs. 33–34).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SweepArgs {
+    /// Frequency law.
+    pub kind: SweepKind,
+    /// Start frequency (Hz).
+    pub f0_hz: f64,
+    /// End frequency (Hz).
+    pub f1_hz: f64,
+    /// Amplitude about the present position (mm), in (0, 1000].
+    pub amplitude_mm: f64,
+    /// Duration (s).
+    pub duration_s: f64,
+}
+
+/// Why the console refused a line: the reply `err <code>: [<subject> ]<message>`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Refusal {
+    /// Error code (one of [`ErrorCode`]'s names).
+    pub code: &'static str,
+    /// What is wrong.
+    pub message: &'static str,
+    /// The command it concerns, printed before the message ("" for none).
+    pub subject: &'static str,
+}
+
+impl Refusal {
+    /// A refusal with `code` and `message`.
+    pub const fn new(code: &'static str, message: &'static str) -> Self {
+        Refusal {
+            code,
+            message,
+            subject: "",
+        }
+    }
+}
+
+impl fmt::Display for Refusal {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "err {}: ", self.code)?;
+        if !self.subject.is_empty() {
+            write!(f, "{} ", self.subject)?;
+        }
+        f.write_str(self.message)
+    }
+}
+
+const fn syntax(message: &'static str) -> Refusal {
+    Refusal::new("syntax", message)
+}
+
+/// The error codes of `err <code>: …` replies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ErrorCode {
+    /// `unknown`: no such command.
+    Unknown,
+    /// `syntax`: wrong arguments.
+    Syntax,
+    /// `range`: a value out of its range.
+    Range,
+    /// `shaper`: the shaper cannot be designed or combined.
+    Shaper,
+    /// `too-long`: the shaper is longer than the history at this tick rate.
+    TooLong,
+    /// `busy`: a move runs or the reference is not still.
+    Busy,
+    /// `source`: not possible on the step/direction source.
+    Source,
+    /// `step-rate`: the shaped motion would exceed the maximum step rate.
+    StepRate,
+    /// `budget`: the transition would exceed the tap budget.
+    Budget,
+    /// `garbage`: non-printable bytes.
+    Garbage,
+    /// `line-too-long`: more than 200 bytes.
+    LineTooLong,
+    /// `storage`: flash error, or no saved settings.
+    Storage,
+    /// `corrupt`: the stored settings are corrupt.
+    Corrupt,
+    /// `version`: the stored settings are of another format version.
+    Version,
+}
+
+const ERROR_CODES: [(ErrorCode, &str); 14] = [
+    (ErrorCode::Unknown, "unknown"),
+    (ErrorCode::Syntax, "syntax"),
+    (ErrorCode::Range, "range"),
+    (ErrorCode::Shaper, "shaper"),
+    (ErrorCode::TooLong, "too-long"),
+    (ErrorCode::Busy, "busy"),
+    (ErrorCode::Source, "source"),
+    (ErrorCode::StepRate, "step-rate"),
+    (ErrorCode::Budget, "budget"),
+    (ErrorCode::Garbage, "garbage"),
+    (ErrorCode::LineTooLong, "line-too-long"),
+    (ErrorCode::Storage, "storage"),
+    (ErrorCode::Corrupt, "corrupt"),
+    (ErrorCode::Version, "version"),
+];
+
+impl ErrorCode {
+    /// The code as written in a reply.
+    pub fn name(self) -> &'static str {
+        ERROR_CODES
+            .iter()
+            .find(|(c, _)| *c == self)
+            .map_or("unknown", |(_, n)| n)
+    }
+
+    /// The code named `name`, if any.
+    pub fn from_name(name: &str) -> Option<ErrorCode> {
+        ERROR_CODES
+            .iter()
+            .find(|(_, n)| *n == name)
+            .map(|(c, _)| *c)
+    }
+}
+
+pub(crate) const PATHS: [(NumericPath, &str); 2] =
+    [(NumericPath::Fixed, "fixed"), (NumericPath::F32, "f32")];
+pub(crate) const SOURCES: [(Source, &str); 2] =
+    [(Source::Internal, "internal"), (Source::StepDir, "stepdir")];
+
+/// A finite number, or a refusal (`syntax` if not a number, `range` if not finite).
+pub(crate) fn parse_f64(s: &str) -> Result<f64, Refusal> {
+    let v: f64 = s.parse().map_err(|_| syntax("expected a number"))?;
+    if !v.is_finite() {
+        return Err(Refusal::new("range", "number must be finite"));
+    }
+    Ok(v)
+}
+
+/// A mode slot `1..=4`.
+pub(crate) fn parse_slot(s: &str) -> Result<usize, Refusal> {
+    match s.parse::<usize>() {
+        Ok(n) if (1..=MAX_MODES).contains(&n) => Ok(n),
+        _ => Err(Refusal::new("range", "mode slot must be 1..4")),
+    }
+}
+
+/// A word among `choices`, else a `syntax` refusal with `usage`.
+fn choice<T: Copy>(
+    args: &[&str],
+    choices: &[(T, &str)],
+    usage: &'static str,
+) -> Result<T, Refusal> {
+    match args {
+        [w] => choices
+            .iter()
+            .find(|(_, n)| n == w)
+            .map(|(t, _)| *t)
+            .ok_or(syntax(usage)),
+        _ => Err(syntax(usage)),
+    }
+}
+
+/// One integer argument.
+fn one_u32(args: &[&str]) -> Result<u32, Refusal> {
+    let [v] = args else {
+        return Err(syntax("expected one integer argument"));
+    };
+    v.parse()
+        .map_err(|_| syntax("expected a non-negative integer"))
+}
+
+/// The command named `name` if it takes no arguments, with its name as a `'static` text.
+fn without_arguments(name: &str) -> Option<(&'static str, Command)> {
+    Some(match name {
+        "help" => ("help", Command::Help),
+        "status" => ("status", Command::Status),
+        "shaper" => ("shaper", Command::Shaper),
+        "config" => ("config", Command::Config),
+        "zero" => ("zero", Command::Zero),
+        "defaults" => ("defaults", Command::Defaults),
+        "save" => ("save", Command::Save),
+        "load" => ("load", Command::Load),
+        "stop" => ("stop", Command::Stop),
+        _ => return None,
+    })
+}
+
+impl Command {
+    /// Parses one line (printable ASCII; the console checks that first). Errors: the
+    /// refusal the console answers (`syntax`, `range` or `unknown`).
+    pub fn parse(line: &str) -> Result<Command, Refusal> {
+        let mut words = line.split_ascii_whitespace();
+        let name = words.next().ok_or(syntax("empty line (try help)"))?;
+        let mut args: heapless::Vec<&str, MAX_ARGUMENTS> = heapless::Vec::new();
+        for w in words {
+            args.push(w).map_err(|_| syntax("too many arguments"))?;
+        }
+        if let Some((name, command)) = without_arguments(name) {
+            if !args.is_empty() {
+                return Err(Refusal {
+                    subject: name,
+                    ..syntax("takes no arguments")
+                });
+            }
+            return Ok(command);
+        }
+        Self::parse_with_arguments(name, &args)
+    }
+
+    fn parse_with_arguments(name: &str, args: &[&str]) -> Result<Command, Refusal> {
+        Ok(match name {
+            "mode" => parse_mode(args)?,
+            "clear" => match args {
+                ["all"] => Command::Clear(None),
+                [s] => Command::Clear(Some(parse_slot(s)?)),
+                _ => return Err(syntax("clear <1-4|all>")),
+            },
+            "custom" => Command::Custom(parse_custom(args)?),
+            "shaping" => Command::Shaping(choice(
+                args,
+                &[(true, "on"), (false, "off")],
+                "shaping on|off",
+            )?),
+            "path" => Command::Path(choice(args, &PATHS, "path fixed|f32")?),
+            "source" => Command::Source(choice(args, &SOURCES, "source internal|stepdir")?),
+            "rate" => Command::Rate(one_u32(args)?),
+            "step" => Command::Step(one_u32(args)?),
+            "maxrate" => Command::MaxRate(one_u32(args)?),
+            "input" => Command::Input(one_u32(args)?),
+            "speed" | "accel" => {
+                let [v] = args else {
+                    return Err(syntax("expected one number"));
+                };
+                let v = parse_f64(v)?;
+                if name == "speed" {
+                    Command::Speed(v)
+                } else {
+                    Command::Accel(v)
+                }
+            }
+            "move" => parse_move(args)?,
+            "sweep" => Command::Sweep(parse_sweep(args)?),
+            "capture" => Command::Capture(parse_capture(args)?),
+            "dump" => parse_dump(args)?,
+            _ => return Err(Refusal::new("unknown", "unknown command (try help)")),
+        })
+    }
+}
+
+fn parse_mode(args: &[&str]) -> Result<Command, Refusal> {
+    if !(4..=5).contains(&args.len()) {
+        return Err(syntax("mode <1-4> <kind> <freq_hz> <zeta> [v_tol]"));
+    }
+    let slot = parse_slot(args[0])?;
+    let v_tol = match args.get(4) {
+        Some(v) => parse_f64(v)?,
+        None => DEFAULT_V_TOL,
+    };
+    let kind = ShaperKind::from_name(args[1], v_tol).ok_or(syntax("unknown shaper kind"))?;
+    if args.len() == 5 && kind.v_tol().is_none() {
+        return Err(syntax("v_tol only applies to ei, 2hei, 3hei"));
+    }
+    let freq_hz = parse_f64(args[2])?;
+    let zeta = parse_f64(args[3])?;
+    Ok(Command::Mode(
+        slot,
+        ModeSetting {
+            kind,
+            freq_hz,
+            zeta,
+        },
+    ))
+}
+
+fn parse_custom(args: &[&str]) -> Result<heapless::Vec<Impulse, MAX_CUSTOM_IMPULSES>, Refusal> {
+    let mut list = heapless::Vec::new();
+    if args == ["clear"] {
+        return Ok(list);
+    }
+    if args.is_empty() || args.len() > MAX_CUSTOM_IMPULSES {
+        return Err(syntax(
+            "custom <a>@<t_s> ... (1 to 16 impulses) | custom clear",
+        ));
+    }
+    for a in args {
+        let (amp, t) = a
+            .split_once('@')
+            .ok_or(syntax("impulse must be <amplitude>@<time_s>"))?;
+        let imp = Impulse {
+            amplitude: parse_f64(amp)?,
+            time_s: parse_f64(t)?,
+        };
+        if imp.time_s < 0.0 {
+            return Err(Refusal::new("range", "impulse time must be >= 0"));
+        }
+        list.push(imp).map_err(|_| syntax("too many impulses"))?;
+    }
+    Ok(list)
+}
+
+fn parse_move(args: &[&str]) -> Result<Command, Refusal> {
+    if args.is_empty() || args.len() > 3 {
+        return Err(syntax("move <target_mm> [speed_mm_s] [accel_mm_s2]"));
+    }
+    let optional = |i: usize| args.get(i).map(|v| parse_f64(v)).transpose();
+    Ok(Command::Move {
+        target_mm: parse_f64(args[0])?,
+        speed_mm_s: optional(1)?,
+        accel_mm_s2: optional(2)?,
+    })
+}
+
+fn parse_sweep(args: &[&str]) -> Result<SweepArgs, Refusal> {
+    let [kind, f0, f1, amp, dur] = args else {
+        return Err(syntax(
+            "sweep lin|exp <f0_hz> <f1_hz> <amplitude_mm> <duration_s>",
+        ));
+    };
+    let kind = match *kind {
+        "lin" => SweepKind::Linear,
+        "exp" => SweepKind::Exponential,
+        _ => return Err(syntax("sweep kind must be lin or exp")),
+    };
+    let a = SweepArgs {
+        kind,
+        f0_hz: parse_f64(f0)?,
+        f1_hz: parse_f64(f1)?,
+        amplitude_mm: parse_f64(amp)?,
+        duration_s: parse_f64(dur)?,
+    };
+    if !(a.amplitude_mm > 0.0 && a.amplitude_mm <= 1000.0) {
+        return Err(Refusal::new("range", "amplitude must be in (0, 1000] mm"));
+    }
+    Ok(a)
+}
+
+fn parse_capture(args: &[&str]) -> Result<u32, Refusal> {
+    let [d] = args else {
+        return Err(syntax("capture <every_n_ticks>"));
+    };
+    let d: u32 = d
+        .parse()
+        .map_err(|_| syntax("expected a positive integer"))?;
+    let (lo, hi) = CAPTURE_EVERY_RANGE;
+    if !(lo..=hi).contains(&d) {
+        return Err(Refusal::new("range", "decimation must be 1..10000 ticks"));
+    }
+    Ok(d)
+}
+
+fn parse_dump(args: &[&str]) -> Result<Command, Refusal> {
+    let [first, count] = args else {
+        return Err(syntax("dump <first> <count>"));
+    };
+    let int = |s: &str| {
+        s.parse::<usize>()
+            .map_err(|_| syntax("expected an integer"))
+    };
+    let (first, count) = (int(first)?, int(count)?);
+    if count > DUMP_MAX {
+        return Err(Refusal::new("range", "count must be <= 32"));
+    }
+    Ok(Command::Dump { first, count })
+}
+
+pub(crate) fn on_off(on: bool) -> &'static str {
+    if on {
+        "on"
+    } else {
+        "off"
+    }
+}
+
+/// The command line (without terminator), e.g. `mode 1 zvd 1.1 0.0074`; floats in the
+/// shortest text that parses back to the same `f64`.
+impl fmt::Display for Command {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Command::Help => f.write_str("help"),
+            Command::Status => f.write_str("status"),
+            Command::Shaper => f.write_str("shaper"),
+            Command::Config => f.write_str("config"),
+            Command::Zero => f.write_str("zero"),
+            Command::Defaults => f.write_str("defaults"),
+            Command::Save => f.write_str("save"),
+            Command::Load => f.write_str("load"),
+            Command::Stop => f.write_str("stop"),
+            Command::Mode(slot, m) => {
+                write!(f, "mode {slot} {} {} {}", m.kind.name(), m.freq_hz, m.zeta)?;
+                match m.kind.v_tol() {
+                    Some(v) => write!(f, " {v}"),
+                    None => Ok(()),
+                }
+            }
+            Command::Clear(None) => f.write_str("clear all"),
+            Command::Clear(Some(slot)) => write!(f, "clear {slot}"),
+            Command::Custom(imps) if imps.is_empty() => f.write_str("custom clear"),
+            Command::Custom(imps) => {
+                f.write_str("custom")?;
+                imps.iter()
+                    .try_for_each(|i| write!(f, " {}@{}", i.amplitude, i.time_s))
+            }
+            Command::Shaping(on) => write!(f, "shaping {}", on_off(*on)),
+            Command::Path(p) => write!(f, "path {}", p.name()),
+            Command::Source(s) => write!(f, "source {}", s.name()),
+            Command::Rate(v) => write!(f, "rate {v}"),
+            Command::Step(v) => write!(f, "step {v}"),
+            Command::MaxRate(v) => write!(f, "maxrate {v}"),
+            Command::Input(v) => write!(f, "input {v}"),
+            Command::Speed(v) => write!(f, "speed {v}"),
+            Command::Accel(v) => write!(f, "accel {v}"),
+            Command::Move {
+                target_mm,
+                speed_mm_s,
+                accel_mm_s2,
+            } => {
+                write!(f, "move {target_mm}")?;
+                // An acceleration is only meaningful after a speed (positional arguments).
+                if let Some(v) = speed_mm_s {
+                    write!(f, " {v}")?;
+                    if let Some(a) = accel_mm_s2 {
+                        write!(f, " {a}")?;
+                    }
+                }
+                Ok(())
+            }
+            Command::Sweep(a) => write!(
+                f,
+                "sweep {} {} {} {} {}",
+                a.kind.name(),
+                a.f0_hz,
+                a.f1_hz,
+                a.amplitude_mm,
+                a.duration_s
+            ),
+            Command::Capture(d) => write!(f, "capture {d}"),
+            Command::Dump { first, count } => write!(f, "dump {first} {count}"),
+        }
+    }
+}
