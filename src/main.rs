@@ -21,6 +21,7 @@
 #![no_main]
 
 use beamshaper::console::{Action, Console, LineBuffer, RuntimeAccess};
+use beamshaper::protocol::LINE_TOO_LONG;
 use beamshaper::runtime::{Runtime, TickInput, TickOutput};
 use beamshaper::storage::{load_settings, save_settings, STORAGE_BUFFER_BYTES};
 use core::cell::RefCell;
@@ -291,10 +292,7 @@ async fn main(_spawner: Spawner) {
         let mut out = UartOut(&mut tx);
         match line {
             Err(_) => {
-                let _ = writeln!(
-                    out,
-                    "err line-too-long: line longer than 200 bytes discarded"
-                );
+                let _ = writeln!(out, "{LINE_TOO_LONG}");
             }
             Ok(line) => match console.handle_line(&line, &mut Shared, &mut out) {
                 Action::None => {}

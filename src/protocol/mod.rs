@@ -147,6 +147,11 @@ impl fmt::Display for Refusal {
     }
 }
 
+/// The reply to a line longer than [`crate::console::LINE_MAX`] bytes (discarded whole; the
+/// line assembly, not the parser, detects it).
+pub const LINE_TOO_LONG: Refusal =
+    Refusal::new("line-too-long", "line longer than 200 bytes discarded");
+
 const fn syntax(message: &'static str) -> Refusal {
     Refusal::new("syntax", message)
 }

@@ -14,6 +14,7 @@ pub mod session;
 use anyhow::{Context, Result};
 use beamshaper::config::Settings;
 use beamshaper::console::{Action, Console, LineBuffer, LineError};
+use beamshaper::protocol::{Refusal, LINE_TOO_LONG};
 use beamshaper::runtime::{Runtime, TickInput};
 use beamshaper::storage::StorageError;
 use serialport::SerialPort;
@@ -89,7 +90,7 @@ impl VirtualBoard {
                     self.finish(action, &mut out);
                 }
                 Some(Err(LineError::TooLong)) => {
-                    out.push_str("err line-too-long: line longer than 200 bytes discarded\n");
+                    out.push_str(&format!("{LINE_TOO_LONG}\n"));
                 }
                 None => {}
             }
@@ -109,7 +110,9 @@ impl VirtualBoard {
                 self.console.finish_load(r, &mut *self.rt, out);
             }
             (_, None) => {
-                out.push_str("err storage: this virtual board has no flash file (--flash)\n")
+                let no_flash =
+                    Refusal::new("storage", "this virtual board has no flash file (--flash)");
+                out.push_str(&format!("{no_flash}\n"))
             }
         }
     }
