@@ -244,6 +244,48 @@ impl TickClock {
 }
 
 #[cfg(test)]
+mod flash_tests {
+    use super::*;
+
+    /// A flash file holding an intact record of another format version (here version 1, as
+    /// the hand-written codec wrote it) boots with defaults, the console names the version,
+    /// `load` refuses it with `err version:`, and `save` replaces it with a readable record.
+    #[test]
+    fn an_old_format_record_boots_with_defaults_and_the_console_says_so() {
+        let dir = std::env::temp_dir().join(format!("vboard-v1-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let flash = dir.join("flash.bin");
+        // Magic, version 1, then a body; the CRC-32/ISO-HDLC of it all (valid).
+        let mut v1 = b"BSH\x01".to_vec();
+        v1.extend_from_slice(&[0u8; 40]);
+        let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC).checksum(&v1);
+        v1.extend_from_slice(&crc.to_le_bytes());
+        std::fs::write(&flash, &v1).unwrap();
+        assert_eq!(load_flash(&flash), Err(StorageError::Version(1)));
+        let mut boot = String::new();
+        let mut b = VirtualBoard::boot(Some(flash.clone()), &mut boot);
+        assert!(
+            boot.contains("stored settings are format version 1, this firmware reads version 2"),
+            "{boot}"
+        );
+        assert!(
+            boot.ends_with("# boot: using defaults\nok boot\n"),
+            "{boot}"
+        );
+        assert_eq!(b.console.settings(), &Settings::DEFAULT);
+        let r = b.receive(b"mode 1 zv 3 0.01\nload\n");
+        assert!(r.contains("\nerr version: "), "{r}");
+        assert!(
+            b.console.settings().modes[0].is_some(),
+            "load changed the settings"
+        );
+        assert!(b.receive(b"save\n").contains("ok save"));
+        assert!(load_flash(&flash).unwrap().unwrap().modes[0].is_some());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
+#[cfg(test)]
 mod clock_tests {
     use super::*;
 
