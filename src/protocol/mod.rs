@@ -31,7 +31,9 @@ pub const DUMP_MAX: usize = 32;
 /// Capture decimations `capture` accepts (ticks).
 pub const CAPTURE_EVERY_RANGE: (u32, u32) = (1, 10_000);
 
-/// A console command (one line).
+/// A console command (one line). One lives on the console's stack per line; the custom list
+/// is inline (no heap), hence the large variant.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum Command {
     /// `help`.
