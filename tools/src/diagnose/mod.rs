@@ -408,14 +408,12 @@ pub fn diagnose(
         carriage_mass_kg: rig.base.mass_kg,
     };
     let cands: Vec<Candidate> = catalogue(rig, &ch, &hints);
-    let n_total: usize = n0.iter().sum();
     let ctx = Ctx {
         rig,
         fit_data,
         validate,
         sigma,
         calib: &calib,
-        n_total,
         model_freqs: &model_freqs,
     };
     // the reference of the first round: the calibrated nominal model
@@ -698,7 +696,14 @@ struct Reference {
     /// Per channel, the normal equations of the physics-free correction of this model's
     /// residual on the fit recordings and on the validation recording.
     generic: [Option<(arx::Normal, arx::Normal)>; 3],
+    /// Per channel, the integrated autocorrelation time of this model's residual on the fit
+    /// recordings (length-weighted mean) and on the validation recording.
+    tau_fit: [f64; 3],
+    tau_val: [f64; 3],
 }
+
+/// Most lags summed for an autocorrelation time.
+const MAX_TAU_LAG: usize = 2000;
 
 /// What every evaluation shares.
 struct Ctx<'a> {
@@ -707,7 +712,6 @@ struct Ctx<'a> {
     validate: &'a Prepared,
     sigma: [f64; 3],
     calib: &'a effects::Calib,
-    n_total: usize,
     model_freqs: &'a [f64],
 }
 
@@ -749,8 +753,27 @@ impl Ctx<'_> {
             val_ne.add(r, &s.iter().map(|v| v.as_slice()).collect::<Vec<_>>());
             (fit_ne.rss() > 0.0).then_some((fit_ne, val_ne))
         });
+        let tau_fit = std::array::from_fn(|c| {
+            let (mut acc, mut n) = (0.0, 0usize);
+            for r in res.iter().filter_map(|r| r[c].as_ref()) {
+                acc += r.len() as f64 * autocorrelation_time(r, MAX_TAU_LAG);
+                n += r.len();
+            }
+            if n > 0 {
+                acc / n as f64
+            } else {
+                1.0
+            }
+        });
+        let tau_val = std::array::from_fn(|c| {
+            vres[c]
+                .as_ref()
+                .map_or(1.0, |r| autocorrelation_time(r, MAX_TAU_LAG))
+        });
         Some(Reference {
             generic,
+            tau_fit,
+            tau_val,
             fit: f,
             rss,
             vres,
@@ -798,18 +821,19 @@ impl Ctx<'_> {
         let cand = *set.last().expect("a candidate");
         let f = r.fit.clone();
         let k = cand.params.len().max(1);
-        let delta_bic = delta_bic(
-            delta_neg2ll(&r.rss, &base.rss, &n_of(self.fit_data)),
-            k,
-            self.n_total,
-        );
+        // likelihood ratios with the samples counted as independent ones: n / τ per channel,
+        // τ of the residual under the null (the model this candidate extends)
+        let n_fit = n_of(self.fit_data);
+        let n_eff: f64 = (0..3).map(|c| n_fit[c] as f64 / base.tau_fit[c]).sum();
+        let delta_bic = delta_neg2ll_effective(&r.rss, &base.rss, &n_fit, &base.tau_fit)
+            + k as f64 * n_eff.max(1.0).ln();
         if std::env::var_os("DIAG_DEBUG").is_some() {
             eprintln!(
                 "{}: fit rss {:?} vs reference {:?}; values {:?}",
                 cand.id, r.rss, base.rss, f.values
             );
         }
-        let delta_val = delta_neg2ll(&r.vrss, &base.vrss, &base.vn);
+        let delta_val = delta_neg2ll_effective(&r.vrss, &base.vrss, &base.vn, &base.tau_val);
         let vn = base.vn;
         let mut best_channel = 0;
         let mut reduction = f64::NEG_INFINITY;

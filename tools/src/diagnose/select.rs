@@ -4,9 +4,13 @@
 //! A candidate with k free parameters is *named* only if all of these hold ([`guard`]):
 //! 1. **Information criterion** on the fit data: ΔBIC = Δ(−2 ln L) + k ln N < −[`BIC_MARGIN`],
 //!    with the Gaussian profile likelihood per channel, −2 ln L = Σ_c n_c ln(RSS_c / n_c)
-//!    (Schwarz 1978; Kass & Raftery 1995: ΔBIC < −10 is "very strong" evidence);
-//! 2. **validation** (data never fitted): the likelihood-ratio statistic Δ(−2 ln L)_val <
-//!    −[`VALIDATION_MARGIN`];
+//!    (Schwarz 1978; Kass & Raftery 1995: ΔBIC < −10 is "very strong" evidence). A residual
+//!    is not white: its samples are counted as n_c / τ_c independent ones, τ_c the integrated
+//!    autocorrelation time of the residual of the model the candidate extends (the null;
+//!    [`autocorrelation_time`]), so N = Σ n_c / τ_c; otherwise a slow model-form residual
+//!    sampled fast makes any small gain "very strong";
+//! 2. **validation** (data never fitted): the likelihood-ratio statistic Δ(−2 ln L)_val, with
+//!    the same effective sample count, < −[`VALIDATION_MARGIN`];
 //! 3. **model-form allowance estimated from the data**: the relative rms reduction of the
 //!    validation residual on the channel it helps most must exceed what a *physics-free*
 //!    correction with the same number k of free coefficients, fitted on the fit data only,
@@ -25,7 +29,10 @@
 //! `none`. In `diagnose` forward selection applies the guard once per round against the model
 //! chosen so far.
 
-pub use crate::numeric::stats::{delta_bic, delta_neg2ll, ljung_box, neg2ll, structured_power};
+pub use crate::numeric::stats::{
+    autocorrelation_time, delta_bic, delta_neg2ll, delta_neg2ll_effective, ljung_box, neg2ll,
+    structured_power,
+};
 
 /// BIC margin (see module docs).
 pub const BIC_MARGIN: f64 = 10.0;

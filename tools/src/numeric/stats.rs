@@ -30,6 +30,54 @@ pub fn delta_bic(delta_neg2ll: f64, k: usize, n: usize) -> f64 {
     delta_neg2ll + k as f64 * (n.max(1) as f64).ln()
 }
 
+/// Integrated autocorrelation time τ = 1 + 2 Σ_{k≥1} ρ_k of `r`, summed by Geyer's (1992)
+/// initial positive sequence (pairs ρ_{2m} + ρ_{2m+1} while positive; at most `max_lag` lags),
+/// so an oscillating autocorrelation does not blow up the sum. n/τ is the effective number of
+/// independent samples: a likelihood-ratio statistic computed as if the n samples were
+/// independent is too large by about τ (≥ 1; 1 for white noise or fewer than 3 samples).
+pub fn autocorrelation_time(r: &[f64], max_lag: usize) -> f64 {
+    let n = r.len();
+    if n < 3 {
+        return 1.0;
+    }
+    let m = r.iter().sum::<f64>() / n as f64;
+    let c0: f64 = r.iter().map(|x| (x - m).powi(2)).sum();
+    if !(c0 > 0.0) {
+        return 1.0;
+    }
+    let rho = |k: usize| -> f64 {
+        if k >= n {
+            return 0.0;
+        }
+        (k..n).map(|i| (r[i] - m) * (r[i - k] - m)).sum::<f64>() / c0
+    };
+    let mut tau = -1.0;
+    let mut k = 0;
+    while k + 1 <= max_lag.min(n - 1) {
+        let pair = rho(k) + rho(k + 1);
+        if !(pair > 0.0) {
+            break;
+        }
+        tau += 2.0 * pair;
+        k += 2;
+    }
+    tau.max(1.0)
+}
+
+/// Δ(−2 ln L) of `rss` against `rss0` with every channel's samples counted as `n[c] / tau[c]`
+/// independent ones ([`autocorrelation_time`] of the residual under the null model).
+pub fn delta_neg2ll_effective(
+    rss: &[f64; 3],
+    rss0: &[f64; 3],
+    n: &[usize; 3],
+    tau: &[f64; 3],
+) -> f64 {
+    (0..3)
+        .filter(|&c| n[c] > 0)
+        .map(|c| n[c] as f64 / tau[c].max(1.0) * (rss[c].max(1e-300) / rss0[c].max(1e-300)).ln())
+        .sum()
+}
+
 /// Structured (correlated) power of `r`: Σ_{k=1..lags} c_k² with the autocovariances c_k, i.e.
 /// the Ljung–Box statistic's numerator before normalising by the variance: it falls when a
 /// model removes correlated residual, whatever happens to the white part.
@@ -85,6 +133,29 @@ mod tests {
             .collect();
         assert!(ljung_box(&colored, 20) > 10.0 * q);
         assert!(structured_power(&colored, 20) > 10.0 * structured_power(&white, 20));
+    }
+
+    #[test]
+    fn autocorrelation_time_of_white_and_smooth_noise() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(2);
+        let d = Normal::new(0.0, 1.0).unwrap();
+        let white: Vec<f64> = (0..20000).map(|_| d.sample(&mut rng)).collect();
+        let t = autocorrelation_time(&white, 200);
+        assert!(t < 1.2, "{t}");
+        // AR(1) with a = 0.9: τ = (1 + a)/(1 − a) = 19
+        let mut ar = vec![0.0; 20000];
+        for i in 1..ar.len() {
+            ar[i] = 0.9 * ar[i - 1] + white[i];
+        }
+        let t = autocorrelation_time(&ar, 500);
+        assert!((t - 19.0).abs() < 4.0, "{t}");
+        let e = delta_neg2ll_effective(
+            &[1.0, 0.0, 0.5],
+            &[1.0, 0.0, 1.0],
+            &[100, 0, 100],
+            &[1.0, 1.0, 10.0],
+        );
+        assert!((e - 10.0 * 0.5f64.ln()).abs() < 1e-12);
     }
 
     #[test]
