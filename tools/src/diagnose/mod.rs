@@ -315,7 +315,6 @@ pub fn diagnose(
         .zip(&preds0)
         .map(|(d, p)| residuals(d, p))
         .collect();
-    let (_, n0) = channel_rss(&res0);
     let p_nom = problem.params_of(&cal.x);
     {
         let best = fit_data
@@ -457,6 +456,12 @@ pub fn diagnose(
                 }
             }
         }
+        {
+            let set: Vec<&Candidate> = chosen.iter().map(|&k| &cands[k]).collect();
+            let (split, used) = ctx.split_spread(&set, &reference, budget.share(pool.len() + 2));
+            budget.spend(used);
+            reference.split = split;
+        }
         let mut outs = Vec::new();
         for (j, &ci) in pool.iter().enumerate() {
             let total_steps = step + pool.len() - j + 1;
@@ -513,9 +518,10 @@ pub fn diagnose(
             if !(f.cost < reference.fit.cost) {
                 break;
             }
-            let Some(better) = ctx.reference(&prev, f) else {
+            let Some(mut better) = ctx.reference(&prev, f) else {
                 break;
             };
+            better.split = reference.split;
             reference = better;
             for o in outs.iter_mut().filter(|o| o.passed) {
                 let set: Vec<&Candidate> = prev
@@ -700,6 +706,10 @@ struct Reference {
     /// recordings (length-weighted mean) and on the validation recording.
     tau_fit: [f64; 3],
     tau_val: [f64; 3],
+    /// Per channel, how much the validation rms residual changes when this model is refitted
+    /// to one fit recording alone (the smallest |relative change| over the fit recordings;
+    /// [`Ctx::split_spread`]), 0 until computed.
+    split: [f64; 3],
 }
 
 /// Most lags summed for an autocorrelation time.
@@ -771,6 +781,7 @@ impl Ctx<'_> {
                 .map_or(1.0, |r| autocorrelation_time(r, MAX_TAU_LAG))
         });
         Some(Reference {
+            split: [0.0; 3],
             generic,
             tau_fit,
             tau_val,
@@ -782,6 +793,64 @@ impl Ctx<'_> {
             vpred,
             val_nrmse,
         })
+    }
+
+    /// The split-refit spread of `base` (model `set`): refitted to each fit recording alone
+    /// (warm from `base`, `max_evaluations` shared), the relative change of the validation rms
+    /// residual per channel; its smallest magnitude over the recordings is how much re-tuning
+    /// the existing parameters to other excitation at least moves the validation error — a gain
+    /// within it is not evidence of new physics (the smallest, because one recording alone may
+    /// leave the model undetermined). Zero with a single fit recording. Returns it and the model
+    /// evaluations used.
+    fn split_spread(
+        &self,
+        set: &[&Candidate],
+        base: &Reference,
+        max_evaluations: usize,
+    ) -> ([f64; 3], usize) {
+        let mut spread = [f64::INFINITY; 3];
+        let mut used = 0;
+        if self.fit_data.len() < 2 {
+            return ([0.0; 3], 0);
+        }
+        let share = max_evaluations / self.fit_data.len();
+        for i in 0..self.fit_data.len() {
+            let one = std::slice::from_ref(&self.fit_data[i]);
+            let f = fit(
+                self.rig,
+                one,
+                self.sigma,
+                self.calib,
+                set,
+                Some(&base.fit.x),
+                share,
+                false,
+            );
+            used += f.evaluations;
+            let vdata = std::slice::from_ref(self.validate);
+            let vprob =
+                fit::Problem::new(self.rig, vdata, self.sigma, self.calib, set, f.x.clone());
+            let Some(mut vp) = vprob.predictions(&f.x) else {
+                continue;
+            };
+            let vres = residuals(self.validate, &vp.remove(0));
+            let (vrss, _) = channel_rss(std::slice::from_ref(&vres));
+            for c in 0..3 {
+                if base.vn[c] > 0 && base.vrss[c] > 0.0 {
+                    let change = 1.0 - (vrss[c] / base.vrss[c]).sqrt();
+                    if change.is_finite() {
+                        spread[c] = spread[c].min(change.abs());
+                    }
+                }
+            }
+        }
+        for v in spread.iter_mut().filter(|v| !v.is_finite()) {
+            *v = 0.0;
+        }
+        if std::env::var_os("DIAG_SELECT").is_some() {
+            eprintln!("split-refit spread of the validation residual per channel: {spread:?}");
+        }
+        (spread, used)
     }
 
     /// Fits `set` (the effects chosen so far + candidate `ci`, last) jointly with the calibration
@@ -873,7 +942,8 @@ impl Ctx<'_> {
         let allowance = base.generic[best_channel]
             .as_ref()
             .and_then(|(fit_ne, val_ne)| arx::best_correction(fit_ne, val_ne, k))
-            .map_or(0.0, |c| c.val_reduction());
+            .map_or(0.0, |c| c.val_reduction())
+            .max(base.split[best_channel]);
         let mut fails = guard(&Evidence {
             delta_bic,
             delta_val,

@@ -16,7 +16,11 @@
 //!    correction with the same number k of free coefficients, fitted on the fit data only,
 //!    earns on the same validation residual ([`crate::numeric::arx`] for recordings: the best
 //!    k-term linear filter of the model's prediction and the base motion; for a length series
-//!    the best k-term smooth trend of the relative frequency error in the length). This replaces
+//!    the best k-term smooth trend of the relative frequency error in the length); for
+//!    recordings also at least the *split-refit spread*: how much the validation rms residual
+//!    changes when the model so far is refitted to one fit recording alone (the smallest such
+//!    change over the fit recordings): a gain that re-tuning the existing parameters to other
+//!    excitation could also produce is no evidence of new physics. This replaces
 //!    a fixed percentage chosen on one generator's floor: the allowance is large where generic
 //!    model-form freedom explains much, ≈ 0 where the residual is white or unrelated to the
 //!    model's input and output;
@@ -52,7 +56,8 @@ pub struct Evidence {
     pub delta_val: f64,
     /// Relative rms reduction of the never-fitted residual (the channel it helps most).
     pub reduction: f64,
-    /// The same reduction earned by the physics-free correction with as many coefficients.
+    /// The model-form allowance: the same reduction earned by the physics-free correction with
+    /// as many coefficients (or, for recordings, the larger split-refit spread).
     pub allowance: f64,
     /// Structured power of that residual before and after (`None`: not a time series).
     pub structured: Option<(f64, f64)>,
@@ -74,7 +79,7 @@ pub fn guard(e: &Evidence) -> Vec<String> {
     }
     if !(e.reduction > e.allowance.max(0.0)) {
         fails.push(format!(
-            "validation reduction {:.1} % does not beat the {:.1} % of a physics-free correction with as many parameters",
+            "validation reduction {:.1} % does not beat the model-form allowance {:.1} % (a physics-free correction with as many parameters, or a refit of the model so far to one fit recording)",
             100.0 * e.reduction,
             100.0 * e.allowance.max(0.0)
         ));
