@@ -5,6 +5,7 @@
 //! - [`model`]: the beam-on-moving-base model of the paper's §2 and its simulator.
 //! - [`ident`]: modal identification (paper §3, §5.2).
 //! - [`diagnose`]: model-discrepancy diagnosis.
+//! - [`numeric`]: the Levenberg–Marquardt adapter and residual statistics.
 //! - [`tune`]: the main job end to end.
 
 pub mod board;
@@ -13,6 +14,7 @@ pub mod fe;
 pub mod ident;
 pub mod measures;
 pub mod model;
+pub mod numeric;
 pub mod plot;
 pub mod recording;
 pub mod shaping;

@@ -1,15 +1,25 @@
 //! Nonlinear least squares of a candidate (calibration + effect parameters) on the fit
-//! recordings: Levenberg–Marquardt (`levenberg-marquardt` crate, MINPACK's algorithm) on the
+//! recordings: Levenberg–Marquardt ([`crate::numeric::lm`], MINPACK's algorithm) on the
 //! noise-whitened residuals of every recorded channel, forward-difference Jacobian, and the
 //! linearised covariance `s² (JᵀJ)⁻¹` for the parameter uncertainties.
+//!
+//! Every fit is bounded by a number of **model evaluations** (not by wall-clock time), so the
+//! answer is the same on any machine; a generous wall-clock safety net ([`SAFETY_NET_S`]) only
+//! ends a fit on a machine so overloaded that the run would otherwise never finish.
 
 use super::effects::{apply_calibration, apply_effect, Calib, Candidate, ParamDef};
 use super::sim::{predict, BeamCache, Params, Prediction, Prepared};
 use crate::model::Rig;
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
-use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use crate::numeric::lm::{self, LmOptions};
+use nalgebra::{DMatrix, DVector};
 use std::cell::RefCell;
-use std::time::{Duration, Instant};
+use std::time::Instant;
+
+/// Wall-clock safety net of one fit (s): a last resort that never binds on a normally loaded
+/// machine (a whole diagnosis takes well under a minute); past it the fit keeps its best point.
+pub const SAFETY_NET_S: f64 = 300.0;
+
+pub use crate::numeric::lm::covariance;
 
 /// Channel order used everywhere in the diagnosis.
 pub const CHANNEL_NAMES: [&str; 3] = ["base_pos_m", "tip_pos_m", "force_n"];
@@ -91,10 +101,6 @@ pub struct Problem<'a> {
     caches: RefCell<Vec<Option<BeamCache>>>,
     /// Model evaluations so far.
     pub evaluations: RefCell<usize>,
-    /// Past this instant residuals and Jacobians are refused, which ends the minimisation.
-    deadline: Option<Instant>,
-    /// Lowest cost seen and where (the minimiser may stop on a trial point at the deadline).
-    best: RefCell<Option<(f64, DVector<f64>)>>,
 }
 
 impl<'a> Problem<'a> {
@@ -117,19 +123,7 @@ impl<'a> Problem<'a> {
             x: x0,
             caches: RefCell::new(vec![None; data.len()]),
             evaluations: RefCell::new(0),
-            deadline: None,
-            best: RefCell::new(None),
         }
-    }
-
-    /// The same problem with a wall-clock limit.
-    pub fn with_deadline(mut self, deadline: Instant) -> Self {
-        self.deadline = Some(deadline);
-        self
-    }
-
-    fn expired(&self) -> bool {
-        self.deadline.is_some_and(|d| Instant::now() >= d)
     }
 
     /// Whitened cost Σ(r/σ)² at `x`.
@@ -193,7 +187,9 @@ impl<'a> Problem<'a> {
             .collect()
     }
 
-    fn whitened(&self, x: &DVector<f64>) -> DVector<f64> {
+    /// Residuals of every recorded channel divided by the channel's noise scale σ (recording
+    /// after recording); a constant 1e3 where the model refuses the parameters.
+    pub fn whitened(&self, x: &DVector<f64>) -> DVector<f64> {
         let total: usize = self.data.iter().map(|d| self.len_of(d)).sum();
         match self.predictions(x) {
             Some(preds) => {
@@ -231,6 +227,7 @@ impl<'a> Problem<'a> {
             + usize::from(d.force_n.is_some()))
     }
 
+    /// Finite-difference steps (representation units) at the start point.
     fn steps(&self) -> Vec<f64> {
         self.defs()
             .iter()
@@ -244,86 +241,14 @@ impl<'a> Problem<'a> {
     }
 }
 
-impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
-    type ResidualStorage = Owned<f64, Dyn>;
-    type JacobianStorage = Owned<f64, Dyn, Dyn>;
-    type ParameterStorage = Owned<f64, Dyn>;
-
-    fn set_params(&mut self, x: &DVector<f64>) {
-        self.x = x.clone();
-    }
-
-    fn params(&self) -> DVector<f64> {
-        self.x.clone()
-    }
-
-    fn residuals(&self) -> Option<DVector<f64>> {
-        if self.expired() {
-            return None;
-        }
-        let r = self.whitened(&self.x);
-        let c = r.norm_squared();
-        let mut b = self.best.borrow_mut();
-        if b.as_ref().map_or(true, |(bc, _)| c < *bc) {
-            *b = Some((c, self.x.clone()));
-        }
-        Some(r)
-    }
-
-    fn jacobian(&self) -> Option<DMatrix<f64>> {
-        if self.expired() {
-            return None;
-        }
-        self.jacobian_at()
-    }
-}
-
 impl Problem<'_> {
-    /// Forward-difference Jacobian of the whitened residuals at the current parameters.
-    pub fn jacobian_at(&self) -> Option<DMatrix<f64>> {
-        let r0 = self.whitened(&self.x);
-        let steps = self.steps();
-        let mut j = DMatrix::zeros(r0.len(), self.x.len());
-        for (i, h) in steps.iter().enumerate() {
-            let mut x = self.x.clone();
-            x[i] += h;
-            let r = self.whitened(&x);
-            j.set_column(i, &((r - &r0) / *h));
-        }
-        Some(j)
+    /// Forward-difference Jacobian of the whitened residuals at `x`.
+    pub fn jacobian_at(&self, x: &DVector<f64>) -> DMatrix<f64> {
+        let r0 = self.whitened(x);
+        let opts = LmOptions::new(self.steps());
+        lm::fd_jacobian(&|y: &DVector<f64>| Some(self.whitened(y)), x, &r0, &opts)
+            .expect("whitened residuals are always defined")
     }
-}
-
-/// (JᵀJ)⁻¹ by eigen-decomposition; a parameter with weight in a direction the data do not
-/// determine (eigenvalue below 1e-10 of the largest) gets NaN variance ("not identified")
-/// rather than a meaningless tiny number.
-pub fn covariance(j: &DMatrix<f64>) -> DMatrix<f64> {
-    let n = j.ncols();
-    let jtj = j.transpose() * j;
-    if !jtj.iter().all(|v| v.is_finite()) {
-        return DMatrix::from_element(n, n, f64::NAN);
-    }
-    let eig = nalgebra::SymmetricEigen::new(jtj);
-    let lmax = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
-    let mut cov = DMatrix::zeros(n, n);
-    let mut null_weight = vec![0.0; n];
-    for k in 0..n {
-        let l = eig.eigenvalues[k];
-        let v = eig.eigenvectors.column(k);
-        if l > 1e-10 * lmax && l > 0.0 {
-            cov += v * v.transpose() / l;
-        } else {
-            for i in 0..n {
-                null_weight[i] += v[i] * v[i];
-            }
-        }
-    }
-    for i in 0..n {
-        if null_weight[i] > 1e-3 {
-            cov[(i, i)] = f64::NAN;
-        }
-    }
-    cov
 }
 
 /// Coarse scan of the stiffness scale (±0.5 in ln E, 21 points) from `x0` with the rig's damping
@@ -378,8 +303,10 @@ pub struct FitResult {
 /// 6) plus `warm` (a previous calibration, representation), keeping the lowest cost. A start
 /// from the rig's damping ratios at the best stiffness scale of a coarse scan (±65 % in E)
 /// guards against the local minimum where a mismatched mode is damped out. Every start is
-/// bounded by the Levenberg–Marquardt patience (30 × (parameters + 1) evaluations) and all
-/// starts together by `budget` of wall-clock time (the best point seen is kept).
+/// bounded by the Levenberg–Marquardt patience (30 × (parameters + 1) evaluations) and by an
+/// equal share of what is left of `max_evaluations` model evaluations for all starts together
+/// (the best point seen is kept), so the result does not depend on the machine.
+#[allow(clippy::too_many_arguments)]
 pub fn fit(
     rig: &Rig,
     data: &[Prepared],
@@ -387,10 +314,10 @@ pub fn fit(
     calib: &Calib,
     cands: &[&Candidate],
     warm: Option<&DVector<f64>>,
-    budget: Duration,
+    max_evaluations: usize,
     explore: bool,
 ) -> FitResult {
-    let deadline = Instant::now() + budget;
+    let safety_net = Instant::now() + std::time::Duration::from_secs_f64(SAFETY_NET_S);
     let defs: Vec<&ParamDef> = calib
         .defs
         .iter()
@@ -436,65 +363,77 @@ pub fn fit(
         if changed && cand.is_some() && explore {
             starts.push(fresh);
         }
+        // starts the warm vector made identical would give identical fits
+        let mut distinct: Vec<DVector<f64>> = Vec::new();
+        for s in starts {
+            if !distinct.contains(&s) {
+                distinct.push(s);
+            }
+        }
+        starts = distinct;
     }
     let scanned = if explore {
         stiffness_scan(rig, data, sigma, calib, cands, &defs, &starts[0])
     } else {
         None
     };
+    let scan_evaluations = if scanned.is_some() { 21 } else { 0 };
     if let Some(scanned) = scanned {
         if starts.iter().all(|s| (s - &scanned).norm() > 1e-6) {
             starts.push(scanned);
         }
     }
     let mut best: Option<(f64, DVector<f64>)> = None;
-    let mut evals = 0;
+    let mut evals = scan_evaluations;
     let n_starts = starts.len();
     for (i, x0) in starts.into_iter().enumerate() {
-        let now = Instant::now();
-        if now >= deadline && best.is_some() {
+        if best.is_some() && (evals >= max_evaluations || Instant::now() >= safety_net) {
             break;
         }
-        // each start gets an equal share of what is left
-        let share = deadline.saturating_duration_since(now) / (n_starts - i) as u32;
-        let problem = Problem::new(rig, data, sigma, calib, cands, x0.clone())
-            .with_deadline(now + share.max(Duration::from_millis(200)));
+        // each start gets an equal share of what is left (at least one Jacobian's worth)
+        let share = (max_evaluations.saturating_sub(evals) / (n_starts - i)).max(2 * x0.len() + 2);
+        let problem = Problem::new(rig, data, sigma, calib, cands, x0.clone());
         if std::env::var_os("DIAG_DEBUG").is_some() {
             eprintln!(
-                "start {:?} x0 {:?} cost {:.4e}",
+                "start {:?} x0 {:?} cost {:.4e} budget {share}",
                 cand.map(|c| c.id),
                 x0.as_slice(),
                 problem.whitened(&x0).norm_squared()
             );
         }
-        let (problem, _report) = LevenbergMarquardt::new()
-            .with_patience(30)
-            .with_ftol(1e-8)
-            .with_xtol(1e-8)
-            .minimize(problem);
-        let (cost, xe) = problem.best.borrow().clone().unwrap_or_else(|| {
-            let c = problem.cost_at(&x0);
-            (c, x0.clone())
-        });
+        let opts = LmOptions {
+            max_evaluations: share,
+            patience: 30,
+            ftol: 1e-8,
+            xtol: 1e-8,
+            ..LmOptions::new(problem.steps())
+        };
+        let residual =
+            |x: &DVector<f64>| (Instant::now() < safety_net).then(|| problem.whitened(x));
+        let out = lm::minimize(&residual, x0.clone(), &opts);
+        let (cost, xe) = if out.cost.is_finite() {
+            (out.cost, out.x)
+        } else {
+            (problem.cost_at(&x0), x0.clone())
+        };
         if std::env::var_os("DIAG_DEBUG").is_some() {
             eprintln!(
-                "  end x {:?} cost {:.4e} {:?}",
+                "  end x {:?} cost {:.4e} after {} evaluations: {}",
                 xe.as_slice(),
                 cost,
-                _report.termination
+                out.evaluations,
+                out.termination
             );
         }
-        evals += *problem.evaluations.borrow();
+        evals += out.evaluations;
         if best.as_ref().map_or(true, |b| cost < b.0) {
             best = Some((cost, xe));
         }
     }
     let (cost, x) = best.expect("at least one start");
     let problem = Problem::new(rig, data, sigma, calib, cands, x.clone());
-    let j = problem.jacobian_at().expect("jacobian");
-    let m = j.nrows() as f64;
-    let s2 = cost / (m - x.len() as f64).max(1.0);
-    let cov = covariance(&j);
+    let j = problem.jacobian_at(&x);
+    let std_repr = lm::std_errors(&j, cost);
     let values: Vec<f64> = defs
         .iter()
         .enumerate()
@@ -503,7 +442,7 @@ pub fn fit(
     let std: Vec<f64> = defs
         .iter()
         .enumerate()
-        .map(|(i, d)| (s2 * cov[(i, i)]).max(0.0).sqrt() * d.dvalue(x[i]).abs())
+        .map(|(i, d)| std_repr[i] * d.dvalue(x[i]).abs())
         .collect();
     let evaluations = evals + *problem.evaluations.borrow();
     FitResult {

@@ -141,7 +141,7 @@ pub fn to_json(d: &Diagnosis) -> Value {
         effects.push(json!({
             "effect": id, "words": o.words, "parameters": pm, "uncertainty": um,
             "validation": {"channel": CHANNEL_NAMES[c], "nrmse_before": o.nrmse_before[c],
-                "nrmse_after": o.val_nrmse[c], "reduction": o.reduction,
+                "nrmse_after": o.val_nrmse[c], "reduction": o.reduction, "model_form_allowance": o.allowance,
                 "delta_neg2loglik": o.delta_val},
             "delta_bic": o.delta_bic,
         }));
@@ -171,7 +171,7 @@ pub fn to_json(d: &Diagnosis) -> Value {
             }
             json!({
                 "effect": o.id, "score": -o.delta_val, "delta_bic": o.delta_bic,
-                "validation_delta_neg2loglik": o.delta_val, "validation_nrmse_reduction": o.reduction,
+                "validation_delta_neg2loglik": o.delta_val, "validation_nrmse_reduction": o.reduction, "model_form_allowance": o.allowance,
                 "channel": CHANNEL_NAMES[o.best_channel], "ljung_box_before_after": [o.whiteness.0, o.whiteness.1],
                 "significance_sigma": if o.significance.is_finite() { json!(o.significance) } else { Value::Null },
                 "passed": o.passed, "reason": o.reason, "parameters": pm,

@@ -1,0 +1,12 @@
+//! Numerical building blocks shared by identification and diagnosis.
+//!
+//! - [`lm`]: the one Levenberg–Marquardt adapter (residual closure, bounds, finite-difference
+//!   Jacobian, a deterministic evaluation budget, covariance at the optimum) over the
+//!   `levenberg-marquardt` crate;
+//! - [`stats`]: likelihood, information criterion and whiteness statistics;
+//! - [`arx`]: a physics-free linear correction of a residual (least squares on lagged inputs),
+//!   the yardstick of the diagnosis' model-form allowance.
+
+pub mod arx;
+pub mod lm;
+pub mod stats;

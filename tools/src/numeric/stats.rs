@@ -1,0 +1,177 @@
+//! Likelihood, information-criterion and whiteness statistics of residuals.
+//!
+//! - Gaussian profile likelihood per channel: −2 ln L = Σ_c n_c ln(RSS_c / n_c) (the noise
+//!   variance of every channel maximised out);
+//! - Schwarz's BIC penalty k ln N (Schwarz 1978; Kass & Raftery 1995: ΔBIC < −10 is "very
+//!   strong" evidence);
+//! - Ljung–Box portmanteau statistic Q = n(n+2) Σ_{k=1..h} ρ_k²/(n−k) (Ljung & Box 1978), χ²(h)
+//!   under whiteness; and the structured power Σ_k c_k² (its numerator before normalising).
+
+/// −2 ln L of the per-channel Gaussian profile likelihood (`rss[c]` over `n[c]` samples;
+/// channels with `n[c] = 0` are absent).
+pub fn neg2ll(rss: &[f64; 3], n: &[usize; 3]) -> f64 {
+    (0..3)
+        .filter(|&c| n[c] > 0)
+        .map(|c| n[c] as f64 * (rss[c].max(1e-300) / n[c] as f64).ln())
+        .sum()
+}
+
+/// Δ(−2 ln L) of `rss` against `rss0` (same samples): the likelihood-ratio statistic.
+pub fn delta_neg2ll(rss: &[f64; 3], rss0: &[f64; 3], n: &[usize; 3]) -> f64 {
+    (0..3)
+        .filter(|&c| n[c] > 0)
+        .map(|c| n[c] as f64 * (rss[c].max(1e-300) / rss0[c].max(1e-300)).ln())
+        .sum()
+}
+
+/// ΔBIC of a model with `k` more parameters whose likelihood-ratio statistic is `delta_neg2ll`
+/// on `n` samples.
+pub fn delta_bic(delta_neg2ll: f64, k: usize, n: usize) -> f64 {
+    delta_neg2ll + k as f64 * (n.max(1) as f64).ln()
+}
+
+/// Integrated autocorrelation time τ = 1 + 2 Σ_{k≥1} ρ_k of `r`, summed by Geyer's (1992)
+/// initial monotone sequence (pairs ρ_{2m} + ρ_{2m+1} while positive, each capped by the one
+/// before; at most `max_lag` lags),
+/// so an oscillating autocorrelation does not blow up the sum. n/τ is the effective number of
+/// independent samples: a likelihood-ratio statistic computed as if the n samples were
+/// independent is too large by about τ (≥ 1; 1 for white noise or fewer than 3 samples).
+pub fn autocorrelation_time(r: &[f64], max_lag: usize) -> f64 {
+    let n = r.len();
+    if n < 3 {
+        return 1.0;
+    }
+    let m = r.iter().sum::<f64>() / n as f64;
+    let c0: f64 = r.iter().map(|x| (x - m).powi(2)).sum();
+    if !(c0 > 0.0) {
+        return 1.0;
+    }
+    let rho = |k: usize| -> f64 {
+        if k >= n {
+            return 0.0;
+        }
+        (k..n).map(|i| (r[i] - m) * (r[i - k] - m)).sum::<f64>() / c0
+    };
+    let mut tau = -1.0;
+    let mut k = 0;
+    let mut last = f64::INFINITY;
+    while k < max_lag.min(n - 1) {
+        // initial monotone sequence: pairs positive and non-increasing
+        let pair = (rho(k) + rho(k + 1)).min(last);
+        if !(pair > 0.0) {
+            break;
+        }
+        tau += 2.0 * pair;
+        last = pair;
+        k += 2;
+    }
+    tau.max(1.0)
+}
+
+/// Δ(−2 ln L) of `rss` against `rss0` with every channel's samples counted as `n[c] / tau[c]`
+/// independent ones ([`autocorrelation_time`] of the residual under the null model).
+pub fn delta_neg2ll_effective(
+    rss: &[f64; 3],
+    rss0: &[f64; 3],
+    n: &[usize; 3],
+    tau: &[f64; 3],
+) -> f64 {
+    (0..3)
+        .filter(|&c| n[c] > 0)
+        .map(|c| n[c] as f64 / tau[c].max(1.0) * (rss[c].max(1e-300) / rss0[c].max(1e-300)).ln())
+        .sum()
+}
+
+/// Structured (correlated) power of `r`: Σ_{k=1..lags} c_k² with the autocovariances c_k, i.e.
+/// the Ljung–Box statistic's numerator before normalising by the variance: it falls when a
+/// model removes correlated residual, whatever happens to the white part.
+pub fn structured_power(r: &[f64], lags: usize) -> f64 {
+    let n = r.len();
+    if n <= lags + 1 {
+        return 0.0;
+    }
+    let m = r.iter().sum::<f64>() / n as f64;
+    (1..=lags)
+        .map(|k| ((k..n).map(|i| (r[i] - m) * (r[i - k] - m)).sum::<f64>() / n as f64).powi(2))
+        .sum()
+}
+
+/// Ljung–Box Q over `lags` lags of `r`.
+pub fn ljung_box(r: &[f64], lags: usize) -> f64 {
+    let n = r.len();
+    if n <= lags + 1 {
+        return 0.0;
+    }
+    let m = r.iter().sum::<f64>() / n as f64;
+    let c0: f64 = r.iter().map(|x| (x - m).powi(2)).sum();
+    if c0 <= 0.0 {
+        return 0.0;
+    }
+    let mut q = 0.0;
+    for k in 1..=lags {
+        let ck: f64 = (k..n).map(|i| (r[i] - m) * (r[i - k] - m)).sum();
+        let rho = ck / c0;
+        q += rho * rho / (n - k) as f64;
+    }
+    q * n as f64 * (n + 2) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+
+    #[test]
+    fn ljung_box_separates_white_from_structured() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+        let d = Normal::new(0.0, 1.0).unwrap();
+        let white: Vec<f64> = (0..5000).map(|_| d.sample(&mut rng)).collect();
+        let q = ljung_box(&white, 20);
+        // chi-square with 20 dof: 99.9 % quantile 45.3
+        assert!(q < 45.3, "{q}");
+        let colored: Vec<f64> = white
+            .iter()
+            .enumerate()
+            .map(|(k, x)| x + (k as f64 * 0.3).sin())
+            .collect();
+        assert!(ljung_box(&colored, 20) > 10.0 * q);
+        assert!(structured_power(&colored, 20) > 10.0 * structured_power(&white, 20));
+    }
+
+    #[test]
+    fn autocorrelation_time_of_white_and_smooth_noise() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(2);
+        let d = Normal::new(0.0, 1.0).unwrap();
+        let white: Vec<f64> = (0..20000).map(|_| d.sample(&mut rng)).collect();
+        let t = autocorrelation_time(&white, 200);
+        assert!(t < 1.2, "{t}");
+        // AR(1) with a = 0.9: τ = (1 + a)/(1 − a) = 19
+        let long: Vec<f64> = (0..200_000).map(|_| d.sample(&mut rng)).collect();
+        let mut ar = vec![0.0; long.len()];
+        for i in 1..ar.len() {
+            ar[i] = 0.9 * ar[i - 1] + long[i];
+        }
+        let t = autocorrelation_time(&ar, 500);
+        assert!((t - 19.0).abs() < 4.0, "{t}");
+        let e = delta_neg2ll_effective(
+            &[1.0, 0.0, 0.5],
+            &[1.0, 0.0, 1.0],
+            &[100, 0, 100],
+            &[1.0, 1.0, 10.0],
+        );
+        assert!((e - 10.0 * 0.5f64.ln()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn likelihood_deltas() {
+        let n = [100, 0, 100];
+        assert_eq!(delta_neg2ll(&[1.0, 0.0, 2.0], &[1.0, 0.0, 2.0], &n), 0.0);
+        assert!(
+            (delta_neg2ll(&[0.5, 0.0, 2.0], &[1.0, 0.0, 2.0], &n) - 100.0 * 0.5f64.ln()).abs()
+                < 1e-12
+        );
+        assert!((neg2ll(&[100.0, 0.0, 100.0], &n)).abs() < 1e-12);
+        assert!((delta_bic(-10.0, 2, 100) - (-10.0 + 2.0 * 100f64.ln())).abs() < 1e-12);
+    }
+}
