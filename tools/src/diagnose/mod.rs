@@ -28,8 +28,8 @@ use sim::{Prediction, Prepared};
 /// Outcome of one candidate.
 #[derive(Clone, Debug)]
 pub struct CandidateOutcome {
-    /// Effect id.
-    pub id: String,
+    /// The effect.
+    pub id: crate::effect::Effect,
     /// Index of the candidate in the catalogue of this diagnosis.
     pub cand_index: usize,
     /// Index of this effect's first parameter in `fit.values` (after the calibration and the
@@ -397,7 +397,11 @@ pub fn diagnose(
     let mut step = 2;
     for round in 0..MAX_EFFECTS {
         let pool: Vec<usize> = (0..cands.len())
-            .filter(|&i| chosen.iter().all(|&k| cands[k].id != cands[i].id))
+            .filter(|&i| {
+                chosen
+                    .iter()
+                    .all(|&k| !cands[k].id.conflicts_with(cands[i].id))
+            })
             .collect();
         if pool.is_empty() || (round > 0 && t_start.elapsed().as_secs_f64() > 0.8 * TIME_BUDGET_S) {
             break;
@@ -789,7 +793,7 @@ impl Ctx<'_> {
         }
         let passed = fails.is_empty();
         Some(CandidateOutcome {
-            id: cand.id.to_string(),
+            id: cand.id,
             words: cand.words.to_string(),
             cand_index: ci,
             param_offset: off,

@@ -9,13 +9,20 @@
 //!    fractions near 1); predicted `base_pos_m`;
 //! 2. the beam is driven by the *measured* base position when recorded (so carriage effects do
 //!    not leak into the tip channel), else by the predicted one;
-//! 3. mount: the beam root is a mount mass on a spring–damper from the carriage, loaded by the
+//! 3. backlash: a dead band of total width b between the carriage and the beam root, as the
+//!    play (backlash) operator `y_r[k] = clamp(y_r[k−1], y[k] − b/2, y[k] + b/2)` ([`play`];
+//!    `backlash`): the root stays where it was left until the drive takes it up from the other
+//!    side (a root held by friction inside the gap, driven through a rigid contact);
+//!    mount: the beam root is a mount mass on a spring–damper from the carriage, loaded by the
 //!    beam (coupled to its modes, [`coupled_mount`]; `mount_resonance`);
 //! 4. beam: clamped-base modes of [`BeamModel`] (M, K of eqs. 13–20 with tip mass, root spring,
 //!    gravity axial load and the calibration scale), `η̈_r + 2ζ_rω_r η̇_r + ω_r² η_r = −Γ_r ÿ_r + f_r`,
 //!    integrated exactly between samples for a piecewise-linear base (as `model::sim`), with the
 //!    distributed quadratic drag `f_r = −c_d ∫ φ_r |v| v dx` applied as a per-sample impulse
-//!    (`quadratic_damping`); motor force from eq. (5), `u = J ÿ + hᵀ q̈ − ∫ drag`;
+//!    (`quadratic_damping`); a cubic clamp moment `M₃ = k₃ θ³` on the root rotation θ = Σ s_r η_r
+//!    of the compliant clamp (s_r the root rotation of mode r) as a per-sample modal impulse
+//!    `f_r = −s_r M₃` ([`cubic_moment`], bounded; `cubic_stiffness`, with the linear k_r in
+//!    the modes); motor force from eq. (5), `u = J ÿ + hᵀ q̈ − ∫ drag`;
 //! 5. carriage forces: `+ F_c sign(ẏ) + c_v ẏ` (`base_friction`, smoothed over 1 mm/s) and
 //!    `+ a sin(2πy/p) + b cos(2πy/p)` (`cogging_ripple`);
 //! 6. tip sensor latency τ: `tip(t − τ)` by linear interpolation (`sensor_delay`); tip sensor
@@ -71,6 +78,11 @@ pub struct Params {
     /// Latency of the force channel (s, calibration: drives that average or filter the
     /// current report it up to a sample late).
     pub force_delay_s: f64,
+    /// Total play between the carriage and the beam root (m); 0 = none.
+    pub backlash_m: f64,
+    /// Cubic clamp stiffness k₃ (N·m/rad³) in `M = k_r θ + k₃ θ³`; needs
+    /// `root_stiffness_nm_per_rad` (the root rotation is then a coordinate).
+    pub cubic_root_stiffness_nm_per_rad3: f64,
 }
 
 impl Default for Params {
@@ -95,6 +107,8 @@ impl Default for Params {
             mount_mass_kg: 0.0,
             cogging: None,
             force_delay_s: 0.0,
+            backlash_m: 0.0,
+            cubic_root_stiffness_nm_per_rad3: 0.0,
         }
     }
 }
@@ -117,6 +131,45 @@ pub fn delayed(x: &[f64], delay_s: f64, dt: f64) -> Vec<f64> {
             }
         })
         .collect()
+}
+
+/// The play (backlash) operator of total width `width_m` (m): the output stays put while the
+/// input moves inside the dead band and is dragged at ±width/2 behind it otherwise,
+/// `y[k] = clamp(y[k−1], x[k] − w/2, x[k] + w/2)`, starting centred (`y[0] = x[0]`).
+/// Rate-independent and 1-Lipschitz: |y − x| ≤ w/2 everywhere (Krasnosel'skii & Pokrovskii,
+/// *Systems with Hysteresis*, 1989, §2.2).
+pub fn play(x: &[f64], width_m: f64) -> Vec<f64> {
+    let h = 0.5 * width_m.abs();
+    let mut y = x.first().copied().unwrap_or(0.0);
+    x.iter()
+        .map(|&v| {
+            y = y.clamp(v - h, v + h);
+            y
+        })
+        .collect()
+}
+
+/// Cubic part of a clamp moment, `k₃ θ · min(θ², θ_c²)` (N·m): exactly k₃θ³ up to the bound
+/// θ_c and linear beyond it, so the model stays stable and its cost per sample fixed whatever
+/// the fitted values. `theta_cap2` (rad²) comes from [`cubic_cap2`].
+pub fn cubic_moment(k3: f64, theta: f64, theta_cap2: f64) -> f64 {
+    k3 * theta * (theta * theta).min(theta_cap2)
+}
+
+/// The bound θ_c² of [`cubic_moment`] for linear clamp stiffness `k_r` (N·m/rad): softening
+/// stops where the tangent stiffness k_r + 3k₃θ² would fall below k_r/4 (θ_c² = k_r / (4|k₃|));
+/// hardening where it would exceed 10 k_r (θ_c² = 3 k_r / k₃) or where the per-sample impulse
+/// of the added stiffness would no longer be stable (3 k₃ θ² Σs_r² dt² ≤ 3, s_r the root
+/// rotation of mode r per unit mass-normalised coordinate).
+pub fn cubic_cap2(k3: f64, k_r: f64, sum_s2: f64, dt: f64) -> f64 {
+    if k3 == 0.0 {
+        return f64::INFINITY;
+    }
+    if k3 < 0.0 {
+        0.25 * k_r / -k3
+    } else {
+        (3.0 * k_r / k3).min(3.0 / (3.0 * k3 * sum_s2.max(1e-300) * dt * dt))
+    }
 }
 
 /// One recording prepared for simulation: uniform dt, the command (or the measured base when
@@ -361,6 +414,8 @@ pub struct BeamCache {
     zeta: Vec<f64>,
     gamma: Vec<f64>,
     tip: Vec<f64>,
+    /// root rotation per unit modal coordinate (0 without a compliant clamp)
+    root_rot: Vec<f64>,
     /// mode shapes at the drag points: shape[r][j]
     shape: Vec<Vec<f64>>,
     weights: Vec<f64>,
@@ -436,6 +491,9 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
         zeta,
         gamma: modes.participation[..keep].to_vec(),
         tip: modes.tip[..keep].to_vec(),
+        root_rot: (0..keep)
+            .map(|r| if off == 1 { modes.shapes[(0, r)] } else { 0.0 })
+            .collect(),
         shape,
         weights: vec![l / npts as f64; npts],
         total_mass: model.mass[(0, 0)],
@@ -589,17 +647,26 @@ pub fn predict(
             *cache = Some(beam_cache(rig, p, dt)?);
         }
     }
+    let played;
+    let root_drive: &[f64] = if p.backlash_m != 0.0 {
+        played = play(drive, p.backlash_m);
+        &played
+    } else {
+        drive
+    };
     let root: Vec<f64> = match (p.mount, cache.as_ref()) {
         (Some((f, z)), Some(c)) if rig.beam.is_some() && p.mount_mass_kg > 0.0 => coupled_mount(
-            drive,
+            root_drive,
             dt,
             2.0 * std::f64::consts::PI * f,
             z,
             p.mount_mass_kg,
             c,
         ),
-        (Some((f, z)), _) => second_order(drive, dt, 2.0 * std::f64::consts::PI * f, z, 0.0, 1.0),
-        (None, _) => drive.to_vec(),
+        (Some((f, z)), _) => {
+            second_order(root_drive, dt, 2.0 * std::f64::consts::PI * f, z, 0.0, 1.0)
+        }
+        (None, _) => root_drive.to_vec(),
     };
     let mount_mass = if p.mount.is_some() {
         p.mount_mass_kg
@@ -630,6 +697,16 @@ pub fn predict(
         let mut w = Vec::with_capacity(n);
         let npts = c.weights.len();
         let mut modal_f = vec![0.0; nm];
+        let k3 = match p.root_stiffness_nm_per_rad {
+            Some(_) => p.cubic_root_stiffness_nm_per_rad3,
+            None => 0.0,
+        };
+        let cap2 = cubic_cap2(
+            k3,
+            p.root_stiffness_nm_per_rad.unwrap_or(0.0),
+            c.root_rot.iter().map(|s| s * s).sum(),
+            dt,
+        );
         for k in 0..n {
             let vb = if k == 0 {
                 0.0
@@ -657,6 +734,13 @@ pub fn predict(
                     for r in 0..nm {
                         modal_f[r] += c.shape[r][j] * f;
                     }
+                }
+            }
+            if k3 != 0.0 {
+                let theta: f64 = (0..nm).map(|r| c.root_rot[r] * x[r][0]).sum();
+                let m3 = cubic_moment(k3, theta, cap2);
+                for r in 0..nm {
+                    modal_f[r] -= c.root_rot[r] * m3;
                 }
             }
             let mut f = (c.total_mass - sum_g2) * acc - drag_total;

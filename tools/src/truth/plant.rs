@@ -11,6 +11,14 @@
 //! - without a mount F_root = F_motor − F_friction(ẏ) − F_cogging(y) and y_m = y_r; with a mount
 //!   the motor mass m₁ obeys `m₁ÿ_m = F_motor − F_friction − F_cogging − k(y_m − y_r) − c(ẏ_m − ẏ_r)`
 //!   and F_root = k(y_m − y_r) + c(ẏ_m − ẏ_r);
+//! - backlash instead of a mount: the motor mass m₁ drives the beam-root block m_r through a
+//!   stiff contact with a gap of total width b: `F_c = k_c p + c_c (ẏ_m − ẏ_r)` while in contact
+//!   (penetration p = (y_m − y_r) ∓ b/2 beyond the gap, compressive only), 0 inside the gap; the
+//!   block rides on a guide with Coulomb friction (tanh-smoothed), which holds it inside the gap:
+//!   F_root = F_c − F_g tanh(ẏ_r / v_s);
+//! - a cubic clamp: the compliant root (FE rotation θ₀ = Σ θ₀,r η_r) has the moment
+//!   k_r θ₀ + k₃ θ₀³; the linear part is in the modes, the cubic one a modal force
+//!   `−θ₀,r k₃ θ₀³` (internal: no net force on the carriage);
 //! - friction: Coulomb (tanh-smoothed over `stribeck_m_s`) + viscous; cogging `A sin(2π y/p + φ)`;
 //! - servo: cascaded position P / velocity PI loop evaluated once per fine step (zero-order
 //!   hold), with velocity and acceleration feed-forward (off when the concealed effect is a slow
@@ -39,6 +47,44 @@ pub struct Mount {
     pub freq_hz: f64,
     /// Damping ratio of that resonance.
     pub zeta: f64,
+}
+
+/// Play in the drive between the motor and the beam-root block.
+#[derive(Clone, Copy, Debug)]
+pub struct Backlash {
+    /// Total gap (m).
+    pub gap_m: f64,
+    /// Beam-root block mass m_r (kg), part of the carriage mass.
+    pub block_mass_kg: f64,
+    /// Contact stiffness (N/m).
+    pub contact_n_per_m: f64,
+    /// Contact damping (N·s/m), only while in contact.
+    pub contact_damping_n_s_per_m: f64,
+    /// Guide friction on the block (N).
+    pub guide_friction_n: f64,
+    /// Velocity over which the guide friction is smoothed (m/s).
+    pub guide_stribeck_m_s: f64,
+}
+
+impl Backlash {
+    /// Contact force on the block (N) for motor − block displacement `d` and velocity `dv`.
+    pub fn contact_force(&self, d: f64, dv: f64) -> f64 {
+        let h = 0.5 * self.gap_m;
+        let pen = if d > h {
+            d - h
+        } else if d < -h {
+            d + h
+        } else {
+            return 0.0;
+        };
+        let f = self.contact_n_per_m * pen + self.contact_damping_n_s_per_m * dv;
+        // a contact pushes, never pulls
+        if pen > 0.0 {
+            f.max(0.0)
+        } else {
+            f.min(0.0)
+        }
+    }
 }
 
 /// Servo loop.
@@ -92,6 +138,10 @@ pub struct Plant {
     pub cogging: Option<(f64, f64, f64)>,
     /// Mount.
     pub mount: Option<Mount>,
+    /// Play between motor and beam root (exclusive with `mount`).
+    pub backlash: Option<Backlash>,
+    /// Cubic clamp stiffness k₃ (N·m/rad³; needs a compliant root in the FE beam).
+    pub cubic_root_nm_per_rad3: f64,
     /// Distributed quadratic drag coefficient (N·s²/m³ = kg/m², force per unit length).
     pub drag_kg_per_m2: f64,
     /// Sensors.
@@ -107,6 +157,8 @@ pub struct FineRun {
     pub tip_m: Vec<f64>,
     /// Motor force (N).
     pub force_n: Vec<f64>,
+    /// Root rotation of the clamp (rad) (0 for a rigid clamp or without a beam).
+    pub root_rot_rad: Vec<f64>,
 }
 
 impl Plant {
@@ -146,8 +198,14 @@ impl Plant {
                 }
             })
             .collect();
-        let (m1, m_root, k_m, c_m) = match self.mount {
-            Some(mt) => {
+        let (m1, m_root, k_m, c_m) = match (self.mount, self.backlash) {
+            (_, Some(b)) => (
+                self.carriage_mass_kg - b.block_mass_kg,
+                b.block_mass_kg,
+                0.0,
+                0.0,
+            ),
+            (Some(mt), None) => {
                 let w = 2.0 * std::f64::consts::PI * mt.freq_hz;
                 let k = w * w * (mt.mass_kg + m_b);
                 (
@@ -157,8 +215,10 @@ impl Plant {
                     2.0 * mt.zeta * w * (mt.mass_kg + m_b),
                 )
             }
-            None => (0.0, self.carriage_mass_kg, 0.0, 0.0),
+            (None, None) => (0.0, self.carriage_mass_kg, 0.0, 0.0),
         };
+        let coupled = self.mount.is_some() || self.backlash.is_some();
+        let root_theta: &[f64] = modes.map_or(&[], |m| &m.root_theta);
         let total = self.carriage_mass_kg + m_b;
         let wp = 2.0 * std::f64::consts::PI * self.servo.position_bandwidth_hz;
         let wv = 2.0 * std::f64::consts::PI * self.servo.velocity_bandwidth_hz;
@@ -173,6 +233,7 @@ impl Plant {
             y_motor_m: vec![],
             tip_m: vec![],
             force_n: vec![],
+            root_rot_rad: vec![],
         };
         let fric = |v: f64| {
             let f = &self.friction;
@@ -205,8 +266,19 @@ impl Plant {
                     }
                 }
             }
+            if self.cubic_root_nm_per_rad3 != 0.0 {
+                let theta: f64 = (0..nm).map(|r| root_theta[r] * x[4 + r]).sum();
+                let m3 = self.cubic_root_nm_per_rad3 * theta * theta * theta;
+                for r in 0..nm {
+                    modal_f[r] -= root_theta[r] * m3;
+                }
+            }
             let dist = fric(vm) + cog(ym);
-            let (f_root, a_m) = if self.mount.is_some() {
+            let (f_root, a_m) = if let Some(b) = &self.backlash {
+                let fc = b.contact_force(ym - yr, vm - vr);
+                let guide = b.guide_friction_n * (vr / b.guide_stribeck_m_s.max(1e-9)).tanh();
+                (fc - guide, (u - dist - fc) / m1)
+            } else if self.mount.is_some() {
                 let fs = k_m * (ym - yr) + c_m * (vm - vr);
                 (fs, (u - dist - fs) / m1)
             } else {
@@ -223,7 +295,7 @@ impl Plant {
             let a_r = rhs / (m_root + m_b - sum_g2);
             dx[2] = vr;
             dx[3] = a_r;
-            if self.mount.is_some() {
+            if coupled {
                 dx[0] = vm;
                 dx[1] = a_m;
             } else {
@@ -263,6 +335,8 @@ impl Plant {
             out.y_motor_m.push(ym);
             out.tip_m.push(tip);
             out.force_n.push(u);
+            out.root_rot_rad
+                .push((0..nm).map(|rr| root_theta[rr] * x[4 + rr]).sum());
             deriv(&x, u, &mut k1);
             for i in 0..ns {
                 tmp[i] = x[i] + 0.5 * dt * k1[i];
