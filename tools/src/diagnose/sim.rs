@@ -879,6 +879,109 @@ mod tests {
     }
 
     #[test]
+    fn play_operator_keeps_within_half_the_gap_and_holds_inside_it() {
+        let w = 2e-3;
+        // up by 10 mm, back by 1.5 mm (inside the gap), back by 5 mm more
+        let mut x: Vec<f64> = (0..=100).map(|k| 1e-4 * k as f64).collect();
+        x.extend((1..=15).map(|k| 0.01 - 1e-4 * k as f64));
+        x.extend((1..=50).map(|k| 0.0085 - 1e-4 * k as f64));
+        let y = play(&x, w);
+        assert!(y.iter().zip(&x).all(|(a, b)| (a - b).abs() <= 0.5 * w + 1e-15));
+        // dragged behind by w/2 while moving up
+        assert!((y[100] - (0.01 - 0.5 * w)).abs() < 1e-12);
+        // reversing by less than the gap leaves the output where it was
+        assert!(y[100..=115].iter().all(|v| (v - y[100]).abs() < 1e-12));
+        // then it is taken up from the other side: x + w/2
+        assert!((y[165] - (x[165] + 0.5 * w)).abs() < 1e-12);
+        // rate independence: the same path sampled twice as coarsely ends in the same place
+        let coarse: Vec<f64> = x.iter().step_by(5).copied().collect();
+        let yc = play(&coarse, w);
+        assert!((yc[yc.len() - 1] - y[y.len() - 1]).abs() < 1e-12);
+        // no gap: the identity
+        assert_eq!(play(&x, 0.0), x);
+    }
+
+    #[test]
+    fn cubic_moment_is_odd_exact_below_its_bound_and_keeps_the_clamp_stiff() {
+        let (kr, k3) = (20.0, 4e5);
+        for k in [k3, -k3] {
+            let cap = cubic_cap2(k, kr, 50.0, 0.01);
+            for th in [1e-4, 3e-3, 1e-2, 0.1] {
+                assert_eq!(cubic_moment(k, -th, cap), -cubic_moment(k, th, cap));
+                if th * th <= cap {
+                    assert!((cubic_moment(k, th, cap) - k * th.powi(3)).abs() < 1e-12 * k.abs());
+                }
+                // the tangent stiffness of the whole clamp stays within [k_r/4, 10 k_r]
+                let h = 1e-7;
+                let t = kr + (cubic_moment(k, th + h, cap) - cubic_moment(k, th - h, cap)) / (2.0 * h);
+                assert!(t >= 0.25 * kr - 1e-6 && t <= 10.0 * kr + 1e-6, "{k} {th} {t}");
+            }
+        }
+        assert_eq!(cubic_cap2(0.0, kr, 50.0, 0.01), f64::INFINITY);
+        // the per-sample impulse bound: 3 k₃ θ_c² Σs² dt² ≤ 3
+        let cap = cubic_cap2(1e9, kr, 50.0, 0.01);
+        assert!(3.0 * 1e9 * cap * 50.0 * 1e-4 <= 3.0 + 1e-9);
+    }
+
+    /// Mean ringing frequency (Hz) of the tip deflection over the last `secs` s, from linearly
+    /// interpolated zero crossings about its mean.
+    fn ring_hz(rig: &Rig, p: &Params, rec: &crate::recording::Recording, secs: f64) -> f64 {
+        let d = Prepared::new("t", rec).unwrap();
+        let pred = predict(rig, p, &d, &mut None).unwrap();
+        let tip = pred.tip_m.unwrap();
+        let n0 = tip.len() - (secs / d.dt) as usize;
+        let w: Vec<f64> = (n0..tip.len()).map(|k| tip[k] - d.cmd_m[k]).collect();
+        let m = w.iter().sum::<f64>() / w.len() as f64;
+        let t: Vec<f64> = w
+            .windows(2)
+            .enumerate()
+            .filter(|(_, v)| (v[0] - m) * (v[1] - m) < 0.0)
+            .map(|(k, v)| (k as f64 + (v[0] - m) / (v[0] - v[1])) * d.dt)
+            .collect();
+        (t.len() - 1) as f64 / (2.0 * (t[t.len() - 1] - t[0]))
+    }
+
+    #[test]
+    fn a_hardening_clamp_rings_faster_and_a_softening_one_slower() {
+        let rig = rig();
+        let (y, _) = crate::model::trapezoid_reference(0.0, 0.05, 0.2, 2.0, 200.0, 20.0).unwrap();
+        let mut rec = crate::recording::Recording::with_uniform_time(y.len(), 200.0);
+        rec.base_cmd_m = Some(y.clone());
+        rec.tip_pos_m = Some(y);
+        let kr = 5.0;
+        let lin = Params {
+            root_stiffness_nm_per_rad: Some(kr),
+            zeta: Some((0.002, 0.002)),
+            ..Params::default()
+        };
+        let f_lin = ring_hz(&rig, &lin, &rec, 15.0);
+        // the root rotation after this move is of the order 1e-2 rad: k₃θ² ≈ ±0.1…0.5 k_r
+        let f_hard = ring_hz(
+            &rig,
+            &Params {
+                cubic_root_stiffness_nm_per_rad3: 2e4,
+                ..lin.clone()
+            },
+            &rec,
+            15.0,
+        );
+        let f_soft = ring_hz(
+            &rig,
+            &Params {
+                cubic_root_stiffness_nm_per_rad3: -1e4,
+                ..lin.clone()
+            },
+            &rec,
+            15.0,
+        );
+        // measured: 0.847 < 0.890 < 0.983 Hz
+        assert!(
+            f_hard > 1.03 * f_lin && f_soft < 0.98 * f_lin,
+            "{f_soft} {f_lin} {f_hard}"
+        );
+    }
+
+    #[test]
     fn fast_filters_are_transparent_and_slow_ones_lag() {
         let rec = move_rec();
         let d = Prepared::new("t", &rec).unwrap();

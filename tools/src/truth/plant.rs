@@ -357,3 +357,98 @@ impl Plant {
         out
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// (position, velocity, acceleration) of cosine-ramp moves between `stops` (m), each over
+    /// `t_move` s followed by a `t_hold` s dwell, at fine step `dt`.
+    fn moves(stops: &[f64], t_move: f64, t_hold: f64, dt: f64) -> Vec<(f64, f64, f64)> {
+        let pi = std::f64::consts::PI;
+        let mut out = Vec::new();
+        for w in stops.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            let n = (t_move / dt) as usize;
+            for k in 0..n {
+                let ph = pi * k as f64 * dt / t_move;
+                let h = 0.5 * (b - a);
+                out.push((
+                    a + h * (1.0 - ph.cos()),
+                    h * pi / t_move * ph.sin(),
+                    h * (pi / t_move).powi(2) * ph.cos(),
+                ));
+            }
+            out.extend(std::iter::repeat((b, 0.0, 0.0)).take((t_hold / dt) as usize));
+        }
+        out
+    }
+
+    fn carriage_with_play(gap: f64) -> Plant {
+        Plant {
+            beam: None,
+            zeta: (0.01, 0.01),
+            carriage_mass_kg: 2.0,
+            feedforward_mass_kg: 2.0,
+            servo: Servo {
+                position_bandwidth_hz: 40.0,
+                velocity_bandwidth_hz: 150.0,
+                feedforward: true,
+            },
+            friction: Friction::default(),
+            cogging: None,
+            mount: None,
+            backlash: Some(Backlash {
+                gap_m: gap,
+                block_mass_kg: 0.5,
+                contact_n_per_m: (2.0 * std::f64::consts::PI * 150.0f64).powi(2) * 0.5,
+                contact_damping_n_s_per_m: 2.0 * 0.3 * 2.0 * std::f64::consts::PI * 150.0 * 0.5,
+                guide_friction_n: 5.0,
+                guide_stribeck_m_s: 2e-3,
+            }),
+            cubic_root_nm_per_rad3: 0.0,
+            drag_kg_per_m2: 0.0,
+            sensors: Sensors {
+                tip_noise_m: 0.0,
+                tip_quantum_m: 0.0,
+                tip_delay_s: 0.0,
+                tip_gain: 1.0,
+                encoder_noise_m: 0.0,
+                encoder_quantum_m: 0.0,
+                force_noise_n: 0.0,
+                force_quantum_n: 0.0,
+            },
+        }
+    }
+
+    #[test]
+    fn contact_is_dead_inside_the_gap_and_only_pushes() {
+        let b = carriage_with_play(1e-3).backlash.unwrap();
+        assert_eq!(b.contact_force(4e-4, 1.0), 0.0);
+        assert_eq!(b.contact_force(-4e-4, -1.0), 0.0);
+        assert!(b.contact_force(6e-4, 0.0) > 0.0 && b.contact_force(-6e-4, 0.0) < 0.0);
+        // separating fast: the damper may not pull the block back
+        assert_eq!(b.contact_force(5.001e-4, -10.0), 0.0);
+    }
+
+    #[test]
+    fn the_guide_holds_the_block_so_the_play_acts_as_a_dead_band() {
+        // up 50 mm, then back 0.5 mm (inside a 1 mm gap), then down to 20 mm: the block (the
+        // beam root) trails the motor by half the gap, stays put on the small reversal, and
+        // then trails by half the gap from the other side (the play operator of the diagnosis)
+        let gap = 1e-3;
+        let dt = 1.0 / 4000.0;
+        let cmd = moves(&[0.0, 0.05, 0.0495, 0.02], 0.5, 0.5, dt);
+        let run = carriage_with_play(gap).run(&cmd, dt);
+        let at = |t: f64| {
+            let k = (t / dt) as usize;
+            (run.y_motor_m[k], run.tip_m[k])
+        };
+        let (m1, r1) = at(0.99);
+        assert!((m1 - r1 - 0.5 * gap).abs() < 0.1 * gap, "{m1} {r1}");
+        let (m2, r2) = at(1.99);
+        assert!((r2 - r1).abs() < 0.05 * gap, "{r1} {r2} (motor {m2})");
+        let (m3, r3) = at(2.99);
+        assert!((r3 - m3 - 0.5 * gap).abs() < 0.1 * gap, "{m3} {r3}");
+    }
+}
