@@ -886,7 +886,10 @@ mod tests {
         x.extend((1..=15).map(|k| 0.01 - 1e-4 * k as f64));
         x.extend((1..=50).map(|k| 0.0085 - 1e-4 * k as f64));
         let y = play(&x, w);
-        assert!(y.iter().zip(&x).all(|(a, b)| (a - b).abs() <= 0.5 * w + 1e-15));
+        assert!(y
+            .iter()
+            .zip(&x)
+            .all(|(a, b)| (a - b).abs() <= 0.5 * w + 1e-15));
         // dragged behind by w/2 while moving up
         assert!((y[100] - (0.01 - 0.5 * w)).abs() < 1e-12);
         // reversing by less than the gap leaves the output where it was
@@ -913,8 +916,12 @@ mod tests {
                 }
                 // the tangent stiffness of the whole clamp stays within [k_r/4, 10 k_r]
                 let h = 1e-7;
-                let t = kr + (cubic_moment(k, th + h, cap) - cubic_moment(k, th - h, cap)) / (2.0 * h);
-                assert!(t >= 0.25 * kr - 1e-6 && t <= 10.0 * kr + 1e-6, "{k} {th} {t}");
+                let t =
+                    kr + (cubic_moment(k, th + h, cap) - cubic_moment(k, th - h, cap)) / (2.0 * h);
+                assert!(
+                    t >= 0.25 * kr - 1e-6 && t <= 10.0 * kr + 1e-6,
+                    "{k} {th} {t}"
+                );
             }
         }
         assert_eq!(cubic_cap2(0.0, kr, 50.0, 0.01), f64::INFINITY);
