@@ -143,7 +143,9 @@ pub fn play(x: &[f64], width_m: f64) -> Vec<f64> {
     let mut y = x.first().copied().unwrap_or(0.0);
     x.iter()
         .map(|&v| {
-            y = y.clamp(v - h, v + h);
+            // NaN in (an unstable servo prediction, a NaN width) gives NaN out, never a panic
+            let (lo, hi) = (v - h, v + h);
+            y = if lo <= hi { y.max(lo).min(hi) } else { f64::NAN };
             y
         })
         .collect()
@@ -902,6 +904,10 @@ mod tests {
         assert!((yc[yc.len() - 1] - y[y.len() - 1]).abs() < 1e-12);
         // no gap: the identity
         assert_eq!(play(&x, 0.0), x);
+        // a non-finite input is passed on, not a panic, and the output recovers after it
+        let y = play(&[0.0, f64::NAN, 1.0], w);
+        assert!(y[1].is_nan() && (y[2] - (1.0 - 0.5 * w)).abs() < 1e-12);
+        assert!(play(&[0.0, 1.0], f64::NAN).iter().all(|v| v.is_nan()));
     }
 
     #[test]
