@@ -158,7 +158,7 @@ fn list(s: &Option<String>, default: &[&str]) -> Vec<String> {
 
 /// Runs `diagnose-proof`.
 pub fn proof(a: ProofArgs) -> Result<()> {
-    use super::proof::{plan, run_plan, score, PlanOptions, DEFAULT_PAIRS};
+    use super::proof::{plan, run_plan, score, sorted_label, PlanOptions, DEFAULT_PAIRS};
     use crate::truth::unmodelled::Unmodelled;
     let unmodelled = list(&a.unmodelled, &Unmodelled::ALL.map(|u| u.id()))
         .iter()
@@ -179,7 +179,10 @@ pub fn proof(a: ProofArgs) -> Result<()> {
     });
     if let Some(o) = &a.only {
         let keep = list(&Some(o.clone()), &[]);
-        specs.retain(|c| keep.iter().any(|k| *k == c.label || *k == c.effect));
+        specs.retain(|c| {
+            keep.iter()
+                .any(|k| *k == c.label || sorted_label(k) == c.label)
+        });
     }
     if specs.is_empty() {
         anyhow::bail!("no cases to run (check --only)");

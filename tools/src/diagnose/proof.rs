@@ -172,7 +172,8 @@ fn needs_force(effect: &str) -> bool {
         .any(|e| matches!(e, "base_friction" | "cogging_ripple"))
 }
 
-fn sorted_label(effect: &str) -> String {
+/// `a+b` with the ids sorted (the row label of a pair).
+pub fn sorted_label(effect: &str) -> String {
     let mut v: Vec<&str> = effect.split('+').map(str::trim).collect();
     v.sort_unstable();
     v.join("+")
@@ -281,6 +282,9 @@ pub struct ProofRow {
     pub nrmse: (f64, f64, String),
     /// Seconds (generation + diagnosis).
     pub seconds: f64,
+    /// The diagnosis ended in an error or a panic (the case counts as wrong, never as a named
+    /// effect).
+    pub error: Option<String>,
 }
 
 impl ProofRow {
@@ -294,7 +298,7 @@ impl ProofRow {
 
     /// Named catalogue effects under the scorer's convention (empty for `none`).
     pub fn named_set(&self) -> Vec<&str> {
-        if self.named == "none" {
+        if self.named == "none" || self.error.is_some() {
             vec![]
         } else {
             self.named.split('+').collect()
@@ -461,7 +465,46 @@ pub fn run_case(spec: &CaseSpec, out: Option<&Path>) -> Result<ProofRow> {
         orientation_ok,
         nrmse: (before, after, CHANNEL_NAMES[c].to_string()),
         seconds: t0.elapsed().as_secs_f64(),
+        error: None,
     })
+}
+
+/// The row of a case whose generation or diagnosis failed with `msg`.
+fn failed_row(spec: &CaseSpec, msg: String, seconds: f64) -> ProofRow {
+    ProofRow {
+        truth: spec.label.clone(),
+        group: spec.group,
+        seed: spec.seed,
+        conditions: spec.conditions_words(),
+        channels: vec![],
+        named: "error".into(),
+        named_raw: vec![],
+        unexplained: None,
+        correct: false,
+        parameter: None,
+        estimates: vec![],
+        orientation_ok: None,
+        nrmse: (f64::NAN, f64::NAN, String::new()),
+        seconds,
+        error: Some(msg),
+    }
+}
+
+/// [`run_case`], with an error or a panic of the diagnosis turned into a failed row.
+fn run_case_guarded(spec: &CaseSpec, out: Option<&Path>) -> ProofRow {
+    let t0 = std::time::Instant::now();
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run_case(spec, out))) {
+        Ok(Ok(r)) => r,
+        Ok(Err(e)) => failed_row(spec, format!("error: {e:#}"), t0.elapsed().as_secs_f64()),
+        Err(p) => {
+            let m = p
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| p.downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            failed_row(spec, format!("panic: {m}"), t0.elapsed().as_secs_f64())
+        }
+    }
 }
 
 /// Runs every case in order (no parallelism: the machine is shared), with one progress line per
@@ -470,7 +513,7 @@ pub fn run_plan(cases: &[CaseSpec], out: Option<&Path>, show: bool) -> Result<Ve
     let t0 = std::time::Instant::now();
     let mut rows = Vec::with_capacity(cases.len());
     for (i, c) in cases.iter().enumerate() {
-        let r = run_case(c, out)?;
+        let r = run_case_guarded(c, out);
         if show {
             eprintln!(
                 "[{:>6.0} s] {}/{} {} seed {} ({}): named {}{} {} ({:.1} s)",
@@ -487,6 +530,9 @@ pub fn run_plan(cases: &[CaseSpec], out: Option<&Path>, show: bool) -> Result<Ve
                 if r.correct { "ok" } else { "WRONG" },
                 r.seconds
             );
+            if let Some(e) = &r.error {
+                eprintln!("    {e}");
+            }
         }
         rows.push(r);
     }
@@ -575,6 +621,8 @@ pub fn coverage<'a>(est: impl IntoIterator<Item = &'a Estimate>) -> Coverage {
 pub struct Summary {
     /// Cases.
     pub cases: usize,
+    /// Cases whose diagnosis ended in an error or a panic (counted wrong).
+    pub errors: Vec<String>,
     /// Singles right / total.
     pub singles: (usize, usize),
     /// Pair cases with exactly the hidden set named / total.
@@ -616,6 +664,9 @@ pub fn score(rows: &[ProofRow]) -> Summary {
         ..Default::default()
     };
     for r in rows {
+        if let Some(e) = &r.error {
+            s.errors.push(format!("{} seed {}: {e}", r.truth, r.seed));
+        }
         let hidden = r.hidden();
         let named = r.named_set();
         match r.group {
@@ -803,6 +854,12 @@ pub fn summary_text(m: &Summary) -> String {
         s += &line(k, c);
     }
     s += &line("all effect parameters", &m.coverage_effects);
+    if !m.errors.is_empty() {
+        s += &format!("errors (counted wrong) {}:\n", m.errors.len());
+        for e in &m.errors {
+            s += &format!("  {e}\n");
+        }
+    }
     s
 }
 
@@ -826,6 +883,7 @@ mod tests {
             orientation_ok: None,
             nrmse: (1.0, 0.5, "tip_pos_m".into()),
             seconds: 0.0,
+            error: None,
         }
     }
 
@@ -943,6 +1001,12 @@ mod tests {
         assert!((all.fraction() - 0.6).abs() < 1e-12);
         assert!((all.z_scale - 1.5 / 0.6745).abs() < 1e-9);
         assert_eq!(s.coverage_cases, 3);
+        assert!(s.errors.is_empty());
+        // an error is wrong, never a named effect (not a false alarm on a null)
+        let mut e = row("none", Group::Null, "error", false, false);
+        e.error = Some("panic: x".into());
+        let se = score(&[e]);
+        assert_eq!((se.null_false_alarms, se.errors.len()), ((0, 1), 1));
         // the confusion table counts a pair in each named column and reports unexplained
         let t = confusion(&rows);
         let line = t.lines().find(|l| l.starts_with("sensor_drift")).unwrap();
