@@ -10,6 +10,7 @@
 
 pub mod board;
 pub mod diagnose;
+pub mod effect;
 pub mod fe;
 pub mod ident;
 pub mod measures;

@@ -200,7 +200,7 @@ pub fn run_proof(
         // every generated rig has a finite servo loop: a named servo_lag is true physics and
         // never counts against a case whose hidden effect is another one (as the independent
         // scorer treats it); the named set must equal the hidden set otherwise
-        let mut names: Vec<&str> = d.final_set.iter().map(|c| c.id).collect();
+        let mut names: Vec<&str> = d.final_set.iter().map(|c| c.id.id()).collect();
         let mut hidden: Vec<&str> = effect.split('+').collect();
         if !hidden.contains(&"servo_lag") {
             names.retain(|n| *n != "servo_lag");

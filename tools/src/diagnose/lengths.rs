@@ -35,6 +35,7 @@ use anyhow::{bail, Context, Result};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
+use crate::effect::Effect;
 use crate::model::{BeamModel, ModelOptions, Orientation, Rig};
 
 /// The modes measured at one free length.
@@ -69,15 +70,27 @@ pub enum LengthEffect {
 }
 
 impl LengthEffect {
-    /// The catalogue id (`gravity_axial_load` for both orientations).
-    pub fn id(&self) -> &'static str {
+    /// The catalogue effects this hypothesis contains (none for the nominal beam).
+    pub fn effects(&self) -> &'static [Effect] {
         match self {
-            LengthEffect::None => "none",
-            LengthEffect::RootCompliance => "root_compliance",
-            LengthEffect::TipMass => "tip_mass",
-            LengthEffect::GravityHanging | LengthEffect::GravityUpright => "gravity_axial_load",
-            LengthEffect::RootComplianceAndTipMass => "root_compliance+tip_mass",
+            LengthEffect::None => &[],
+            LengthEffect::RootCompliance => &[Effect::RootCompliance],
+            LengthEffect::TipMass => &[Effect::TipMass],
+            LengthEffect::GravityHanging | LengthEffect::GravityUpright => {
+                &[Effect::GravityAxialLoad]
+            }
+            LengthEffect::RootComplianceAndTipMass => &[Effect::RootCompliance, Effect::TipMass],
         }
+    }
+
+    /// The JSON/CLI id: the catalogue ids joined by `+` (`gravity_axial_load` for both
+    /// orientations), `none` for the nominal beam.
+    pub fn id(&self) -> String {
+        if self.effects().is_empty() {
+            return "none".to_string();
+        }
+        let ids: Vec<&str> = self.effects().iter().map(|e| e.id()).collect();
+        ids.join("+")
     }
 
     /// Every candidate, nominal first.
@@ -788,8 +801,8 @@ pub fn words(d: &LengthDiagnosis) -> String {
             })
             .collect();
         let name = match f.effect {
-            LengthEffect::GravityHanging => "gravity_axial_load (hang)",
-            LengthEffect::GravityUpright => "gravity_axial_load (up)",
+            LengthEffect::GravityHanging => format!("{} (hang)", Effect::GravityAxialLoad),
+            LengthEffect::GravityUpright => format!("{} (up)", Effect::GravityAxialLoad),
             e => e.id(),
         };
         s.push_str(&format!(

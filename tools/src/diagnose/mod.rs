@@ -34,8 +34,8 @@ use sim::{Prediction, Prepared};
 /// Outcome of one candidate.
 #[derive(Clone, Debug)]
 pub struct CandidateOutcome {
-    /// Effect id.
-    pub id: String,
+    /// The effect.
+    pub id: crate::effect::Effect,
     /// Index of the candidate in the catalogue of this diagnosis.
     pub cand_index: usize,
     /// Index of this effect's first parameter in `fit.values` (after the calibration and the
@@ -435,7 +435,11 @@ pub fn diagnose(
     let mut step = 2;
     for round in 0..MAX_EFFECTS {
         let pool: Vec<usize> = (0..cands.len())
-            .filter(|&i| chosen.iter().all(|&k| cands[k].id != cands[i].id))
+            .filter(|&i| {
+                chosen
+                    .iter()
+                    .all(|&k| !cands[k].id.conflicts_with(cands[i].id))
+            })
             .collect();
         if pool.is_empty() || (round > 0 && budget.fraction_spent() > 0.8) {
             break;
@@ -1007,7 +1011,7 @@ impl Ctx<'_> {
         }
         let passed = fails.is_empty();
         CandidateOutcome {
-            id: cand.id.to_string(),
+            id: cand.id,
             words: cand.words.to_string(),
             cand_index: ci,
             param_offset: off,

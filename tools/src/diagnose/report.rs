@@ -2,6 +2,7 @@
 
 use super::fit::{residuals, CHANNEL_NAMES};
 use super::{CandidateOutcome, Diagnosis};
+use crate::effect::Effect;
 use crate::ident::spectrum::amplitude_spectrum;
 use crate::plot::{lines, Series};
 use anyhow::Result;
@@ -12,7 +13,7 @@ use std::path::Path;
 /// with unit, value, σ); cogging sine/cosine become amplitude and pitch, gravity its
 /// orientation (from `words`).
 pub fn parameters_at(
-    id: &str,
+    id: Effect,
     words: &str,
     fit: &super::fit::FitResult,
     off: usize,
@@ -22,17 +23,32 @@ pub fn parameters_at(
     let names = &fit.names[off..off + len];
     let vals = &fit.values[off..off + len];
     let std = &fit.std[off..off + len];
-    if id == "cogging_ripple" {
+    if id == Effect::CoggingRipple {
         let (a, b) = (vals[0], vals[1]);
         let amp = a.hypot(b);
         let s = ((a * std[0]).powi(2) + (b * std[1]).powi(2)).sqrt() / amp.max(1e-300);
         out.push(("cogging_amplitude_n".to_string(), amp, s));
         out.push(("cogging_pitch_m".to_string(), vals[2], std[2]));
-    } else if id == "sensor_gain" {
+    } else if id == Effect::CubicStiffness {
+        // the recordings determine c₃; k₃ = c₃ k_r⁴ inherits k_r, which the stiffness scale
+        // largely absorbs (a long flat valley where the linearised σ means nothing): k₃ is
+        // reported with its uncertainty null ("not identified"); see docs/diagnose.md
+        let (kr, c3) = (vals[0], vals[1]);
+        out.push((
+            "cubic_root_stiffness_nm_per_rad3".to_string(),
+            c3 * kr.powi(4),
+            f64::NAN,
+        ));
+        out.push((names[1].to_string(), c3, std[1]));
+        out.push((names[0].to_string(), kr, std[0]));
+    } else if id == Effect::SensorGain {
         out.push(("sensor_gain".to_string(), 1.0 + vals[0], std[0]));
     } else {
         for i in 0..names.len() {
-            let v = if matches!(names[i], "tip_mass_kg" | "drag_coefficient_kg_per_m2") {
+            let v = if matches!(
+                names[i],
+                "tip_mass_kg" | "drag_coefficient_kg_per_m2" | "backlash_m"
+            ) {
                 vals[i].abs()
             } else {
                 vals[i]
@@ -40,7 +56,7 @@ pub fn parameters_at(
             out.push((names[i].to_string(), v, std[i]));
         }
     }
-    let orientation = if id == "gravity_axial_load" {
+    let orientation = if id == Effect::GravityAxialLoad {
         Some(if words.contains("hangs") {
             "hanging".to_string()
         } else {
@@ -55,7 +71,7 @@ pub fn parameters_at(
 /// Effect parameters of a candidate outcome (its own fit).
 pub fn effect_parameters(o: &CandidateOutcome) -> (Vec<(String, f64, f64)>, Option<String>) {
     let len = o.fit.values.len() - o.param_offset;
-    parameters_at(&o.id, &o.words, &o.fit, o.param_offset, len)
+    parameters_at(o.id, &o.words, &o.fit, o.param_offset, len)
 }
 
 /// Every selected effect with its parameters from the final joint fit:
@@ -63,7 +79,7 @@ pub fn effect_parameters(o: &CandidateOutcome) -> (Vec<(String, f64, f64)>, Opti
 pub fn final_effects(
     d: &Diagnosis,
 ) -> Vec<(
-    String,
+    Effect,
     Vec<(String, f64, f64)>,
     Option<String>,
     &CandidateOutcome,
@@ -74,7 +90,7 @@ pub fn final_effects(
         let len = c.params.len();
         let (p, or) = parameters_at(c.id, c.words, &d.final_fit, off, len);
         off += len;
-        out.push((c.id.to_string(), p, or, o));
+        out.push((c.id, p, or, o));
     }
     out
 }
@@ -127,7 +143,7 @@ pub fn to_json(d: &Diagnosis) -> Value {
         if let Some(o) = orient {
             pm.insert("orientation".into(), json!(o));
         }
-        if id == "servo_lag" {
+        if *id == Effect::ServoLag {
             if let Some((rms, peak)) = following_error(d) {
                 pm.insert("servo_following_error_rms_m".into(), json!(rms));
                 pm.insert("servo_following_error_peak_m".into(), json!(peak));
@@ -251,7 +267,7 @@ pub fn words(d: &Diagnosis) -> String {
         for (n, v, sd) in p {
             s += &format!("  {n} = {v:.5e} ± {sd:.2e}\n");
         }
-        if id == "servo_lag" {
+        if *id == Effect::ServoLag {
             if let Some((rms, peak)) = following_error(d) {
                 s += &format!(
                     "  following error on validation: rms {rms:.3e} m, peak {peak:.3e} m\n"

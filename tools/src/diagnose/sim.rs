@@ -9,13 +9,20 @@
 //!    fractions near 1); predicted `base_pos_m`;
 //! 2. the beam is driven by the *measured* base position when recorded (so carriage effects do
 //!    not leak into the tip channel), else by the predicted one;
-//! 3. mount: the beam root is a mount mass on a spring–damper from the carriage, loaded by the
+//! 3. backlash: a dead band of total width b between the carriage and the beam root, as the
+//!    play (backlash) operator `y_r[k] = clamp(y_r[k−1], y[k] − b/2, y[k] + b/2)` ([`play`];
+//!    `backlash`): the root stays where it was left until the drive takes it up from the other
+//!    side (a root held by friction inside the gap, driven through a rigid contact);
+//!    mount: the beam root is a mount mass on a spring–damper from the carriage, loaded by the
 //!    beam (coupled to its modes, [`coupled_mount`]; `mount_resonance`);
 //! 4. beam: clamped-base modes of [`BeamModel`] (M, K of eqs. 13–20 with tip mass, root spring,
 //!    gravity axial load and the calibration scale), `η̈_r + 2ζ_rω_r η̇_r + ω_r² η_r = −Γ_r ÿ_r + f_r`,
 //!    integrated exactly between samples for a piecewise-linear base (as `model::sim`), with the
 //!    distributed quadratic drag `f_r = −c_d ∫ φ_r |v| v dx` applied as a per-sample impulse
-//!    (`quadratic_damping`); motor force from eq. (5), `u = J ÿ + hᵀ q̈ − ∫ drag`;
+//!    (`quadratic_damping`); a cubic clamp moment `M₃ = k₃ θ³` on the root rotation θ = Σ s_r η_r
+//!    of the compliant clamp (s_r the root rotation of mode r) as a per-sample modal impulse
+//!    `f_r = −s_r M₃` ([`cubic_moment`], bounded; `cubic_stiffness`, with the linear k_r in
+//!    the modes); motor force from eq. (5), `u = J ÿ + hᵀ q̈ − ∫ drag`;
 //! 5. carriage forces: `+ F_c sign(ẏ) + c_v ẏ` (`base_friction`, smoothed over 1 mm/s) and
 //!    `+ a sin(2πy/p) + b cos(2πy/p)` (`cogging_ripple`);
 //! 6. tip sensor latency τ: `tip(t − τ)` by linear interpolation (`sensor_delay`); tip sensor
@@ -71,6 +78,11 @@ pub struct Params {
     /// Latency of the force channel (s, calibration: drives that average or filter the
     /// current report it up to a sample late).
     pub force_delay_s: f64,
+    /// Total play between the carriage and the beam root (m); 0 = none.
+    pub backlash_m: f64,
+    /// Cubic clamp stiffness k₃ (N·m/rad³) in `M = k_r θ + k₃ θ³`; needs
+    /// `root_stiffness_nm_per_rad` (the root rotation is then a coordinate).
+    pub cubic_root_stiffness_nm_per_rad3: f64,
 }
 
 impl Default for Params {
@@ -95,6 +107,8 @@ impl Default for Params {
             mount_mass_kg: 0.0,
             cogging: None,
             force_delay_s: 0.0,
+            backlash_m: 0.0,
+            cubic_root_stiffness_nm_per_rad3: 0.0,
         }
     }
 }
@@ -117,6 +131,47 @@ pub fn delayed(x: &[f64], delay_s: f64, dt: f64) -> Vec<f64> {
             }
         })
         .collect()
+}
+
+/// The play (backlash) operator of total width `width_m` (m): the output stays put while the
+/// input moves inside the dead band and is dragged at ±width/2 behind it otherwise,
+/// `y[k] = clamp(y[k−1], x[k] − w/2, x[k] + w/2)`, starting centred (`y[0] = x[0]`).
+/// Rate-independent and 1-Lipschitz: |y − x| ≤ w/2 everywhere (Krasnosel'skii & Pokrovskii,
+/// *Systems with Hysteresis*, 1989, §2.2).
+pub fn play(x: &[f64], width_m: f64) -> Vec<f64> {
+    let h = 0.5 * width_m.abs();
+    let mut y = x.first().copied().unwrap_or(0.0);
+    x.iter()
+        .map(|&v| {
+            // NaN in (an unstable servo prediction, a NaN width) gives NaN out, never a panic
+            let (lo, hi) = (v - h, v + h);
+            y = if lo <= hi { y.max(lo).min(hi) } else { f64::NAN };
+            y
+        })
+        .collect()
+}
+
+/// Cubic part of a clamp moment, `k₃ θ · min(θ², θ_c²)` (N·m): exactly k₃θ³ up to the bound
+/// θ_c and linear beyond it, so the model stays stable and its cost per sample fixed whatever
+/// the fitted values. `theta_cap2` (rad²) comes from [`cubic_cap2`].
+pub fn cubic_moment(k3: f64, theta: f64, theta_cap2: f64) -> f64 {
+    k3 * theta * (theta * theta).min(theta_cap2)
+}
+
+/// The bound θ_c² of [`cubic_moment`] for linear clamp stiffness `k_r` (N·m/rad): softening
+/// stops where the tangent stiffness k_r + 3k₃θ² would fall below k_r/4 (θ_c² = k_r / (4|k₃|));
+/// hardening where it would exceed 10 k_r (θ_c² = 3 k_r / k₃) or where the per-sample impulse
+/// of the added stiffness would no longer be stable (3 k₃ θ² Σs_r² dt² ≤ 3, s_r the root
+/// rotation of mode r per unit mass-normalised coordinate).
+pub fn cubic_cap2(k3: f64, k_r: f64, sum_s2: f64, dt: f64) -> f64 {
+    if k3 == 0.0 {
+        return f64::INFINITY;
+    }
+    if k3 < 0.0 {
+        0.25 * k_r / -k3
+    } else {
+        (3.0 * k_r / k3).min(3.0 / (3.0 * k3 * sum_s2.max(1e-300) * dt * dt))
+    }
 }
 
 /// One recording prepared for simulation: uniform dt, the command (or the measured base when
@@ -361,6 +416,8 @@ pub struct BeamCache {
     zeta: Vec<f64>,
     gamma: Vec<f64>,
     tip: Vec<f64>,
+    /// root rotation per unit modal coordinate (0 without a compliant clamp)
+    root_rot: Vec<f64>,
     /// mode shapes at the drag points: shape[r][j]
     shape: Vec<Vec<f64>>,
     weights: Vec<f64>,
@@ -436,6 +493,9 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
         zeta,
         gamma: modes.participation[..keep].to_vec(),
         tip: modes.tip[..keep].to_vec(),
+        root_rot: (0..keep)
+            .map(|r| if off == 1 { modes.shapes[(0, r)] } else { 0.0 })
+            .collect(),
         shape,
         weights: vec![l / npts as f64; npts],
         total_mass: model.mass[(0, 0)],
@@ -589,17 +649,26 @@ pub fn predict(
             *cache = Some(beam_cache(rig, p, dt)?);
         }
     }
+    let played;
+    let root_drive: &[f64] = if p.backlash_m != 0.0 {
+        played = play(drive, p.backlash_m);
+        &played
+    } else {
+        drive
+    };
     let root: Vec<f64> = match (p.mount, cache.as_ref()) {
         (Some((f, z)), Some(c)) if rig.beam.is_some() && p.mount_mass_kg > 0.0 => coupled_mount(
-            drive,
+            root_drive,
             dt,
             2.0 * std::f64::consts::PI * f,
             z,
             p.mount_mass_kg,
             c,
         ),
-        (Some((f, z)), _) => second_order(drive, dt, 2.0 * std::f64::consts::PI * f, z, 0.0, 1.0),
-        (None, _) => drive.to_vec(),
+        (Some((f, z)), _) => {
+            second_order(root_drive, dt, 2.0 * std::f64::consts::PI * f, z, 0.0, 1.0)
+        }
+        (None, _) => root_drive.to_vec(),
     };
     let mount_mass = if p.mount.is_some() {
         p.mount_mass_kg
@@ -630,6 +699,16 @@ pub fn predict(
         let mut w = Vec::with_capacity(n);
         let npts = c.weights.len();
         let mut modal_f = vec![0.0; nm];
+        let k3 = match p.root_stiffness_nm_per_rad {
+            Some(_) => p.cubic_root_stiffness_nm_per_rad3,
+            None => 0.0,
+        };
+        let cap2 = cubic_cap2(
+            k3,
+            p.root_stiffness_nm_per_rad.unwrap_or(0.0),
+            c.root_rot.iter().map(|s| s * s).sum(),
+            dt,
+        );
         for k in 0..n {
             let vb = if k == 0 {
                 0.0
@@ -657,6 +736,13 @@ pub fn predict(
                     for r in 0..nm {
                         modal_f[r] += c.shape[r][j] * f;
                     }
+                }
+            }
+            if k3 != 0.0 {
+                let theta: f64 = (0..nm).map(|r| c.root_rot[r] * x[r][0]).sum();
+                let m3 = cubic_moment(k3, theta, cap2);
+                for r in 0..nm {
+                    modal_f[r] -= c.root_rot[r] * m3;
                 }
             }
             let mut f = (c.total_mass - sum_g2) * acc - drag_total;
@@ -792,6 +878,120 @@ mod tests {
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
         assert!(diff > 1e-7 && diff < e.max(1e-6) * 10.0, "{diff} {e}");
+    }
+
+    #[test]
+    fn play_operator_keeps_within_half_the_gap_and_holds_inside_it() {
+        let w = 2e-3;
+        // up by 10 mm, back by 1.5 mm (inside the gap), back by 5 mm more
+        let mut x: Vec<f64> = (0..=100).map(|k| 1e-4 * k as f64).collect();
+        x.extend((1..=15).map(|k| 0.01 - 1e-4 * k as f64));
+        x.extend((1..=50).map(|k| 0.0085 - 1e-4 * k as f64));
+        let y = play(&x, w);
+        assert!(y
+            .iter()
+            .zip(&x)
+            .all(|(a, b)| (a - b).abs() <= 0.5 * w + 1e-15));
+        // dragged behind by w/2 while moving up
+        assert!((y[100] - (0.01 - 0.5 * w)).abs() < 1e-12);
+        // reversing by less than the gap leaves the output where it was
+        assert!(y[100..=115].iter().all(|v| (v - y[100]).abs() < 1e-12));
+        // then it is taken up from the other side: x + w/2
+        assert!((y[165] - (x[165] + 0.5 * w)).abs() < 1e-12);
+        // rate independence: the same path sampled twice as coarsely ends in the same place
+        let coarse: Vec<f64> = x.iter().step_by(5).copied().collect();
+        let yc = play(&coarse, w);
+        assert!((yc[yc.len() - 1] - y[y.len() - 1]).abs() < 1e-12);
+        // no gap: the identity
+        assert_eq!(play(&x, 0.0), x);
+        // a non-finite input is passed on, not a panic, and the output recovers after it
+        let y = play(&[0.0, f64::NAN, 1.0], w);
+        assert!(y[1].is_nan() && (y[2] - (1.0 - 0.5 * w)).abs() < 1e-12);
+        assert!(play(&[0.0, 1.0], f64::NAN).iter().all(|v| v.is_nan()));
+    }
+
+    #[test]
+    fn cubic_moment_is_odd_exact_below_its_bound_and_keeps_the_clamp_stiff() {
+        let (kr, k3) = (20.0, 4e5);
+        for k in [k3, -k3] {
+            let cap = cubic_cap2(k, kr, 50.0, 0.01);
+            for th in [1e-4, 3e-3, 1e-2, 0.1] {
+                assert_eq!(cubic_moment(k, -th, cap), -cubic_moment(k, th, cap));
+                if th * th <= cap {
+                    assert!((cubic_moment(k, th, cap) - k * th.powi(3)).abs() < 1e-12 * k.abs());
+                }
+                // the tangent stiffness of the whole clamp stays within [k_r/4, 10 k_r]
+                let h = 1e-7;
+                let t =
+                    kr + (cubic_moment(k, th + h, cap) - cubic_moment(k, th - h, cap)) / (2.0 * h);
+                assert!(
+                    t >= 0.25 * kr - 1e-6 && t <= 10.0 * kr + 1e-6,
+                    "{k} {th} {t}"
+                );
+            }
+        }
+        assert_eq!(cubic_cap2(0.0, kr, 50.0, 0.01), f64::INFINITY);
+        // the per-sample impulse bound: 3 k₃ θ_c² Σs² dt² ≤ 3
+        let cap = cubic_cap2(1e9, kr, 50.0, 0.01);
+        assert!(3.0 * 1e9 * cap * 50.0 * 1e-4 <= 3.0 + 1e-9);
+    }
+
+    /// Mean ringing frequency (Hz) of the tip deflection over the last `secs` s, from linearly
+    /// interpolated zero crossings about its mean.
+    fn ring_hz(rig: &Rig, p: &Params, rec: &crate::recording::Recording, secs: f64) -> f64 {
+        let d = Prepared::new("t", rec).unwrap();
+        let pred = predict(rig, p, &d, &mut None).unwrap();
+        let tip = pred.tip_m.unwrap();
+        let n0 = tip.len() - (secs / d.dt) as usize;
+        let w: Vec<f64> = (n0..tip.len()).map(|k| tip[k] - d.cmd_m[k]).collect();
+        let m = w.iter().sum::<f64>() / w.len() as f64;
+        let t: Vec<f64> = w
+            .windows(2)
+            .enumerate()
+            .filter(|(_, v)| (v[0] - m) * (v[1] - m) < 0.0)
+            .map(|(k, v)| (k as f64 + (v[0] - m) / (v[0] - v[1])) * d.dt)
+            .collect();
+        (t.len() - 1) as f64 / (2.0 * (t[t.len() - 1] - t[0]))
+    }
+
+    #[test]
+    fn a_hardening_clamp_rings_faster_and_a_softening_one_slower() {
+        let rig = rig();
+        let (y, _) = crate::model::trapezoid_reference(0.0, 0.05, 0.2, 2.0, 200.0, 20.0).unwrap();
+        let mut rec = crate::recording::Recording::with_uniform_time(y.len(), 200.0);
+        rec.base_cmd_m = Some(y.clone());
+        rec.tip_pos_m = Some(y);
+        let kr = 5.0;
+        let lin = Params {
+            root_stiffness_nm_per_rad: Some(kr),
+            zeta: Some((0.002, 0.002)),
+            ..Params::default()
+        };
+        let f_lin = ring_hz(&rig, &lin, &rec, 15.0);
+        // the root rotation after this move is of the order 1e-2 rad: k₃θ² ≈ ±0.1…0.5 k_r
+        let f_hard = ring_hz(
+            &rig,
+            &Params {
+                cubic_root_stiffness_nm_per_rad3: 2e4,
+                ..lin.clone()
+            },
+            &rec,
+            15.0,
+        );
+        let f_soft = ring_hz(
+            &rig,
+            &Params {
+                cubic_root_stiffness_nm_per_rad3: -1e4,
+                ..lin.clone()
+            },
+            &rec,
+            15.0,
+        );
+        // measured: 0.847 < 0.890 < 0.983 Hz
+        assert!(
+            f_hard > 1.03 * f_lin && f_soft < 0.98 * f_lin,
+            "{f_soft} {f_lin} {f_hard}"
+        );
     }
 
     #[test]

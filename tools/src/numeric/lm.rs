@@ -218,7 +218,32 @@ where
 /// (JᵀJ)⁻¹ by eigen-decomposition; a parameter with weight in a direction the data do not
 /// determine (eigenvalue below 1e-10 of the largest) gets NaN variance ("not identified")
 /// rather than a meaningless tiny number.
+///
+/// The columns are scaled to unit norm first (Jacobi preconditioning, undone afterwards), so
+/// that "not identified" is judged on correlation, not on the units of a parameter (a cubic
+/// stiffness in N·m/rad³ has a column 10⁻¹⁰ the size of a log-scale one).
 pub fn covariance(j: &DMatrix<f64>) -> DMatrix<f64> {
+    let n = j.ncols();
+    // a column of zeros (a parameter without effect) keeps scale 1 and is reported NaN below
+    let norms: Vec<f64> = (0..n)
+        .map(|i| j.column(i).norm())
+        .map(|v| if v > 0.0 && v.is_finite() { v } else { 1.0 })
+        .collect();
+    let mut js = j.clone();
+    for (i, s) in norms.iter().enumerate() {
+        js.column_mut(i).unscale_mut(*s);
+    }
+    let mut cov = scaled_covariance(&js);
+    for r in 0..n {
+        for c in 0..n {
+            cov[(r, c)] /= norms[r] * norms[c];
+        }
+    }
+    cov
+}
+
+/// [`covariance`] of a column-normalised Jacobian.
+fn scaled_covariance(j: &DMatrix<f64>) -> DMatrix<f64> {
     let n = j.ncols();
     let jtj = j.transpose() * j;
     if !jtj.iter().all(|v| v.is_finite()) {

@@ -9,7 +9,8 @@ use std::path::PathBuf;
 #[derive(Args, Debug)]
 pub struct TruthArgs {
     /// Effect to hide: none, base_friction, servo_lag, tip_mass, root_compliance,
-    /// quadratic_damping, sensor_delay, gravity_axial_load, mount_resonance, cogging_ripple.
+    /// quadratic_damping, sensor_delay, gravity_axial_load, mount_resonance, cogging_ripple,
+    /// sensor_gain, backlash, cubic_stiffness; several joined by `+` (e.g. backlash+servo_lag).
     #[arg(long, default_value = "none")]
     pub effect: String,
     /// Random seed (geometry, damping, noise, channels, strength, profiles).

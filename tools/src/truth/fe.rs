@@ -53,6 +53,8 @@ pub struct FeModes {
     /// Translational displacement of every node 0..=elements per unit modal coordinate:
     /// `node_w[r][j]` (m / kg^½); node 0 is the root (0).
     pub node_w: Vec<Vec<f64>>,
+    /// Root rotation θ₀ per unit modal coordinate (rad / kg^½); 0 for a rigid clamp.
+    pub root_theta: Vec<f64>,
     /// Beam (+ tip) translational mass rᵀ M r (kg).
     pub beam_mass_kg: f64,
 }
@@ -164,6 +166,7 @@ impl FeBeam {
             omega_rad_s: vec![],
             participation: vec![],
             node_w: vec![],
+            root_theta: vec![],
             beam_mass_kg: r.dot(&mr),
         };
         for &i in idx.iter().take(n_keep) {
@@ -175,6 +178,7 @@ impl FeBeam {
                 *wj = v[off + 2 * (j - 1)];
             }
             out.node_w.push(w);
+            out.root_theta.push(if compliant { v[0] } else { 0.0 });
         }
         Ok(out)
     }

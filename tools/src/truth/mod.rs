@@ -3,8 +3,9 @@
 //!
 //! Independent of the nominal Galerkin model (`crate::model`): a 24-element Hermite FE beam
 //! ([`fe`]) with its modes below 0.1 × the fine rate, a carriage with a digital cascaded servo,
-//! Coulomb + viscous friction, cogging, a mount resonance, distributed quadratic air drag
-//! ([`plant`]), integrated by RK4 at 40 steps per output sample, and sensor models (tip camera
+//! Coulomb + viscous friction, cogging, a mount resonance, play in the drive (a stiff contact
+//! with a gap and a guide friction on the beam side), a cubic clamp stiffness, distributed
+//! quadratic air drag ([`plant`]), integrated by RK4 at 40 steps per output sample, and sensor models (tip camera
 //! latency, noise and quantisation; encoder and force noise and quantisation).
 //!
 //! Concealment: the rig file handed to the diagnosis is *wrong* in the first-order way a user's
@@ -19,10 +20,12 @@ pub mod fe;
 pub mod plant;
 pub mod profile;
 
+use crate::effect::Channel;
+pub use crate::effect::Effect;
 use crate::recording::Recording;
 use anyhow::{bail, Context, Result};
 use fe::FeBeam;
-use plant::{Friction, Mount, Plant, Sensors, Servo};
+use plant::{Backlash, Friction, Mount, Plant, Sensors, Servo};
 use profile::{random_profile, ProfileSpec};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -31,19 +34,29 @@ use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-/// The effect ids of the issue (and `none`).
-pub const EFFECTS: [&str; 10] = [
-    "base_friction",
-    "servo_lag",
-    "tip_mass",
-    "root_compliance",
-    "quadratic_damping",
-    "sensor_delay",
-    "gravity_axial_load",
-    "mount_resonance",
-    "cogging_ripple",
-    "sensor_gain",
-];
+/// The effect ids the `truth` and `diagnose-proof` commands accept (and `none`): the ids of
+/// [`Effect::ALL`].
+pub const EFFECTS: [&str; 12] = Effect::IDS;
+
+/// Parses `none`, one effect id or several joined by `+` (e.g. `base_friction+servo_lag`).
+///
+/// Errors: an unknown id, `none` inside a combination, an effect given twice.
+pub fn parse_effects(effect: &str) -> Result<Vec<Effect>> {
+    if effect.trim() == "none" {
+        return Ok(vec![]);
+    }
+    let mut out: Vec<Effect> = Vec::new();
+    for part in effect.split('+').map(str::trim) {
+        let e: Effect = part
+            .parse()
+            .map_err(|e| anyhow::anyhow!("{e}, or none; several joined by `+`"))?;
+        if out.contains(&e) {
+            bail!("effect `{e}` given twice in `{effect}`");
+        }
+        out.push(e);
+    }
+    Ok(out)
+}
 
 /// Fine integration steps per output sample.
 pub const FINE_STEPS: usize = 40;
@@ -138,27 +151,16 @@ pub fn generate(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCas
 }
 
 fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCase> {
-    // several simultaneous effects are joined by `+` (e.g. `base_friction+servo_lag`)
-    let parts: Vec<&str> = effect.split('+').map(str::trim).collect();
-    for e in &parts {
-        if (*e != "none" || parts.len() > 1) && !EFFECTS.contains(e) {
-            bail!(
-                "unknown effect `{e}` (one of none, {}; pairs joined by `+`)",
-                EFFECTS.join(", ")
-            );
-        }
+    let parts = parse_effects(effect)?;
+    if parts.contains(&Effect::Backlash) && parts.contains(&Effect::MountResonance) {
+        bail!("backlash and mount_resonance sit in the same place of the truth plant; hide one");
     }
     let mut rng = StdRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0x5eed);
     let rate = opts.rate_hz;
     let pi2 = 2.0 * std::f64::consts::PI;
     let mut truth: BTreeMap<String, serde_json::Value> = BTreeMap::new();
     // carriage-only for some base-side cases
-    let base_side = parts.iter().all(|e| {
-        matches!(
-            *e,
-            "base_friction" | "cogging_ripple" | "servo_lag" | "none"
-        )
-    });
+    let base_side = parts.iter().all(|e| !e.needs_beam());
     let with_beam = !(base_side && rng.gen_bool(0.25));
     // geometry with f1 in 0.6..5 Hz
     let mut geo;
@@ -189,7 +191,7 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
     }
     let mut beam = fe_of(&geo);
     // gravity: rescale thickness so the load shifts f1 by 2..8 %
-    if parts.contains(&"gravity_axial_load") {
+    if parts.contains(&Effect::GravityAxialLoad) {
         let sign = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
         let target = rng.gen_range(0.04..0.12);
         for _ in 0..30 {
@@ -243,6 +245,8 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         friction: Friction::default(),
         cogging: None,
         mount: None,
+        backlash: None,
+        cubic_root_nm_per_rad3: 0.0,
         drag_kg_per_m2: 0.0,
         sensors,
     };
@@ -260,19 +264,27 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
     let mut has_force = rng.gen_bool(0.6);
     let has_tip = with_beam;
     for e in &parts {
-        match *e {
-            "base_friction" | "cogging_ripple" => has_force = true,
-            "servo_lag" => has_base = rng.gen_bool(0.3),
-            _ => {}
+        if *e == Effect::ServoLag {
+            has_base = rng.gen_bool(0.3);
+        } else if e.shows_in() == [Channel::Force] {
+            has_force = true;
         }
+    }
+    // the guide friction that makes a play a dead band would show in the force channel as
+    // friction (true physics, but another effect): backlash cases record no force unless a
+    // force-channel effect is hidden with it
+    if parts.contains(&Effect::Backlash) && !parts.iter().any(|e| e.shows_in() == [Channel::Force])
+    {
+        has_force = false;
     }
     if !with_beam {
         has_base = true;
     }
     // effect strengths
+    let mut cubic_ratio = None;
     for effect in parts.iter().copied() {
         match effect {
-            "base_friction" => {
+            Effect::BaseFriction => {
                 // a few noise σ, and at least 3–8 % of the peak inertial force (below that the
                 // 100 Hz discretisation of the motor force masks it; see docs/diagnose.md)
                 let inertial = (carriage + beam_mass) * spec.accel_m_s2.1;
@@ -287,14 +299,14 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
                 truth.insert("friction_n".into(), fc.into());
                 truth.insert("viscous_n_s_per_m".into(), visc.into());
             }
-            "cogging_ripple" => {
+            Effect::CoggingRipple => {
                 let a = rng.gen_range(1.5..4.0) * sensors.force_noise_n * std::f64::consts::SQRT_2;
                 let p = rng.gen_range(0.015..0.05);
                 plant.cogging = Some((a, p, rng.gen_range(0.0..pi2)));
                 truth.insert("cogging_amplitude_n".into(), a.into());
                 truth.insert("cogging_pitch_m".into(), p.into());
             }
-            "servo_lag" => {
+            Effect::ServoLag => {
                 let sigma = if has_base {
                     50.0 * sensors.encoder_noise_m
                 } else {
@@ -309,45 +321,50 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
                 };
                 truth.insert("servo_bandwidth_hz".into(), f.into());
             }
-            "tip_mass" => {
+            Effect::TipMass => {
                 let m = rng.gen_range(0.05..0.2) * beam_mass;
                 beam.tip_mass_kg = m;
                 truth.insert("tip_mass_kg".into(), m.into());
             }
-            "root_compliance" => {
-                let target = 1.0 - rng.gen_range(0.06..0.15);
-                let f0 = f1_hz(&beam)?;
-                let (mut lo, mut hi) = (1e-3f64.ln(), 1e6f64.ln());
-                for _ in 0..50 {
-                    let mid = 0.5 * (lo + hi);
-                    let f = f1_hz(&FeBeam {
-                        root_stiffness_nm_per_rad: Some(mid.exp()),
-                        ..beam.clone()
-                    })?;
-                    if f / f0 < target {
-                        lo = mid;
-                    } else {
-                        hi = mid;
-                    }
-                }
-                let kr = (0.5 * (lo + hi)).exp();
+            Effect::RootCompliance => {
+                let kr = root_stiffness_for(&beam, 1.0 - rng.gen_range(0.06..0.15))?;
                 beam.root_stiffness_nm_per_rad = Some(kr);
                 truth.insert("root_stiffness_nm_per_rad".into(), kr.into());
             }
-            "sensor_delay" => {
+            Effect::CubicStiffness => {
+                // a compliant clamp (f1 3–10 % low) whose stiffness changes by a fraction of
+                // itself at the peak root rotation of the fit moves: +40…120 % (hardening) or
+                // −10…−20 % (softening; tangent stiffness stays ≥ 40 % of k_r)
+                let kr = root_stiffness_for(&beam, 1.0 - rng.gen_range(0.03..0.10))?;
+                beam.root_stiffness_nm_per_rad = Some(kr);
+                truth.insert("root_stiffness_nm_per_rad".into(), kr.into());
+                cubic_ratio = Some(if rng.gen_bool(0.5) {
+                    rng.gen_range(0.4..1.2)
+                } else {
+                    -rng.gen_range(0.1..0.2)
+                });
+            }
+            Effect::Backlash => {
+                plant.backlash = Some(backlash_of(
+                    &mut rng, &plant, &sensors, &spec, beam_mass, rate,
+                ));
+                let b = plant.backlash.as_ref().map_or(0.0, |b| b.gap_m);
+                truth.insert("backlash_m".into(), b.into());
+            }
+            Effect::SensorDelay => {
                 let tau = (rng.gen_range(2.0..6.0) * sensors.tip_noise_m / spec.speed_m_s.1)
                     .clamp(0.002, 0.03);
                 plant.sensors.tip_delay_s = tau;
                 truth.insert("sensor_delay_s".into(), tau.into());
             }
-            "sensor_gain" => {
+            Effect::SensorGain => {
                 // a camera calibration off by 2–8 % either way
                 let g =
                     1.0 + rng.gen_range(0.02..0.08) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
                 plant.sensors.tip_gain = g;
                 truth.insert("sensor_gain".into(), g.into());
             }
-            "mount_resonance" => {
+            Effect::MountResonance => {
                 let f2 = beam.modes(2)?.omega_rad_s[1] / pi2;
                 let fm = (rng.gen_range(1.3..3.0) * f2).clamp(8.0, 0.4 * rate);
                 plant.mount = Some(Mount {
@@ -357,7 +374,7 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
                 });
                 truth.insert("mount_frequency_hz".into(), fm.into());
             }
-            _ => {}
+            Effect::QuadraticDamping | Effect::GravityAxialLoad => {}
         }
     }
     let fine_dt = 1.0 / (rate * FINE_STEPS as f64);
@@ -383,7 +400,24 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         .iter_mut()
         .map(|r| random_profile(&spec, fine_dt, r))
         .collect();
-    if parts.contains(&"quadratic_damping") {
+    if let Some(ratio) = cubic_ratio {
+        let kr = beam
+            .root_stiffness_nm_per_rad
+            .context("cubic clamp without a compliant root")?;
+        let run = plant.run(&cmds[0], fine_dt);
+        let peak = run
+            .root_rot_rad
+            .iter()
+            .fold(0.0, |a: f64, t| a.max(t.abs()));
+        let k3 = ratio * kr / peak.max(1e-9).powi(2);
+        plant.cubic_root_nm_per_rad3 = k3;
+        truth.insert("cubic_root_stiffness_nm_per_rad3".into(), k3.into());
+        truth.insert(
+            "cubic_root_compliance_rad_per_nm3".into(),
+            (k3 / kr.powi(4)).into(),
+        );
+    }
+    if parts.contains(&Effect::QuadraticDamping) {
         // drag giving an equivalent linear damping of 0.4..1.0 ζ1 at the peak tip deflection
         let (modes, h) = plant.beam.as_ref().context("beam")?;
         let run = plant.run(&cmds[0], fine_dt);
@@ -417,6 +451,11 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
             .any(|v| !v.is_finite() || v.abs() > bound)
         {
             bail!("the truth plant's servo loop is unstable for this draw");
+        }
+        if plant.backlash.is_some() && rattles(&plant, cmd, fine_dt, &run, bound) {
+            bail!(
+                "the truth plant's servo loop is unstable for this draw (it rattles in the play)"
+            );
         }
         let n = cmd.len() / FINE_STEPS;
         let mut rec = Recording::with_uniform_time(n, rate);
@@ -506,6 +545,82 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         fit: recs,
         validate,
     })
+}
+
+/// True when the play of `plant` hides an unstable servo or lets it fall into a self-excited
+/// rattle: the same plant without play is unstable (peak deflection not below `bound_m`), or
+/// the peak deflection of `run` exceeds twice that without play. Seen on seed 1000: the loop
+/// without play diverges against the beam; with the play and the guide friction it settles
+/// into a growing 70 mm beam oscillation late in a recording instead. Such a limit cycle is real
+/// physics, but not the dead band this effect stands for; the draw is redone.
+fn rattles(
+    plant: &Plant,
+    cmd: &[(f64, f64, f64)],
+    fine_dt: f64,
+    run: &plant::FineRun,
+    bound_m: f64,
+) -> bool {
+    let tight = Plant {
+        backlash: None,
+        ..plant.clone()
+    };
+    let peak = |r: &plant::FineRun| {
+        r.tip_m
+            .iter()
+            .zip(&r.y_motor_m)
+            .fold(0.0, |a: f64, (t, y)| a.max((t - y).abs()))
+    };
+    let p_tight = peak(&tight.run(cmd, fine_dt));
+    !(p_tight < bound_m) || peak(run) > 2.0 * p_tight
+}
+
+/// The root stiffness (N·m/rad) that puts the first natural frequency of `beam` at
+/// `ratio` × its rigid-clamp value (bisection in ln k over 1e-3…1e6).
+fn root_stiffness_for(beam: &FeBeam, ratio: f64) -> Result<f64> {
+    let f0 = f1_hz(beam)?;
+    let (mut lo, mut hi) = (1e-3f64.ln(), 1e6f64.ln());
+    for _ in 0..50 {
+        let mid = 0.5 * (lo + hi);
+        let f = f1_hz(&FeBeam {
+            root_stiffness_nm_per_rad: Some(mid.exp()),
+            ..beam.clone()
+        })?;
+        if f / f0 < ratio {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Ok((0.5 * (lo + hi)).exp())
+}
+
+/// Play in the drive: a gap of 4–12 tip-noise σ (≥ 50 µm), the beam-root block 10–30 % of the
+/// carriage, a guide friction 1.5–3 × the block's (+ beam's) peak inertial force (so the block
+/// stays where it was left inside the gap instead of coasting across it), a contact at 1.5 × the
+/// sample rate (above the band; resolved by the fine RK4 step) with damping ratio 0.3.
+fn backlash_of(
+    rng: &mut StdRng,
+    plant: &Plant,
+    sensors: &Sensors,
+    spec: &ProfileSpec,
+    beam_mass: f64,
+    rate: f64,
+) -> Backlash {
+    let gap = (rng.gen_range(4.0..12.0) * sensors.tip_noise_m).max(5e-5);
+    let block = rng.gen_range(0.1..0.3) * plant.carriage_mass_kg;
+    let guide = rng.gen_range(1.5..3.0) * (block + beam_mass) * spec.accel_m_s2.1;
+    let wc = 2.0 * std::f64::consts::PI * 1.5 * rate;
+    let fine_dt = 1.0 / (rate * FINE_STEPS as f64);
+    Backlash {
+        gap_m: gap,
+        block_mass_kg: block,
+        contact_n_per_m: wc * wc * block,
+        contact_damping_n_s_per_m: 2.0 * 0.3 * wc * block,
+        guide_friction_n: guide,
+        // the smoothed friction is a damper F_g / v_s: its time constant block·v_s/F_g is kept
+        // at 3 fine steps or more so that RK4 resolves it
+        guide_stribeck_m_s: (3.0 * fine_dt * guide / block).max(2e-3),
+    }
 }
 
 impl TruthCase {

@@ -11,6 +11,14 @@
 //! - without a mount F_root = F_motor − F_friction(ẏ) − F_cogging(y) and y_m = y_r; with a mount
 //!   the motor mass m₁ obeys `m₁ÿ_m = F_motor − F_friction − F_cogging − k(y_m − y_r) − c(ẏ_m − ẏ_r)`
 //!   and F_root = k(y_m − y_r) + c(ẏ_m − ẏ_r);
+//! - backlash instead of a mount: the motor mass m₁ drives the beam-root block m_r through a
+//!   stiff contact with a gap of total width b: `F_c = k_c p + c_c (ẏ_m − ẏ_r)` while in contact
+//!   (penetration p = (y_m − y_r) ∓ b/2 beyond the gap, compressive only), 0 inside the gap; the
+//!   block rides on a guide with Coulomb friction (tanh-smoothed), which holds it inside the gap:
+//!   F_root = F_c − F_g tanh(ẏ_r / v_s);
+//! - a cubic clamp: the compliant root (FE rotation θ₀ = Σ θ₀,r η_r) has the moment
+//!   k_r θ₀ + k₃ θ₀³; the linear part is in the modes, the cubic one a modal force
+//!   `−θ₀,r k₃ θ₀³` (internal: no net force on the carriage);
 //! - friction: Coulomb (tanh-smoothed over `stribeck_m_s`) + viscous; cogging `A sin(2π y/p + φ)`;
 //! - servo: cascaded position P / velocity PI loop evaluated once per fine step (zero-order
 //!   hold), with velocity and acceleration feed-forward (off when the concealed effect is a slow
@@ -39,6 +47,44 @@ pub struct Mount {
     pub freq_hz: f64,
     /// Damping ratio of that resonance.
     pub zeta: f64,
+}
+
+/// Play in the drive between the motor and the beam-root block.
+#[derive(Clone, Copy, Debug)]
+pub struct Backlash {
+    /// Total gap (m).
+    pub gap_m: f64,
+    /// Beam-root block mass m_r (kg), part of the carriage mass.
+    pub block_mass_kg: f64,
+    /// Contact stiffness (N/m).
+    pub contact_n_per_m: f64,
+    /// Contact damping (N·s/m), only while in contact.
+    pub contact_damping_n_s_per_m: f64,
+    /// Guide friction on the block (N).
+    pub guide_friction_n: f64,
+    /// Velocity over which the guide friction is smoothed (m/s).
+    pub guide_stribeck_m_s: f64,
+}
+
+impl Backlash {
+    /// Contact force on the block (N) for motor − block displacement `d` and velocity `dv`.
+    pub fn contact_force(&self, d: f64, dv: f64) -> f64 {
+        let h = 0.5 * self.gap_m;
+        let pen = if d > h {
+            d - h
+        } else if d < -h {
+            d + h
+        } else {
+            return 0.0;
+        };
+        let f = self.contact_n_per_m * pen + self.contact_damping_n_s_per_m * dv;
+        // a contact pushes, never pulls
+        if pen > 0.0 {
+            f.max(0.0)
+        } else {
+            f.min(0.0)
+        }
+    }
 }
 
 /// Servo loop.
@@ -92,6 +138,10 @@ pub struct Plant {
     pub cogging: Option<(f64, f64, f64)>,
     /// Mount.
     pub mount: Option<Mount>,
+    /// Play between motor and beam root (exclusive with `mount`).
+    pub backlash: Option<Backlash>,
+    /// Cubic clamp stiffness k₃ (N·m/rad³; needs a compliant root in the FE beam).
+    pub cubic_root_nm_per_rad3: f64,
     /// Distributed quadratic drag coefficient (N·s²/m³ = kg/m², force per unit length).
     pub drag_kg_per_m2: f64,
     /// Sensors.
@@ -107,6 +157,8 @@ pub struct FineRun {
     pub tip_m: Vec<f64>,
     /// Motor force (N).
     pub force_n: Vec<f64>,
+    /// Root rotation of the clamp (rad) (0 for a rigid clamp or without a beam).
+    pub root_rot_rad: Vec<f64>,
 }
 
 impl Plant {
@@ -146,8 +198,14 @@ impl Plant {
                 }
             })
             .collect();
-        let (m1, m_root, k_m, c_m) = match self.mount {
-            Some(mt) => {
+        let (m1, m_root, k_m, c_m) = match (self.mount, self.backlash) {
+            (_, Some(b)) => (
+                self.carriage_mass_kg - b.block_mass_kg,
+                b.block_mass_kg,
+                0.0,
+                0.0,
+            ),
+            (Some(mt), None) => {
                 let w = 2.0 * std::f64::consts::PI * mt.freq_hz;
                 let k = w * w * (mt.mass_kg + m_b);
                 (
@@ -157,8 +215,10 @@ impl Plant {
                     2.0 * mt.zeta * w * (mt.mass_kg + m_b),
                 )
             }
-            None => (0.0, self.carriage_mass_kg, 0.0, 0.0),
+            (None, None) => (0.0, self.carriage_mass_kg, 0.0, 0.0),
         };
+        let coupled = self.mount.is_some() || self.backlash.is_some();
+        let root_theta: &[f64] = modes.map_or(&[], |m| &m.root_theta);
         let total = self.carriage_mass_kg + m_b;
         let wp = 2.0 * std::f64::consts::PI * self.servo.position_bandwidth_hz;
         let wv = 2.0 * std::f64::consts::PI * self.servo.velocity_bandwidth_hz;
@@ -173,6 +233,7 @@ impl Plant {
             y_motor_m: vec![],
             tip_m: vec![],
             force_n: vec![],
+            root_rot_rad: vec![],
         };
         let fric = |v: f64| {
             let f = &self.friction;
@@ -205,8 +266,19 @@ impl Plant {
                     }
                 }
             }
+            if self.cubic_root_nm_per_rad3 != 0.0 {
+                let theta: f64 = (0..nm).map(|r| root_theta[r] * x[4 + r]).sum();
+                let m3 = self.cubic_root_nm_per_rad3 * theta * theta * theta;
+                for r in 0..nm {
+                    modal_f[r] -= root_theta[r] * m3;
+                }
+            }
             let dist = fric(vm) + cog(ym);
-            let (f_root, a_m) = if self.mount.is_some() {
+            let (f_root, a_m) = if let Some(b) = &self.backlash {
+                let fc = b.contact_force(ym - yr, vm - vr);
+                let guide = b.guide_friction_n * (vr / b.guide_stribeck_m_s.max(1e-9)).tanh();
+                (fc - guide, (u - dist - fc) / m1)
+            } else if self.mount.is_some() {
                 let fs = k_m * (ym - yr) + c_m * (vm - vr);
                 (fs, (u - dist - fs) / m1)
             } else {
@@ -223,7 +295,7 @@ impl Plant {
             let a_r = rhs / (m_root + m_b - sum_g2);
             dx[2] = vr;
             dx[3] = a_r;
-            if self.mount.is_some() {
+            if coupled {
                 dx[0] = vm;
                 dx[1] = a_m;
             } else {
@@ -263,6 +335,8 @@ impl Plant {
             out.y_motor_m.push(ym);
             out.tip_m.push(tip);
             out.force_n.push(u);
+            out.root_rot_rad
+                .push((0..nm).map(|rr| root_theta[rr] * x[4 + rr]).sum());
             deriv(&x, u, &mut k1);
             for i in 0..ns {
                 tmp[i] = x[i] + 0.5 * dt * k1[i];
@@ -281,5 +355,100 @@ impl Plant {
             }
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// (position, velocity, acceleration) of cosine-ramp moves between `stops` (m), each over
+    /// `t_move` s followed by a `t_hold` s dwell, at fine step `dt`.
+    fn moves(stops: &[f64], t_move: f64, t_hold: f64, dt: f64) -> Vec<(f64, f64, f64)> {
+        let pi = std::f64::consts::PI;
+        let mut out = Vec::new();
+        for w in stops.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            let n = (t_move / dt) as usize;
+            for k in 0..n {
+                let ph = pi * k as f64 * dt / t_move;
+                let h = 0.5 * (b - a);
+                out.push((
+                    a + h * (1.0 - ph.cos()),
+                    h * pi / t_move * ph.sin(),
+                    h * (pi / t_move).powi(2) * ph.cos(),
+                ));
+            }
+            out.extend(std::iter::repeat((b, 0.0, 0.0)).take((t_hold / dt) as usize));
+        }
+        out
+    }
+
+    fn carriage_with_play(gap: f64) -> Plant {
+        Plant {
+            beam: None,
+            zeta: (0.01, 0.01),
+            carriage_mass_kg: 2.0,
+            feedforward_mass_kg: 2.0,
+            servo: Servo {
+                position_bandwidth_hz: 40.0,
+                velocity_bandwidth_hz: 150.0,
+                feedforward: true,
+            },
+            friction: Friction::default(),
+            cogging: None,
+            mount: None,
+            backlash: Some(Backlash {
+                gap_m: gap,
+                block_mass_kg: 0.5,
+                contact_n_per_m: (2.0 * std::f64::consts::PI * 150.0f64).powi(2) * 0.5,
+                contact_damping_n_s_per_m: 2.0 * 0.3 * 2.0 * std::f64::consts::PI * 150.0 * 0.5,
+                guide_friction_n: 5.0,
+                guide_stribeck_m_s: 2e-3,
+            }),
+            cubic_root_nm_per_rad3: 0.0,
+            drag_kg_per_m2: 0.0,
+            sensors: Sensors {
+                tip_noise_m: 0.0,
+                tip_quantum_m: 0.0,
+                tip_delay_s: 0.0,
+                tip_gain: 1.0,
+                encoder_noise_m: 0.0,
+                encoder_quantum_m: 0.0,
+                force_noise_n: 0.0,
+                force_quantum_n: 0.0,
+            },
+        }
+    }
+
+    #[test]
+    fn contact_is_dead_inside_the_gap_and_only_pushes() {
+        let b = carriage_with_play(1e-3).backlash.unwrap();
+        assert_eq!(b.contact_force(4e-4, 1.0), 0.0);
+        assert_eq!(b.contact_force(-4e-4, -1.0), 0.0);
+        assert!(b.contact_force(6e-4, 0.0) > 0.0 && b.contact_force(-6e-4, 0.0) < 0.0);
+        // separating fast: the damper may not pull the block back
+        assert_eq!(b.contact_force(5.001e-4, -10.0), 0.0);
+    }
+
+    #[test]
+    fn the_guide_holds_the_block_so_the_play_acts_as_a_dead_band() {
+        // up 50 mm, then back 0.5 mm (inside a 1 mm gap), then down to 20 mm: the block (the
+        // beam root) trails the motor by half the gap, stays put on the small reversal, and
+        // then trails by half the gap from the other side (the play operator of the diagnosis)
+        let gap = 1e-3;
+        let dt = 1.0 / 4000.0;
+        let cmd = moves(&[0.0, 0.05, 0.0495, 0.02], 0.5, 0.5, dt);
+        let run = carriage_with_play(gap).run(&cmd, dt);
+        let at = |t: f64| {
+            let k = (t / dt) as usize;
+            (run.y_motor_m[k], run.tip_m[k])
+        };
+        let (m1, r1) = at(0.99);
+        assert!((m1 - r1 - 0.5 * gap).abs() < 0.1 * gap, "{m1} {r1}");
+        let (m2, r2) = at(1.99);
+        assert!((r2 - r1).abs() < 0.05 * gap, "{r1} {r2} (motor {m2})");
+        let (m3, r3) = at(2.99);
+        assert!((r3 - m3 - 0.5 * gap).abs() < 0.1 * gap, "{m3} {r3}");
     }
 }
