@@ -1,11 +1,11 @@
 //! `diagnose` and `diagnose-proof` subcommands.
 
-use super::report::{to_json, validation_summary, words, write_report};
+use super::report::{to_json, words, write_report};
 use super::sim::Prepared;
 use super::{diagnose as run_diagnosis, Diagnosis};
 use crate::model::Rig;
 use crate::recording::Recording;
-use crate::truth::{generate, TruthOptions, EFFECTS};
+use crate::truth::EFFECTS;
 use anyhow::{Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -98,266 +98,97 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
     Ok(())
 }
 
+pub use super::proof::{proof_table, run_proof, ProofRow};
+
 /// `diagnose-proof` arguments.
 #[derive(Args, Debug)]
 pub struct ProofArgs {
-    /// Concealed cases per effect.
+    /// Concealed cases per single catalogue effect.
     #[arg(long, default_value_t = 2)]
     pub cases: usize,
-    /// Null cases (no effect); at least 4.
-    #[arg(long, default_value_t = 4)]
+    /// Pairs of simultaneous effects (comma-separated `a+b`; default: six pairs, see
+    /// `diagnose::proof::DEFAULT_PAIRS`; `--pairs ''` for none).
+    #[arg(long)]
+    pub pairs: Option<String>,
+    /// Cases per pair.
+    #[arg(long, default_value_t = 1)]
+    pub pair_cases: usize,
+    /// Physics outside the catalogue (comma-separated: crack, loose_sensor_mount, sensor_drift;
+    /// default: all; `--unmodelled ''` for none).
+    #[arg(long)]
+    pub unmodelled: Option<String>,
+    /// Cases per out-of-catalogue kind.
+    #[arg(long, default_value_t = 2)]
+    pub unmodelled_cases: usize,
+    /// Null cases (no effect; about a quarter are carriage-only rigs, drawn from the seed).
+    #[arg(long, default_value_t = 16)]
     pub nulls: usize,
     /// First seed.
     #[arg(long, default_value_t = 1000)]
     pub seed: u64,
-    /// Duration of each recording (s).
-    #[arg(long, default_value_t = 60.0)]
+    /// Duration of each recording (s); shortened at high rates to `--max-samples`.
+    #[arg(long, default_value_t = 40.0)]
     pub duration_s: f64,
-    /// Only these effects (comma-separated ids).
+    /// Most samples per recording.
+    #[arg(long, default_value_t = 10_000)]
+    pub max_samples: usize,
+    /// Every case at 100 Hz with channels as drawn (no cycled rates, missing channels, noise).
+    #[arg(long)]
+    pub no_vary: bool,
+    /// Only cases with these row labels (comma-separated: effect ids, `a+b` pairs, out-of-catalogue
+    /// kinds, `none` for the nulls).
     #[arg(long)]
     pub only: Option<String>,
-    /// Output directory (cases, per-case reports, proof.json, proof.md).
+    /// Output directory (cases, per-case reports, proof.json, summary.json, proof.md).
     #[arg(long, default_value = "diagnose-proof")]
     pub out: PathBuf,
 }
 
-/// One proof row.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct ProofRow {
-    /// Hidden effect.
-    pub truth: String,
-    /// Seed.
-    pub seed: u64,
-    /// Named effect.
-    pub named: String,
-    /// Correct.
-    pub correct: bool,
-    /// Main parameter: name, true, fitted, relative error.
-    pub parameter: Option<(String, f64, f64, f64)>,
-    /// Orientation correct (gravity cases).
-    pub orientation_ok: Option<bool>,
-    /// Validation NRMSE before/after, channel.
-    pub nrmse: (f64, f64, String),
-    /// Seconds.
-    pub seconds: f64,
-}
-
-/// Runs the proof over generated cases; returns the rows.
-pub fn run_proof(
-    effects: &[&str],
-    cases: usize,
-    nulls: usize,
-    seed0: u64,
-    duration_s: f64,
-    out: Option<&Path>,
-    show: bool,
-) -> Result<Vec<ProofRow>> {
-    let mut jobs: Vec<(String, u64)> = Vec::new();
-    for (i, e) in effects.iter().enumerate() {
-        for k in 0..cases {
-            jobs.push((e.to_string(), seed0 + 100 * i as u64 + k as u64));
-        }
+fn list(s: &Option<String>, default: &[&str]) -> Vec<String> {
+    match s {
+        Some(s) => s
+            .split(',')
+            .map(str::trim)
+            .filter(|s| !s.is_empty())
+            .map(String::from)
+            .collect(),
+        None => default.iter().map(|s| s.to_string()).collect(),
     }
-    for k in 0..nulls {
-        jobs.push(("none".into(), seed0 + 5000 + k as u64));
-    }
-    let pb = bar(jobs.len() as u64);
-    if !show {
-        pb.set_draw_target(indicatif::ProgressDrawTarget::hidden());
-    }
-    let opts = TruthOptions {
-        duration_s,
-        ..Default::default()
-    };
-    let mut rows = Vec::new();
-    for (effect, seed) in jobs {
-        pb.set_message(format!("{effect} seed {seed}"));
-        let t0 = std::time::Instant::now();
-        let case = generate(&effect, seed, &opts)?;
-        let rig = Rig::from_toml_str(&case.rig_toml)?;
-        let fit: Vec<Prepared> = case
-            .fit
-            .iter()
-            .enumerate()
-            .map(|(i, r)| Prepared::new(&format!("fit{}", i + 1), r))
-            .collect::<Result<_>>()?;
-        let val = Prepared::new("validate", &case.validate)?;
-        let d = run_diagnosis(&rig, &fit, &val, &mut |_, _, _| {})?;
-        let (c, before, after) = validation_summary(&d);
-        let json = to_json(&d);
-        let mut parameter = None;
-        let mut orientation_ok = None;
-        for (k, v) in &case.truth {
-            if let (Some(tv), Some(fv)) = (v.as_f64(), json["parameters"][k].as_f64()) {
-                if parameter.is_none() {
-                    parameter = Some((k.clone(), tv, fv, (fv - tv).abs() / tv.abs().max(1e-300)));
-                }
-            }
-            if k == "orientation" {
-                orientation_ok = Some(json["parameters"]["orientation"].as_str() == v.as_str());
-            }
-        }
-        // every generated rig has a finite servo loop: a named servo_lag is true physics and
-        // never counts against a case whose hidden effect is another one (as the independent
-        // scorer treats it); the named set must equal the hidden set otherwise
-        let mut names: Vec<&str> = d.final_set.iter().map(|c| c.id.id()).collect();
-        let mut hidden: Vec<&str> = effect.split('+').collect();
-        if !hidden.contains(&"servo_lag") {
-            names.retain(|n| *n != "servo_lag");
-        }
-        hidden.sort_unstable();
-        let hidden = hidden.join("+");
-        names.sort_unstable();
-        names.dedup();
-        let named = if names.is_empty() {
-            "none".to_string()
-        } else {
-            names.join("+")
-        };
-        let correct = named == hidden && orientation_ok.unwrap_or(true);
-        if let Some(o) = out {
-            let dir = o.join(format!("{effect}-{seed}"));
-            case.write(&dir)?;
-            write_report(&d, &dir.join("report"))?;
-        }
-        rows.push(ProofRow {
-            truth: effect,
-            seed,
-            named,
-            correct,
-            parameter,
-            orientation_ok,
-            nrmse: (before, after, super::fit::CHANNEL_NAMES[c].to_string()),
-            seconds: t0.elapsed().as_secs_f64(),
-        });
-        pb.inc(1);
-    }
-    pb.finish_and_clear();
-    Ok(rows)
-}
-
-/// The confusion table and summary of proof rows.
-pub fn proof_table(rows: &[ProofRow]) -> String {
-    let mut s = String::new();
-    s += &format!(
-        "{:<20} {:>6} {:<20} {:>4} {:>30} {:>10} {:>10} {:>7} {:>6}\n",
-        "truth",
-        "seed",
-        "named",
-        "ok",
-        "parameter (true → fitted)",
-        "NRMSE0",
-        "NRMSE1",
-        "red %",
-        "s"
-    );
-    for r in rows {
-        let p = r.parameter.as_ref().map_or_else(
-            || {
-                r.orientation_ok.map_or(String::from("-"), |o| {
-                    format!("orientation {}", if o { "ok" } else { "WRONG" })
-                })
-            },
-            |(n, t, f, e)| format!("{n} {t:.3e}→{f:.3e} ({:.0}%)", 100.0 * e),
-        );
-        s += &format!(
-            "{:<20} {:>6} {:<20} {:>4} {:>30} {:>10.4} {:>10.4} {:>7.1} {:>6.1}\n",
-            r.truth,
-            r.seed,
-            r.named,
-            if r.correct { "yes" } else { "NO" },
-            p,
-            r.nrmse.0,
-            r.nrmse.1,
-            100.0 * (1.0 - r.nrmse.1 / r.nrmse.0),
-            r.seconds
-        );
-    }
-    // confusion matrix
-    let mut labels: Vec<&str> = EFFECTS.to_vec();
-    labels.push("none");
-    labels.push("several");
-    s += "\nconfusion (rows: hidden effect, columns: named; `several` = more than one effect named)\n";
-    s += &format!("{:<20}", "");
-    for (j, _) in labels.iter().enumerate() {
-        s += &format!("{:>4}", j);
-    }
-    s += "\n";
-    for (i, t) in labels.iter().enumerate() {
-        if !rows.iter().any(|r| r.truth == *t) {
-            continue;
-        }
-        s += &format!("{:<16}{:>4}", t, i);
-        for n in &labels {
-            let k = rows
-                .iter()
-                .filter(|r| {
-                    r.truth == *t && (r.named == *n || (*n == "several" && r.named.contains('+')))
-                })
-                .count();
-            s += &format!(
-                "{:>4}",
-                if k == 0 {
-                    ".".to_string()
-                } else {
-                    k.to_string()
-                }
-            );
-        }
-        s += "\n";
-    }
-    let effect_rows: Vec<&ProofRow> = rows.iter().filter(|r| r.truth != "none").collect();
-    let nulls: Vec<&ProofRow> = rows.iter().filter(|r| r.truth == "none").collect();
-    let correct = rows.iter().filter(|r| r.correct).count();
-    let false_disc = nulls.iter().filter(|r| r.named != "none").count();
-    let mut red: Vec<f64> = effect_rows
-        .iter()
-        .map(|r| 1.0 - r.nrmse.1 / r.nrmse.0)
-        .collect();
-    red.sort_by(|a, b| a.total_cmp(b));
-    let med = if red.is_empty() {
-        f64::NAN
-    } else {
-        red[red.len() / 2]
-    };
-    let mut perr: Vec<f64> = effect_rows
-        .iter()
-        .filter(|r| r.correct)
-        .filter_map(|r| r.parameter.as_ref().map(|p| p.3))
-        .collect();
-    perr.sort_by(|a, b| a.total_cmp(b));
-    s += &format!(
-        "\ncorrect {}/{} ({:.0} %); false discoveries on nulls {}/{}; median validation NRMSE reduction where an effect exists {:.1} %; median parameter error (correct cases) {:.0} %\n",
-        correct,
-        rows.len(),
-        100.0 * correct as f64 / rows.len().max(1) as f64,
-        false_disc,
-        nulls.len(),
-        100.0 * med,
-        100.0 * perr.get(perr.len() / 2).copied().unwrap_or(f64::NAN)
-    );
-    s
 }
 
 /// Runs `diagnose-proof`.
 pub fn proof(a: ProofArgs) -> Result<()> {
-    let effects: Vec<&str> = match &a.only {
-        Some(o) => o
-            .split(',')
-            .map(|s| s.trim())
-            .filter(|s| !s.is_empty())
-            .collect(),
-        None => EFFECTS.to_vec(),
-    };
-    let rows = run_proof(
-        &effects,
-        a.cases,
-        a.nulls.max(if a.only.is_some() { 0 } else { 4 }),
-        a.seed,
-        a.duration_s,
-        Some(&a.out),
-        true,
-    )?;
+    use super::proof::{plan, run_plan, score, sorted_label, PlanOptions, DEFAULT_PAIRS};
+    use crate::truth::unmodelled::Unmodelled;
+    let unmodelled = list(&a.unmodelled, &Unmodelled::ALL.map(|u| u.id()))
+        .iter()
+        .map(|s| Unmodelled::parse(s))
+        .collect::<Result<Vec<_>>>()?;
+    let mut specs = plan(&PlanOptions {
+        singles: list(&None, &EFFECTS),
+        cases: a.cases,
+        pairs: list(&a.pairs, &DEFAULT_PAIRS),
+        pair_cases: a.pair_cases,
+        unmodelled,
+        unmodelled_cases: a.unmodelled_cases,
+        nulls: a.nulls,
+        seed: a.seed,
+        duration_s: a.duration_s,
+        max_samples: a.max_samples,
+        vary: !a.no_vary,
+    });
+    if let Some(o) = &a.only {
+        let keep = list(&Some(o.clone()), &[]);
+        specs.retain(|c| {
+            keep.iter()
+                .any(|k| *k == c.label || sorted_label(k) == c.label)
+        });
+    }
+    if specs.is_empty() {
+        anyhow::bail!("no cases to run (check --only)");
+    }
+    eprintln!("diagnose-proof: {} cases", specs.len());
+    let rows = run_plan(&specs, Some(&a.out), true)?;
     let table = proof_table(&rows);
     print!("{table}");
     std::fs::create_dir_all(&a.out)?;
@@ -365,6 +196,10 @@ pub fn proof(a: ProofArgs) -> Result<()> {
     std::fs::write(
         a.out.join("proof.json"),
         serde_json::to_string_pretty(&json!(rows))?,
+    )?;
+    std::fs::write(
+        a.out.join("summary.json"),
+        serde_json::to_string_pretty(&json!({"cases": specs, "summary": score(&rows)}))?,
     )?;
     Ok(())
 }

@@ -18,6 +18,7 @@ pub mod effects;
 pub mod fit;
 pub mod lengths;
 pub mod locate;
+pub mod proof;
 pub mod report;
 pub mod select;
 pub mod sim;

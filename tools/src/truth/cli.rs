@@ -22,6 +22,21 @@ pub struct TruthArgs {
     /// Number of fit recordings.
     #[arg(long, default_value_t = 2)]
     pub n_fit: usize,
+    /// Physics outside the diagnosis catalogue to switch on (off by default).
+    #[arg(long, value_enum)]
+    pub unmodelled: Option<super::unmodelled::Unmodelled>,
+    /// Output sample rate (Hz).
+    #[arg(long, default_value_t = 100.0)]
+    pub rate_hz: f64,
+    /// Record no `base_pos_m` (default: drawn from the seed).
+    #[arg(long)]
+    pub no_base: bool,
+    /// Record no `force_n` (default: drawn from the seed).
+    #[arg(long)]
+    pub no_force: bool,
+    /// Multiply every sensor-noise σ by this.
+    #[arg(long, default_value_t = 1.0)]
+    pub noise_scale: f64,
     /// Output directory.
     #[arg(long, default_value = "truth-case")]
     pub out: PathBuf,
@@ -32,15 +47,21 @@ pub fn truth(a: TruthArgs) -> Result<()> {
     let opts = TruthOptions {
         duration_s: a.duration_s,
         n_fit: a.n_fit.max(1),
-        ..Default::default()
+        rate_hz: a.rate_hz,
+        unmodelled: a.unmodelled,
+        base_pos: a.no_base.then_some(false),
+        force: a.no_force.then_some(false),
+        noise_scale: a.noise_scale,
     };
     let case = generate(&a.effect, a.seed, &opts)?;
     case.write(&a.out)?;
     println!(
-        "wrote {} (rig.toml, {} fit recordings, validate.csv, truth.json); hidden effect: {}",
+        "wrote {} (rig.toml, {} fit recordings, validate.csv, truth.json); hidden effect: {}{}",
         a.out.display(),
         case.fit.len(),
-        a.effect
+        a.effect,
+        a.unmodelled
+            .map_or(String::new(), |u| format!(" + unmodelled {}", u.id()))
     );
     Ok(())
 }

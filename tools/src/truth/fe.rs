@@ -60,7 +60,8 @@ pub struct FeModes {
 }
 
 impl FeBeam {
-    fn section(&self, x: f64) -> (f64, f64) {
+    /// Cross-section (area m², second moment m⁴) at `x` m from the root.
+    pub fn section(&self, x: f64) -> (f64, f64) {
         let a = x / self.length_m;
         let b = self.width_m.0 + a * (self.width_m.1 - self.width_m.0);
         let h = self.thickness_m.0 + a * (self.thickness_m.1 - self.thickness_m.0);
@@ -145,12 +146,25 @@ impl FeBeam {
     /// The lowest `n_keep` modes (mass-normalised). Errors: the beam buckles.
     pub fn modes(&self, n_keep: usize) -> Result<FeModes> {
         let (m, k, r) = self.assemble()?;
+        self.modes_of(&m, &k, &r, n_keep)
+    }
+
+    /// The lowest `n_keep` modes of assembled matrices `(m, k, r)` of this beam's DOF layout
+    /// (as returned by [`FeBeam::assemble`], possibly modified, e.g. a local stiffness loss).
+    /// Errors: `k` not positive definite (the beam buckles).
+    pub fn modes_of(
+        &self,
+        m: &DMatrix<f64>,
+        k: &DMatrix<f64>,
+        r: &DVector<f64>,
+        n_keep: usize,
+    ) -> Result<FeModes> {
         let chol = m
             .clone()
             .cholesky()
             .context("FE mass matrix not positive definite")?;
         let linv = chol.l().try_inverse().context("FE mass matrix singular")?;
-        let c = &linv * &k * linv.transpose();
+        let c = &linv * k * linv.transpose();
         let c = 0.5 * (&c + c.transpose());
         let eig = SymmetricEigen::new(c);
         let mut idx: Vec<usize> = (0..eig.eigenvalues.len()).collect();
@@ -161,7 +175,7 @@ impl FeBeam {
         let compliant = self.root_stiffness_nm_per_rad.is_some();
         let off = usize::from(compliant);
         let ne = self.elements;
-        let mr = &m * &r;
+        let mr = m * r;
         let mut out = FeModes {
             omega_rad_s: vec![],
             participation: vec![],

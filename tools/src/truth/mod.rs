@@ -19,6 +19,7 @@ pub mod cli;
 pub mod fe;
 pub mod plant;
 pub mod profile;
+pub mod unmodelled;
 
 use crate::effect::Channel;
 pub use crate::effect::Effect;
@@ -87,6 +88,14 @@ pub struct TruthOptions {
     pub n_fit: usize,
     /// Output sample rate (Hz).
     pub rate_hz: f64,
+    /// Physics outside the diagnosis catalogue ([`unmodelled`]); `None` = off.
+    pub unmodelled: Option<unmodelled::Unmodelled>,
+    /// `base_pos_m` recorded (`Some`) or not; `None` = drawn from the seed.
+    pub base_pos: Option<bool>,
+    /// `force_n` recorded (`Some`) or not; `None` = drawn from the seed.
+    pub force: Option<bool>,
+    /// Multiplies every sensor-noise σ drawn from the seed (1 = as drawn).
+    pub noise_scale: f64,
 }
 
 impl Default for TruthOptions {
@@ -95,6 +104,10 @@ impl Default for TruthOptions {
             duration_s: 60.0,
             n_fit: 2,
             rate_hz: 100.0,
+            unmodelled: None,
+            base_pos: None,
+            force: None,
+            noise_scale: 1.0,
         }
     }
 }
@@ -161,7 +174,7 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
     let mut truth: BTreeMap<String, serde_json::Value> = BTreeMap::new();
     // carriage-only for some base-side cases
     let base_side = parts.iter().all(|e| !e.needs_beam());
-    let with_beam = !(base_side && rng.gen_bool(0.25));
+    let with_beam = !(base_side && rng.gen_bool(0.25)) || opts.unmodelled.is_some();
     // geometry with f1 in 0.6..5 Hz
     let mut geo;
     loop {
@@ -222,16 +235,19 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         log_uniform(&mut rng, 0.003, 0.03),
     );
     // sensors
-    let sensors = Sensors {
-        tip_noise_m: log_uniform(&mut rng, 2e-5, 3e-4),
-        tip_quantum_m: if rng.gen_bool(0.5) { 1e-5 } else { 1e-4 },
-        tip_delay_s: 0.0,
-        tip_gain: 1.0,
-        encoder_noise_m: log_uniform(&mut rng, 2e-7, 2e-6),
-        encoder_quantum_m: 1e-6,
-        force_noise_n: log_uniform(&mut rng, 0.01, 0.2),
-        force_quantum_n: 0.01,
-    };
+    let sensors = unmodelled::scale_noise(
+        Sensors {
+            tip_noise_m: log_uniform(&mut rng, 2e-5, 3e-4),
+            tip_quantum_m: if rng.gen_bool(0.5) { 1e-5 } else { 1e-4 },
+            tip_delay_s: 0.0,
+            tip_gain: 1.0,
+            encoder_noise_m: log_uniform(&mut rng, 2e-7, 2e-6),
+            encoder_quantum_m: 1e-6,
+            force_noise_n: log_uniform(&mut rng, 0.01, 0.2),
+            force_quantum_n: 0.01,
+        },
+        opts.noise_scale,
+    );
     let mut plant = Plant {
         beam: None,
         zeta,
@@ -277,6 +293,8 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
     {
         has_force = false;
     }
+    has_base = opts.base_pos.unwrap_or(has_base);
+    has_force = opts.force.unwrap_or(has_force);
     if !with_beam {
         has_base = true;
     }
@@ -378,9 +396,12 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         }
     }
     let fine_dt = 1.0 / (rate * FINE_STEPS as f64);
+    let tip_sensor = (sensors.tip_noise_m, sensors.tip_quantum_m);
+    let extra = unmodelled::draw(opts.unmodelled, seed, &beam, rate, tip_sensor)?;
+    truth.extend(extra.truth());
     if with_beam {
         let n_keep = 8;
-        let mut modes = beam.modes(n_keep)?;
+        let mut modes = extra.modes(&beam, n_keep)?;
         let limit = pi2 * (0.1 / fine_dt).min(250.0);
         let keep = modes
             .omega_rad_s
@@ -441,8 +462,8 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
     // simulate and sample
     let mut noise_rng = StdRng::seed_from_u64(seed ^ 0x00C0_FFEE);
     let mut recs = Vec::new();
-    for cmd in &cmds {
-        let run = plant.run(cmd, fine_dt);
+    for (i_rec, cmd) in cmds.iter().enumerate() {
+        let mut run = plant.run(cmd, fine_dt);
         let bound = 10.0 * (spec.span_m + geo.length_m);
         if run
             .tip_m
@@ -456,6 +477,9 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
             bail!(
                 "the truth plant's servo loop is unstable for this draw (it rattles in the play)"
             );
+        }
+        if let Some(s) = extra.sensed_tip(&run.tip_m, fine_dt) {
+            run.tip_m = s;
         }
         let n = cmd.len() / FINE_STEPS;
         let mut rec = Recording::with_uniform_time(n, rate);
@@ -492,8 +516,9 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
                             run.tip_m[i] * (1.0 - a)
                                 + run.tip_m[(i + 1).min(run.tip_m.len() - 1)] * a
                         };
+                        let drift = extra.drift_m(i_rec, k as f64 / rate, opts.duration_s);
                         q(
-                            plant.sensors.tip_gain * v + gauss(sensors.tip_noise_m),
+                            plant.sensors.tip_gain * v + drift + gauss(sensors.tip_noise_m),
                             sensors.tip_quantum_m,
                         )
                     })
@@ -536,6 +561,25 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
     truth.insert("true_damping_ratios".into(), vec![zeta.0, zeta.1].into());
     truth.insert("tip_noise_m".into(), sensors.tip_noise_m.into());
     truth.insert("force_noise_n".into(), sensors.force_noise_n.into());
+    truth.insert("sample_rate_hz".into(), rate.into());
+    truth.insert(
+        "geometry".into(),
+        serde_json::to_value(&geo).unwrap_or_default(),
+    );
+    let channels = [
+        (has_base, "base_pos_m"),
+        (has_tip, "tip_pos_m"),
+        (has_force, "force_n"),
+    ];
+    truth.insert(
+        "channels".into(),
+        channels
+            .iter()
+            .filter(|c| c.0)
+            .map(|c| c.1)
+            .collect::<Vec<_>>()
+            .into(),
+    );
     let validate = recs.pop().context("no recordings")?;
     Ok(TruthCase {
         effect: effect.to_string(),

@@ -1,0 +1,1049 @@
+//! `diagnose-proof`: the diagnosis on concealed cases of the project's own truth generator
+//! (`crate::truth`), widened for issue 10, and its scoring.
+//!
+//! Cases ([`plan`]): every catalogue effect alone, pairs of simultaneous effects, physics outside
+//! the catalogue ([`crate::truth::unmodelled`]) and nulls. Each case runs under one of a fixed
+//! cycle of recording conditions ([`EFFECT_CONDITIONS`], [`NULL_CONDITIONS`]): sample rate
+//! 50–1000 Hz, `base_pos_m` or `force_n` missing, sensor noise ×0.3–3; geometry (length, taper,
+//! thickness, material), damping and move profiles are drawn from the seed by the generator.
+//!
+//! Scoring ([`score`]), the convention of the independent scorer
+//! (`../shared/tools/score_discrepancy.py`): every generated rig has a finite servo loop, so a
+//! named `servo_lag` never counts against a case whose hidden set lacks it. A single or a null is
+//! right when the named set equals the hidden set (and a gravity case's orientation is right);
+//! pairs are scored by recall (hidden effects named / hidden) and precision (named effects that
+//! are hidden / named), summed over the pair cases; a null with any name is a false alarm; an
+//! out-of-catalogue case is right when no catalogue effect is named and the residual is reported
+//! `unexplained`. Coverage: for every parameter of a correctly named effect that the generator
+//! knows the truth of, whether |estimate − truth| ≤ 2σ; the robust z scale
+//! median(|z|)/0.6745 says how much larger the observed scatter is than the reported σ (1 when σ
+//! is honest and errors are Gaussian).
+
+use super::report::{to_json, validation_summary, write_report};
+use super::sim::Prepared;
+use super::{diagnose as run_diagnosis, fit::CHANNEL_NAMES};
+use crate::model::Rig;
+use crate::truth::unmodelled::Unmodelled;
+use crate::truth::{generate, TruthOptions, EFFECTS};
+use anyhow::Result;
+use serde::Serialize;
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// What a case tests.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Group {
+    /// One catalogue effect.
+    Single,
+    /// Two (or more) simultaneous catalogue effects.
+    Pair,
+    /// Physics outside the catalogue.
+    Unmodelled,
+    /// No effect.
+    Null,
+}
+
+/// Recording conditions of a case.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Conditions {
+    /// Sample rate (Hz).
+    pub rate_hz: f64,
+    /// `base_pos_m` forced present/absent (`None`: drawn from the seed).
+    pub base_pos: Option<bool>,
+    /// `force_n` forced present/absent (`None`: drawn from the seed).
+    pub force: Option<bool>,
+    /// Sensor-noise multiplier.
+    pub noise_scale: f64,
+}
+
+const fn cond(rate_hz: f64, base_pos: Option<bool>, force: Option<bool>, noise: f64) -> Conditions {
+    Conditions {
+        rate_hz,
+        base_pos,
+        force,
+        noise_scale: noise,
+    }
+}
+
+/// Conditions cycled over effect cases (singles, pairs, out-of-catalogue).
+pub const EFFECT_CONDITIONS: [Conditions; 7] = [
+    cond(100.0, None, None, 1.0),
+    cond(50.0, None, None, 1.0),
+    cond(250.0, None, Some(false), 1.0),
+    cond(100.0, Some(false), None, 1.0),
+    cond(500.0, None, None, 0.5),
+    cond(1000.0, None, None, 1.0),
+    cond(100.0, None, None, 2.0),
+];
+
+/// Conditions cycled over null cases.
+pub const NULL_CONDITIONS: [Conditions; 8] = [
+    cond(100.0, None, None, 1.0),
+    cond(50.0, None, None, 1.0),
+    cond(250.0, Some(false), None, 1.0),
+    cond(1000.0, None, None, 1.0),
+    cond(100.0, Some(false), Some(false), 1.0),
+    cond(100.0, None, None, 3.0),
+    cond(500.0, None, Some(false), 0.3),
+    cond(200.0, Some(true), Some(true), 1.0),
+];
+
+/// Pairs run by default.
+pub const DEFAULT_PAIRS: [&str; 6] = [
+    "base_friction+servo_lag",
+    "sensor_delay+tip_mass",
+    "base_friction+tip_mass",
+    "root_compliance+sensor_gain",
+    "cogging_ripple+quadratic_damping",
+    "mount_resonance+base_friction",
+];
+
+/// One planned case.
+#[derive(Clone, Debug, Serialize)]
+pub struct CaseSpec {
+    /// Row label: the hidden effect ids joined by `+` (sorted), an out-of-catalogue kind, or
+    /// `none`.
+    pub label: String,
+    /// Hidden catalogue effects as handed to the generator (`none` when there are none).
+    pub effect: String,
+    /// Physics outside the catalogue.
+    pub unmodelled: Option<Unmodelled>,
+    /// Group.
+    pub group: Group,
+    /// Seed.
+    pub seed: u64,
+    /// Recording duration (s).
+    pub duration_s: f64,
+    /// Recording conditions.
+    pub conditions: Conditions,
+}
+
+impl CaseSpec {
+    /// The conditions in words (`250 Hz, 40 s, no force_n, noise ×2`).
+    pub fn conditions_words(&self) -> String {
+        let c = &self.conditions;
+        let mut s = format!("{:.0} Hz, {:.0} s", c.rate_hz, self.duration_s);
+        for (v, n) in [(c.base_pos, "base_pos_m"), (c.force, "force_n")] {
+            match v {
+                Some(false) => s += &format!(", no {n}"),
+                Some(true) => s += &format!(", with {n}"),
+                None => {}
+            }
+        }
+        if c.noise_scale != 1.0 {
+            s += &format!(", noise ×{}", c.noise_scale);
+        }
+        s
+    }
+}
+
+/// What to plan.
+#[derive(Clone, Debug)]
+pub struct PlanOptions {
+    /// Single effects (ids).
+    pub singles: Vec<String>,
+    /// Cases per single effect.
+    pub cases: usize,
+    /// Pairs (`a+b`).
+    pub pairs: Vec<String>,
+    /// Cases per pair.
+    pub pair_cases: usize,
+    /// Out-of-catalogue kinds.
+    pub unmodelled: Vec<Unmodelled>,
+    /// Cases per out-of-catalogue kind.
+    pub unmodelled_cases: usize,
+    /// Null cases.
+    pub nulls: usize,
+    /// First seed.
+    pub seed: u64,
+    /// Duration of each recording (s), shortened at high rates to `max_samples`.
+    pub duration_s: f64,
+    /// Most samples per recording (the rate × duration bound).
+    pub max_samples: usize,
+    /// Cycle the recording conditions (else every case at 100 Hz, channels drawn, noise ×1).
+    pub vary: bool,
+}
+
+fn needs_force(effect: &str) -> bool {
+    effect
+        .split('+')
+        .any(|e| matches!(e, "base_friction" | "cogging_ripple"))
+}
+
+/// `a+b` with the ids sorted (the row label of a pair).
+pub fn sorted_label(effect: &str) -> String {
+    let mut v: Vec<&str> = effect.split('+').map(str::trim).collect();
+    v.sort_unstable();
+    v.join("+")
+}
+
+/// The case list: singles (seed + 100 i + k), pairs (seed + 2000 + 10 i + k), out-of-catalogue
+/// (seed + 3000 + 10 i + k), nulls (seed + 5000 + k), conditions cycled per group.
+pub fn plan(o: &PlanOptions) -> Vec<CaseSpec> {
+    let mut out = Vec::new();
+    let mut push = |effect: &str, um: Option<Unmodelled>, group, seed: u64, c: Conditions| {
+        let mut c = if o.vary { c } else { EFFECT_CONDITIONS[0] };
+        // friction and cogging act on the force channel only; it is never dropped for them
+        if needs_force(effect) && c.force == Some(false) {
+            c.force = Some(true);
+        }
+        let duration_s = o.duration_s.min(o.max_samples as f64 / c.rate_hz);
+        out.push(CaseSpec {
+            label: um.map_or_else(|| sorted_label(effect), |u| u.id().to_string()),
+            effect: effect.to_string(),
+            unmodelled: um,
+            group,
+            seed,
+            duration_s,
+            conditions: c,
+        });
+    };
+    let ec = &EFFECT_CONDITIONS;
+    for (i, e) in o.singles.iter().enumerate() {
+        for k in 0..o.cases {
+            let s = o.seed + 100 * i as u64 + k as u64;
+            push(e, None, Group::Single, s, ec[(i + k) % ec.len()]);
+        }
+    }
+    for (i, p) in o.pairs.iter().enumerate() {
+        for k in 0..o.pair_cases {
+            let s = o.seed + 2000 + 10 * i as u64 + k as u64;
+            push(p, None, Group::Pair, s, ec[(i + 3 * k) % ec.len()]);
+        }
+    }
+    for (i, u) in o.unmodelled.iter().enumerate() {
+        for k in 0..o.unmodelled_cases {
+            let s = o.seed + 3000 + 10 * i as u64 + k as u64;
+            push(
+                "none",
+                Some(*u),
+                Group::Unmodelled,
+                s,
+                ec[(2 * i + k) % ec.len()],
+            );
+        }
+    }
+    for k in 0..o.nulls {
+        let s = o.seed + 5000 + k as u64;
+        push(
+            "none",
+            None,
+            Group::Null,
+            s,
+            NULL_CONDITIONS[k % NULL_CONDITIONS.len()],
+        );
+    }
+    out
+}
+
+/// One parameter estimate against its truth.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Estimate {
+    /// Parameter name (JSON name of the diagnosis).
+    pub kind: String,
+    /// True value.
+    pub truth: f64,
+    /// Estimate.
+    pub value: f64,
+    /// Reported 1 σ (`None`: not identified / not reported).
+    pub sigma: Option<f64>,
+}
+
+/// One proof row.
+#[derive(Clone, Debug, Serialize)]
+pub struct ProofRow {
+    /// Row label (hidden effects, out-of-catalogue kind, or `none`).
+    pub truth: String,
+    /// Group.
+    pub group: Group,
+    /// Seed.
+    pub seed: u64,
+    /// Recording conditions in words.
+    pub conditions: String,
+    /// Channels the generator recorded.
+    pub channels: Vec<String>,
+    /// Named effects (sorted, `+`-joined; `servo_lag` dropped unless hidden), or `none`.
+    pub named: String,
+    /// Every effect the diagnosis named, in selection order.
+    pub named_raw: Vec<String>,
+    /// The unexplained residual's channel and band, when reported.
+    pub unexplained: Option<String>,
+    /// Right by the rules of the module header.
+    pub correct: bool,
+    /// First parameter with a truth: name, true, fitted, relative error (correct effects only).
+    pub parameter: Option<(String, f64, f64, f64)>,
+    /// Estimates of every parameter with a truth, of correctly named effects.
+    pub estimates: Vec<Estimate>,
+    /// Orientation correct (gravity cases).
+    pub orientation_ok: Option<bool>,
+    /// Validation NRMSE before/after, channel.
+    pub nrmse: (f64, f64, String),
+    /// Seconds (generation + diagnosis).
+    pub seconds: f64,
+    /// The diagnosis ended in an error or a panic (the case counts as wrong, never as a named
+    /// effect).
+    pub error: Option<String>,
+}
+
+impl ProofRow {
+    /// Hidden catalogue effects (empty for nulls and out-of-catalogue cases).
+    pub fn hidden(&self) -> Vec<&str> {
+        match self.group {
+            Group::Null | Group::Unmodelled => vec![],
+            _ => self.truth.split('+').collect(),
+        }
+    }
+
+    /// Named catalogue effects under the scorer's convention (empty for `none`).
+    pub fn named_set(&self) -> Vec<&str> {
+        if self.named == "none" || self.error.is_some() {
+            vec![]
+        } else {
+            self.named.split('+').collect()
+        }
+    }
+}
+
+/// Named effects of a diagnosis JSON (`effects[].effect`), without `none`/`unexplained`.
+fn json_effects(j: &Value) -> Vec<(String, Value)> {
+    j["effects"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .filter_map(|e| Some((e["effect"].as_str()?.to_string(), e.clone())))
+                .filter(|(n, _)| !matches!(n.as_str(), "none" | "unexplained" | "unknown"))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// The named set under the servo convention: sorted, deduplicated, `servo_lag` dropped unless
+/// hidden; `none` when empty.
+pub fn conventional_names(named: &[String], hidden: &[&str]) -> String {
+    let mut v: Vec<&str> = named.iter().map(String::as_str).collect();
+    if !hidden.contains(&"servo_lag") {
+        v.retain(|n| *n != "servo_lag");
+    }
+    v.sort_unstable();
+    v.dedup();
+    if v.is_empty() {
+        "none".into()
+    } else {
+        v.join("+")
+    }
+}
+
+/// Parameters of the correctly named effects in `j` that `truth` knows, plus the calibrated
+/// carriage-mass correction against the truth (when the diagnosis gives it a σ).
+fn estimates(
+    j: &Value,
+    hidden: &[&str],
+    truth: &BTreeMap<String, Value>,
+    rig_mass_kg: f64,
+) -> Vec<Estimate> {
+    let mut out = Vec::new();
+    for (name, e) in json_effects(j) {
+        if !hidden.contains(&name.as_str()) {
+            continue;
+        }
+        if let Some(p) = e["parameters"].as_object() {
+            for (k, v) in p {
+                if let (Some(t), Some(x)) = (truth.get(k).and_then(Value::as_f64), v.as_f64()) {
+                    out.push(Estimate {
+                        kind: k.clone(),
+                        truth: t,
+                        value: x,
+                        sigma: e["uncertainty"][k].as_f64(),
+                    });
+                }
+            }
+        }
+    }
+    let cal = &j["calibration"]["base_mass_delta_kg"];
+    if let (Some(x), Some(s), Some(m)) = (
+        cal["value"].as_f64(),
+        cal["std"].as_f64(),
+        truth.get("true_carriage_mass_kg").and_then(Value::as_f64),
+    ) {
+        out.push(Estimate {
+            kind: "base_mass_delta_kg (calibration)".into(),
+            truth: m - rig_mass_kg,
+            value: x,
+            sigma: s.is_finite().then_some(s),
+        });
+    }
+    out
+}
+
+/// Generates, diagnoses and scores one case.
+pub fn run_case(spec: &CaseSpec, out: Option<&Path>) -> Result<ProofRow> {
+    let t0 = std::time::Instant::now();
+    let opts = TruthOptions {
+        duration_s: spec.duration_s,
+        rate_hz: spec.conditions.rate_hz,
+        unmodelled: spec.unmodelled,
+        base_pos: spec.conditions.base_pos,
+        force: spec.conditions.force,
+        noise_scale: spec.conditions.noise_scale,
+        ..Default::default()
+    };
+    let case = generate(&spec.effect, spec.seed, &opts)?;
+    let rig = Rig::from_toml_str(&case.rig_toml)?;
+    let fit: Vec<Prepared> = case
+        .fit
+        .iter()
+        .enumerate()
+        .map(|(i, r)| Prepared::new(&format!("fit{}", i + 1), r))
+        .collect::<Result<_>>()?;
+    let val = Prepared::new("validate", &case.validate)?;
+    let d = run_diagnosis(&rig, &fit, &val, &mut |_, _, _| {})?;
+    let (c, before, after) = validation_summary(&d);
+    let j = to_json(&d);
+    let named_raw: Vec<String> = json_effects(&j).into_iter().map(|(n, _)| n).collect();
+    let group = spec.group;
+    let hidden: Vec<&str> = match group {
+        Group::Null | Group::Unmodelled => vec![],
+        _ => spec.effect.split('+').collect(),
+    };
+    let named = conventional_names(&named_raw, &hidden);
+    let orientation_ok = case.truth.get("orientation").map(|v| {
+        json_effects(&j)
+            .iter()
+            .any(|(_, e)| e["parameters"]["orientation"].as_str() == v.as_str())
+    });
+    let unexplained = j["unexplained"]["channel"].as_str().map(|ch| {
+        let b = &j["unexplained"]["band_hz"];
+        format!(
+            "{ch} {:.2}–{:.2} Hz",
+            b[0].as_f64().unwrap_or(f64::NAN),
+            b[1].as_f64().unwrap_or(f64::NAN)
+        )
+    });
+    let correct = match group {
+        Group::Unmodelled => named == "none" && unexplained.is_some(),
+        _ => named == spec.label && orientation_ok.unwrap_or(true),
+    };
+    let mut est = estimates(&j, &hidden, &case.truth, rig.base.mass_kg);
+    if !correct {
+        // a calibration that absorbed a missed effect is not a calibration of the true rig
+        est.retain(|e| !e.kind.contains("calibration"));
+    }
+    let parameter = est
+        .iter()
+        .find(|e| !e.kind.contains("calibration"))
+        .map(|e| {
+            let rel = (e.value - e.truth).abs() / e.truth.abs().max(1e-300);
+            (e.kind.clone(), e.truth, e.value, rel)
+        });
+    if let Some(o) = out {
+        let dir = o.join(format!("{}-{}", spec.label, spec.seed));
+        case.write(&dir)?;
+        write_report(&d, &dir.join("report"))?;
+    }
+    let channels = case.truth["channels"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .filter_map(|c| Some(c.as_str()?.to_string()))
+                .collect()
+        })
+        .unwrap_or_default();
+    Ok(ProofRow {
+        truth: spec.label.clone(),
+        group,
+        seed: spec.seed,
+        conditions: spec.conditions_words(),
+        channels,
+        named,
+        named_raw,
+        unexplained,
+        correct,
+        parameter,
+        estimates: est,
+        orientation_ok,
+        nrmse: (before, after, CHANNEL_NAMES[c].to_string()),
+        seconds: t0.elapsed().as_secs_f64(),
+        error: None,
+    })
+}
+
+/// The row of a case whose generation or diagnosis failed with `msg`.
+fn failed_row(spec: &CaseSpec, msg: String, seconds: f64) -> ProofRow {
+    ProofRow {
+        truth: spec.label.clone(),
+        group: spec.group,
+        seed: spec.seed,
+        conditions: spec.conditions_words(),
+        channels: vec![],
+        named: "error".into(),
+        named_raw: vec![],
+        unexplained: None,
+        correct: false,
+        parameter: None,
+        estimates: vec![],
+        orientation_ok: None,
+        nrmse: (f64::NAN, f64::NAN, String::new()),
+        seconds,
+        error: Some(msg),
+    }
+}
+
+/// [`run_case`], with an error or a panic of the diagnosis turned into a failed row.
+fn run_case_guarded(spec: &CaseSpec, out: Option<&Path>) -> ProofRow {
+    let t0 = std::time::Instant::now();
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run_case(spec, out))) {
+        Ok(Ok(r)) => r,
+        Ok(Err(e)) => failed_row(spec, format!("error: {e:#}"), t0.elapsed().as_secs_f64()),
+        Err(p) => {
+            let m = p
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| p.downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            failed_row(spec, format!("panic: {m}"), t0.elapsed().as_secs_f64())
+        }
+    }
+}
+
+/// Runs every case in order (no parallelism: the machine is shared), with one progress line per
+/// case on stderr when `show`.
+pub fn run_plan(cases: &[CaseSpec], out: Option<&Path>, show: bool) -> Result<Vec<ProofRow>> {
+    let t0 = std::time::Instant::now();
+    let mut rows = Vec::with_capacity(cases.len());
+    for (i, c) in cases.iter().enumerate() {
+        let r = run_case_guarded(c, out);
+        if show {
+            eprintln!(
+                "[{:>6.0} s] {}/{} {} seed {} ({}): named {}{} {} ({:.1} s)",
+                t0.elapsed().as_secs_f64(),
+                i + 1,
+                cases.len(),
+                r.truth,
+                r.seed,
+                r.conditions,
+                r.named,
+                r.unexplained
+                    .as_ref()
+                    .map_or(String::new(), |u| format!(", unexplained {u}")),
+                if r.correct { "ok" } else { "WRONG" },
+                r.seconds
+            );
+            if let Some(e) = &r.error {
+                eprintln!("    {e}");
+            }
+        }
+        rows.push(r);
+    }
+    Ok(rows)
+}
+
+/// The classic proof (singles and nulls at 100 Hz, channels drawn): `cases` per effect, `nulls`
+/// nulls, from `seed0`. Kept for the integration test and the earlier numbers in docs.
+pub fn run_proof(
+    effects: &[&str],
+    cases: usize,
+    nulls: usize,
+    seed0: u64,
+    duration_s: f64,
+    out: Option<&Path>,
+    show: bool,
+) -> Result<Vec<ProofRow>> {
+    let specs = plan(&PlanOptions {
+        singles: effects.iter().map(|s| s.to_string()).collect(),
+        cases,
+        pairs: vec![],
+        pair_cases: 0,
+        unmodelled: vec![],
+        unmodelled_cases: 0,
+        nulls,
+        seed: seed0,
+        duration_s,
+        max_samples: usize::MAX,
+        vary: false,
+    });
+    run_plan(&specs, out, show)
+}
+
+/// Coverage of ±2σ for one parameter kind.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct Coverage {
+    /// Estimates with a finite σ.
+    pub n: usize,
+    /// Of those, |estimate − truth| ≤ 2σ.
+    pub within_2sigma: usize,
+    /// Estimates without a σ (not identified).
+    pub no_sigma: usize,
+    /// median(|z|)/0.6745, z = (estimate − truth)/σ: the observed scatter over the reported σ.
+    pub z_scale: f64,
+}
+
+impl Coverage {
+    /// The covered fraction (NaN when n = 0).
+    pub fn fraction(&self) -> f64 {
+        self.within_2sigma as f64 / self.n as f64
+    }
+}
+
+/// Coverage of `est`.
+pub fn coverage<'a>(est: impl IntoIterator<Item = &'a Estimate>) -> Coverage {
+    let mut c = Coverage::default();
+    let mut z = Vec::new();
+    for e in est {
+        match e.sigma {
+            Some(s) if s.is_finite() && s > 0.0 => {
+                let zi = ((e.value - e.truth) / s).abs();
+                c.n += 1;
+                c.within_2sigma += usize::from(zi <= 2.0);
+                z.push(zi);
+            }
+            _ => c.no_sigma += 1,
+        }
+    }
+    z.sort_by(|a, b| a.total_cmp(b));
+    c.z_scale = if z.is_empty() {
+        f64::NAN
+    } else {
+        let m = z.len() / 2;
+        let med = if z.len() % 2 == 1 {
+            z[m]
+        } else {
+            0.5 * (z[m - 1] + z[m])
+        };
+        med / 0.6745
+    };
+    c
+}
+
+/// The proof's score.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Summary {
+    /// Cases.
+    pub cases: usize,
+    /// Cases whose diagnosis ended in an error or a panic (counted wrong).
+    pub errors: Vec<String>,
+    /// Singles right / total.
+    pub singles: (usize, usize),
+    /// Pair cases with exactly the hidden set named / total.
+    pub pairs_exact: (usize, usize),
+    /// Over pair cases: hidden effects named (true positives).
+    pub pairs_tp: usize,
+    /// Hidden effects not named.
+    pub pairs_fn: usize,
+    /// Named effects not hidden.
+    pub pairs_fp: usize,
+    /// tp / (tp + fn).
+    pub pairs_recall: f64,
+    /// tp / (tp + fp).
+    pub pairs_precision: f64,
+    /// Nulls with any name / nulls.
+    pub null_false_alarms: (usize, usize),
+    /// Nulls reported `unexplained` (no name) / nulls.
+    pub null_unexplained: (usize, usize),
+    /// Out-of-catalogue cases answered `unexplained` without a catalogue name / total.
+    pub unmodelled_unexplained: (usize, usize),
+    /// Out-of-catalogue cases located on the tip channel (every kind here acts on the tip).
+    pub unmodelled_tip_channel: usize,
+    /// Coverage per parameter kind.
+    pub coverage: BTreeMap<String, Coverage>,
+    /// Coverage over every effect parameter (calibration excluded).
+    pub coverage_effects: Coverage,
+    /// Correctly named effect cases with at least one parameter estimate.
+    pub coverage_cases: usize,
+}
+
+fn frac(n: usize, d: usize) -> f64 {
+    n as f64 / d as f64
+}
+
+/// Scores `rows` by the rules of the module header.
+pub fn score(rows: &[ProofRow]) -> Summary {
+    let mut s = Summary {
+        cases: rows.len(),
+        ..Default::default()
+    };
+    for r in rows {
+        if let Some(e) = &r.error {
+            s.errors.push(format!("{} seed {}: {e}", r.truth, r.seed));
+        }
+        let hidden = r.hidden();
+        let named = r.named_set();
+        match r.group {
+            Group::Single => {
+                s.singles.1 += 1;
+                s.singles.0 += usize::from(r.correct);
+            }
+            Group::Pair => {
+                s.pairs_exact.1 += 1;
+                s.pairs_exact.0 += usize::from(r.correct);
+                let tp = hidden.iter().filter(|h| named.contains(h)).count();
+                s.pairs_tp += tp;
+                s.pairs_fn += hidden.len() - tp;
+                s.pairs_fp += named.iter().filter(|n| !hidden.contains(n)).count();
+            }
+            Group::Null => {
+                s.null_false_alarms.1 += 1;
+                s.null_false_alarms.0 += usize::from(!named.is_empty());
+                s.null_unexplained.1 += 1;
+                s.null_unexplained.0 += usize::from(named.is_empty() && r.unexplained.is_some());
+            }
+            Group::Unmodelled => {
+                s.unmodelled_unexplained.1 += 1;
+                s.unmodelled_unexplained.0 += usize::from(r.correct);
+                s.unmodelled_tip_channel += usize::from(
+                    r.unexplained
+                        .as_ref()
+                        .is_some_and(|u| u.starts_with("tip_pos_m")),
+                );
+            }
+        }
+    }
+    s.pairs_recall = frac(s.pairs_tp, s.pairs_tp + s.pairs_fn);
+    s.pairs_precision = frac(s.pairs_tp, s.pairs_tp + s.pairs_fp);
+    let all: Vec<&Estimate> = rows.iter().flat_map(|r| &r.estimates).collect();
+    let mut kinds: Vec<&str> = all.iter().map(|e| e.kind.as_str()).collect();
+    kinds.sort_unstable();
+    kinds.dedup();
+    for k in kinds {
+        s.coverage.insert(
+            k.to_string(),
+            coverage(all.iter().copied().filter(|e| e.kind == k)),
+        );
+    }
+    s.coverage_effects = coverage(
+        all.iter()
+            .copied()
+            .filter(|e| !e.kind.contains("calibration")),
+    );
+    s.coverage_cases = rows
+        .iter()
+        .filter(|r| r.estimates.iter().any(|e| !e.kind.contains("calibration")))
+        .count();
+    s
+}
+
+fn pct(n: usize, d: usize) -> String {
+    if d == 0 {
+        "–".into()
+    } else {
+        format!("{n}/{d} = {:.0} %", 100.0 * frac(n, d))
+    }
+}
+
+/// The per-case table, the confusion table (rows: hidden, columns: named; a pair case counts in
+/// each column it names) and the summary, as printed by `diagnose-proof`.
+pub fn proof_table(rows: &[ProofRow]) -> String {
+    let mut s = format!(
+        "{:<34} {:>6} {:<36} {:<40} {:>4} {:>28} {:>7} {:>6}\n",
+        "hidden", "seed", "conditions", "named", "ok", "parameter (true → fitted)", "red %", "s"
+    );
+    for r in rows {
+        let p = r.parameter.as_ref().map_or_else(
+            || match (r.orientation_ok, &r.unexplained) {
+                (Some(o), _) => format!("orientation {}", if o { "ok" } else { "WRONG" }),
+                (None, Some(u)) => format!("unexpl. {u}"),
+                _ => "-".into(),
+            },
+            |(n, t, f, e)| format!("{n} {t:.3e}→{f:.3e} ({:.0}%)", 100.0 * e),
+        );
+        s += &format!(
+            "{:<34} {:>6} {:<36} {:<40} {:>4} {:>28} {:>7.1} {:>6.1}\n",
+            r.truth,
+            r.seed,
+            r.conditions,
+            r.named,
+            if r.correct { "yes" } else { "NO" },
+            p,
+            100.0 * (1.0 - r.nrmse.1 / r.nrmse.0),
+            r.seconds
+        );
+    }
+    s += &confusion(rows);
+    s += &summary_text(&score(rows));
+    s
+}
+
+/// The confusion table: rows = hidden (in order of appearance), columns = catalogue effects,
+/// `none` (nothing named) and `unexpl.` (an unexplained residual reported).
+pub fn confusion(rows: &[ProofRow]) -> String {
+    let mut labels: Vec<&str> = Vec::new();
+    for r in rows {
+        if !labels.contains(&r.truth.as_str()) {
+            labels.push(&r.truth);
+        }
+    }
+    let mut cols: Vec<&str> = EFFECTS.to_vec();
+    for r in rows {
+        for n in r.named_set() {
+            if !cols.contains(&n) {
+                cols.push(n);
+            }
+        }
+    }
+    let mut s = String::from(
+        "\nconfusion (rows: hidden; columns: named, servo_lag counted only where hidden; `none`: nothing named; `unexpl.`: unexplained residual reported)\n",
+    );
+    for (j, c) in cols.iter().enumerate() {
+        s += &format!("  {j:>2} = {c}\n");
+    }
+    s += &format!("{:<34}{:>4}", "", "n");
+    for j in 0..cols.len() {
+        s += &format!("{j:>4}");
+    }
+    s += "  none unexpl.\n";
+    for l in labels {
+        let rs: Vec<&ProofRow> = rows.iter().filter(|r| r.truth == l).collect();
+        s += &format!("{l:<34}{:>4}", rs.len());
+        let cell = |k: usize| {
+            if k == 0 {
+                ".".to_string()
+            } else {
+                k.to_string()
+            }
+        };
+        for c in &cols {
+            s += &format!(
+                "{:>4}",
+                cell(rs.iter().filter(|r| r.named_set().contains(c)).count())
+            );
+        }
+        let none = rs.iter().filter(|r| r.named == "none").count();
+        let un = rs.iter().filter(|r| r.unexplained.is_some()).count();
+        s += &format!("{:>6}{:>8}\n", cell(none), cell(un));
+    }
+    s
+}
+
+/// The summary in words.
+pub fn summary_text(m: &Summary) -> String {
+    let mut s = format!(
+        "\nsingles right {} (target ≥ 90 %)\npairs: exactly right {}; recall {}/{} = {:.2} (target ≥ 0.75), precision {}/{} = {:.2} (target ≥ 0.9)\n",
+        pct(m.singles.0, m.singles.1),
+        pct(m.pairs_exact.0, m.pairs_exact.1),
+        m.pairs_tp,
+        m.pairs_tp + m.pairs_fn,
+        m.pairs_recall,
+        m.pairs_tp,
+        m.pairs_tp + m.pairs_fp,
+        m.pairs_precision,
+    );
+    s += &format!(
+        "nulls: false alarms {}/{} (target 0); unexplained reported on {}\nout of catalogue answered `unexplained` {} (target ≥ 75 %), located on tip_pos_m {}\n",
+        m.null_false_alarms.0,
+        m.null_false_alarms.1,
+        pct(m.null_unexplained.0, m.null_unexplained.1),
+        pct(m.unmodelled_unexplained.0, m.unmodelled_unexplained.1),
+        m.unmodelled_tip_channel
+    );
+    s += &format!(
+        "coverage of ±2σ over {} correctly named effect cases (≈ 95 % if σ is honest; z scale = median|z|/0.6745, 1 if honest):\n",
+        m.coverage_cases
+    );
+    let line = |k: &str, c: &Coverage| {
+        format!(
+            "  {k:<36} {:>3}/{:<3} = {:>5.1} %  z scale {:>7.2}  (no σ: {})\n",
+            c.within_2sigma,
+            c.n,
+            100.0 * c.fraction(),
+            c.z_scale,
+            c.no_sigma
+        )
+    };
+    for (k, c) in &m.coverage {
+        s += &line(k, c);
+    }
+    s += &line("all effect parameters", &m.coverage_effects);
+    if !m.errors.is_empty() {
+        s += &format!("errors (counted wrong) {}:\n", m.errors.len());
+        for e in &m.errors {
+            s += &format!("  {e}\n");
+        }
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(truth: &str, group: Group, named: &str, unexplained: bool, correct: bool) -> ProofRow {
+        ProofRow {
+            truth: truth.into(),
+            group,
+            seed: 0,
+            conditions: String::new(),
+            channels: vec![],
+            named: named.into(),
+            named_raw: vec![],
+            unexplained: unexplained.then(|| "tip_pos_m 1.00–2.00 Hz".to_string()),
+            correct,
+            parameter: None,
+            estimates: vec![],
+            orientation_ok: None,
+            nrmse: (1.0, 0.5, "tip_pos_m".into()),
+            seconds: 0.0,
+            error: None,
+        }
+    }
+
+    fn est(kind: &str, truth: f64, value: f64, sigma: Option<f64>) -> Estimate {
+        Estimate {
+            kind: kind.into(),
+            truth,
+            value,
+            sigma,
+        }
+    }
+
+    #[test]
+    fn servo_lag_never_counts_unless_hidden() {
+        let n = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert_eq!(conventional_names(&n(&["servo_lag"]), &[]), "none");
+        assert_eq!(
+            conventional_names(&n(&["tip_mass", "servo_lag"]), &["tip_mass"]),
+            "tip_mass"
+        );
+        assert_eq!(
+            conventional_names(
+                &n(&["servo_lag", "base_friction"]),
+                &["base_friction", "servo_lag"]
+            ),
+            "base_friction+servo_lag"
+        );
+    }
+
+    #[test]
+    fn scores_a_hand_made_table() {
+        let mut rows = vec![
+            row("tip_mass", Group::Single, "tip_mass", false, true),
+            row("sensor_delay", Group::Single, "servo_lag", false, false),
+            row(
+                "cogging_ripple",
+                Group::Single,
+                "cogging_ripple",
+                false,
+                true,
+            ),
+            row("cogging_ripple", Group::Single, "none", true, false),
+            // pairs: 1 exact; one missing an effect; one with an extra effect
+            row(
+                "base_friction+servo_lag",
+                Group::Pair,
+                "base_friction+servo_lag",
+                false,
+                true,
+            ),
+            row(
+                "sensor_delay+tip_mass",
+                Group::Pair,
+                "tip_mass",
+                false,
+                false,
+            ),
+            row(
+                "base_friction+tip_mass",
+                Group::Pair,
+                "base_friction+root_compliance+tip_mass",
+                false,
+                false,
+            ),
+            row("none", Group::Null, "none", false, true),
+            row("none", Group::Null, "none", true, true),
+            row("none", Group::Null, "mount_resonance", false, false),
+            row("crack", Group::Unmodelled, "none", true, true),
+            row(
+                "sensor_drift",
+                Group::Unmodelled,
+                "sensor_gain",
+                true,
+                false,
+            ),
+            row("sensor_drift", Group::Unmodelled, "none", false, false),
+        ];
+        // coverage: z = 0.5, 1.5, 3 (tip mass); z = 1, 4 (friction); one without σ
+        rows[0].estimates = vec![
+            est("tip_mass_kg", 1.0, 1.05, Some(0.1)),
+            est("base_mass_delta_kg (calibration)", 0.0, 0.1, Some(0.1)),
+        ];
+        rows[4].estimates = vec![
+            est("friction_n", 2.0, 2.1, Some(0.1)),
+            est("friction_n", 2.0, 2.4, Some(0.1)),
+            est("servo_bandwidth_hz", 40.0, 30.0, None),
+        ];
+        rows[5].estimates = vec![
+            est("tip_mass_kg", 1.0, 1.15, Some(0.1)),
+            est("tip_mass_kg", 1.0, 0.7, Some(0.1)),
+        ];
+        let s = score(&rows);
+        assert_eq!(s.cases, 13);
+        assert_eq!(s.singles, (2, 4));
+        assert_eq!(s.pairs_exact, (1, 3));
+        // hidden 6: named 5 of them (sensor_delay missed); named 6: one extra (root_compliance)
+        assert_eq!((s.pairs_tp, s.pairs_fn, s.pairs_fp), (5, 1, 1));
+        assert!((s.pairs_recall - 5.0 / 6.0).abs() < 1e-12);
+        assert!((s.pairs_precision - 5.0 / 6.0).abs() < 1e-12);
+        assert_eq!(s.null_false_alarms, (1, 3));
+        assert_eq!(s.null_unexplained, (1, 3));
+        assert_eq!(s.unmodelled_unexplained, (1, 3));
+        assert_eq!(s.unmodelled_tip_channel, 2);
+        let tm = &s.coverage["tip_mass_kg"];
+        assert_eq!((tm.n, tm.within_2sigma, tm.no_sigma), (3, 2, 0));
+        // median |z| of (0.5, 1.5, 3) = 1.5
+        assert!((tm.z_scale - 1.5 / 0.6745).abs() < 1e-9);
+        let fr = &s.coverage["friction_n"];
+        assert_eq!((fr.n, fr.within_2sigma), (2, 1));
+        assert!((fr.z_scale - 2.5 / 0.6745).abs() < 1e-9);
+        assert_eq!(s.coverage["servo_bandwidth_hz"].no_sigma, 1);
+        // all effect parameters: z = 0.5, 1.5, 3, 1, 4 → 3 of 5 within 2σ, median 1.5
+        let all = &s.coverage_effects;
+        assert_eq!((all.n, all.within_2sigma, all.no_sigma), (5, 3, 1));
+        assert!((all.fraction() - 0.6).abs() < 1e-12);
+        assert!((all.z_scale - 1.5 / 0.6745).abs() < 1e-9);
+        assert_eq!(s.coverage_cases, 3);
+        assert!(s.errors.is_empty());
+        // an error is wrong, never a named effect (not a false alarm on a null)
+        let mut e = row("none", Group::Null, "error", false, false);
+        e.error = Some("panic: x".into());
+        let se = score(&[e]);
+        assert_eq!((se.null_false_alarms, se.errors.len()), ((0, 1), 1));
+        // the confusion table counts a pair in each named column and reports unexplained
+        let t = confusion(&rows);
+        let line = t.lines().find(|l| l.starts_with("sensor_drift")).unwrap();
+        assert!(line.ends_with("   1     1       1"), "{line}");
+    }
+
+    #[test]
+    fn plan_covers_every_group_and_keeps_force_for_friction() {
+        let p = plan(&PlanOptions {
+            singles: vec!["base_friction".into(), "tip_mass".into()],
+            cases: 7,
+            pairs: vec!["tip_mass+cogging_ripple".into()],
+            pair_cases: 7,
+            unmodelled: Unmodelled::ALL.to_vec(),
+            unmodelled_cases: 2,
+            nulls: 8,
+            seed: 100,
+            duration_s: 40.0,
+            max_samples: 10_000,
+            vary: true,
+        });
+        assert_eq!(p.len(), 14 + 7 + 6 + 8);
+        let mut seeds: Vec<u64> = p.iter().map(|c| c.seed).collect();
+        seeds.sort_unstable();
+        seeds.dedup();
+        assert_eq!(seeds.len(), p.len(), "seeds are distinct");
+        for c in &p {
+            if needs_force(&c.effect) {
+                assert_ne!(c.conditions.force, Some(false), "{c:?}");
+            }
+            assert!(c.duration_s * c.conditions.rate_hz <= 10_000.0 + 1e-9);
+        }
+        assert!(p.iter().any(|c| c.label == "cogging_ripple+tip_mass"));
+        let rates: Vec<f64> = p.iter().map(|c| c.conditions.rate_hz).collect();
+        assert!(rates.contains(&50.0) && rates.contains(&1000.0));
+        let nulls: Vec<&CaseSpec> = p.iter().filter(|c| c.group == Group::Null).collect();
+        assert!(nulls.iter().any(|c| c.conditions.base_pos == Some(false)));
+        assert!(nulls.iter().any(|c| c.conditions.force == Some(false)));
+    }
+}
