@@ -3,10 +3,15 @@
 //!
 //! - [`sim`]: the augmented simulator (nominal model of paper §2 + every extension);
 //! - [`effects`]: the candidate catalogue with physical parameters;
-//! - [`fit`]: Levenberg–Marquardt on whitened residuals, parameter uncertainties;
+//! - [`fit`]: Levenberg–Marquardt ([`crate::numeric::lm`]) on whitened residuals, parameter
+//!   uncertainties;
 //! - [`locate`]: where/when/at which frequency the residual is structured;
-//! - [`select`]: BIC + validation + whiteness + significance guard;
+//! - [`select`]: BIC + validation + model-form allowance + whiteness + significance guard;
 //! - [`report`]: JSON, words, SVG plots; [`cli`]: `diagnose`, `diagnose-proof`;
+//!
+//! Every fit of one diagnosis draws on one budget of model evaluations
+//! ([`WORK_BUDGET_SAMPLE_EVALUATIONS`] divided by the fit recordings' samples), never on the
+//! clock, so the same recordings give the same answer on any machine.
 
 pub mod cli;
 pub mod effects;
