@@ -163,7 +163,7 @@ pub fn cubic_moment(k3: f64, theta: f64, theta_cap2: f64) -> f64 {
 }
 
 /// The bound θ_c² of [`cubic_moment`] for linear clamp stiffness `k_r` (N·m/rad): softening
-/// stops where the tangent stiffness k_r + 3k₃θ² would fall below k_r/4 (θ_c² = k_r / (4|k₃|));
+/// stops where the tangent stiffness k_r + 3k₃θ² would fall below k_r/10 (θ_c² = 0.3 k_r / |k₃|);
 /// hardening where it would exceed 10 k_r (θ_c² = 3 k_r / k₃) or where the per-sample impulse
 /// of the added stiffness would no longer be stable (3 k₃ θ² Σs_r² dt² ≤ 3, s_r the root
 /// rotation of mode r per unit mass-normalised coordinate).
@@ -172,7 +172,7 @@ pub fn cubic_cap2(k3: f64, k_r: f64, sum_s2: f64, dt: f64) -> f64 {
         return f64::INFINITY;
     }
     if k3 < 0.0 {
-        0.25 * k_r / -k3
+        0.3 * k_r / -k3
     } else {
         (3.0 * k_r / k3).min(3.0 / (3.0 * k3 * sum_s2.max(1e-300) * dt * dt))
     }
@@ -924,12 +924,12 @@ mod tests {
                 if th * th <= cap {
                     assert!((cubic_moment(k, th, cap) - k * th.powi(3)).abs() < 1e-12 * k.abs());
                 }
-                // the tangent stiffness of the whole clamp stays within [k_r/4, 10 k_r]
+                // the tangent stiffness of the whole clamp stays within [k_r/10, 10 k_r]
                 let h = 1e-7;
                 let t =
                     kr + (cubic_moment(k, th + h, cap) - cubic_moment(k, th - h, cap)) / (2.0 * h);
                 assert!(
-                    t >= 0.25 * kr - 1e-6 && t <= 10.0 * kr + 1e-6,
+                    t >= 0.1 * kr - 1e-6 && t <= 10.0 * kr + 1e-6,
                     "{k} {th} {t}"
                 );
             }

@@ -352,14 +352,15 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
             Effect::CubicStiffness => {
                 // a compliant clamp (f1 3–10 % low) whose stiffness changes by a fraction of
                 // itself at the peak root rotation of the fit moves: +40…120 % (hardening) or
-                // −10…−20 % (softening; tangent stiffness stays ≥ 40 % of k_r)
+                // −5…−15 % (softening; tangent stiffness ≥ 55 % of k_r at the linear peak, which
+                // a softening clamp exceeds)
                 let kr = root_stiffness_for(&beam, 1.0 - rng.gen_range(0.03..0.10))?;
                 beam.root_stiffness_nm_per_rad = Some(kr);
                 truth.insert("root_stiffness_nm_per_rad".into(), kr.into());
                 cubic_ratio = Some(if rng.gen_bool(0.5) {
                     rng.gen_range(0.4..1.2)
                 } else {
-                    -rng.gen_range(0.1..0.2)
+                    -rng.gen_range(0.05..0.15)
                 });
             }
             Effect::Backlash => {
