@@ -106,7 +106,7 @@ pub struct ProofArgs {
     /// Concealed cases per single catalogue effect.
     #[arg(long, default_value_t = 2)]
     pub cases: usize,
-    /// Pairs of simultaneous effects (comma-separated `a+b`; default: six pairs, see
+    /// Pairs of simultaneous effects (comma-separated `a+b`; default: seven pairs, see
     /// `diagnose::proof::DEFAULT_PAIRS`; `--pairs ''` for none).
     #[arg(long)]
     pub pairs: Option<String>,

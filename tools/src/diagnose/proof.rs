@@ -91,13 +91,14 @@ pub const NULL_CONDITIONS: [Conditions; 8] = [
 ];
 
 /// Pairs run by default.
-pub const DEFAULT_PAIRS: [&str; 6] = [
+pub const DEFAULT_PAIRS: [&str; 7] = [
     "base_friction+servo_lag",
     "sensor_delay+tip_mass",
     "base_friction+tip_mass",
     "root_compliance+sensor_gain",
     "cogging_ripple+quadratic_damping",
     "mount_resonance+base_friction",
+    "backlash+tip_mass",
 ];
 
 /// One planned case.
@@ -166,10 +167,13 @@ pub struct PlanOptions {
     pub vary: bool,
 }
 
+/// True when a hidden effect shows in `force_n` only (friction, cogging): that channel is then
+/// never dropped.
 fn needs_force(effect: &str) -> bool {
-    effect
-        .split('+')
-        .any(|e| matches!(e, "base_friction" | "cogging_ripple"))
+    crate::truth::parse_effects(effect).is_ok_and(|v| {
+        v.iter()
+            .any(|e| e.shows_in() == [crate::effect::Channel::Force])
+    })
 }
 
 /// `a+b` with the ids sorted (the row label of a pair).
