@@ -145,11 +145,7 @@ pub fn play(x: &[f64], width_m: f64) -> Vec<f64> {
         .map(|&v| {
             // NaN in (an unstable servo prediction, a NaN width) gives NaN out, never a panic
             let (lo, hi) = (v - h, v + h);
-            y = if lo <= hi {
-                y.max(lo).min(hi)
-            } else {
-                f64::NAN
-            };
+            y = if lo <= hi { y.max(lo).min(hi) } else { f64::NAN };
             y
         })
         .collect()
