@@ -26,13 +26,13 @@ use crate::model::Rig;
 use crate::truth::unmodelled::Unmodelled;
 use crate::truth::{generate, TruthOptions, EFFECTS};
 use anyhow::Result;
-use serde::Serialize;
+use serde::{Deserialize, Deserializer, Serialize};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::Path;
 
 /// What a case tests.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Group {
     /// One catalogue effect.
@@ -243,7 +243,7 @@ pub fn plan(o: &PlanOptions) -> Vec<CaseSpec> {
 }
 
 /// One parameter estimate against its truth.
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Estimate {
     /// Parameter name (JSON name of the diagnosis).
     pub kind: String,
@@ -255,8 +255,8 @@ pub struct Estimate {
     pub sigma: Option<f64>,
 }
 
-/// One proof row.
-#[derive(Clone, Debug, Serialize)]
+/// One proof row (the elements of `proof.json`).
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ProofRow {
     /// Row label (hidden effects, out-of-catalogue kind, or `none`).
     pub truth: String,
@@ -283,6 +283,7 @@ pub struct ProofRow {
     /// Orientation correct (gravity cases).
     pub orientation_ok: Option<bool>,
     /// Validation NRMSE before/after, channel.
+    #[serde(deserialize_with = "nrmse_or_nan")]
     pub nrmse: (f64, f64, String),
     /// Seconds (generation + diagnosis).
     pub seconds: f64,
@@ -308,6 +309,28 @@ impl ProofRow {
             self.named.split('+').collect()
         }
     }
+}
+
+/// JSON writes a NaN NRMSE (a failed case) as `null`; read it back as NaN.
+fn nrmse_or_nan<'de, D: Deserializer<'de>>(d: D) -> Result<(f64, f64, String), D::Error> {
+    let (a, b, c) = <(Option<f64>, Option<f64>, String)>::deserialize(d)?;
+    Ok((a.unwrap_or(f64::NAN), b.unwrap_or(f64::NAN), c))
+}
+
+/// Reads the rows of `proof.json` files (several seed sets scored together).
+///
+/// Errors: a file that cannot be read or is not a `proof.json`.
+pub fn read_rows(paths: &[std::path::PathBuf]) -> Result<Vec<ProofRow>> {
+    let mut rows = Vec::new();
+    for p in paths {
+        let text = std::fs::read_to_string(p)
+            .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", p.display()))?;
+        let r: Vec<ProofRow> = serde_json::from_str(&text).map_err(|e| {
+            anyhow::anyhow!("{} is not a diagnose-proof proof.json: {e}", p.display())
+        })?;
+        rows.extend(r);
+    }
+    Ok(rows)
 }
 
 /// Named effects of a diagnosis JSON (`effects[].effect`), without `none`/`unexplained`.
@@ -1015,6 +1038,24 @@ mod tests {
         let t = confusion(&rows);
         let line = t.lines().find(|l| l.starts_with("sensor_drift")).unwrap();
         assert!(line.ends_with("   1     1       1"), "{line}");
+    }
+
+    #[test]
+    fn proof_json_reads_back_with_failed_rows() {
+        let mut e = row("none", Group::Null, "error", false, false);
+        e.error = Some("panic: x".into());
+        e.nrmse = (f64::NAN, f64::NAN, String::new());
+        let rows = vec![row("tip_mass", Group::Single, "tip_mass", false, true), e];
+        let dir = std::env::temp_dir().join(format!("proof-json-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("proof.json");
+        std::fs::write(&p, serde_json::to_string(&rows).unwrap()).unwrap();
+        let back = read_rows(&[p.clone(), p]).unwrap();
+        assert_eq!(back.len(), 4);
+        assert!(back[1].nrmse.0.is_nan() && back[1].error.is_some());
+        let s = score(&back);
+        assert_eq!((s.singles, s.errors.len()), ((2, 2), 2));
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]
