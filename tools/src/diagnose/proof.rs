@@ -1037,7 +1037,17 @@ mod tests {
         // the confusion table counts a pair in each named column and reports unexplained
         let t = confusion(&rows);
         let line = t.lines().find(|l| l.starts_with("sensor_drift")).unwrap();
-        assert!(line.ends_with("   1     1       1"), "{line}");
+        // n = 2; one case named sensor_gain; none 1; unexplained 1
+        let tok: Vec<&str> = line.split_whitespace().collect();
+        let k = tok.len();
+        assert_eq!((tok[1], tok[k - 2], tok[k - 1]), ("2", "1", "1"), "{line}");
+        let sg = EFFECTS.iter().position(|e| *e == "sensor_gain").unwrap();
+        assert_eq!(tok[2 + sg], "1", "{line}");
+        assert_eq!(
+            tok[2..k - 2].iter().filter(|t| **t != ".").count(),
+            1,
+            "{line}"
+        );
     }
 
     #[test]
