@@ -106,7 +106,7 @@ pub struct ProofArgs {
     /// Concealed cases per single catalogue effect.
     #[arg(long, default_value_t = 2)]
     pub cases: usize,
-    /// Pairs of simultaneous effects (comma-separated `a+b`; default: six pairs, see
+    /// Pairs of simultaneous effects (comma-separated `a+b`; default: seven pairs, see
     /// `diagnose::proof::DEFAULT_PAIRS`; `--pairs ''` for none).
     #[arg(long)]
     pub pairs: Option<String>,
@@ -139,6 +139,10 @@ pub struct ProofArgs {
     /// kinds, `none` for the nulls).
     #[arg(long)]
     pub only: Option<String>,
+    /// Score these `proof.json` files together (repeatable; e.g. two seed sets) instead of
+    /// running cases: the confusion table and summary of all their rows.
+    #[arg(long)]
+    pub rescore: Vec<PathBuf>,
     /// Output directory (cases, per-case reports, proof.json, summary.json, proof.md).
     #[arg(long, default_value = "diagnose-proof")]
     pub out: PathBuf,
@@ -160,6 +164,15 @@ fn list(s: &Option<String>, default: &[&str]) -> Vec<String> {
 pub fn proof(a: ProofArgs) -> Result<()> {
     use super::proof::{plan, run_plan, score, sorted_label, PlanOptions, DEFAULT_PAIRS};
     use crate::truth::unmodelled::Unmodelled;
+    if !a.rescore.is_empty() {
+        let rows = super::proof::read_rows(&a.rescore)?;
+        print!(
+            "{}{}",
+            super::proof::confusion(&rows),
+            super::proof::summary_text(&score(&rows))
+        );
+        return Ok(());
+    }
     let unmodelled = list(&a.unmodelled, &Unmodelled::ALL.map(|u| u.id()))
         .iter()
         .map(|s| Unmodelled::parse(s))
