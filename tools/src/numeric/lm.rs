@@ -224,6 +224,10 @@ where
 /// stiffness in N·m/rad³ has a column 10⁻¹⁰ the size of a log-scale one).
 pub fn covariance(j: &DMatrix<f64>) -> DMatrix<f64> {
     let n = j.ncols();
+    if n == 0 || j.nrows() == 0 {
+        // nothing to estimate (or no data): every parameter is "not identified"
+        return DMatrix::from_element(n, n, f64::NAN);
+    }
     // a column of zeros (a parameter without effect) keeps scale 1 and is reported NaN below
     let norms: Vec<f64> = (0..n)
         .map(|i| j.column(i).norm())
