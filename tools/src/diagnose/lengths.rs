@@ -569,7 +569,6 @@ pub fn diagnose_lengths(
             delta_val: f.heldout_chi2 - nominal.heldout_chi2,
             reduction: 1.0 - f.heldout_rms_pct / nominal.heldout_rms_pct,
             allowance,
-            net_of_correction: None,
             structured: None,
             significance: weakest_z,
         });

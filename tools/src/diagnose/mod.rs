@@ -949,25 +949,16 @@ impl Ctx<'_> {
             v.as_ref()
                 .map_or(0.0, |r| structured_power(r, LJUNG_BOX_LAGS))
         };
-        let corrected = |g: &Option<(arx::Normal, arx::Normal)>| {
-            g.as_ref()
-                .and_then(|(fit_ne, val_ne)| arx::best_correction(fit_ne, val_ne, k))
-        };
-        let base_corr = corrected(&base.generic[best_channel]);
-        let allowance = base_corr
+        let allowance = base.generic[best_channel]
             .as_ref()
+            .and_then(|(fit_ne, val_ne)| arx::best_correction(fit_ne, val_ne, k))
             .map_or(0.0, |c| c.val_reduction())
             .max(base.split[best_channel]);
-        let net_of_correction = base_corr
-            .zip(corrected(&r.generic[best_channel]))
-            .map(|(b, c)| 1.0 - (c.val_rss.1 / b.val_rss.1.max(1e-300)).sqrt())
-            .map(|net| (net, base.split[best_channel]));
         let mut fails = guard(&Evidence {
             delta_bic,
             delta_val,
             reduction,
             allowance,
-            net_of_correction,
             structured: Some((sp(&base.vres[best_channel]), sp(&r.vres[best_channel]))),
             significance,
         });

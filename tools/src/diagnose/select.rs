@@ -59,12 +59,6 @@ pub struct Evidence {
     /// The model-form allowance: the same reduction earned by the physics-free correction with
     /// as many coefficients (or, for recordings, the larger split-refit spread).
     pub allowance: f64,
-    /// The reduction that remains once the physics-free correction is applied to both models:
-    /// 1 − sqrt(corrected candidate / corrected reference) on the never-fitted residual, and
-    /// what it must beat (the split-refit spread). Physics the correction cannot represent (a
-    /// force periodic in position, a dead band, a nonlinear drag) keeps its gain here; a linear
-    /// filter in disguise does not. `None` where no correction exists.
-    pub net_of_correction: Option<(f64, f64)>,
     /// Structured power of that residual before and after (`None`: not a time series).
     pub structured: Option<(f64, f64)>,
     /// Largest |value|/σ of a null-at-zero parameter (∞ if it has none).
@@ -83,10 +77,7 @@ pub fn guard(e: &Evidence) -> Vec<String> {
             e.delta_val
         ));
     }
-    let net_pass = e
-        .net_of_correction
-        .is_some_and(|(net, spread)| net > spread.max(0.0));
-    if !(e.reduction > e.allowance.max(0.0) || net_pass) {
+    if !(e.reduction > e.allowance.max(0.0)) {
         fails.push(format!(
             "validation reduction {:.1} % does not beat the model-form allowance {:.1} % (a physics-free correction with as many parameters, or a refit of the model so far to one fit recording)",
             100.0 * e.reduction,
@@ -119,7 +110,6 @@ mod tests {
             delta_val: -300.0,
             reduction: 0.4,
             allowance: 0.05,
-            net_of_correction: None,
             structured: Some((2.0, 1.0)),
             significance: 12.0,
         }
