@@ -3,33 +3,12 @@
 //! parameter. The wider measurement is `diagnose-proof --only backlash,cubic_stiffness` in
 //! docs/diagnose.md.
 
-use beamtools::diagnose::diagnose;
-use beamtools::diagnose::report::to_json;
-use beamtools::diagnose::sim::Prepared;
-use beamtools::model::Rig;
-use beamtools::truth::{generate, TruthOptions};
+mod common;
 
 /// Generates `effect` at `seed` (30 s recordings), diagnoses it and returns (named effects,
 /// fitted value of `param`, true value).
 fn round_trip(effect: &str, seed: u64, param: &str) -> (Vec<String>, f64, f64) {
-    let case = generate(
-        effect,
-        seed,
-        &TruthOptions {
-            duration_s: 30.0,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let rig = Rig::from_toml_str(&case.rig_toml).unwrap();
-    let fit: Vec<Prepared> = case
-        .fit
-        .iter()
-        .map(|r| Prepared::new("fit", r).unwrap())
-        .collect();
-    let val = Prepared::new("validate", &case.validate).unwrap();
-    let d = diagnose(&rig, &fit, &val, &mut |_, _, _| {}).unwrap();
-    let j = to_json(&d);
+    let (j, truth) = common::diagnose_generated(effect, seed);
     let named: Vec<String> = j["effects"]
         .as_array()
         .unwrap()
@@ -43,7 +22,7 @@ fn round_trip(effect: &str, seed: u64, param: &str) -> (Vec<String>, f64, f64) {
         .iter()
         .find_map(|e| e["parameters"][param].as_f64())
         .unwrap_or(f64::NAN);
-    (named, fitted, case.truth[param].as_f64().unwrap())
+    (named, fitted, truth[param].as_f64().unwrap())
 }
 
 #[test]

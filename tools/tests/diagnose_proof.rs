@@ -2,10 +2,11 @@
 //! `beamtool diagnose-proof`, recorded in docs/diagnose.md).
 
 use beamtools::diagnose::cli::{proof_table, run_proof};
+use beamtools::diagnose::diagnose;
 use beamtools::diagnose::sim::Prepared;
-use beamtools::diagnose::{diagnose, report::to_json};
 use beamtools::model::Rig;
-use beamtools::truth::{generate, TruthOptions};
+
+mod common;
 
 #[test]
 fn nulls_give_none_and_clear_effects_are_named() {
@@ -48,24 +49,7 @@ fn nulls_give_none_and_clear_effects_are_named() {
 
 #[test]
 fn json_has_the_fields_of_the_issue() {
-    let case = generate(
-        "sensor_delay",
-        1500,
-        &TruthOptions {
-            duration_s: 30.0,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let rig = Rig::from_toml_str(&case.rig_toml).unwrap();
-    let fit: Vec<Prepared> = case
-        .fit
-        .iter()
-        .map(|r| Prepared::new("fit", r).unwrap())
-        .collect();
-    let val = Prepared::new("validate", &case.validate).unwrap();
-    let d = diagnose(&rig, &fit, &val, &mut |_, _, _| {}).unwrap();
-    let j = to_json(&d);
+    let (j, truth) = common::diagnose_generated("sensor_delay", 1500);
     assert!(j["effect"].is_string());
     assert!(j["parameters"].is_object());
     assert!(
@@ -85,7 +69,7 @@ fn json_has_the_fields_of_the_issue() {
         .all(|c| c["effect"].is_string() && c["score"].is_number()));
     if j["effect"] == "sensor_delay" {
         let tau = j["parameters"]["sensor_delay_s"].as_f64().unwrap();
-        let truth = case.truth["sensor_delay_s"].as_f64().unwrap();
+        let truth = truth["sensor_delay_s"].as_f64().unwrap();
         assert!((tau - truth).abs() < 0.3 * truth, "{tau} vs {truth}");
     }
 }

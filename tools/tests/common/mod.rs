@@ -1,0 +1,30 @@
+//! Shared by the diagnosis integration tests: one generated case, diagnosed.
+
+use beamtools::diagnose::diagnose;
+use beamtools::diagnose::report::to_json;
+use beamtools::diagnose::sim::Prepared;
+use beamtools::model::Rig;
+use beamtools::truth::{generate, TruthOptions};
+
+/// Generates `effect` at `seed` with 30 s recordings and diagnoses it (two fit recordings, one
+/// validation); returns the diagnosis JSON and the generator's truth (`truth.json`'s `truth`).
+pub fn diagnose_generated(effect: &str, seed: u64) -> (serde_json::Value, serde_json::Value) {
+    let case = generate(
+        effect,
+        seed,
+        &TruthOptions {
+            duration_s: 30.0,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let rig = Rig::from_toml_str(&case.rig_toml).unwrap();
+    let fit: Vec<Prepared> = case
+        .fit
+        .iter()
+        .map(|r| Prepared::new("fit", r).unwrap())
+        .collect();
+    let val = Prepared::new("validate", &case.validate).unwrap();
+    let d = diagnose(&rig, &fit, &val, &mut |_, _, _| {}).unwrap();
+    (to_json(&d), serde_json::to_value(&case.truth).unwrap())
+}
