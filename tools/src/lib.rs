@@ -17,6 +17,7 @@ pub mod measures;
 pub mod model;
 pub mod numeric;
 pub mod plot;
+pub mod progress;
 pub mod recording;
 pub mod shaping;
 pub mod truth;
