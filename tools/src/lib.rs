@@ -9,6 +9,7 @@
 //! - [`tune`]: the main job end to end.
 
 pub mod board;
+pub mod cli;
 pub mod diagnose;
 pub mod effect;
 pub mod fe;
