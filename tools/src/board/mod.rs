@@ -10,6 +10,7 @@ pub mod client;
 pub mod plan;
 pub mod rig;
 pub mod session;
+pub mod steps;
 
 use anyhow::{Context, Result};
 use beamshaper::config::Settings;
