@@ -8,8 +8,8 @@
 //!   `ẍ + 2ζ_s ω_s ẋ + ω_s² x = ω_s² r` (default 25 Hz, ζ_s = 0.8), exact zero-order-hold
 //!   discretisation;
 //! - **beam**: clamped-base modes of the rig's Galerkin model, `η̈ + 2ζω η̇ + ω² η = −Γ ÿ`,
-//!   driven by the carriage's velocity change each tick (the same scheme as
-//!   [`crate::model::sim::BaseMotionSim`]), tip = x + Σ φ_r(l) η_r;
+//!   driven by the carriage's velocity change each tick, stepped by the model's simulator
+//!   ([`crate::model::sim::BaseMotionSim::step`]), tip = x + Σ φ_r(l) η_r;
 //! - **sensors**: an encoder on the carriage (quantised to `encoder_m`) and a camera on the
 //!   tip at `sample_rate_hz` with a `latency_s` delay and Gaussian noise `noise_m`.
 //!
@@ -17,7 +17,7 @@
 //! `base_pos_m` = encoder, `tip_pos_m` = camera), one flushed line per frame, so another
 //! process can read it while the board runs ([`read_sensor_log`]).
 
-use crate::model::sim::mode_zoh;
+use crate::model::sim::{mode_zoh, BaseMotionSim, BaseMotionState};
 use crate::model::{BeamModel, ModelOptions, Rig};
 use crate::recording::Recording;
 use anyhow::{bail, Context, Result};
@@ -70,10 +70,8 @@ pub struct VirtualRig {
     servo_gamma: Vector2<f64>,
     servo_w2: f64,
     carriage: Vector2<f64>,
-    phi: Vec<Matrix2<f64>>,
-    participation: Vec<f64>,
-    tip_per_mode: Vec<f64>,
-    eta: Vec<Vector2<f64>>,
+    beam: BaseMotionSim,
+    beam_state: BaseMotionState,
     frame_every: u64,
     latency: VecDeque<f64>,
     latency_ticks: usize,
@@ -101,16 +99,10 @@ impl VirtualRig {
             bail!("sensor latency, noise, encoder resolution and servo bandwidth must be positive");
         }
         let model = BeamModel::new(rig, &ModelOptions::default())?;
-        let modes = model.clamped_modes()?;
         let dt = 1.0 / tick_hz;
+        let beam = BaseMotionSim::new(&model, dt)?;
         let ws = 2.0 * std::f64::consts::PI * s.servo_hz;
         let (servo_phi, servo_gamma) = mode_zoh(ws, s.servo_zeta, dt);
-        let phi = modes
-            .omega_rad_s
-            .iter()
-            .zip(&modes.zeta)
-            .map(|(&w, &z)| mode_zoh(w, z, dt).0)
-            .collect();
         let file = std::fs::File::create(log)
             .with_context(|| format!("cannot create the sensor log {}", log.display()))?;
         let mut out = std::io::BufWriter::new(file);
@@ -123,10 +115,8 @@ impl VirtualRig {
             servo_gamma,
             servo_w2: ws * ws,
             carriage: Vector2::zeros(),
-            eta: vec![Vector2::zeros(); modes.omega_rad_s.len()],
-            phi,
-            participation: modes.participation.clone(),
-            tip_per_mode: modes.tip.clone(),
+            beam_state: beam.rest(),
+            beam,
             frame_every: (tick_hz / s.sample_rate_hz).round().max(1.0) as u64,
             latency: VecDeque::from(vec![0.0; latency_ticks + 1]),
             latency_ticks,
@@ -149,13 +139,9 @@ impl VirtualRig {
         let v_before = self.carriage[1];
         self.carriage =
             self.servo_phi * self.carriage + self.servo_gamma * (self.servo_w2 * step_pos_m);
-        let dv = self.carriage[1] - v_before;
-        let mut tip = self.carriage[0];
-        for r in 0..self.eta.len() {
-            self.eta[r][1] -= self.participation[r] * dv;
-            self.eta[r] = self.phi[r] * self.eta[r];
-            tip += self.tip_per_mode[r] * self.eta[r][0];
-        }
+        self.beam
+            .step(&mut self.beam_state, self.carriage[1] - v_before);
+        let tip = self.beam.tip_m(&self.beam_state, self.carriage[0]);
         self.latency.push_back(tip);
         while self.latency.len() > self.latency_ticks + 1 {
             self.latency.pop_front();
