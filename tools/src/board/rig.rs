@@ -20,13 +20,45 @@
 use crate::model::sim::{mode_zoh, BaseMotionSim, BaseMotionState};
 use crate::model::{BeamModel, ModelOptions, Rig};
 use crate::recording::Recording;
-use anyhow::{bail, Context, Result};
 use nalgebra::{Matrix2, Vector2};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use std::collections::VecDeque;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// Why the virtual rig cannot be built, write its log, or its log cannot be read.
+#[derive(Debug, Error)]
+pub enum RigError {
+    /// Sensor or servo parameters out of range (the message says which).
+    #[error("{0}")]
+    Sensors(String),
+    /// The rig's beam model is unusable.
+    #[error(transparent)]
+    Model(Box<dyn std::error::Error + Send + Sync + 'static>),
+    /// A file operation on the sensor log failed.
+    #[error("cannot {what} the sensor log {}", path.display())]
+    File {
+        /// `create`, `write`, `read`.
+        what: &'static str,
+        /// The log.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A complete line of the log is not 4 numbers.
+    #[error("{} line {line}: `{text}` is not 4 numbers", path.display())]
+    Line {
+        /// The log.
+        path: PathBuf,
+        /// Line number (1-based).
+        line: usize,
+        /// Its text.
+        text: String,
+    },
+}
 
 /// Sensor and servo parameters of the virtual rig.
 #[derive(Clone, Debug, PartialEq)]
@@ -87,27 +119,27 @@ impl VirtualRig {
     /// Builds the rig of `rig` for a board ticking at `tick_hz`, writing the sensor log to
     /// `log`. Errors: no beam, unusable model, sensor rate not a divisor-friendly fraction of
     /// the tick rate (must be ≤ tick rate), unwritable log.
-    pub fn new(rig: &Rig, sensors: RigSensors, tick_hz: f64, log: &Path) -> Result<Self> {
+    pub fn new(rig: &Rig, sensors: RigSensors, tick_hz: f64, log: &Path) -> Result<Self, RigError> {
+        check_sensors(&sensors, tick_hz)?;
         let s = &sensors;
-        if !(s.sample_rate_hz > 0.0 && s.sample_rate_hz <= tick_hz) {
-            bail!(
-                "sensor rate {} Hz must be > 0 and at most the board's tick rate {tick_hz} Hz",
-                s.sample_rate_hz
-            );
-        }
-        if !(s.latency_s >= 0.0 && s.noise_m >= 0.0 && s.encoder_m > 0.0 && s.servo_hz > 0.0) {
-            bail!("sensor latency, noise, encoder resolution and servo bandwidth must be positive");
-        }
-        let model = BeamModel::new(rig, &ModelOptions::default())?;
+        let model_err = |e: anyhow::Error| RigError::Model(e.into());
+        let model = BeamModel::new(rig, &ModelOptions::default()).map_err(model_err)?;
         let dt = 1.0 / tick_hz;
-        let beam = BaseMotionSim::new(&model, dt)?;
+        let beam = BaseMotionSim::new(&model, dt).map_err(model_err)?;
         let ws = 2.0 * std::f64::consts::PI * s.servo_hz;
         let (servo_phi, servo_gamma) = mode_zoh(ws, s.servo_zeta, dt);
-        let file = std::fs::File::create(log)
-            .with_context(|| format!("cannot create the sensor log {}", log.display()))?;
+        let file_err = |what| {
+            move |source| RigError::File {
+                what,
+                path: log.to_path_buf(),
+                source,
+            }
+        };
+        let file = std::fs::File::create(log).map_err(file_err("create"))?;
         let mut out = std::io::BufWriter::new(file);
-        writeln!(out, "time_s,base_cmd_m,base_pos_m,tip_pos_m")?;
-        out.flush()?;
+        writeln!(out, "time_s,base_cmd_m,base_pos_m,tip_pos_m")
+            .and_then(|_| out.flush())
+            .map_err(file_err("write"))?;
         let latency_ticks = (s.latency_s * tick_hz).round() as usize;
         Ok(VirtualRig {
             dt,
@@ -120,7 +152,8 @@ impl VirtualRig {
             frame_every: (tick_hz / s.sample_rate_hz).round().max(1.0) as u64,
             latency: VecDeque::from(vec![0.0; latency_ticks + 1]),
             latency_ticks,
-            noise: Normal::new(0.0, s.noise_m.max(1e-30))?,
+            noise: Normal::new(0.0, s.noise_m.max(1e-30))
+                .map_err(|e| RigError::Sensors(format!("camera noise: {e}")))?,
             rng: rand::rngs::StdRng::seed_from_u64(s.seed),
             sensors,
             ticks: 0,
@@ -135,7 +168,7 @@ impl VirtualRig {
     }
 
     /// Advances one tick with the board's shaped setpoint (m) and its emitted step position (m).
-    pub fn tick(&mut self, setpoint_m: f64, step_pos_m: f64) -> Result<()> {
+    pub fn tick(&mut self, setpoint_m: f64, step_pos_m: f64) -> Result<(), RigError> {
         let v_before = self.carriage[1];
         self.carriage =
             self.servo_phi * self.carriage + self.servo_gamma * (self.servo_w2 * step_pos_m);
@@ -152,25 +185,44 @@ impl VirtualRig {
                 self.latency.front().copied().unwrap_or(tip) + self.noise.sample(&mut self.rng);
             let q = self.sensors.encoder_m;
             let enc = (self.carriage[0] / q).round() * q;
-            writeln!(
-                self.out,
-                "{:.6},{:.9},{:.9},{:.9}",
-                self.ticks as f64 * self.dt,
-                setpoint_m,
-                enc,
-                seen
-            )?;
-            self.out.flush()?;
+            let t = self.ticks as f64 * self.dt;
+            writeln!(self.out, "{t:.6},{setpoint_m:.9},{enc:.9},{seen:.9}")
+                .and_then(|_| self.out.flush())
+                .map_err(|source| RigError::File {
+                    what: "write",
+                    path: self.path.clone(),
+                    source,
+                })?;
         }
         Ok(())
     }
 }
 
+/// Refuses a sensor rate above the tick rate (or ≤ 0) and negative latency, noise, encoder
+/// resolution or servo bandwidth.
+fn check_sensors(s: &RigSensors, tick_hz: f64) -> Result<(), RigError> {
+    if !(s.sample_rate_hz > 0.0 && s.sample_rate_hz <= tick_hz) {
+        return Err(RigError::Sensors(format!(
+            "sensor rate {} Hz must be > 0 and at most the board's tick rate {tick_hz} Hz",
+            s.sample_rate_hz
+        )));
+    }
+    if !(s.latency_s >= 0.0 && s.noise_m >= 0.0 && s.encoder_m > 0.0 && s.servo_hz > 0.0) {
+        return Err(RigError::Sensors(
+            "sensor latency, noise, encoder resolution and servo bandwidth must be positive".into(),
+        ));
+    }
+    Ok(())
+}
+
 /// Reads the sensor log written so far (complete lines only) between board times
 /// `from_s` and `to_s`. Errors: unreadable file, a complete line that does not parse.
-pub fn read_sensor_log(path: &Path, from_s: f64, to_s: f64) -> Result<Recording> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read the sensor log {}", path.display()))?;
+pub fn read_sensor_log(path: &Path, from_s: f64, to_s: f64) -> Result<Recording, RigError> {
+    let text = std::fs::read_to_string(path).map_err(|source| RigError::File {
+        what: "read",
+        path: path.to_path_buf(),
+        source,
+    })?;
     let complete = match text.rfind('\n') {
         Some(i) => &text[..=i],
         None => "",
@@ -188,12 +240,10 @@ pub fn read_sensor_log(path: &Path, from_s: f64, to_s: f64) -> Result<Recording>
             .collect::<std::result::Result<_, _>>()
             .ok()
             .filter(|v: &Vec<f64>| v.len() == 4)
-            .with_context(|| {
-                format!(
-                    "{} line {}: `{line}` is not 4 numbers",
-                    path.display(),
-                    i + 1
-                )
+            .ok_or_else(|| RigError::Line {
+                path: path.to_path_buf(),
+                line: i + 1,
+                text: line.to_string(),
             })?;
         if v[0] < from_s || v[0] > to_s {
             continue;

@@ -119,25 +119,43 @@ pub fn wait_board(s: &mut Session, until_tick: u64, timeout: Duration) -> Result
     }
 }
 
-/// Runs `plan` and waits for its observation window; returns the captured setpoints (m) and
-/// the board time (s) at which the move was sent.
+/// A move run by [`run_move`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct MoveRun {
+    /// The captured setpoints (m), one every `capture_every` ticks from the move's start.
+    pub setpoints_m: Vec<f64>,
+    /// Board time (s) just before the move was sent: the move starts after it.
+    pub sent_s: f64,
+    /// Board time (s) the observation ran to: the move, its shaper and the settling window,
+    /// counted from a tick at which the move had already started.
+    pub observed_until_s: f64,
+}
+
+/// Runs `plan` and waits for its observation window, counted from a tick at which the move
+/// had started (the console's round trips take board time, more on a loaded host with a fast
+/// virtual board); returns the captured setpoints and the board times that bracket the move.
 pub fn run_move(
     s: &mut Session,
     plan: &MovePlan,
     tick_hz: f64,
     time_scale: f64,
-) -> Result<(Vec<f64>, f64), StepError> {
-    let st = s.status()?;
+) -> Result<MoveRun, StepError> {
+    let sent = s.status()?.ticks;
     let cap = s.capture(plan.capture_every)?;
     s.start_move(plan.target_mm, plan.speed_mm_s, plan.accel_mm_s2)?;
-    let until = st.ticks + plan.observe_ticks + (0.1 * tick_hz) as u64;
+    let started = s.status()?.ticks;
+    let until = started + plan.observe_ticks + (0.1 * tick_hz) as u64;
     let wall = Duration::from_secs_f64(plan.observe_ticks as f64 / tick_hz / time_scale + 10.0);
     wait_board(s, until, wall)?;
     let want = (plan.observe_ticks / plan.capture_every as u64).min(cap.capacity as u64) as usize;
     if s.captured()? < want {
         return Err(StepError::ShortCapture);
     }
-    Ok((s.dump_all(|_| {})?, st.ticks as f64 / tick_hz))
+    Ok(MoveRun {
+        setpoints_m: s.dump_all(|_| {})?,
+        sent_s: sent as f64 / tick_hz,
+        observed_until_s: until as f64 / tick_hz,
+    })
 }
 
 /// Waits `seconds` of board time for the beam to ring down.
@@ -205,7 +223,7 @@ pub fn program(s: &mut Session, c: &Candidate) -> Result<(), StepError> {
 pub fn restore(s: &mut Session, before: &BoardState) -> String {
     match restore_config(s, before) {
         Ok(how) => format!("the board runs its previous configuration again ({how}); nothing was saved"),
-        Err(e) => format!("COULD NOT RESTORE the board's previous configuration ({e}); its flash still holds the last saved one: power-cycle or send `load`"),
+        Err(e) => format!("COULD NOT RESTORE the board's previous configuration ({}); its flash still holds the last saved one: power-cycle or send `load`", super::error_chain(&e)),
     }
 }
 

@@ -4,7 +4,7 @@
 
 use super::finite_f64;
 use crate::board;
-use crate::board::session::Session;
+use crate::board::session::{Command, Session};
 use crate::board::steps::{sweep_on_board, SweepRequest};
 use anyhow::{Context, Result};
 use beamshaper::reference::SweepKind;
@@ -120,7 +120,7 @@ pub fn vboard(a: VboardArgs) -> Result<()> {
         );
     }
     print!("{boot}");
-    b.serve(&mut master, a.time_scale)
+    Ok(b.serve(&mut master, a.time_scale)?)
 }
 
 /// The virtual rig of `rig_path` with the camera options of `a`.
@@ -130,7 +130,12 @@ fn virtual_rig(a: &VboardArgs, rig_path: &PathBuf, tick_hz: f64) -> Result<board
     let mut sensors = board::rig::RigSensors::camera(&rig);
     sensors.noise_m = a.camera_noise_um * 1e-6;
     sensors.latency_s = a.camera_latency_ms * 1e-3;
-    board::rig::VirtualRig::new(&rig, sensors, tick_hz, &a.sensor_out)
+    Ok(board::rig::VirtualRig::new(
+        &rig,
+        sensors,
+        tick_hz,
+        &a.sensor_out,
+    )?)
 }
 
 /// `beamtool console`: sends each line, prints the info lines (`# …`) and the final line.
@@ -193,12 +198,10 @@ pub fn shaper(a: ShaperArgs) -> Result<()> {
     for (i, &(f, z)) in modes.iter().enumerate() {
         print_mode_sensitivity(&s, i, f, z, a.v_tol);
     }
-    let mut line = String::from("console: custom");
-    for imp in s.impulses() {
-        line.push_str(&format!(" {}@{}", imp.amplitude, imp.time_s));
-    }
-    if s.len() <= beamshaper::config::MAX_CUSTOM_IMPULSES {
-        println!("{line}");
+    // The console line that programs this table, written by the core's protocol type (when
+    // the board's custom list can hold it).
+    if let Ok(list) = heapless::Vec::from_slice(s.impulses()) {
+        println!("console: {}", Command::Custom(list));
     }
     Ok(())
 }

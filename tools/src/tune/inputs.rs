@@ -145,7 +145,6 @@ pub fn connect(o: &TuneOptions, inputs: &Inputs) -> Result<Bench, TuneError> {
         });
     }
     let flash = Some(o.work_dir.join("vboard-flash.bin"));
-    let other = |e: anyhow::Error| TuneError::Other(e.into());
     // A user recording of some other beam: a virtual board without a rig; the check is the
     // model-free superposition on that recording.
     let (rig, sensor_log) = match inputs.rig_declared {
@@ -154,12 +153,14 @@ pub fn connect(o: &TuneOptions, inputs: &Inputs) -> Result<Bench, TuneError> {
             let log = o.work_dir.join("vboard-camera.csv");
             let sensors = RigSensors::camera(&inputs.rig);
             let tick_hz = Settings::DEFAULT.tick_rate_hz as f64;
-            let rig = VirtualRig::new(&inputs.rig, sensors, tick_hz, &log).map_err(other)?;
+            let rig = VirtualRig::new(&inputs.rig, sensors, tick_hz, &log)
+                .map_err(|e| TuneError::Other(e.into()))?;
             (Some(rig), Some(log))
         }
     };
-    let port = crate::board::spawn_on_pty_with_rig(flash, o.time_scale, rig).map_err(other)?;
-    let client = BoardClient::open(&port).map_err(other)?;
+    let port = crate::board::spawn_on_pty_with_rig(flash, o.time_scale, rig)
+        .map_err(|e| TuneError::Other(e.into()))?;
+    let client = BoardClient::open(&port).map_err(|e| StepError::Session(e.into()))?;
     Ok(Bench {
         session: Session::new(client),
         port,

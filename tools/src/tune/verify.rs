@@ -15,7 +15,7 @@ use super::{Bench, Design, IdentifiedModes, Inputs, TuneError, TuneOptions};
 use crate::board::plan::MovePlan;
 use crate::board::rig::read_sensor_log;
 use crate::board::session::{Command, Session};
-use crate::board::steps::{program, ring_down, run_move, BoardState, StepError};
+use crate::board::steps::{program, ring_down, run_move, BoardState, MoveRun, StepError};
 use crate::measures::{cut_move, MeasuredMove};
 use crate::model::sim::BaseMotionSim;
 use crate::model::{BeamModel, ModelOptions};
@@ -105,7 +105,7 @@ fn shaped_both_ways(
         ..d.shaped
     };
     run_move(s, &out, tick_hz, ts)?;
-    Ok(run_move(s, &d.shaped, tick_hz, ts)?.0)
+    Ok(run_move(s, &d.shaped, tick_hz, ts)?.setpoints_m)
 }
 
 /// Time (s) for mode 1 to ring down by 1000× (clamped to 5..400 s).
@@ -130,13 +130,13 @@ fn measure_pair(
     let settle = settle_s(id);
     back_to_start(s, here, d, tick_hz, ts)?;
     ring_down(s, settle, tick_hz, ts)?;
-    let (_, t_u) = run_move(s, &d.unshaped, tick_hz, ts)?;
+    let run_u = run_move(s, &d.unshaped, tick_hz, ts)?;
     ring_down(s, settle, tick_hz, ts)?;
     program(s, &d.best)?;
-    let (sp, t_s) = run_move(s, &d.shaped, tick_hz, ts)?;
-    let unshaped = cut_measured(log, t_u, &d.unshaped, d.window_s, tick_hz)?;
-    let shaped = cut_measured(log, t_s, &d.shaped, d.window_s, tick_hz)?;
-    Ok((unshaped, shaped, sp))
+    let run_s = run_move(s, &d.shaped, tick_hz, ts)?;
+    let unshaped = cut_measured(log, &run_u, &d.unshaped, d.window_s)?;
+    let shaped = cut_measured(log, &run_s, &d.shaped, d.window_s)?;
+    Ok((unshaped, shaped, run_s.setpoints_m))
 }
 
 /// Shaping off, and from `here` (mm) back to the unshaped move's start if that is elsewhere.
@@ -159,15 +159,14 @@ fn back_to_start(
     Ok(())
 }
 
-/// The move `p` sent at board time `t0` (s), cut from the camera log.
+/// The move `p`, run as `run`, cut from the camera log.
 fn cut_measured(
     log: &Path,
-    t0: f64,
+    run: &MoveRun,
     p: &MovePlan,
     window_s: f64,
-    tick_hz: f64,
 ) -> Result<MeasuredMove, TuneError> {
-    let rec = read_sensor_log(log, t0 - 0.05, t0 + p.observe_ticks as f64 / tick_hz + 1.0)
+    let rec = read_sensor_log(log, run.sent_s - 0.05, run.observed_until_s + 1.0)
         .map_err(|e| TuneError::Other(e.into()))?;
     let (t, c, tip) = (
         &rec.time_s,
