@@ -258,3 +258,57 @@ pub fn read_sensor_log(path: &Path, from_s: f64, to_s: f64) -> Result<Recording,
     }
     Ok(rec)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The rig steps its beam with the model's simulator: stepping the velocity changes of a
+    /// base trajectory one sample at a time gives the batch run's tip deflection (one sample
+    /// later: `run` reports each sample before its kick).
+    #[test]
+    fn stepping_the_beam_matches_the_batch_simulator() {
+        let rig = Rig::from_toml_str(crate::tune::DEFAULT_RIG_TOML).unwrap();
+        let model = BeamModel::new(&rig, &ModelOptions::default()).unwrap();
+        let dt = 1e-3;
+        let sim = BaseMotionSim::new(&model, dt).unwrap();
+        let (y, _) = crate::model::trapezoid_reference(0.0, 0.05, 0.2, 2.0, 1.0 / dt, 3.0).unwrap();
+        let (w, _) = sim.run(&y);
+        let mut state = sim.rest();
+        let v = |k: usize| match k {
+            0 => 0.0,
+            k if k < y.len() => (y[k] - y[k - 1]) / dt,
+            _ => 0.0,
+        };
+        let peak = w.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        assert!(peak > 1e-3, "the move must excite the beam ({peak} m)");
+        for k in 0..y.len() - 1 {
+            sim.step(&mut state, v(k + 1) - v(k));
+            let stepped = sim.tip_m(&state, 0.0);
+            assert!(
+                (stepped - w[k + 1]).abs() <= 1e-12 * peak,
+                "sample {k}: {stepped} vs {}",
+                w[k + 1]
+            );
+        }
+    }
+
+    #[test]
+    fn sensor_parameters_out_of_range_are_refused() {
+        let rig = Rig::from_toml_str(crate::tune::DEFAULT_RIG_TOML).unwrap();
+        let log = std::env::temp_dir().join(format!("rig-test-{}.csv", std::process::id()));
+        let mut s = RigSensors::camera(&rig);
+        s.sample_rate_hz = 2000.0;
+        let e = VirtualRig::new(&rig, s, 1000.0, &log).err().unwrap();
+        assert!(
+            e.to_string().contains("at most the board's tick rate"),
+            "{e}"
+        );
+        let mut s = RigSensors::camera(&rig);
+        s.servo_hz = 0.0;
+        assert!(matches!(
+            VirtualRig::new(&rig, s, 1000.0, &log),
+            Err(RigError::Sensors(_))
+        ));
+    }
+}

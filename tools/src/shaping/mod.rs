@@ -275,4 +275,89 @@ mod tests {
         // The worst case is attained somewhere in the band, and V at the nominal is smaller.
         assert!(100.0 * residual_vibration(&best.shaper, 1.1, 0.0074) <= best.worst_pct);
     }
+
+    /// A free decay at `f_hz` (ζ 0.005), 40 s at 100 Hz.
+    fn decay(f_hz: f64) -> RecordedVibration {
+        let dt = 0.01;
+        let w = 2.0 * std::f64::consts::PI * f_hz;
+        let position_m = (0..4000)
+            .map(|k| {
+                let t = k as f64 * dt;
+                1e-3 * (-0.005 * w * t).exp() * (w * t).cos()
+            })
+            .collect();
+        RecordedVibration {
+            position_m,
+            dt_s: dt,
+        }
+    }
+
+    #[test]
+    fn choose_takes_the_shortest_that_the_board_runs_and_the_recording_agrees_with() {
+        let modes = [m(1.1, 0.001), m(6.9, 0.01)];
+        let all: Vec<_> = candidates(&modes, 0.02, 0.02)
+            .into_iter()
+            .filter(|c| c.worst_pct <= 2.0)
+            .collect();
+        let rules = ChoiceRules {
+            tolerance_pct: 2.0,
+            min_band: 0.02,
+            recorded: None,
+            window_s: 5.0,
+        };
+        // The board refuses the shortest feasible one: the next is chosen, and `runs`' value
+        // comes with it.
+        let first = all[0].name.clone();
+        let c = choose(&modes, &rules, |c| match c.name == first {
+            true => Err("too fast".to_string()),
+            false => Ok(c.shaper.len()),
+        })
+        .unwrap();
+        assert_eq!(c.best.name, all[1].name);
+        assert_eq!(c.best_runs, all[1].shaper.len());
+        assert!(c.runners_up.len() <= 5);
+        // Nothing runs: the error names the first reasons.
+        let e = choose(&modes, &rules, |_| Err::<(), _>("no".to_string()))
+            .err()
+            .unwrap();
+        assert_eq!(e.why.len(), 3);
+        assert!(e.to_string().contains(": no"), "{e}");
+    }
+
+    #[test]
+    fn a_recorded_vibration_at_another_frequency_refuses_the_short_shapers() {
+        // The recording rings at 1.3 Hz, the modes say 1.1 Hz: the short 1.1 Hz shapers leave
+        // too much of it and are refused with the percentage named; a longer, more robust one
+        // that leaves the recording within the tolerance is chosen.
+        let modes = [m(1.1, 0.001)];
+        let rec = decay(1.3);
+        let rules = ChoiceRules {
+            tolerance_pct: 2.0,
+            min_band: 0.02,
+            recorded: Some(&rec),
+            window_s: 5.0,
+        };
+        let c = choose(&modes, &rules, |_| Ok(())).unwrap();
+        assert!(!c.refused_on_recording.is_empty());
+        assert!(c
+            .refused_on_recording
+            .iter()
+            .all(|w| w.contains("of the recorded vibration")));
+        assert!(superposed_pct(&rec, &c.best.shaper, 5.0, 2.0).unwrap() <= 2.0);
+        let without = ChoiceRules {
+            recorded: None,
+            ..rules
+        };
+        let shortest = choose(&modes, &without, |_| Ok(())).unwrap().best;
+        assert!(c.best.shaper.duration_s() > shortest.shaper.duration_s());
+        // The recording at the identified frequency lets the shortest one through.
+        let rec = decay(1.1);
+        let at_mode = ChoiceRules {
+            recorded: Some(&rec),
+            ..rules
+        };
+        let c = choose(&modes, &at_mode, |_| Ok(())).unwrap();
+        assert_eq!(c.best.name, shortest.name);
+        assert!(c.refused_on_recording.is_empty());
+    }
 }
