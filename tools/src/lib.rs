@@ -6,6 +6,7 @@
 //! - [`ident`]: modal identification (paper §3, §5.2).
 //! - [`diagnose`]: model-discrepancy diagnosis.
 //! - [`numeric`]: the Levenberg–Marquardt adapter and residual statistics.
+//! - [`paper`]: the paper's Tables 1 and 2 and the simulator benchmark, reproduced as data.
 //! - [`tune`]: the main job end to end.
 
 pub mod board;
@@ -17,6 +18,7 @@ pub mod ident;
 pub mod measures;
 pub mod model;
 pub mod numeric;
+pub mod paper;
 pub mod plot;
 pub mod progress;
 pub mod recording;

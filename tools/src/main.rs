@@ -25,22 +25,22 @@ enum Command {
     /// Design a (multi-mode) input shaper and print its impulse table and sensitivity.
     Shaper(ShaperArgs),
     /// Simulate the beam on its moving base for a move or a command CSV (paper §2).
-    Simulate(beamtools::model::cli::SimulateArgs),
+    Simulate(beamtools::cli::model::SimulateArgs),
     /// Natural frequencies, damping, participation and mode shapes of a rig.
-    Modes(beamtools::model::cli::ModesArgs),
+    Modes(beamtools::cli::model::ModesArgs),
     /// Reproduce the paper's Table 2 and Figs. 6-9 in simulation.
-    Table2(beamtools::model::cli::Table2Args),
+    Table2(beamtools::cli::paper::Table2Args),
     /// Benchmark the simulator against scipy.signal.lsim (needs python3 with scipy).
-    BenchSim(beamtools::model::bench::BenchArgs),
+    BenchSim(beamtools::cli::paper::BenchArgs),
     /// Identify natural frequencies and damping ratios from a free decay (.npy or CSV).
-    Identify(beamtools::ident::cli::IdentifyArgs),
+    Identify(beamtools::cli::ident::IdentifyArgs),
     /// Make a sine-sweep excitation (eqs. 33-34) as a command CSV, within stroke/accel/tip
     /// limits; with --port, run it on the board so a camera can record it.
     Sweep(SweepCmd),
     /// Welch H1/H2/coherence FRF of a recording (paper Step 2).
-    Frf(beamtools::ident::cli::FrfArgs),
+    Frf(beamtools::cli::ident::FrfArgs),
     /// Reproduce the paper's Table 1 (sweep identification) on the simulated rig.
-    Table1(beamtools::ident::cli::Table1Args),
+    Table1(beamtools::cli::paper::Table1Args),
     /// Model-discrepancy diagnosis: locate the mismatch, name the missing physics, refit, validate.
     Diagnose(beamtools::diagnose::cli::DiagnoseArgs),
     /// Diagnosis across a length series of free decays (one beam clamped at several lengths).
@@ -80,7 +80,7 @@ struct VboardArgs {
 #[derive(Args)]
 struct SweepCmd {
     #[command(flatten)]
-    design: beamtools::ident::cli::SweepArgs,
+    design: beamtools::cli::ident::SweepArgs,
     /// Run the sweep on this board (its own reference generator) instead of writing a CSV.
     #[arg(long)]
     port: Option<String>,
@@ -133,18 +133,18 @@ fn run(command: Command) -> Result<()> {
         Command::Shaper(a) => shaper(a),
         Command::Simulate(mut a) => {
             default_rig(&mut a.rig)?;
-            beamtools::model::cli::simulate(a)
+            beamtools::cli::model::simulate(a)
         }
         Command::Modes(mut a) => {
             default_rig(&mut a.rig)?;
-            beamtools::model::cli::modes(a)
+            beamtools::cli::model::modes(a)
         }
         Command::Table2(mut a) => {
             default_rig(&mut a.rig)?;
-            beamtools::model::cli::table2(a)
+            beamtools::cli::paper::table2(a)
         }
-        Command::Identify(a) => beamtools::ident::cli::identify(a),
-        Command::Sweep(SweepCmd { design, port: None }) => beamtools::ident::cli::sweep(design),
+        Command::Identify(a) => beamtools::cli::ident::identify(a),
+        Command::Sweep(SweepCmd { design, port: None }) => beamtools::cli::ident::sweep(design),
         Command::Sweep(SweepCmd {
             design,
             port: Some(p),
@@ -152,17 +152,17 @@ fn run(command: Command) -> Result<()> {
             println!(
                 "sweeping on {p}; record base and tip now (the sweep is sized and checked first)"
             );
-            let plan = beamtools::tune::board_sweep(&design, &p)?;
+            let plan = beamtools::tune::board_sweep(&design.spec()?, &p)?;
             println!(
                 "done: {} sweep {}-{} Hz, amplitude {:.3} mm, {:.1} s ({:.0} steps/s peak); give the recording to `beamtool tune --port {p} RECORDING`",
                 plan.kind.name(), plan.f0_hz, plan.f1_hz, plan.amplitude_mm, plan.duration_s, plan.peak_step_rate_hz
             );
             Ok(())
         }
-        Command::Frf(a) => beamtools::ident::cli::frf(a),
+        Command::Frf(a) => beamtools::cli::ident::frf(a),
         Command::Table1(mut a) => {
             default_rig(&mut a.rig)?;
-            beamtools::ident::cli::table1(a)
+            beamtools::cli::paper::table1(a)
         }
         Command::Diagnose(a) => beamtools::diagnose::cli::diagnose(a),
         Command::DiagnoseProof(a) => beamtools::diagnose::cli::proof(a),
@@ -170,7 +170,7 @@ fn run(command: Command) -> Result<()> {
         Command::Truth(a) => beamtools::truth::cli::truth(a),
         Command::BenchSim(mut a) => {
             default_rig(&mut a.rig)?;
-            beamtools::model::bench::bench_sim(a)
+            beamtools::cli::paper::bench_sim(a)
         }
     }
 }

@@ -1141,13 +1141,12 @@ pub fn generate_recording(rig: &Rig, path: &Path) -> Result<()> {
 /// `--stroke-mm`, the base acceleration `--accel-max` at the top frequency and the board's
 /// step-rate rule with the 5 % margin. Waits until the sweep has ended. Changes no setting.
 pub fn board_sweep(
-    a: &crate::ident::cli::SweepArgs,
+    a: &crate::ident::sweep::SweepSpec,
     port: &str,
 ) -> Result<crate::board::plan::SweepPlan> {
-    let kind = match a.kind.as_str() {
-        "exponential" | "exp" => SweepKind::Exponential,
-        "linear" | "lin" => SweepKind::Linear,
-        k => bail!("unknown sweep kind `{k}` (linear or exponential)"),
+    let kind = match a.kind {
+        crate::ident::sweep::SweepKind::Exponential => SweepKind::Exponential,
+        crate::ident::sweep::SweepKind::Linear => SweepKind::Linear,
     };
     let (fa, fb) = (a.f_a_hz, a.f_b_hz);
     if !(fa > 0.0 && fb > fa && a.rate.is_finite() && a.rate != 0.0) {
@@ -1158,7 +1157,7 @@ pub fn board_sweep(
         SweepKind::Linear => (fb - fa) / a.rate.abs(),
     };
     let (f0, f1) = if a.rate > 0.0 { (fa, fb) } else { (fb, fa) };
-    let accel_limited_mm = a.accel_max / (2.0 * std::f64::consts::PI * fb).powi(2) * 1e3;
+    let accel_limited_mm = a.accel_max_m_s2 / (2.0 * std::f64::consts::PI * fb).powi(2) * 1e3;
     let mut s = Session::open(port)?;
     let board = read_board(&mut s)?;
     let plan = plan_sweep(
@@ -1166,7 +1165,7 @@ pub fn board_sweep(
         kind,
         f0,
         f1,
-        a.stroke_mm.min(accel_limited_mm),
+        (a.stroke_max_m * 1e3).min(accel_limited_mm),
         duration_s,
     )
     .map_err(|e| anyhow!("{e}"))?;

@@ -428,6 +428,18 @@ pub fn free_decay_signal(rec: &Recording) -> Result<(Vec<f64>, Vec<f64>, String)
     Ok((t, x, what))
 }
 
+/// The free-decay part of a recording file (CSV, `.npy`, [`Recording::read_any`]):
+/// [`free_decay_signal`] (gaps split, base still within its noise band). Returns (time (s),
+/// signal, description naming the file).
+///
+/// Errors: the file cannot be read, or those of [`free_decay_signal`] (prefixed by the path).
+pub fn free_decay_of(path: &std::path::Path) -> Result<(Vec<f64>, Vec<f64>, String)> {
+    let rec = Recording::read_any(path, &mut |_| {})?;
+    let (t, x, what) =
+        free_decay_signal(&rec).map_err(|e| anyhow::anyhow!("{}: {e:#}", path.display()))?;
+    Ok((t, x, format!("{}: {what}", path.display())))
+}
+
 /// Rayleigh α1, α2 (eq. 22) of the first two modes; a negative coefficient is reported as a
 /// warning (the damping of these two modes is not of Rayleigh form).
 fn rayleigh(modes: &[ModeEstimate], warnings: &mut Vec<String>) -> Option<(f64, f64)> {

@@ -27,7 +27,6 @@
 //! [`IdentResult::modes`] widens the primary method's σ by the standard deviation of every
 //! method's estimate of the same mode (within 3 % in frequency).
 
-pub mod cli;
 pub mod denoise;
 pub mod freedecay;
 pub mod frf;

@@ -8,6 +8,7 @@ use super::lsce::{impulse_response, lsce_poles};
 use super::peak::pick_peaks;
 use super::stabilisation::{diagram, Diagram, StabCriteria, StableMode};
 use super::{std_dev, ModeEstimate};
+use crate::progress::{Progress, Silent};
 use crate::recording::Recording;
 use anyhow::{bail, Result};
 use serde::Serialize;
@@ -89,8 +90,6 @@ pub struct IdentOptions {
     /// Refine the primary FRF method's modes by the output-error (maximum-likelihood) fit of
     /// [`super::mlfit`]; its Gauss–Newton σ joins the uncertainty. On by default.
     pub ml_refine: bool,
-    /// Show a progress bar.
-    pub progress: bool,
 }
 
 impl Default for IdentOptions {
@@ -116,7 +115,6 @@ impl Default for IdentOptions {
             track_input: true,
             sk_iterations: 1,
             ml_refine: true,
-            progress: false,
         }
     }
 }
@@ -299,11 +297,13 @@ pub fn identify_segments(
     }])
 }
 
-/// Runs the FRF estimators on an existing FRF. `warnings` collects resolution warnings.
+/// Runs the FRF estimators on an existing FRF. `warnings` collects resolution warnings;
+/// `progress` is told each stabilisation diagram's orders.
 pub fn identify_frf(
     frf: &Frf,
     opts: &IdentOptions,
     warnings: &mut Vec<String>,
+    progress: &mut dyn Progress,
 ) -> Result<(Vec<MethodResult>, (f64, f64))> {
     let nyq = 0.5 * frf.sample_rate_hz;
     let (f_lo, f_hi) = match opts.band_hz {
@@ -323,18 +323,6 @@ pub fn identify_frf(
         bail!("only {} FRF lines in the band {f_lo:.3}..{f_hi:.3} Hz (line spacing {:.4} Hz): record longer or widen the band", band.len(), frf.df_hz());
     }
     let sigma_w = frf.window_decay_s;
-    let pb = |n: u64| {
-        if opts.progress {
-            let p = indicatif::ProgressBar::new(n);
-            p.set_style(
-                indicatif::ProgressStyle::with_template("{msg:>6} [{bar:30}] {pos}/{len} orders")
-                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-            );
-            Some(p)
-        } else {
-            None
-        }
-    };
     let mut out = Vec::new();
     for &m in &opts.methods {
         match m {
@@ -343,10 +331,6 @@ pub fn identify_frf(
                 let h = &frf.h1[band.clone()];
                 let w = vec![1.0; fq.len()];
                 let orders: Vec<usize> = (2..=opts.max_order.max(4)).collect();
-                let bar = pb(orders.len() as u64);
-                if let Some(b) = &bar {
-                    b.set_message("LSCF");
-                }
                 let d = diagram(
                     "LSCF",
                     orders,
@@ -360,11 +344,8 @@ pub fn identify_frf(
                                 .collect(),
                         )
                     },
-                    bar.as_ref(),
+                    &mut *progress,
                 )?;
-                if let Some(b) = bar {
-                    b.finish_and_clear();
-                }
                 let modes = keep_best(d.modes.clone(), opts.n_modes, (f_lo, f_hi));
                 out.push(MethodResult {
                     method: m,
@@ -378,20 +359,13 @@ pub fn identify_frf(
                 let len_s = (irf.h.len() as f64 * irf.dt_s * 0.5).min(60.0);
                 let skip_s = 2.0 * irf.dt_s;
                 let orders: Vec<usize> = (1..=opts.max_order.max(4) / 2).map(|k| 2 * k).collect();
-                let bar = pb(orders.len() as u64);
-                if let Some(b) = &bar {
-                    b.set_message("LSCE");
-                }
                 let d = diagram(
                     "LSCE",
                     orders,
                     &opts.criteria,
                     |n| lsce_poles(&irf, n, skip_s, len_s, f_lo, f_hi, opts.zeta_max, sigma_w),
-                    bar.as_ref(),
+                    &mut *progress,
                 )?;
-                if let Some(b) = bar {
-                    b.finish_and_clear();
-                }
                 let modes = keep_best(d.modes.clone(), opts.n_modes, (f_lo, f_hi));
                 out.push(MethodResult {
                     method: m,
@@ -632,6 +606,15 @@ fn track_into(
 /// [`Recording::validate`]), a band beyond Nyquist, too few lines in the band, no method
 /// producing a mode. Clipped signals give warnings.
 pub fn identify_recording(rec: &Recording, opts: &IdentOptions) -> Result<(IdentResult, Frf)> {
+    identify_recording_with(rec, opts, &mut Silent)
+}
+
+/// [`identify_recording`] telling `progress` the estimators' stages.
+pub fn identify_recording_with(
+    rec: &Recording,
+    opts: &IdentOptions,
+    progress: &mut dyn Progress,
+) -> Result<(IdentResult, Frf)> {
     rec.validate()?;
     if rec.len() < 256 {
         bail!(
@@ -642,7 +625,7 @@ pub fn identify_recording(rec: &Recording, opts: &IdentOptions) -> Result<(Ident
     let (frf, mut warnings) = frf_with_options(rec, opts)?;
     let frf_methods = opts.methods.iter().any(|m| *m != Method::LogDec);
     let (mut methods, band) = if frf_methods {
-        identify_frf(&frf, opts, &mut warnings)?
+        identify_frf(&frf, opts, &mut warnings, progress)?
     } else {
         (vec![], auto_band(&frf))
     };

@@ -180,24 +180,25 @@ pub fn select(orders: &[OrderPoles], c: &StabCriteria) -> Vec<StableMode> {
 }
 
 /// Runs `estimate(order)` for every order, labels, selects. Errors of single orders are
-/// skipped (an order too high for the data); at least one order must succeed.
+/// skipped (an order too high for the data); at least one order must succeed. `progress`
+/// advances once per order.
 pub fn diagram(
     method: &str,
     orders: impl IntoIterator<Item = usize>,
     c: &StabCriteria,
     mut estimate: impl FnMut(usize) -> Result<Vec<Pole>>,
-    progress: Option<&indicatif::ProgressBar>,
+    progress: &mut dyn crate::progress::Progress,
 ) -> Result<Diagram> {
+    let orders: Vec<usize> = orders.into_iter().collect();
     let mut raw = Vec::new();
     let mut last_err = None;
-    for n in orders {
+    progress.stage(method);
+    for (i, &n) in orders.iter().enumerate() {
         match estimate(n) {
             Ok(p) => raw.push((n, p)),
             Err(e) => last_err = Some(e),
         }
-        if let Some(pb) = progress {
-            pb.inc(1);
-        }
+        progress.advance(i as u64 + 1, orders.len() as u64);
     }
     if raw.is_empty() {
         return Err(last_err.unwrap_or_else(|| anyhow!("{method}: no model orders")));
