@@ -13,7 +13,6 @@ pub mod board;
 pub mod cli;
 pub mod diagnose;
 pub mod effect;
-pub mod fe;
 pub mod ident;
 pub mod measures;
 pub mod model;
