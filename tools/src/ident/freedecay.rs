@@ -15,9 +15,9 @@
 
 use super::spectrum::{amplitude_spectrum, peaks};
 use super::{std_dev, ModeEstimate};
+use crate::numeric::lm::{minimize_with_jacobian, LmOptions};
 use anyhow::{bail, Result};
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
-use nalgebra::{storage::Owned, DVector, Dyn, OMatrix, Vector4, U4};
+use nalgebra::{DMatrix, DVector};
 use realfft::RealFftPlanner;
 use serde::Serialize;
 use std::f64::consts::PI;
@@ -104,46 +104,30 @@ pub fn band_pass(x: &[f64], rate_hz: f64, lo_hz: f64, hi_hz: f64) -> Vec<f64> {
     out
 }
 
-struct SinusoidFit<'a> {
-    t: &'a [f64],
-    x: &'a [f64],
-    p: Vector4<f64>, // A, σ, ω_d, φ
+/// Residuals A e^{−σt} cos(ω_d t + φ) − x of p = (A, σ, ω_d, φ) on the samples (t, x).
+fn sinusoid_residuals(t: &[f64], x: &[f64], p: &DVector<f64>) -> Option<DVector<f64>> {
+    let (a, s, w, ph) = (p[0], p[1], p[2], p[3]);
+    Some(DVector::from_iterator(
+        t.len(),
+        t.iter()
+            .zip(x)
+            .map(|(&t, &x)| a * (-s * t).exp() * (w * t + ph).cos() - x),
+    ))
 }
 
-impl LeastSquaresProblem<f64, Dyn, U4> for SinusoidFit<'_> {
-    type ResidualStorage = Owned<f64, Dyn>;
-    type JacobianStorage = Owned<f64, Dyn, U4>;
-    type ParameterStorage = Owned<f64, U4>;
-
-    fn set_params(&mut self, p: &Vector4<f64>) {
-        self.p = *p;
+/// The analytic Jacobian of [`sinusoid_residuals`] (len(t) × 4).
+fn sinusoid_jacobian(t: &[f64], p: &DVector<f64>) -> Option<DMatrix<f64>> {
+    let (a, s, w, ph) = (p[0], p[1], p[2], p[3]);
+    let mut j = DMatrix::<f64>::zeros(t.len(), 4);
+    for (k, &t) in t.iter().enumerate() {
+        let e = (-s * t).exp();
+        let (sn, cs) = (w * t + ph).sin_cos();
+        j[(k, 0)] = e * cs;
+        j[(k, 1)] = -a * t * e * cs;
+        j[(k, 2)] = -a * e * sn * t;
+        j[(k, 3)] = -a * e * sn;
     }
-    fn params(&self) -> Vector4<f64> {
-        self.p
-    }
-    fn residuals(&self) -> Option<DVector<f64>> {
-        let (a, s, w, ph) = (self.p[0], self.p[1], self.p[2], self.p[3]);
-        Some(DVector::from_iterator(
-            self.t.len(),
-            self.t
-                .iter()
-                .zip(self.x)
-                .map(|(&t, &x)| a * (-s * t).exp() * (w * t + ph).cos() - x),
-        ))
-    }
-    fn jacobian(&self) -> Option<OMatrix<f64, Dyn, U4>> {
-        let (a, s, w, ph) = (self.p[0], self.p[1], self.p[2], self.p[3]);
-        let mut j = OMatrix::<f64, Dyn, U4>::zeros(self.t.len());
-        for (k, &t) in self.t.iter().enumerate() {
-            let e = (-s * t).exp();
-            let (sn, cs) = (w * t + ph).sin_cos();
-            j[(k, 0)] = e * cs;
-            j[(k, 1)] = -a * t * e * cs;
-            j[(k, 2)] = -a * e * sn * t;
-            j[(k, 3)] = -a * e * sn;
-        }
-        Some(j)
-    }
+    Some(j)
 }
 
 /// Positive peaks (index, value) of `x`, parabolically refined in time.
@@ -350,27 +334,24 @@ fn analyse_mode(x: &[f64], rate: f64, f1: f64, warnings: &mut Vec<String>) -> Re
         .collect();
     let xs: Vec<f64> = (k0..=k1).step_by(step).map(|k| xb[k]).collect();
     let wd0 = 2.0 * PI * fd;
-    let problem = SinusoidFit {
-        t: &ts,
-        x: &xs,
-        p: Vector4::new(seg[0].1, zeta_ld * 2.0 * PI * fn_ld, wd0, 0.0),
-    };
-    let (fit, report) = LevenbergMarquardt::new().minimize(problem);
-    let (sigma, wd) = (fit.p[1], fit.p[2]);
+    let p0 = DVector::from_vec(vec![seg[0].1, zeta_ld * 2.0 * PI * fn_ld, wd0, 0.0]);
+    let res = |p: &DVector<f64>| sinusoid_residuals(&ts, &xs, p);
+    let jac = |p: &DVector<f64>| sinusoid_jacobian(&ts, p);
+    // The adapter's finite-difference steps are unused with an analytic Jacobian.
+    let fit = minimize_with_jacobian(&res, &jac, p0, &LmOptions::new(vec![0.0; 4]));
+    let (sigma, wd) = (fit.x[1], fit.x[2]);
     let wn = (wd * wd + sigma * sigma).sqrt();
     let (fn_fit, zeta_fit) = (wn / (2.0 * PI), sigma / wn);
     let ss: f64 = xs.iter().map(|v| v * v).sum();
-    let r2 = 1.0 - 2.0 * report.objective_function / ss.max(1e-300);
-    let fit_ok = report.termination.was_successful()
+    let r2 = 1.0 - fit.cost / ss.max(1e-300);
+    let fit_ok = fit.converged
         && zeta_fit.is_finite()
         && zeta_fit >= 0.0
         && (fn_fit / fn_ld - 1.0).abs() < 0.05;
     if !fit_ok {
         warnings.push(format!(
             "damped-sinusoid fit rejected ({}; f {:.4} Hz, zeta {:.5}); log decrement only",
-            super::mlfit::termination_text(&report.termination),
-            fn_fit,
-            zeta_fit
+            fit.reason, fn_fit, zeta_fit
         ));
     }
     let (freq, zeta) = if fit_ok {

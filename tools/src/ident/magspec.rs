@@ -15,9 +15,9 @@
 //! reported only as the upper bound w·Δf / (2 f_n) from the measured width w (half-power
 //! bandwidth = 2ζf_n, paper eq. 27 with the half-power points).
 
+use crate::numeric::lm::{fd_jacobian, minimize, Difference, LmOptions};
 use anyhow::{bail, Context, Result};
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
-use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use nalgebra::DVector;
 use std::path::Path;
 
 /// Half-power bands narrower than this many lines make ζ an upper bound.
@@ -142,58 +142,27 @@ pub struct MagnitudeMode {
     pub rms_misfit_db: f64,
 }
 
-struct PeakFit<'a> {
-    f: &'a [f64],
-    db: &'a [f64],
-    p: DVector<f64>, // ln a, f_n, ln ζ, ln b
+/// |A(f)| of the module docs in dB, parameters p = (ln a, f_n, ln ζ, ln b).
+fn model_db(p: &DVector<f64>, f: f64) -> f64 {
+    let (a, fnat, z, b) = (p[0].exp(), p[1], p[2].exp(), p[3].exp());
+    let r = f / fnat;
+    let m = a * r * r / ((1.0 - r * r).powi(2) + (2.0 * z * r).powi(2)).sqrt() + b;
+    20.0 * m.log10()
 }
 
-impl PeakFit<'_> {
-    fn model_db(p: &DVector<f64>, f: f64) -> f64 {
-        let (a, fnat, z, b) = (p[0].exp(), p[1], p[2].exp(), p[3].exp());
-        let r = f / fnat;
-        let m = a * r * r / ((1.0 - r * r).powi(2) + (2.0 * z * r).powi(2)).sqrt() + b;
-        20.0 * m.log10()
-    }
-    fn res(&self, p: &DVector<f64>) -> DVector<f64> {
-        DVector::from_iterator(
-            self.f.len(),
-            self.f
-                .iter()
-                .zip(self.db)
-                .map(|(&f, &d)| Self::model_db(p, f) - d),
-        )
-    }
+/// Residuals model − measured (dB) on the lines `f`, `db`; `None` if one is not finite.
+fn peak_residuals(f: &[f64], db: &[f64], p: &DVector<f64>) -> Option<DVector<f64>> {
+    let r = DVector::from_iterator(f.len(), f.iter().zip(db).map(|(&f, &d)| model_db(p, f) - d));
+    r.iter().all(|v| v.is_finite()).then_some(r)
 }
 
-impl LeastSquaresProblem<f64, Dyn, Dyn> for PeakFit<'_> {
-    type ResidualStorage = Owned<f64, Dyn>;
-    type JacobianStorage = Owned<f64, Dyn, Dyn>;
-    type ParameterStorage = Owned<f64, Dyn>;
-    fn set_params(&mut self, p: &DVector<f64>) {
-        self.p = p.clone();
-    }
-    fn params(&self) -> DVector<f64> {
-        self.p.clone()
-    }
-    fn residuals(&self) -> Option<DVector<f64>> {
-        let r = self.res(&self.p);
-        r.iter().all(|v| v.is_finite()).then_some(r)
-    }
-    fn jacobian(&self) -> Option<DMatrix<f64>> {
-        let mut j = DMatrix::zeros(self.f.len(), 4);
-        for i in 0..4 {
-            let h = if i == 1 {
-                1e-7 * self.p[1].abs().max(1e-3)
-            } else {
-                1e-6
-            };
-            let (mut a, mut b) = (self.p.clone(), self.p.clone());
-            a[i] += h;
-            b[i] -= h;
-            j.set_column(i, &((self.res(&a) - self.res(&b)) / (2.0 * h)));
-        }
-        j.iter().all(|v| v.is_finite()).then_some(j)
+/// The adapter's options of a peak fit starting at `f_n0`: central differences, steps 1e-6 in
+/// the logarithms and 1e-7 f_n0 in f_n, patience 300.
+fn lm_options(f_n0: f64) -> LmOptions {
+    LmOptions {
+        difference: Difference::Central,
+        patience: 300,
+        ..LmOptions::new(vec![1e-6, 1e-7 * f_n0.abs().max(1e-3), 1e-6, 1e-6])
     }
 }
 
@@ -322,14 +291,13 @@ pub fn identify_magnitude_spectrum(
         let z0 = (0.5 * width * df / f[k]).max(1e-5);
         let a0 = (lin(db[k]) - lin(floor)).max(1e-30) * 2.0 * z0;
         let p0 = DVector::from_vec(vec![a0.ln(), f[k], z0.ln(), lin(floor).ln()]);
-        let prob = PeakFit {
-            f: &f[a..b],
-            db: &db[a..b],
-            p: p0,
+        let res = |p: &DVector<f64>| peak_residuals(&f[a..b], &db[a..b], p);
+        let opts = lm_options(f[k]);
+        let p = minimize(&res, p0, &opts).x;
+        let Some(r) = res(&p) else {
+            continue;
         };
-        let (prob, _) = LevenbergMarquardt::new().with_patience(300).minimize(prob);
-        let p = prob.p.clone();
-        let (Some(r), Some(j)) = (prob.residuals(), prob.jacobian()) else {
+        let Some(j) = fd_jacobian(&res, &p, &r, &opts) else {
             continue;
         };
         let (fnat, zeta) = (p[1], p[2].exp());

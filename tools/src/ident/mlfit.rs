@@ -18,9 +18,9 @@
 //! θ = (ln ω_r, ln ζ_r) only. The 1-σ uncertainty of each f_r and ζ_r is the Gauss–Newton
 //! covariance s² (JᵀJ)⁻¹ of the projected problem, s² = V / (N − p).
 
+use crate::numeric::lm::{fd_jacobian, minimize, Difference, LmOptions};
 use anyhow::{bail, Result};
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
-use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use nalgebra::{DMatrix, DVector};
 use realfft::num_complex::Complex64;
 use std::f64::consts::PI;
 
@@ -55,7 +55,6 @@ struct Problem<'a> {
     s: Vec<Complex64>,
     h: &'a [Complex64],
     sqrt_w: Vec<f64>,
-    theta: DVector<f64>,
 }
 
 impl Problem<'_> {
@@ -108,33 +107,13 @@ impl Problem<'_> {
     }
 }
 
-impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
-    type ResidualStorage = Owned<f64, Dyn>;
-    type JacobianStorage = Owned<f64, Dyn, Dyn>;
-    type ParameterStorage = Owned<f64, Dyn>;
-
-    fn set_params(&mut self, p: &DVector<f64>) {
-        self.theta = p.clone();
-    }
-    fn params(&self) -> DVector<f64> {
-        self.theta.clone()
-    }
-    fn residuals(&self) -> Option<DVector<f64>> {
-        self.projected(&self.theta)
-    }
-    fn jacobian(&self) -> Option<DMatrix<f64>> {
-        let r0 = self.projected(&self.theta)?;
-        let mut j = DMatrix::<f64>::zeros(r0.len(), self.theta.len());
-        for i in 0..self.theta.len() {
-            let h = 1e-6;
-            let mut tp = self.theta.clone();
-            tp[i] += h;
-            let mut tm = self.theta.clone();
-            tm[i] -= h;
-            let d = (self.projected(&tp)? - self.projected(&tm)?) / (2.0 * h);
-            j.set_column(i, &d);
-        }
-        Some(j)
+/// The adapter's options of the fit: central differences of step 1e-6 in (ln ω, ln ζ),
+/// patience 200, the crate's default tolerances.
+fn lm_options(n_theta: usize) -> LmOptions {
+    LmOptions {
+        difference: Difference::Central,
+        patience: 200,
+        ..LmOptions::new(vec![1e-6; n_theta])
     }
 }
 
@@ -183,25 +162,24 @@ pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> R
         s,
         h: &frf.h1[band.clone()],
         sqrt_w,
-        theta: theta0.clone(),
     };
     let Some(r0) = problem.projected(&theta0) else {
         bail!("singular least-squares problem at the starting poles");
     };
     let cost_start = r0.norm_squared() * w_max;
-    let (problem, report) = LevenbergMarquardt::new()
-        .with_patience(200)
-        .minimize(problem);
-    let theta = problem.theta.clone();
-    let (Some(r), Some(j)) = (problem.projected(&theta), problem.jacobian()) else {
+    let f = |theta: &DVector<f64>| problem.projected(theta);
+    let opts = lm_options(theta0.len());
+    let out = minimize(&f, theta0, &opts);
+    if !out.cost.is_finite() {
+        bail!("the fit did not converge ({})", out.termination);
+    }
+    let theta = out.x;
+    let Some(r) = problem.projected(&theta) else {
         bail!("the fit diverged");
     };
-    if !report.termination.was_successful() && report.objective_function.is_nan() {
-        bail!(
-            "the fit did not converge ({})",
-            termination_text(&report.termination)
-        );
-    }
+    let Some(j) = fd_jacobian(&f, &theta, &r, &opts) else {
+        bail!("the fit diverged");
+    };
     let n_obs = r.len() as f64;
     let dof = (n_obs - n_par as f64).max(1.0);
     let s2 = r.norm_squared() / dof;
@@ -335,22 +313,5 @@ mod tests {
             method: String::new(),
         };
         assert!(refine_modes(&frf, (0.5, 1.5), &[m]).is_err());
-    }
-}
-
-/// The Levenberg–Marquardt termination in words (no debug text in messages).
-pub fn termination_text(t: &levenberg_marquardt::TerminationReason) -> String {
-    use levenberg_marquardt::TerminationReason as T;
-    match t {
-        T::Converged { .. } => "converged".into(),
-        T::ResidualsZero => "zero residuals".into(),
-        T::Orthogonal => "residuals orthogonal to the Jacobian".into(),
-        T::LostPatience => "too many evaluations".into(),
-        T::NoImprovementPossible(s) => format!("no improvement possible ({s})"),
-        T::NoParameters => "no parameters".into(),
-        T::NoResiduals => "no residuals".into(),
-        T::WrongDimensions(s) => format!("wrong dimensions ({s})"),
-        T::Numerical(s) => format!("numerical problem ({s})"),
-        T::User(s) => s.to_string(),
     }
 }
