@@ -7,7 +7,8 @@
 //! - [`sweep`]: linear/exponential sine sweeps (eqs. 33–34) with stroke, acceleration and
 //!   tip-deflection limits, as command CSV.
 //! - [`frf`]: Welch H1/H2/coherence (Hamming window by default, overlap, detrending).
-//! - [`lscf`], [`lsce`], [`peak`]: the estimators; [`poles`] their common pole algebra.
+//! - [`lscf`], [`lsce`], [`peak`]: the estimators; [`poles`] their common pole algebra;
+//!   [`estimator`]: the one trait they (and the maximum-likelihood refinement) sit behind.
 //! - [`magspec`]: modes of a magnitude-only spectrum (LabVIEW `.lvm` of an impact test).
 //! - [`mlfit`]: maximum-likelihood (output-error) refinement of the modes on the FRF.
 //! - [`stabilisation`]: diagrams over model orders and automatic mode selection.
@@ -28,6 +29,7 @@
 //! method's estimate of the same mode (within 3 % in frequency).
 
 pub mod denoise;
+pub mod estimator;
 pub mod freedecay;
 pub mod frf;
 pub mod identify;
