@@ -293,26 +293,9 @@ pub fn identify(
         );
     }
     progress(Stage::Excitation);
-    let base = base_channel(&seg).map(base_motion);
+    let mut base = base_channel(&seg).map(base_motion);
     let (path, reason) = choose_path(&seg, base.as_ref(), opts);
-    let mut base = base;
-    let q = decimation_factor(&seg, path, opts);
-    if q > 1 {
-        let from_s = base
-            .as_ref()
-            .map(|b| seg.time_s[b.still_from.min(seg.len() - 1)]);
-        let d = seg.decimated(q);
-        warnings.push(format!(
-            "long recording ({} samples at {} Hz): decimated by {q} to {} Hz (anti-aliased, FIR) before the {path} path",
-            seg.len(),
-            fmt_sig(seg.sample_rate_hz(), 5),
-            fmt_sig(d.sample_rate_hz(), 5)
-        ));
-        if let (Some(b), Some(t0)) = (base.as_mut(), from_s) {
-            b.still_from = d.time_s.partition_point(|t| *t < t0);
-        }
-        seg = Cow::Owned(d);
-    }
+    decimate_for_path(&mut seg, &mut base, path, opts, &mut warnings);
     let rate = seg.sample_rate_hz();
     let span = (seg.time_s[0], seg.time_s[seg.len() - 1]);
     let mut out = Identification {
@@ -329,42 +312,9 @@ pub fn identify(
         decay_result: None,
     };
     match path {
-        IdentPath::Frf => {
-            progress(Stage::Estimating(path, seg.len()));
-            let mut fo = frf_options(&seg, opts, &mut out);
-            // The ML refinement runs on the screened modes only (faster, and a spurious
-            // estimate cannot pull a physical one).
-            let ml = std::mem::replace(&mut fo.ml_refine, false);
-            let (r, frf) = identify_recording(&seg, &fo)?;
-            progress(Stage::Screening);
-            let (mut kept, rejected) = screen_modes(&r, &frf, &fo);
-            out.warnings.extend(r.warnings.iter().cloned());
-            if ml
-                && matches!(
-                    r.methods.first().map(|m| m.method),
-                    Some(Method::Lscf | Method::Lsce)
-                )
-            {
-                progress(Stage::Refining(kept.len()));
-                refine_estimates(&frf, r.band_hz, &mut kept, "FRF", &mut out.warnings);
-            }
-            out.modes = kept;
-            out.rejected = rejected;
-            out.reason = format!("{}; FRF {} -> {}", out.reason, r.input, r.output);
-            out.frf_result = Some((r, frf));
-        }
+        IdentPath::Frf => frf_path(&seg, opts, &mut out, progress)?,
         IdentPath::FreeDecay | IdentPath::RingDown | IdentPath::Spectrum => {
-            let from = match (path, &out.base) {
-                (IdentPath::RingDown, Some(b)) => b.still_from,
-                _ => 0,
-            };
-            let (t, x) = tip_signal(&seg, from);
-            progress(Stage::Estimating(path, t.len()));
-            let r = identify_free_decay(&t, &x, &opts.decay)?;
-            out.modes = r.modes.clone();
-            out.warnings.extend(r.warnings.iter().cloned());
-            out.span_s = (t[0], t[t.len() - 1]);
-            out.decay_result = Some(r);
+            decay_path(&seg, opts, &mut out, progress)?
         }
     }
     if out.modes.is_empty() {
@@ -372,22 +322,103 @@ pub fn identify(
             "no physical mode found on the {} path ({}){}",
             out.path,
             out.reason,
-            if out.rejected.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    "; rejected: {}",
-                    out.rejected
-                        .iter()
-                        .map(|r| format!("{} Hz ({})", fmt_sig(r.mode.freq_hz, 4), r.reason))
-                        .collect::<Vec<_>>()
-                        .join("; ")
-                )
-            }
+            rejected_text(&out.rejected)
         );
     }
     out.rayleigh = rayleigh(&out.modes, &mut out.warnings);
     Ok(out)
+}
+
+/// `; rejected: f Hz (why); …`, or nothing.
+fn rejected_text(rejected: &[RejectedMode]) -> String {
+    if rejected.is_empty() {
+        return String::new();
+    }
+    let list: Vec<String> = rejected
+        .iter()
+        .map(|r| format!("{} Hz ({})", fmt_sig(r.mode.freq_hz, 4), r.reason))
+        .collect();
+    format!("; rejected: {}", list.join("; "))
+}
+
+/// Anti-aliased decimation of `seg` by [`decimation_factor`] for `path` (with a warning),
+/// keeping `base.still_from` at the same time.
+fn decimate_for_path(
+    seg: &mut Cow<'_, Recording>,
+    base: &mut Option<BaseMotion>,
+    path: IdentPath,
+    opts: &IdentifyOptions,
+    warnings: &mut Vec<String>,
+) {
+    let q = decimation_factor(seg, path, opts);
+    if q <= 1 {
+        return;
+    }
+    let from_s = base
+        .as_ref()
+        .map(|b| seg.time_s[b.still_from.min(seg.len() - 1)]);
+    let d = seg.decimated(q);
+    warnings.push(format!(
+        "long recording ({} samples at {} Hz): decimated by {q} to {} Hz (anti-aliased, FIR) before the {path} path",
+        seg.len(),
+        fmt_sig(seg.sample_rate_hz(), 5),
+        fmt_sig(d.sample_rate_hz(), 5)
+    ));
+    if let (Some(b), Some(t0)) = (base.as_mut(), from_s) {
+        b.still_from = d.time_s.partition_point(|t| *t < t0);
+    }
+    *seg = Cow::Owned(d);
+}
+
+/// The FRF path: [`identify_recording`] without refinement, [`screen_modes`], then the
+/// maximum-likelihood refinement of the kept modes (LSCF, LSCE primary), into `out`.
+fn frf_path(
+    seg: &Recording,
+    opts: &IdentifyOptions,
+    out: &mut Identification,
+    progress: &mut dyn FnMut(Stage),
+) -> Result<()> {
+    progress(Stage::Estimating(out.path, seg.len()));
+    let mut fo = frf_options(seg, opts, out);
+    // The ML refinement runs on the screened modes only (faster, and a spurious
+    // estimate cannot pull a physical one).
+    let ml = std::mem::replace(&mut fo.ml_refine, false);
+    let (r, frf) = identify_recording(seg, &fo)?;
+    progress(Stage::Screening);
+    let (mut kept, rejected) = screen_modes(&r, &frf, &fo);
+    out.warnings.extend(r.warnings.iter().cloned());
+    let primary = r.methods.first().map(|m| m.method);
+    if ml && matches!(primary, Some(Method::Lscf | Method::Lsce)) {
+        progress(Stage::Refining(kept.len()));
+        refine_estimates(&frf, r.band_hz, &mut kept, "FRF", &mut out.warnings);
+    }
+    out.modes = kept;
+    out.rejected = rejected;
+    out.reason = format!("{}; FRF {} -> {}", out.reason, r.input, r.output);
+    out.frf_result = Some((r, frf));
+    Ok(())
+}
+
+/// The free-decay paths: [`identify_free_decay`] of the tip signal (from where the base is
+/// still on the ring-down path), into `out`.
+fn decay_path(
+    seg: &Recording,
+    opts: &IdentifyOptions,
+    out: &mut Identification,
+    progress: &mut dyn FnMut(Stage),
+) -> Result<()> {
+    let from = match (out.path, &out.base) {
+        (IdentPath::RingDown, Some(b)) => b.still_from,
+        _ => 0,
+    };
+    let (t, x) = tip_signal(seg, from);
+    progress(Stage::Estimating(out.path, t.len()));
+    let r = identify_free_decay(&t, &x, &opts.decay)?;
+    out.modes = r.modes.clone();
+    out.warnings.extend(r.warnings.iter().cloned());
+    out.span_s = (t[0], t[t.len() - 1]);
+    out.decay_result = Some(r);
+    Ok(())
 }
 
 /// The free-decay part of `rec` as (time s, signal, description): the longest clean segment

@@ -117,18 +117,14 @@ fn lm_options(n_theta: usize) -> LmOptions {
     }
 }
 
-/// Refines `start` (natural frequencies in Hz, damping ratios) on the lines of `frf` with
-/// `band_hz.0 ≤ f ≤ band_hz.1`, by the output-error (maximum-likelihood) fit of the module
-/// docs. Weights: the input auto-spectrum S_xx of each line (white output noise).
-///
-/// Errors: no start mode, fewer than 4 lines per parameter in the band, a fit that does not
-/// converge to finite values or moves a frequency out of the band.
-pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> Result<Refinement> {
-    if start.is_empty() {
-        bail!("no mode to refine");
-    }
-    let band = frf.band(band_hz.0.max(frf.df_hz()), band_hz.1);
-    let n_par = 2 * start.len() + (2 * start.len() + 2);
+/// The lines `band` of `frf` as s = jω and the square roots of their weights S_xx / max S_xx,
+/// and that maximum. Errors: fewer than 4 lines per parameter, no input power.
+fn weighted_lines(
+    frf: &Frf,
+    band: std::ops::Range<usize>,
+    band_hz: (f64, f64),
+    n_par: usize,
+) -> Result<(Vec<Complex64>, Vec<f64>, f64)> {
     if band.len() < 4 * n_par {
         bail!(
             "{} lines in {:.3}..{:.3} Hz for {} parameters",
@@ -152,6 +148,22 @@ pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> R
         );
     }
     let sqrt_w: Vec<f64> = sxx.iter().map(|v| (v / w_max).max(0.0).sqrt()).collect();
+    Ok((s, sqrt_w, w_max))
+}
+
+/// Refines `start` (natural frequencies in Hz, damping ratios) on the lines of `frf` with
+/// `band_hz.0 ≤ f ≤ band_hz.1`, by the output-error (maximum-likelihood) fit of the module
+/// docs. Weights: the input auto-spectrum S_xx of each line (white output noise).
+///
+/// Errors: no start mode, fewer than 4 lines per parameter in the band, a fit that does not
+/// converge to finite values or moves a frequency out of the band.
+pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> Result<Refinement> {
+    if start.is_empty() {
+        bail!("no mode to refine");
+    }
+    let band = frf.band(band_hz.0.max(frf.df_hz()), band_hz.1);
+    let n_par = 2 * start.len() + (2 * start.len() + 2);
+    let (s, sqrt_w, w_max) = weighted_lines(frf, band.clone(), band_hz, n_par)?;
     let theta0 = DVector::from_iterator(
         2 * start.len(),
         start
@@ -184,6 +196,21 @@ pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> R
     let dof = (n_obs - n_par as f64).max(1.0);
     let s2 = r.norm_squared() / dof;
     let cov = (j.transpose() * &j).try_inverse().map(|c| c * s2);
+    Ok(Refinement {
+        modes: refined_modes(&theta, cov.as_ref(), start, band_hz)?,
+        cost_start,
+        cost_end: r.norm_squared() * w_max,
+    })
+}
+
+/// The modes of θ = (ln ω_r, ln ζ_r) with their 1-σ from `cov` (NaN without); errors when a
+/// mode left the band or moved more than 5 % from its start.
+fn refined_modes(
+    theta: &DVector<f64>,
+    cov: Option<&DMatrix<f64>>,
+    start: &[ModeEstimate],
+    band_hz: (f64, f64),
+) -> Result<Vec<RefinedMode>> {
     let mut modes = Vec::with_capacity(start.len());
     for (i, m0) in start.iter().enumerate() {
         let freq_hz = theta[2 * i].exp() / (2.0 * PI);
@@ -200,7 +227,7 @@ pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> R
                 zeta
             );
         }
-        let (sf, sz) = match &cov {
+        let (sf, sz) = match cov {
             Some(c) => (
                 freq_hz * c[(2 * i, 2 * i)].max(0.0).sqrt(),
                 zeta * c[(2 * i + 1, 2 * i + 1)].max(0.0).sqrt(),
@@ -214,11 +241,7 @@ pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> R
             zeta_std: sz,
         });
     }
-    Ok(Refinement {
-        modes,
-        cost_start,
-        cost_end: r.norm_squared() * w_max,
-    })
+    Ok(modes)
 }
 
 #[cfg(test)]
