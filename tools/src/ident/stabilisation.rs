@@ -254,6 +254,19 @@ impl Diagram {
         s
     }
 
+    /// (frequency Hz, order) of the poles labelled `st` in `f_lo..=f_hi`.
+    fn points(&self, st: Stability, f_lo: f64, f_hi: f64) -> Vec<(f64, f64)> {
+        self.orders
+            .iter()
+            .flat_map(|o| {
+                o.poles
+                    .iter()
+                    .filter(move |p| p.1 == st && p.0.freq_hz >= f_lo && p.0.freq_hz <= f_hi)
+                    .map(move |p| (p.0.freq_hz, o.order as f64))
+            })
+            .collect()
+    }
+
     /// SVG: the poles over (frequency, order), on top of the normalised |H| curve.
     pub fn plot(
         &self,
@@ -282,23 +295,11 @@ impl Diagram {
             .y_desc("model order")
             .draw()
             .map_err(|e| anyhow!("{e}"))?;
-        // |H| in dB scaled onto the order axis.
-        let band: Vec<(f64, f64)> = freq_hz
-            .iter()
-            .zip(mag)
-            .filter(|(f, m)| **f >= f_lo && **f <= f_hi && **m > 0.0)
-            .map(|(&f, &m)| (f, 20.0 * m.log10()))
-            .collect();
-        if !band.is_empty() {
-            let (lo, hi) = band
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
-                    (a.min(p.1), b.max(p.1))
-                });
-            let sc = |v: f64| 0.5 + max_order * (v - lo) / (hi - lo).max(1e-9);
+        let trace = magnitude_trace(freq_hz, mag, (f_lo, f_hi), max_order);
+        if !trace.is_empty() {
             chart
                 .draw_series(LineSeries::new(
-                    band.iter().map(|&(f, v)| (f, sc(v))),
+                    trace,
                     RGBColor(150, 150, 150).stroke_width(1),
                 ))
                 .map_err(|e| anyhow!("{e}"))?
@@ -312,16 +313,7 @@ impl Diagram {
             (Stability::Freq, BLUE, "frequency stable"),
             (Stability::Stable, RED, "stable"),
         ] {
-            let pts: Vec<(f64, f64)> = self
-                .orders
-                .iter()
-                .flat_map(|o| {
-                    o.poles
-                        .iter()
-                        .filter(move |p| p.1 == st && p.0.freq_hz >= f_lo && p.0.freq_hz <= f_hi)
-                        .map(move |p| (p.0.freq_hz, o.order as f64))
-                })
-                .collect();
+            let pts = self.points(st, f_lo, f_hi);
             chart
                 .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
                 .map_err(|e| anyhow!("{e}"))?
@@ -345,6 +337,28 @@ impl Diagram {
         root.present().map_err(|e| anyhow!("{e}"))?;
         Ok(())
     }
+}
+
+/// |H| (`mag`) in dB within `band_hz`, scaled onto the order axis 0.5..0.5 + `max_order`.
+fn magnitude_trace(
+    freq_hz: &[f64],
+    mag: &[f64],
+    band_hz: (f64, f64),
+    max_order: f64,
+) -> Vec<(f64, f64)> {
+    let band: Vec<(f64, f64)> = freq_hz
+        .iter()
+        .zip(mag)
+        .filter(|(f, m)| **f >= band_hz.0 && **f <= band_hz.1 && **m > 0.0)
+        .map(|(&f, &m)| (f, 20.0 * m.log10()))
+        .collect();
+    let (lo, hi) = band
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+            (a.min(p.1), b.max(p.1))
+        });
+    let sc = |v: f64| 0.5 + max_order * (v - lo) / (hi - lo).max(1e-9);
+    band.iter().map(|&(f, v)| (f, sc(v))).collect()
 }
 
 #[cfg(test)]
