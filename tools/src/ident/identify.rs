@@ -687,6 +687,20 @@ pub fn base_motion(b: &[f64]) -> BaseMotion {
     }
 }
 
+/// The path the user asked for (`None` for `auto`), with its reason: a ring-down when the base
+/// moved (`ring_s` of it), else a free decay.
+fn asked_path(choice: PathChoice, moves: bool, ring_s: f64) -> Option<(IdentPath, String)> {
+    match choice {
+        PathChoice::Frf => Some((IdentPath::Frf, "FRF path asked for".into())),
+        PathChoice::Decay if moves => Some((
+            IdentPath::RingDown,
+            format!("free decay asked for: tip deflection after the base's last move ({} s of ring-down)", fmt_sig(ring_s, 3)),
+        )),
+        PathChoice::Decay => Some((IdentPath::FreeDecay, "free decay asked for".into())),
+        PathChoice::Auto => None,
+    }
+}
+
 /// The path for `rec` and the reason.
 pub fn choose_path(
     rec: &Recording,
@@ -697,16 +711,8 @@ pub fn choose_path(
     let force = rec.force_n.is_some();
     let moves = base.is_some_and(|b| b.still_from > 0);
     let ring_s = base.map_or(0.0, |b| (rec.len() - b.still_from) as f64 / rate);
-    match opts.path {
-        PathChoice::Frf => return (IdentPath::Frf, "FRF path asked for".into()),
-        PathChoice::Decay if moves => {
-            return (
-                IdentPath::RingDown,
-                format!("free decay asked for: tip deflection after the base's last move ({} s of ring-down)", fmt_sig(ring_s, 3)),
-            )
-        }
-        PathChoice::Decay => return (IdentPath::FreeDecay, "free decay asked for".into()),
-        PathChoice::Auto => {}
+    if let Some(asked) = asked_path(opts.path, moves, ring_s) {
+        return asked;
     }
     let Some(b) = base else {
         return if force {
