@@ -297,8 +297,8 @@ pub fn base_from_command(
 /// n ln(RSS/n) + p ln n over lead ∈ {0, `lead_max`} and lag ∈ {0, 1, 2, 4, …, `lag_max`} (for
 /// each lead the lags ascend until two in a row do not improve the BIC): a
 /// base that follows its command needs one tap, a servo a few; every needless tap adds the
-/// sensor noise's projection to the prediction (ζ2 scattered by ±4 % with a fixed 111-tap FIR,
-/// ±0.6 % with the clean command itself on the reference rig).
+/// sensor noise's projection to the prediction (measured effect on ζ2: docs/ident.md, "Numbers
+/// behind the design choices").
 pub fn base_from_command_bic(
     cmd: &[f64],
     base: &[f64],

@@ -7,7 +7,8 @@
 //! Steps:
 //! 1. **Gaps** ([`gap_threshold_s`]): time steps longer than max(5 median steps, a tenth of
 //!    the dominant period) split the recording; the longest clean segment is used, with a
-//!    warning (interpolating across a 500 ms gap biased a 6 Hz decay by −8.6 %).
+//!    warning (interpolating across a gap biases the decay: docs/ident.md, "Numbers behind
+//!    the design choices").
 //! 2. **Base stillness** ([`base_motion`]): the base's noise is measured where it ends
 //!    (1.4826 × MAD of the last 10 % of the recording); the base is still from the last
 //!    sample that leaves ±6 σ of its final position. A servo dithering by ±2 µm is still.

@@ -1,8 +1,8 @@
 //! Maximum-likelihood refinement of modal parameters on the FRF (output-error fit).
 //!
 //! LSCF linearises the fit: it minimises |A(ω) H(ω) − B(ω)|², which weights every line by the
-//! denominator's magnitude and biases damping upward when the output is noisy (+23 % on ζ2 of
-//! the reference rig at 5 % noise, docs/ident.md). The refinement minimises the *output
+//! denominator's magnitude and biases damping upward when the output is noisy (measured in
+//! docs/ident.md, "Numbers behind the design choices"). The refinement minimises the *output
 //! error* instead, the maximum-likelihood cost for white output noise (Pintelon & Schoukens,
 //! *System Identification: a Frequency Domain Approach*, 2nd ed., §9; the MLMM step of
 //! commercial PolyMAX):

@@ -83,8 +83,8 @@ pub struct IdentOptions {
     /// applied to the force (it also carries the beam's reaction at its resonances).
     pub track_input: bool,
     /// Sanathanan–Koerner iterations of LSCF ([`super::lscf::lscf_poles_sk`]): reduce the
-    /// damping bias of output noise (ζ2 +23 % → −1 % mean over 20 seeds at 5 % noise on base
-    /// and tip, docs/ident.md); 1 by default (more iterations lost poles at low orders).
+    /// damping bias of output noise; 1 by default (more iterations lost poles at low orders;
+    /// docs/ident.md, "Numbers behind the design choices").
     pub sk_iterations: usize,
     /// Refine the primary FRF method's modes by the output-error (maximum-likelihood) fit of
     /// [`super::mlfit`]; its Gauss–Newton σ joins the uncertainty. On by default.
@@ -359,8 +359,8 @@ pub fn combine(methods: &[MethodResult]) -> Vec<ModeEstimate> {
 /// from the noise-free command `base_cmd_m` by a fitted servo model
 /// ([`super::denoise::base_from_command`]) when the recording has one and the model explains
 /// ≥ 90 % of the base variance, else tracking-filtered ([`super::denoise::track_sweep`]). Filtering only the input left the base sensor's noise in the output, the same
-/// noise twice: an errors-in-variables error that H1 cannot average out in one record (ζ2
-/// scattered by ±33 % at 5 % noise; see docs/ident.md). Force input is never filtered (it also
+/// noise twice: an errors-in-variables error that H1 cannot average out in one record
+/// (docs/ident.md, "Numbers behind the design choices"). Force input is never filtered (it also
 /// carries the beam's reaction at its resonances).
 pub fn frf_with_options(rec: &Recording, opts: &IdentOptions) -> Result<(Frf, Vec<String>)> {
     if !opts.track_input || opts.input == InputChannel::Force {
@@ -455,9 +455,9 @@ fn predict_base(
 const NOISY_COMMAND: &str = "base_cmd_m carries broadband noise (a recorded, not a generated, command?): the base is tracking-filtered instead of predicted from it";
 
 /// A generated command is band-limited: more than 10⁻⁶ of its variance above twice the band's
-/// upper edge is sensor noise (measured at 100 Hz and an 8 Hz band: 2·10⁻¹³–4·10⁻¹⁰ for the
-/// paper's clean sweeps, 7·10⁻⁵ with white noise of 1 % of the RMS, so the limit sits near
-/// 0.1 % noise). Not testable when 2 × the band reaches 0.8 × Nyquist.
+/// upper edge is sensor noise (the limit sits near 0.1 % noise; the measurements behind it are
+/// in docs/ident.md, "Numbers behind the design choices"). Not testable when 2 × the band
+/// reaches 0.8 × Nyquist.
 fn command_is_noisy(c: &[f64], rate_hz: f64, band_hz: (f64, f64)) -> bool {
     let f = 2.0 * band_hz.1;
     f < 0.4 * rate_hz && super::denoise::broadband_fraction(c, rate_hz, f) > 1e-6
