@@ -20,7 +20,7 @@
 //! # Public API
 //! ```ignore
 //! let (res, frf) = beamtools::ident::identify_recording(&rec, &IdentOptions::default())?;
-//! for m in &res.modes { println!("{} Hz ± {}, ζ = {} ± {}", m.freq_hz, m.freq_hz_std, m.zeta, m.zeta_std); }
+//! let first: Option<(f64, f64)> = res.modes.first().map(|m| (m.freq_hz, m.zeta)); // Hz, ζ; σ in *_std
 //! let res = beamtools::ident::identify_decay(&t, &x, &FreeDecayOptions::default())?;
 //! ```
 //! Uncertainties are 1-σ: for LSCF/LSCE the spread (1.4826 × MAD) of the stable poles across
