@@ -44,7 +44,7 @@ pub struct VboardArgs {
 #[derive(Args)]
 pub struct SweepCmd {
     #[command(flatten)]
-    design: crate::ident::cli::SweepArgs,
+    design: crate::cli::ident::SweepArgs,
     /// Run the sweep on this board (its own reference generator) instead of writing a CSV.
     #[arg(long)]
     port: Option<String>,
@@ -154,7 +154,7 @@ pub fn console(a: ConsoleArgs) -> Result<()> {
 /// `beamtool sweep`: a command CSV, or with `--port` the sweep run on the board.
 pub fn sweep(a: SweepCmd) -> Result<()> {
     let Some(p) = a.port else {
-        return crate::ident::cli::sweep(a.design);
+        return crate::cli::ident::sweep(a.design);
     };
     let d = &a.design;
     let kind = match d.kind.as_str() {

@@ -6,6 +6,9 @@
 //! `main.rs` imports it (checked by `tests/layout.rs`).
 
 pub mod board;
+pub mod ident;
+pub mod model;
+pub mod paper;
 pub mod tune;
 
 use anyhow::{Context, Result};
@@ -34,22 +37,22 @@ pub enum Command {
     /// Design a (multi-mode) input shaper and print its impulse table and sensitivity.
     Shaper(board::ShaperArgs),
     /// Simulate the beam on its moving base for a move or a command CSV (paper §2).
-    Simulate(crate::model::cli::SimulateArgs),
+    Simulate(crate::cli::model::SimulateArgs),
     /// Natural frequencies, damping, participation and mode shapes of a rig.
-    Modes(crate::model::cli::ModesArgs),
+    Modes(crate::cli::model::ModesArgs),
     /// Reproduce the paper's Table 2 and Figs. 6-9 in simulation.
-    Table2(crate::model::cli::Table2Args),
+    Table2(crate::cli::paper::Table2Args),
     /// Benchmark the simulator against scipy.signal.lsim (needs python3 with scipy).
-    BenchSim(crate::model::bench::BenchArgs),
+    BenchSim(crate::cli::paper::BenchArgs),
     /// Identify natural frequencies and damping ratios from a free decay (.npy or CSV).
-    Identify(crate::ident::cli::IdentifyArgs),
+    Identify(crate::cli::ident::IdentifyArgs),
     /// Make a sine-sweep excitation (eqs. 33-34) as a command CSV, within stroke/accel/tip
     /// limits; with --port, run it on the board so a camera can record it.
     Sweep(board::SweepCmd),
     /// Welch H1/H2/coherence FRF of a recording (paper Step 2).
-    Frf(crate::ident::cli::FrfArgs),
+    Frf(crate::cli::ident::FrfArgs),
     /// Reproduce the paper's Table 1 (sweep identification) on the simulated rig.
-    Table1(crate::ident::cli::Table1Args),
+    Table1(crate::cli::paper::Table1Args),
     /// Model-discrepancy diagnosis: locate the mismatch, name the missing physics, refit, validate.
     Diagnose(crate::diagnose::cli::DiagnoseArgs),
     /// Diagnosis across a length series of free decays (one beam clamped at several lengths).
@@ -70,22 +73,22 @@ pub fn run(command: Command) -> Result<()> {
         Command::Shaper(a) => board::shaper(a),
         Command::Simulate(mut a) => {
             default_rig(&mut a.rig)?;
-            crate::model::cli::simulate(a)
+            crate::cli::model::simulate(a)
         }
         Command::Modes(mut a) => {
             default_rig(&mut a.rig)?;
-            crate::model::cli::modes(a)
+            crate::cli::model::modes(a)
         }
         Command::Table2(mut a) => {
             default_rig(&mut a.rig)?;
-            crate::model::cli::table2(a)
+            crate::cli::paper::table2(a)
         }
-        Command::Identify(a) => crate::ident::cli::identify(a),
+        Command::Identify(a) => crate::cli::ident::identify(a),
         Command::Sweep(a) => board::sweep(a),
-        Command::Frf(a) => crate::ident::cli::frf(a),
+        Command::Frf(a) => crate::cli::ident::frf(a),
         Command::Table1(mut a) => {
             default_rig(&mut a.rig)?;
-            crate::ident::cli::table1(a)
+            crate::cli::paper::table1(a)
         }
         Command::Diagnose(a) => crate::diagnose::cli::diagnose(a),
         Command::DiagnoseProof(a) => crate::diagnose::cli::proof(a),
@@ -93,7 +96,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Truth(a) => crate::truth::cli::truth(a),
         Command::BenchSim(mut a) => {
             default_rig(&mut a.rig)?;
-            crate::model::bench::bench_sim(a)
+            crate::cli::paper::bench_sim(a)
         }
     }
 }
