@@ -42,13 +42,13 @@ enum Command {
     /// Reproduce the paper's Table 1 (sweep identification) on the simulated rig.
     Table1(beamtools::ident::cli::Table1Args),
     /// Model-discrepancy diagnosis: locate the mismatch, name the missing physics, refit, validate.
-    Diagnose(beamtools::diagnose::cli::DiagnoseArgs),
+    Diagnose(beamtools::cli::diagnose::DiagnoseArgs),
     /// Diagnosis across a length series of free decays (one beam clamped at several lengths).
-    DiagnoseLengths(beamtools::diagnose::cli::LengthsArgs),
+    DiagnoseLengths(beamtools::cli::diagnose::LengthsArgs),
     /// Prove the diagnosis on concealed effects from the truth generator (confusion table).
-    DiagnoseProof(beamtools::diagnose::cli::ProofArgs),
+    DiagnoseProof(beamtools::cli::diagnose::ProofArgs),
     /// Write one truth-generator case (rig + fit/validation recordings with a hidden effect).
-    Truth(beamtools::truth::cli::TruthArgs),
+    Truth(beamtools::cli::truth::TruthArgs),
 }
 
 #[derive(Args)]
@@ -164,10 +164,10 @@ fn run(command: Command) -> Result<()> {
             default_rig(&mut a.rig)?;
             beamtools::ident::cli::table1(a)
         }
-        Command::Diagnose(a) => beamtools::diagnose::cli::diagnose(a),
-        Command::DiagnoseProof(a) => beamtools::diagnose::cli::proof(a),
-        Command::DiagnoseLengths(a) => beamtools::diagnose::cli::diagnose_lengths(a),
-        Command::Truth(a) => beamtools::truth::cli::truth(a),
+        Command::Diagnose(a) => beamtools::cli::diagnose::diagnose(a),
+        Command::DiagnoseProof(a) => beamtools::cli::diagnose::proof(a),
+        Command::DiagnoseLengths(a) => beamtools::cli::diagnose::diagnose_lengths(a),
+        Command::Truth(a) => beamtools::cli::truth::truth(a),
         Command::BenchSim(mut a) => {
             default_rig(&mut a.rig)?;
             beamtools::model::bench::bench_sim(a)

@@ -7,15 +7,17 @@
 //!   uncertainties;
 //! - [`locate`]: where/when/at which frequency the residual is structured;
 //! - [`select`]: BIC + validation + model-form allowance + whiteness + significance guard;
-//! - [`report`]: JSON, words, SVG plots; [`cli`]: `diagnose`, `diagnose-proof`;
+//! - [`report`]: JSON, words, SVG plots; [`proof`]: the own-generator proof; [`honesty`]:
+//!   long-run 1-σ, parameter stability, residual statistics of the final model;
+//! - the commands (`diagnose`, `diagnose-proof`, `diagnose-lengths`) live in `crate::cli::diagnose`;
 //!
 //! Every fit of one diagnosis draws on one budget of model evaluations
 //! ([`WORK_BUDGET_SAMPLE_EVALUATIONS`] divided by the fit recordings' samples), never on the
 //! clock, so the same recordings give the same answer on any machine.
 
-pub mod cli;
 pub mod effects;
 pub mod fit;
+pub mod honesty;
 pub mod lengths;
 pub mod locate;
 pub mod proof;
@@ -119,6 +121,9 @@ pub struct Diagnosis {
     pub unexplained: Option<unexplained::Unexplained>,
     /// Assumptions made about missing channels.
     pub assumptions: Vec<String>,
+    /// Residual statistics, parameter stability and bounds of the final model
+    /// ([`honesty`]).
+    pub honesty: honesty::Honesty,
 }
 
 /// The recorded signal of channel `c` (0 base position m, 1 tip deflection tip − drive m,
@@ -207,7 +212,8 @@ impl Budget {
     }
 }
 
-/// Runs the whole diagnosis. `progress` is called with (step, total, message).
+/// Runs the whole diagnosis; every stage is reported to `progress` (a stage name, then
+/// `advance(step, total)` over the estimated number of stages).
 ///
 /// Errors: recordings the rig cannot simulate (tip channel without a beam, …), a rig the model
 /// refuses, a validation recording whose channels differ from every fit recording's.
@@ -215,7 +221,7 @@ pub fn diagnose(
     rig: &Rig,
     fit_data: &[Prepared],
     validate: &Prepared,
-    progress: &mut dyn FnMut(usize, usize, &str),
+    progress: &mut dyn crate::progress::Progress,
 ) -> Result<Diagnosis> {
     if fit_data.is_empty() {
         bail!("at least one --fit recording is needed");
@@ -269,7 +275,7 @@ pub fn diagnose(
     }
     let n_cand_est = 12;
     let total_steps = n_cand_est + 3;
-    progress(0, total_steps, "calibrating the nominal model");
+    stage(progress, 0, total_steps, "calibrating the nominal model");
     let mut cal = fit(
         rig,
         fit_data,
@@ -296,7 +302,8 @@ pub fn diagnose(
             sigma[c] = (rss0[c] / n0[c] as f64).sqrt().max(1e-12);
         }
     }
-    progress(
+    stage(
+        progress,
         1,
         total_steps,
         "recalibrating with the residual noise scales",
@@ -475,7 +482,8 @@ pub fn diagnose(
         let mut outs = Vec::new();
         for (j, &ci) in pool.iter().enumerate() {
             let total_steps = step + pool.len() - j + 1;
-            progress(
+            stage(
+                progress,
                 step,
                 total_steps,
                 &format!("round {}: fitting {}", round + 1, cands[ci].id),
@@ -586,11 +594,51 @@ pub fn diagnose(
     let final_set: Vec<Candidate> = chosen.iter().map(|&k| cands[k].clone()).collect();
     let unexplained =
         unexplained::assess(validate, &reference.vres, &reference.vpred, &model_freqs);
+    stage(
+        progress,
+        step,
+        total_steps,
+        "uncertainty and stability of the final model",
+    );
+    let set: Vec<&Candidate> = final_set.iter().collect();
+    let mut cal = cal;
+    budget.spend(honesty::long_run_std(
+        rig,
+        fit_data,
+        sigma,
+        &calib,
+        &[],
+        &mut cal,
+    ));
+    budget.spend(honesty::long_run_std(
+        rig,
+        fit_data,
+        sigma,
+        &calib,
+        &set,
+        &mut reference.fit,
+    ));
+    let (stability, used) = honesty::stability(
+        rig,
+        fit_data,
+        sigma,
+        &calib,
+        &set,
+        &reference.fit,
+        budget.share(2),
+    );
+    budget.spend(used);
+    let honesty = honesty::Honesty {
+        nominal: honesty::residual_stats(&residuals(validate, &vpred0)),
+        after: honesty::residual_stats(&reference.vres),
+        stability,
+        at_bound: honesty::at_bound(&set, &reference.fit, calib.len()),
+    };
     let outcomes = rounds.first().cloned().unwrap_or_default();
     let selected = outcomes
         .iter()
         .position(|o| o.passed && chosen.first() == Some(&o.cand_index));
-    progress(total_steps, total_steps, "done");
+    stage(progress, total_steps, total_steps, "done");
     Ok(Diagnosis {
         effect: chosen
             .first()
@@ -614,7 +662,14 @@ pub fn diagnose(
         rounds: rounds.len(),
         unexplained,
         assumptions: assumptions(fit_data, validate),
+        honesty,
     })
+}
+
+/// Reports a stage `name` as step `step` of `total`.
+fn stage(progress: &mut dyn crate::progress::Progress, step: usize, total: usize, name: &str) {
+    progress.stage(name);
+    progress.advance(step as u64, total as u64);
 }
 
 /// Fewest samples and seconds a recording needs: 100 samples and 5 s (several periods of a

@@ -207,6 +207,7 @@ pub fn to_json(d: &Diagnosis) -> Value {
         "effects": effects,
         "unexplained": d.unexplained.as_ref().map(|u| serde_json::to_value(u).unwrap_or(Value::Null)),
         "assumptions": d.assumptions,
+        "honesty": serde_json::to_value(&d.honesty).unwrap_or(Value::Null),
         "selection_rounds": d.rounds,
         "parameters": params,
         "uncertainty": unc,

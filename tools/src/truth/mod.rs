@@ -15,7 +15,6 @@
 //! largely absorbs. Geometry, material, damping, noise, channels and move profiles are drawn
 //! widely at random from the seed.
 
-pub mod cli;
 pub mod fe;
 pub mod plant;
 pub mod profile;
