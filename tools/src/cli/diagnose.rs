@@ -129,6 +129,11 @@ pub fn diagnose_files(
 pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
     let t0 = std::time::Instant::now();
     let d = diagnose_files(&a.rig, &a.fit, &a.validate, true)?;
+    if std::env::var_os("DIAG_SELECT").is_some() {
+        for line in &d.trace {
+            eprintln!("{line}");
+        }
+    }
     print!("{}", words(&d));
     println!(
         "({} model evaluations, {:.1} s)",

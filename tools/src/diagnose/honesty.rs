@@ -18,9 +18,11 @@ use super::effects::{Calib, Candidate};
 use super::fit::{self, FitResult, CHANNEL_NAMES};
 use super::select::{ljung_box, LJUNG_BOX_LAGS};
 use super::sim::Prepared;
-use super::unexplained::difference_noise;
 use crate::model::Rig;
-use crate::numeric::{lm, stats::autocorrelation_time};
+use crate::numeric::{
+    lm,
+    stats::{autocorrelation_time, innovation_variance},
+};
 use nalgebra::DVector;
 use serde::Serialize;
 
@@ -89,7 +91,7 @@ pub struct ResidualStats {
     pub channel: String,
     /// rms of the centred residual.
     pub rms: f64,
-    /// First-difference noise estimate σ̂.
+    /// Noise estimate σ̂ (one-step prediction error, [`innovation_variance`]).
     pub noise: f64,
     /// √max(rms² − σ̂², 0) / σ̂: the structured rms in noise units.
     pub structured_over_noise: f64,
@@ -110,7 +112,7 @@ pub fn residual_stats(res: &[Option<Vec<f64>>; 3]) -> Vec<ResidualStats> {
         let m = r.iter().sum::<f64>() / r.len() as f64;
         let centred: Vec<f64> = r.iter().map(|x| x - m).collect();
         let rms = (centred.iter().map(|x| x * x).sum::<f64>() / r.len() as f64).sqrt();
-        let noise = difference_noise(r);
+        let noise = innovation_variance(r, LJUNG_BOX_LAGS).sqrt();
         let excess = (rms * rms - noise * noise).max(0.0).sqrt();
         out.push(ResidualStats {
             channel: CHANNEL_NAMES[c].to_string(),
