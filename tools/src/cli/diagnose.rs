@@ -1,10 +1,13 @@
 //! `diagnose`, `diagnose-proof` and `diagnose-lengths` subcommands: arguments, files, progress
 //! and printing around the library in [`crate::diagnose`].
 
-use crate::diagnose::report::{to_json, words, write_report};
+use crate::diagnose::fit::{residuals, CHANNEL_NAMES};
+use crate::diagnose::report::{to_json, words};
 use crate::diagnose::sim::Prepared;
 use crate::diagnose::{diagnose as run_diagnosis, Diagnosis};
+use crate::ident::spectrum::amplitude_spectrum;
 use crate::model::Rig;
+use crate::plot::{lines, Series};
 use crate::progress::Progress;
 use crate::recording::Recording;
 use crate::truth::EFFECTS;
@@ -123,6 +126,122 @@ pub fn diagnose_files(
     let d = run_diagnosis(&rig, &fit, &val, &mut progress)?;
     progress.finish();
     Ok(d)
+}
+
+/// Writes `report.md`, `diagnosis.json` and the SVG plots into `dir`.
+pub fn write_report(d: &Diagnosis, dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir)?;
+    std::fs::write(
+        dir.join("report.md"),
+        format!("# Diagnosis\n\n```\n{}```\n", words(d)),
+    )?;
+    std::fs::write(
+        dir.join("diagnosis.json"),
+        serde_json::to_string_pretty(&to_json(d))?,
+    )?;
+    let v = &d.validate;
+    let r0 = residuals(v, &d.val_pred_nominal);
+    let r1 = residuals(v, &d.final_val_pred);
+    for c in 0..3 {
+        let meas = match c {
+            0 => &v.base_m,
+            1 => &v.tip_m,
+            _ => &v.force_n,
+        };
+        if let (Some(meas), Some(r0), Some(r1)) = (meas, &r0[c], &r1[c]) {
+            channel_plots(d, dir, c, meas, r0, r1)?;
+        }
+    }
+    Ok(())
+}
+
+/// Recording vs nominal vs augmented, residuals before/after and their spectra of channel `c`.
+fn channel_plots(
+    d: &Diagnosis,
+    dir: &Path,
+    c: usize,
+    meas: &[f64],
+    r0: &[f64],
+    r1: &[f64],
+) -> Result<()> {
+    let t = &d.validate.time_s;
+    let nominal: Vec<f64> = meas.iter().zip(r0).map(|(m, r)| m - r).collect();
+    let augmented: Vec<f64> = meas.iter().zip(r1).map(|(m, r)| m - r).collect();
+    let name = CHANNEL_NAMES[c];
+    lines(
+        &dir.join(format!("{name}_recording.svg")),
+        &format!(
+            "validation {name}: recording, nominal, augmented ({})",
+            d.effect
+        ),
+        "time (s)",
+        name,
+        &[
+            Series {
+                label: "recording".into(),
+                x: t,
+                y: meas,
+            },
+            Series {
+                label: "nominal (calibrated)".into(),
+                x: t,
+                y: &nominal,
+            },
+            Series {
+                label: format!("augmented ({})", d.effect),
+                x: t,
+                y: &augmented,
+            },
+        ],
+        false,
+    )?;
+    lines(
+        &dir.join(format!("{name}_residual.svg")),
+        &format!("validation {name} residual before/after"),
+        "time (s)",
+        name,
+        &[
+            Series {
+                label: "nominal".into(),
+                x: t,
+                y: r0,
+            },
+            Series {
+                label: format!("augmented ({})", d.effect),
+                x: t,
+                y: r1,
+            },
+        ],
+        false,
+    )?;
+    let (f, m0) = amplitude_spectrum(r0, 1.0 / d.validate.dt);
+    let (_, m1) = amplitude_spectrum(r1, 1.0 / d.validate.dt);
+    lines(
+        &dir.join(format!("{name}_residual_spectrum.svg")),
+        &format!(
+            "validation {name} residual spectrum (model modes {:?} Hz)",
+            d.location
+                .model_freqs_hz
+                .iter()
+                .map(|f| (f * 100.0).round() / 100.0)
+                .collect::<Vec<_>>()
+        ),
+        "frequency (Hz)",
+        "amplitude",
+        &[
+            Series {
+                label: "nominal".into(),
+                x: &f,
+                y: &m0,
+            },
+            Series {
+                label: format!("augmented ({})", d.effect),
+                x: &f,
+                y: &m1,
+            },
+        ],
+        true,
+    )
 }
 
 /// Runs `diagnose`.
