@@ -6,9 +6,11 @@
 //! `main.rs` imports it (checked by `tests/layout.rs`).
 
 pub mod board;
+pub mod diagnose;
 pub mod ident;
 pub mod model;
 pub mod paper;
+pub mod truth;
 pub mod tune;
 
 use anyhow::{Context, Result};
@@ -54,13 +56,13 @@ pub enum Command {
     /// Reproduce the paper's Table 1 (sweep identification) on the simulated rig.
     Table1(crate::cli::paper::Table1Args),
     /// Model-discrepancy diagnosis: locate the mismatch, name the missing physics, refit, validate.
-    Diagnose(crate::diagnose::cli::DiagnoseArgs),
+    Diagnose(crate::cli::diagnose::DiagnoseArgs),
     /// Diagnosis across a length series of free decays (one beam clamped at several lengths).
-    DiagnoseLengths(crate::diagnose::cli::LengthsArgs),
+    DiagnoseLengths(crate::cli::diagnose::LengthsArgs),
     /// Prove the diagnosis on concealed effects from the truth generator (confusion table).
-    DiagnoseProof(crate::diagnose::cli::ProofArgs),
+    DiagnoseProof(crate::cli::diagnose::ProofArgs),
     /// Write one truth-generator case (rig + fit/validation recordings with a hidden effect).
-    Truth(crate::truth::cli::TruthArgs),
+    Truth(crate::cli::truth::TruthArgs),
 }
 
 /// Runs one command: one arm per command (keep one line per arm where possible, append new
@@ -90,10 +92,10 @@ pub fn run(command: Command) -> Result<()> {
             default_rig(&mut a.rig)?;
             crate::cli::paper::table1(a)
         }
-        Command::Diagnose(a) => crate::diagnose::cli::diagnose(a),
-        Command::DiagnoseProof(a) => crate::diagnose::cli::proof(a),
-        Command::DiagnoseLengths(a) => crate::diagnose::cli::diagnose_lengths(a),
-        Command::Truth(a) => crate::truth::cli::truth(a),
+        Command::Diagnose(a) => crate::cli::diagnose::diagnose(a),
+        Command::DiagnoseProof(a) => crate::cli::diagnose::proof(a),
+        Command::DiagnoseLengths(a) => crate::cli::diagnose::diagnose_lengths(a),
+        Command::Truth(a) => crate::cli::truth::truth(a),
         Command::BenchSim(mut a) => {
             default_rig(&mut a.rig)?;
             crate::cli::paper::bench_sim(a)
