@@ -34,6 +34,10 @@ pub struct ParamDef {
     pub scale: f64,
     /// True if the effect vanishes at value 0 (tested for significance).
     pub zero_is_null: bool,
+    /// Values (physical units) at which the cost is scanned before the least-squares starts,
+    /// the other parameters at their first start: the best two become this parameter's starts
+    /// (a resonance frequency whose cost surface has a minimum per model mode). Empty: none.
+    pub scan: Vec<f64>,
 }
 
 impl ParamDef {
@@ -96,7 +100,7 @@ pub struct Channels {
 }
 
 /// Features of the data used to start the nonlinear fits.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct StartHints {
     /// Beam mass (kg) (0 without a beam).
     pub beam_mass_kg: f64,
@@ -120,6 +124,8 @@ pub struct StartHints {
     pub length_m: f64,
     /// Carriage mass of the rig (kg).
     pub carriage_mass_kg: f64,
+    /// Clamped natural frequencies (Hz) of the calibrated nominal model.
+    pub mode_freqs_hz: Vec<f64>,
 }
 
 fn def(
@@ -135,6 +141,7 @@ fn def(
         starts,
         scale,
         zero_is_null,
+        scan: Vec::new(),
     }
 }
 
@@ -241,6 +248,75 @@ pub fn apply_calibration(calib: &Calib, values: &[f64], p: &mut Params) {
     }
 }
 
+/// The `servo_lag` candidate of one order of the command → base transfer function
+/// ([`super::sim::ServoLaw`]) with velocity and acceleration feed-forward, for recordings at
+/// `rate_hz`: order 1 (bandwidth, k_v), 2 (+ damping ratio, k_a), 3 (+ integral pole ratio α),
+/// 4 (+ drive-force lag ratio β).
+pub fn servo_candidate(order: usize, rate_hz: f64) -> Candidate {
+    let f0 = rate_hz;
+    let mut params = vec![def(
+        "servo_bandwidth_hz",
+        Transform::Log,
+        vec![0.05 * f0, 0.3 * f0],
+        1.0,
+        false,
+    )];
+    if order >= 2 {
+        params.push(def(
+            "servo_damping_ratio",
+            Transform::Log,
+            vec![0.7],
+            1.0,
+            false,
+        ));
+    }
+    params.push(def(
+        "servo_velocity_ff",
+        Transform::Bounded(0.0, 1.2),
+        vec![0.9],
+        1.0,
+        false,
+    ));
+    if order >= 2 {
+        params.push(def(
+            "servo_acceleration_ff",
+            Transform::Bounded(0.0, 1.2),
+            vec![0.5],
+            1.0,
+            false,
+        ));
+    }
+    if order >= 3 {
+        params.push(def(
+            "servo_integral_ratio",
+            Transform::Bounded(0.0, 3.0),
+            vec![0.3],
+            1.0,
+            false,
+        ));
+    }
+    if order >= 4 {
+        params.push(def(
+            "servo_force_lag_ratio",
+            Transform::Bounded(0.02, 1.5),
+            vec![0.2],
+            1.0,
+            false,
+        ));
+    }
+    Candidate {
+        id: Effect::ServoLag,
+        words: match order {
+            1 => "first-order position loop with velocity feed-forward: the carriage does not follow its command",
+            2 => "finite-bandwidth position loop with velocity/acceleration feed-forward: the carriage does not follow its command",
+            3 => "PID position loop with velocity/acceleration feed-forward (order 3): the carriage does not follow its command",
+            _ => "PID position loop with feed-forward and a lagging drive force (order 4): the carriage does not follow its command",
+        },
+        orientation: None,
+        params,
+    }
+}
+
 /// The candidates testable on data with channels `ch`.
 pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
     let mut c = Vec::new();
@@ -315,36 +391,11 @@ pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
         });
         // a position loop with velocity and acceleration feed-forward (how drives are tuned):
         // the same loop, the following error driven only by the parts of ṙ and r̈ the
-        // feed-forward misses
-        c.push(Candidate {
-            id: Effect::ServoLag,
-            words: "finite-bandwidth position loop with velocity/acceleration feed-forward: the carriage does not follow its command",
-            orientation: None,
-            params: vec![
-                def(
-                    "servo_bandwidth_hz",
-                    Transform::Log,
-                    vec![0.05 * f0, 0.3 * f0],
-                    1.0,
-                    false,
-                ),
-                def("servo_damping_ratio", Transform::Log, vec![0.7], 1.0, false),
-                def(
-                    "servo_velocity_ff",
-                    Transform::Bounded(0.0, 1.2),
-                    vec![0.9],
-                    1.0,
-                    false,
-                ),
-                def(
-                    "servo_acceleration_ff",
-                    Transform::Bounded(0.0, 1.2),
-                    vec![0.5],
-                    1.0,
-                    false,
-                ),
-            ],
-        });
+        // feed-forward misses; orders 1, 3 and 4 of the command → base transfer function
+        // ([`super::sim::ServoLaw`]) besides; the selection keeps the form of lowest BIC
+        for order in [2, 1, 3, 4] {
+            c.push(servo_candidate(order, f0));
+        }
     }
     if beam && ch.tip {
         c.push(Candidate {
@@ -476,30 +527,72 @@ pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
             orientation: Some(Orientation::Upright),
             params: vec![],
         });
-        let fmax = 0.4 * h.rate_hz;
-        c.push(Candidate {
-            id: Effect::MountResonance,
-            words: "a resonance of the carriage/mount between motor and beam root",
-            orientation: None,
-            params: vec![
-                def(
-                    "mount_frequency_hz",
-                    Transform::Log,
-                    vec![(1.5 * h.f2_hz).min(fmax), (3.0 * h.f2_hz).min(fmax), fmax],
-                    1.0,
-                    false,
-                ),
-                def(
-                    "mount_damping_ratio",
-                    Transform::Bounded(0.005, 1.0),
-                    vec![0.05],
-                    1.0,
-                    false,
-                ),
-            ],
-        });
+        c.push(mount_candidate(h, false));
+        c.push(mount_candidate(h, true));
     }
     c
+}
+
+/// Log-spaced frequencies (Hz) from 1.5 f1 to `fmax`, 4 per octave, without those within 10 %
+/// of one of the model's own modes (where a resonance is a calibration matter): the scan of a
+/// mount frequency over the recording's band.
+pub fn mount_scan_hz(mode_freqs_hz: &[f64], fmax: f64) -> Vec<f64> {
+    let lo = 1.5 * mode_freqs_hz.first().copied().unwrap_or(1.0);
+    let mut v = Vec::new();
+    let mut f = lo;
+    while f < fmax {
+        if mode_freqs_hz.iter().all(|m| (f - m).abs() > 0.1 * m) {
+            v.push(f);
+        }
+        f *= 2f64.powf(0.25);
+    }
+    v
+}
+
+/// The `mount_resonance` candidate: a spring–damper between the carriage and the beam root
+/// (frequency + damping ratio), either as a massless filter of the root motion (a mount much
+/// heavier than the beam: the beam does not load it) or, `coupled`, as a mount mass carrying
+/// the beam ([`super::sim`]'s `coupled_mount`, the mass a structural part of the carriage:
+/// 5–95 % of its mass). The frequency is scanned over the band before the fit.
+pub fn mount_candidate(h: &StartHints, coupled: bool) -> Candidate {
+    let fmax = 0.4 * h.rate_hz;
+    let mut freq = def(
+        "mount_frequency_hz",
+        Transform::Log,
+        vec![(1.5 * h.f2_hz).min(fmax), (3.0 * h.f2_hz).min(fmax), fmax],
+        1.0,
+        false,
+    );
+    freq.scan = mount_scan_hz(&h.mode_freqs_hz, fmax);
+    let mut params = vec![
+        freq,
+        def(
+            "mount_damping_ratio",
+            Transform::Bounded(0.005, 1.0),
+            vec![0.05],
+            1.0,
+            false,
+        ),
+    ];
+    if coupled {
+        params.push(def(
+            "mount_mass_kg",
+            Transform::Bounded(0.05 * h.carriage_mass_kg, 0.95 * h.carriage_mass_kg),
+            vec![0.25 * h.carriage_mass_kg],
+            1.0,
+            false,
+        ));
+    }
+    Candidate {
+        id: Effect::MountResonance,
+        words: if coupled {
+            "a resonance of a mount mass carrying the beam, between motor and beam root"
+        } else {
+            "a resonance of the carriage/mount between motor and beam root"
+        },
+        orientation: None,
+        params,
+    }
 }
 
 /// Applies a candidate's effect values (physical units, in `cand.params` order).
@@ -534,6 +627,17 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
                 get("servo_velocity_ff").unwrap_or(0.0).clamp(-0.5, 1.5),
                 get("servo_acceleration_ff").unwrap_or(0.0).clamp(-0.5, 1.5),
             );
+            p.servo_integral_ratio = get("servo_integral_ratio").unwrap_or(0.0);
+            p.servo_force_lag_ratio = get("servo_force_lag_ratio").unwrap_or(0.0);
+            p.servo_order = if get("servo_force_lag_ratio").is_some() {
+                4
+            } else if get("servo_integral_ratio").is_some() {
+                3
+            } else if get("servo_damping_ratio").is_some() {
+                2
+            } else {
+                1
+            };
         }
         Effect::TipMass => p.tip_mass_kg = get("tip_mass_kg").unwrap_or(0.0).abs(),
         Effect::RootCompliance => p.root_stiffness_nm_per_rad = get("root_stiffness_nm_per_rad"),

@@ -282,6 +282,75 @@ fn stiffness_scan(
     Some(best.1)
 }
 
+/// For every parameter of the newest candidate (last of `cands`) with scan values
+/// ([`ParamDef::scan`]): the cost at each value, the other parameters at the first start; the
+/// two best values that are more than 15 % apart replace that parameter's starts (the other
+/// starts are kept). Returns the starts and the model evaluations used.
+fn scan_starts(
+    rig: &Rig,
+    data: &[Prepared],
+    sigma: [f64; 3],
+    calib: &Calib,
+    cands: &[&Candidate],
+    defs: &[&ParamDef],
+    starts: Vec<DVector<f64>>,
+) -> (Vec<DVector<f64>>, usize) {
+    let Some(last) = cands.last() else {
+        return (starts, 0);
+    };
+    let off = defs.len() - last.params.len();
+    let mut starts = starts;
+    let mut used = 0;
+    for (i, d) in defs.iter().enumerate().skip(off) {
+        if d.scan.is_empty() {
+            continue;
+        }
+        let problem = Problem::new(rig, data, sigma, calib, cands, starts[0].clone());
+        let mut costs: Vec<(f64, f64)> = d
+            .scan
+            .iter()
+            .map(|&v| {
+                let mut x = starts[0].clone();
+                x[i] = d.repr(v);
+                (problem.cost_at(&x), v)
+            })
+            .filter(|(c, _)| c.is_finite())
+            .collect();
+        used += d.scan.len();
+        costs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut picks: Vec<f64> = Vec::new();
+        for (_, v) in costs {
+            if picks.iter().all(|p| (v / p).ln().abs() > 1.15f64.ln()) {
+                picks.push(v);
+            }
+            if picks.len() == 2 {
+                break;
+            }
+        }
+        if picks.is_empty() {
+            continue;
+        }
+        let start_values: Vec<f64> = d.starts.iter().map(|v| d.repr(*v)).collect();
+        // the starts that differ only in this parameter's start value collapse onto the picks
+        let mut next: Vec<DVector<f64>> = Vec::new();
+        for s in &starts {
+            let is_grid = start_values.iter().any(|v| (s[i] - v).abs() < 1e-12);
+            for &p in &picks {
+                let mut x = s.clone();
+                if is_grid {
+                    x[i] = d.repr(p);
+                }
+                if !next.contains(&x) {
+                    next.push(x);
+                }
+            }
+        }
+        next.truncate(6);
+        starts = next;
+    }
+    (starts, used)
+}
+
 /// Result of one fit.
 #[derive(Clone, Debug)]
 pub struct FitResult {
@@ -372,12 +441,13 @@ pub fn fit(
         }
         starts = distinct;
     }
+    let (mut starts, grid_evaluations) = scan_starts(rig, data, sigma, calib, cands, &defs, starts);
     let scanned = if explore {
         stiffness_scan(rig, data, sigma, calib, cands, &defs, &starts[0])
     } else {
         None
     };
-    let scan_evaluations = if scanned.is_some() { 21 } else { 0 };
+    let scan_evaluations = grid_evaluations + if scanned.is_some() { 21 } else { 0 };
     if let Some(scanned) = scanned {
         if starts.iter().all(|s| (s - &scanned).norm() > 1e-6) {
             starts.push(scanned);

@@ -407,6 +407,7 @@ pub fn diagnose(
         peak_deflection_m: peak_def,
         friction,
         cogging: (rip.1, rip.2, rip.0),
+        mode_freqs_hz: model_freqs.clone(),
         speed_m_s: speed,
         zeta1: p_nom.zeta.map_or(rig.damping_ratios().0, |z| z.0),
         length_m,
@@ -493,6 +494,7 @@ pub fn diagnose(
             }
         }
         outs.sort_by(|a, b| a.delta_val.total_cmp(&b.delta_val));
+        keep_lowest_bic_form(&mut outs);
         let mut pick = outs.iter().position(|o| o.passed);
         // Backward check: the effects already chosen, refitted from the joint optimum without
         // the newcomer. If they alone do better there than the reference, part of the
@@ -544,6 +546,7 @@ pub fn diagnose(
                 }
             }
             outs.sort_by(|a, b| a.delta_val.total_cmp(&b.delta_val));
+            keep_lowest_bic_form(&mut outs);
             pick = outs.iter().position(|o| o.passed);
         }
         if std::env::var_os("DIAG_SELECT").is_some() {
@@ -615,6 +618,30 @@ pub fn diagnose(
         unexplained,
         assumptions: assumptions(fit_data, validate),
     })
+}
+
+/// Alternative forms of one effect (the servo loop's orders, the mount's forms, the two
+/// orientations) describe the same physics: of those that pass, only the one with the lowest
+/// ΔBIC on the fit recordings stays a contender (the order is chosen by the information
+/// criterion, not by the validation recording).
+fn keep_lowest_bic_form(outs: &mut [CandidateOutcome]) {
+    for i in 0..outs.len() {
+        if !outs[i].passed {
+            continue;
+        }
+        let best = outs
+            .iter()
+            .filter(|o| o.passed && o.id == outs[i].id)
+            .map(|o| o.delta_bic)
+            .fold(f64::INFINITY, f64::min);
+        if outs[i].delta_bic > best {
+            outs[i].passed = false;
+            outs[i].reason = format!(
+                "another form of {} has the lower BIC (ΔBIC {:.1} against {:.1})",
+                outs[i].id, best, outs[i].delta_bic
+            );
+        }
+    }
 }
 
 /// Fewest samples and seconds a recording needs: 100 samples and 5 s (several periods of a

@@ -57,6 +57,13 @@ pub struct Params {
     pub servo: Option<(f64, f64)>,
     /// Velocity and acceleration feed-forward fractions of the position loop (0 = plain lag).
     pub servo_ff: (f64, f64),
+    /// Order of the position loop's command → base transfer function ([`ServoLaw`]): 1 a
+    /// first-order lag, 2 a PD loop, 3 a PID loop, 4 a PID loop whose drive force lags.
+    pub servo_order: usize,
+    /// Integral action of a PID loop (order ≥ 3): its real closed-loop pole at α·ω_s.
+    pub servo_integral_ratio: f64,
+    /// Drive-force lag of an order-4 loop (current loop, digital delay): time constant β/ω_s.
+    pub servo_force_lag_ratio: f64,
     /// Tip mass (kg).
     pub tip_mass_kg: f64,
     /// Root rotational stiffness (N·m/rad).
@@ -97,6 +104,9 @@ impl Default for Params {
             viscous_n_s_per_m: 0.0,
             servo: None,
             servo_ff: (0.0, 0.0),
+            servo_order: 2,
+            servo_integral_ratio: 0.0,
+            servo_force_lag_ratio: 0.0,
             tip_mass_kg: 0.0,
             root_stiffness_nm_per_rad: None,
             drag_kg_per_m2: 0.0,
@@ -336,35 +346,230 @@ fn root_transition(
     c: &BeamCache,
     dt: f64,
 ) -> Option<nalgebra::DMatrix<f64>> {
+    bounded_expm(root_generator(acc_row, m_eff, Some(c)), dt, 1e4)
+}
+
+/// The generator A of [`root_transition`] (dimension `acc_row.len()`; rows of states other
+/// than the root, the modes and the drive are left zero for the caller). Without a beam
+/// (`c = None`) the root is a rigid mass: `acc_row` alone.
+fn root_generator(
+    acc_row: &mut [f64],
+    m_eff: f64,
+    c: Option<&BeamCache>,
+) -> nalgebra::DMatrix<f64> {
     let dim = acc_row.len();
-    for j in 0..c.omega.len() {
-        let (om, z) = (c.omega[j], c.zeta[j]);
-        acc_row[2 + 2 * j] = c.gamma[j] * om * om / m_eff;
-        acc_row[3 + 2 * j] = c.gamma[j] * 2.0 * z * om / m_eff;
+    let nm = c.map_or(0, |c| c.omega.len());
+    if let Some(c) = c {
+        for j in 0..nm {
+            let (om, z) = (c.omega[j], c.zeta[j]);
+            acc_row[2 + 2 * j] = c.gamma[j] * om * om / m_eff;
+            acc_row[3 + 2 * j] = c.gamma[j] * 2.0 * z * om / m_eff;
+        }
     }
     let mut a = nalgebra::DMatrix::<f64>::zeros(dim, dim);
     a[(0, 1)] = 1.0;
     for i in 0..dim {
         a[(1, i)] = acc_row[i];
     }
-    for j in 0..c.omega.len() {
-        let (om, z) = (c.omega[j], c.zeta[j]);
-        let (q, qd) = (2 + 2 * j, 3 + 2 * j);
-        a[(q, qd)] = 1.0;
-        for i in 0..dim {
-            a[(qd, i)] = -c.gamma[j] * acc_row[i];
+    if let Some(c) = c {
+        for j in 0..nm {
+            let (om, z) = (c.omega[j], c.zeta[j]);
+            let (q, qd) = (2 + 2 * j, 3 + 2 * j);
+            a[(q, qd)] = 1.0;
+            for i in 0..dim {
+                a[(qd, i)] = -c.gamma[j] * acc_row[i];
+            }
+            a[(qd, qd)] -= 2.0 * z * om;
+            a[(qd, q)] -= om * om;
         }
-        a[(qd, qd)] -= 2.0 * z * om;
-        a[(qd, q)] -= om * om;
     }
     a[(dim - 2, dim - 1)] = 1.0;
+    a
+}
+
+/// exp(A·dt), or `None` for a generator far outside the band (largest element of A dt ≥
+/// `limit`) or non-finite (the scaling-and-squaring would not end on an infinite norm).
+fn bounded_expm(a: nalgebra::DMatrix<f64>, dt: f64, limit: f64) -> Option<nalgebra::DMatrix<f64>> {
     let ad = a * dt;
     let norm = ad.amax();
-    if !(norm.is_finite() && norm < 1e4) {
+    if !(norm.is_finite() && norm < limit) {
         return None;
     }
     let phi = ad.exp();
     phi.iter().all(|v| v.is_finite()).then_some(phi)
+}
+
+/// A position loop of selectable order (the `servo_lag` candidate), as the command → base
+/// transfer function of a rigid carriage (and, coupled, with the beam pushing back):
+/// - order 1: a first-order lag with velocity feed-forward, `ẏ = k_v ṙ + ω (r − y)`;
+/// - order 2: PD with feed-forward, poles `s² + 2ζωs + ω²` ([`second_order`], [`coupled_servo`]);
+/// - order 3: PID with feed-forward, `F/M = k_a r̈ + K_d (k_v ṙ − ẏ) + K_p (r − y) + K_i ∫(r − y)`
+///   with the rigid closed-loop poles `(s² + 2ζωs + ω²)(s + αω)`: `K_d = (2ζ + α)ω`,
+///   `K_p = (1 + 2ζα)ω²`, `K_i = αω³` (α → 0 is the PD loop);
+/// - order 4: the order-3 loop whose drive force follows its command through a first-order lag
+///   of time constant β/ω (current loop, digital computation delay): `τ Ḟ = F_c − F`.
+///
+/// Source: Ellis, *Control System Design Guide* (4th ed., 2012), ch. 17 (position loops with
+/// velocity/acceleration feed-forward); the order is chosen by the selection's information
+/// criterion among the fitted forms.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ServoLaw {
+    /// Order 1–4.
+    pub order: usize,
+    /// ω (rad/s).
+    pub omega: f64,
+    /// ζ (orders ≥ 2).
+    pub zeta: f64,
+    /// Velocity and acceleration feed-forward fractions k_v, k_a.
+    pub ff: (f64, f64),
+    /// α (orders ≥ 3).
+    pub integral_ratio: f64,
+    /// β (order 4).
+    pub force_lag_ratio: f64,
+}
+
+impl ServoLaw {
+    /// The law of `p` (`None` without a servo).
+    pub fn of(p: &Params) -> Option<ServoLaw> {
+        let (f, z) = p.servo?;
+        Some(ServoLaw {
+            order: p.servo_order.clamp(1, 4),
+            omega: 2.0 * std::f64::consts::PI * f,
+            zeta: z,
+            ff: p.servo_ff,
+            integral_ratio: p.servo_integral_ratio.max(0.0),
+            force_lag_ratio: p.servo_force_lag_ratio.max(0.0),
+        })
+    }
+
+    /// Base position for the command `r` sampled every `dt` s (piecewise linear between
+    /// samples), coupled to the beam of `c` when given (the loop force then acts on the
+    /// carriage, eq. 5 in modal form), else for a rigid load.
+    pub fn respond(&self, r: &[f64], dt: f64, c: Option<&BeamCache>) -> Vec<f64> {
+        match (self.order, c) {
+            (1, _) => first_order(r, dt, self.omega, self.ff.0),
+            (2, None) => second_order(
+                r,
+                dt,
+                self.omega,
+                self.zeta,
+                1.0 - self.ff.0,
+                1.0 - self.ff.1,
+            ),
+            (2, Some(c)) => coupled_servo(r, dt, self.omega, self.zeta, self.ff, c),
+            _ => self.pid(r, dt, c),
+        }
+    }
+
+    /// Orders 3–4 (state space, exact per sample by one matrix exponential).
+    fn pid(&self, r: &[f64], dt: f64, c: Option<&BeamCache>) -> Vec<f64> {
+        let n = r.len();
+        let nm = c.map_or(0, |c| c.omega.len());
+        let (m_tot, sum_g2) = c.map_or((1.0, 0.0), |c| {
+            (c.total_mass, c.gamma.iter().map(|g| g * g).sum())
+        });
+        let m_eff = (m_tot - sum_g2).max(1e-9 * m_tot);
+        let g = m_tot / m_eff;
+        let (w, z, al) = (self.omega, self.zeta, self.integral_ratio);
+        let (kd, kp, ki) = (
+            (2.0 * z + al) * w,
+            (1.0 + 2.0 * z * al) * w * w,
+            al * w * w * w,
+        );
+        let lag = self.order >= 4 && self.force_lag_ratio > 0.0;
+        let tau = self.force_lag_ratio / w;
+        // z = [y, ẏ, (η_j, η̇_j)…, ∫(r − y), F?, r, ṙ]
+        let ii = 2 + 2 * nm;
+        let fi = ii + 1;
+        let dim = ii + 1 + usize::from(lag) + 2;
+        let (ri, vi) = (dim - 2, dim - 1);
+        // the commanded force per unit moving mass (without the r̈ feed-forward impulses)
+        let mut uc = vec![0.0; dim];
+        uc[0] = -kp;
+        uc[1] = -kd;
+        uc[ii] = ki;
+        uc[ri] = kp;
+        uc[vi] = kd * self.ff.0;
+        let mut acc_row = vec![0.0; dim];
+        if lag {
+            acc_row[fi] = g;
+        } else {
+            for i in 0..dim {
+                acc_row[i] = g * uc[i];
+            }
+        }
+        let mut a = root_generator(&mut acc_row, m_eff, c);
+        a[(ii, 0)] = -1.0;
+        a[(ii, ri)] = 1.0;
+        if lag {
+            for i in 0..dim {
+                a[(fi, i)] = uc[i] / tau;
+            }
+            a[(fi, fi)] -= 1.0 / tau;
+        }
+        // the drive-force row scales as ω³/β (m/s² per state unit): a larger element bound than
+        // the root transition's, still finite
+        let Some(phi) = bounded_expm(a, dt, 1e10) else {
+            return vec![f64::NAN; n];
+        };
+        let gamma: &[f64] = c.map_or(&[], |c| &c.gamma);
+        let mut zv = nalgebra::DVector::<f64>::zeros(dim);
+        zv[0] = r[0];
+        let mut y = Vec::with_capacity(n);
+        let mut v_prev = 0.0;
+        for k in 0..n {
+            y.push(zv[0]);
+            let v = if k + 1 < n {
+                (r[k + 1] - r[k]) / dt
+            } else {
+                0.0
+            };
+            // acceleration feed-forward of the velocity step at this sample: an impulse of
+            // force (through the drive lag when there is one)
+            let imp = self.ff.1 * (v - v_prev);
+            if lag {
+                zv[fi] += imp / tau;
+            } else {
+                zv[1] += g * imp;
+                for j in 0..nm {
+                    zv[3 + 2 * j] -= gamma[j] * g * imp;
+                }
+            }
+            v_prev = v;
+            zv[ri] = r[k];
+            zv[vi] = v;
+            zv = &phi * &zv;
+            if !zv[0].is_finite() {
+                y.extend(std::iter::repeat(f64::NAN).take(n - y.len()));
+                break;
+            }
+        }
+        y
+    }
+}
+
+/// y = r + e with `ė + ωe = −(1 − k_v) ṙ` (a first-order lag with velocity feed-forward k_v),
+/// exact for a piecewise-linear r.
+fn first_order(r: &[f64], dt: f64, omega: f64, kv: f64) -> Vec<f64> {
+    let a = (-omega * dt).exp();
+    let b = if omega * dt > 1e-12 {
+        (1.0 - a) / omega
+    } else {
+        dt
+    };
+    let n = r.len();
+    let mut e = 0.0;
+    let mut y = Vec::with_capacity(n);
+    for k in 0..n {
+        y.push(r[k] + e);
+        let v = if k + 1 < n {
+            (r[k + 1] - r[k]) / dt
+        } else {
+            0.0
+        };
+        e = a * e - (1.0 - kv) * v * b;
+    }
+    y
 }
 
 /// Beam-root position behind a mount: a mass m_m on a spring–damper from the carriage y, loaded
@@ -608,7 +813,9 @@ pub fn predict(
     let mut out = Prediction::default();
     // 1. servo; without a measured base the carriage is pushed back by the beam it carries,
     // so the loop is simulated coupled to the beam modes
-    if p.servo.is_some() && d.drive_m.is_none() && rig.beam.is_some() {
+    let law = ServoLaw::of(p);
+    let coupled = law.is_some() && d.drive_m.is_none() && rig.beam.is_some();
+    if coupled {
         let stale = cache
             .as_ref()
             .map_or(true, |c| c.key != structural_key(p, dt));
@@ -616,28 +823,9 @@ pub fn predict(
             *cache = Some(beam_cache(rig, p, dt)?);
         }
     }
-    let coupled = match (p.servo, d.drive_m.is_none(), cache.as_ref()) {
-        (Some((f, z)), true, Some(c)) if rig.beam.is_some() => Some(coupled_servo(
-            &d.cmd_m,
-            dt,
-            2.0 * std::f64::consts::PI * f,
-            z,
-            p.servo_ff,
-            c,
-        )),
-        _ => None,
-    };
-    let y_servo = match (p.servo, coupled) {
-        (_, Some(y)) => y,
-        (Some((f, z)), None) => second_order(
-            &d.cmd_m,
-            dt,
-            2.0 * std::f64::consts::PI * f,
-            z,
-            1.0 - p.servo_ff.0,
-            1.0 - p.servo_ff.1,
-        ),
-        (None, None) => d.cmd_m.clone(),
+    let y_servo = match law {
+        Some(law) => law.respond(&d.cmd_m, dt, if coupled { cache.as_ref() } else { None }),
+        None => d.cmd_m.clone(),
     };
     if d.base_m.is_some() {
         out.base_m = Some(y_servo.clone());
@@ -882,6 +1070,49 @@ mod tests {
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
         assert!(diff > 1e-7 && diff < e.max(1e-6) * 10.0, "{diff} {e}");
+    }
+
+    #[test]
+    fn servo_orders_nest_and_stay_finite() {
+        // order 3 with a vanishing integral is the PD loop of order 2, order 4 with a vanishing
+        // drive lag is order 3, rigid and coupled alike; order 1 lags by (1 − k_v) v / ω
+        let rig = rig();
+        let rec = move_rec();
+        let d = Prepared::new("t", &rec).unwrap();
+        let c = beam_cache(&rig, &Params::default(), d.dt).unwrap();
+        let w = 2.0 * std::f64::consts::PI * 8.0;
+        let law = |order, al, be| ServoLaw {
+            order,
+            omega: w,
+            zeta: 0.7,
+            ff: (0.9, 0.5),
+            integral_ratio: al,
+            force_lag_ratio: be,
+        };
+        let maxdiff = |a: &[f64], b: &[f64]| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max)
+        };
+        for cc in [None, Some(&c)] {
+            let y2 = law(2, 0.0, 0.0).respond(&d.cmd_m, d.dt, cc);
+            let y3 = law(3, 1e-6, 0.0).respond(&d.cmd_m, d.dt, cc);
+            assert!(maxdiff(&y2, &y3) < 1e-7, "{}", maxdiff(&y2, &y3));
+            let y3 = law(3, 0.5, 0.0).respond(&d.cmd_m, d.dt, cc);
+            let y4 = law(4, 0.5, 1e-4).respond(&d.cmd_m, d.dt, cc);
+            let y4b = law(4, 0.5, 0.2).respond(&d.cmd_m, d.dt, cc);
+            assert!(y4b.iter().all(|v| v.is_finite()));
+            assert!(maxdiff(&y3, &y4) < 1e-5, "{}", maxdiff(&y3, &y4));
+            assert!(maxdiff(&y3, &y4b) > 1e-6);
+        }
+        let y1 = law(1, 0.0, 0.0).respond(&d.cmd_m, d.dt, None);
+        let lag = y1
+            .iter()
+            .zip(&d.cmd_m)
+            .map(|(a, b)| b - a)
+            .fold(0.0, f64::max);
+        assert!((lag - 0.1 * 0.2 / w).abs() < 0.05 * 0.1 * 0.2 / w, "{lag}");
     }
 
     #[test]
