@@ -320,216 +320,244 @@ pub fn servo_candidate(order: usize, rate_hz: f64) -> Candidate {
 /// The candidates testable on data with channels `ch`.
 pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
     let mut c = Vec::new();
-    let beam = rig.beam.is_some();
     if ch.force {
-        c.push(Candidate {
-            id: Effect::BaseFriction,
-            words: "friction on the carriage (Coulomb + viscous)",
-            orientation: None,
-            params: vec![
-                def(
-                    "friction_n",
-                    Transform::Linear,
-                    vec![h.friction.0],
-                    0.1,
-                    true,
-                ),
-                def(
-                    "viscous_n_s_per_m",
-                    Transform::Linear,
-                    vec![h.friction.1],
-                    1.0,
-                    true,
-                ),
-            ],
-        });
-        c.push(Candidate {
-            id: Effect::CoggingRipple,
-            words: "force ripple periodic in the carriage position (cogging)",
-            orientation: None,
-            params: vec![
-                def(
-                    "cogging_sin_n",
-                    Transform::Linear,
-                    vec![h.cogging.0],
-                    0.1,
-                    true,
-                ),
-                def(
-                    "cogging_cos_n",
-                    Transform::Linear,
-                    vec![h.cogging.1],
-                    0.1,
-                    true,
-                ),
-                def(
-                    "cogging_pitch_m",
-                    Transform::Log,
-                    vec![h.cogging.2],
-                    1.0,
-                    false,
-                ),
-            ],
-        });
+        c.extend(carriage_force_candidates(h));
     }
     if ch.base || (ch.cmd_drives_beam && (ch.tip || ch.force)) {
-        let f0 = h.rate_hz;
-        c.push(Candidate {
-            id: Effect::ServoLag,
-            words: "finite-bandwidth position loop: the carriage does not follow its command",
-            orientation: None,
-            params: vec![
-                def(
-                    "servo_bandwidth_hz",
-                    Transform::Log,
-                    vec![0.05 * f0, 0.3 * f0, 0.45 * f0],
-                    1.0,
-                    false,
-                ),
-                def("servo_damping_ratio", Transform::Log, vec![0.7], 1.0, false),
-            ],
-        });
-        // a position loop with velocity and acceleration feed-forward (how drives are tuned):
-        // the same loop, the following error driven only by the parts of ṙ and r̈ the
-        // feed-forward misses; orders 1, 3 and 4 of the command → base transfer function
-        // ([`super::sim::ServoLaw`]) besides; the selection keeps the form of lowest BIC
-        for order in [2, 1, 3, 4] {
-            c.push(servo_candidate(order, f0));
-        }
+        c.extend(servo_candidates(h.rate_hz));
     }
-    if beam && ch.tip {
-        c.push(Candidate {
-            id: Effect::TipMass,
-            words: "a lumped mass at the tip (marker, sensor)",
-            orientation: None,
-            params: vec![def(
-                "tip_mass_kg",
+    if rig.beam.is_some() && ch.tip {
+        c.extend(structural_candidates(h));
+        c.extend(sensor_gravity_mount_candidates(h));
+    }
+    c
+}
+
+/// Forces on the carriage: friction and cogging (force channel).
+fn carriage_force_candidates(h: &StartHints) -> Vec<Candidate> {
+    let mut c = Vec::new();
+    c.push(Candidate {
+        id: Effect::BaseFriction,
+        words: "friction on the carriage (Coulomb + viscous)",
+        orientation: None,
+        params: vec![
+            def(
+                "friction_n",
                 Transform::Linear,
-                vec![0.03 * h.beam_mass_kg],
-                0.05 * h.beam_mass_kg,
+                vec![h.friction.0],
+                0.1,
                 true,
-            )],
-        });
-        c.push(Candidate {
-            id: Effect::RootCompliance,
-            words: "a compliant clamp (rotational spring at the root)",
-            orientation: None,
-            params: vec![def(
-                "root_stiffness_nm_per_rad",
+            ),
+            def(
+                "viscous_n_s_per_m",
+                Transform::Linear,
+                vec![h.friction.1],
+                1.0,
+                true,
+            ),
+        ],
+    });
+    c.push(Candidate {
+        id: Effect::CoggingRipple,
+        words: "force ripple periodic in the carriage position (cogging)",
+        orientation: None,
+        params: vec![
+            def(
+                "cogging_sin_n",
+                Transform::Linear,
+                vec![h.cogging.0],
+                0.1,
+                true,
+            ),
+            def(
+                "cogging_cos_n",
+                Transform::Linear,
+                vec![h.cogging.1],
+                0.1,
+                true,
+            ),
+            def(
+                "cogging_pitch_m",
                 Transform::Log,
-                vec![10.0 * h.ei_over_l, 40.0 * h.ei_over_l],
+                vec![h.cogging.2],
                 1.0,
                 false,
-            )],
-        });
-        // amplitude-dependent clamp: M = k_r θ + k₃ θ³, fitted as k_r and the cubic compliance
-        // c₃ = k₃ / k_r⁴ of the inverse law θ ≈ M/k_r − c₃ M³ (the rotation in excess of the
-        // linear clamp under a root moment M). With the first frequency held by the stiffness
-        // scale, k_r is weakly determined and k_r, k₃ act almost only through c₃ (in (k_r, k₃)
-        // or (k_r, k₃/k_r³) their Jacobian columns correlate to −1.000 on a truth case), so c₃
-        // is what the data determine and what the significance guard tests. The root moment of
-        // a cantilever whose tip is deflected by A is M ≈ 3 (EI/l) A / l; the scale of c₃ is
-        // the value whose excess rotation is 10 % of the linear one there.
-        let kr0 = 10.0 * h.ei_over_l;
-        let m_typ =
-            (3.0 * h.ei_over_l * h.peak_deflection_m.max(1e-4) / h.length_m.max(1e-3)).max(1e-9);
-        let c3_scale = 0.1 / (kr0 * m_typ * m_typ);
-        c.push(Candidate {
-            id: Effect::CubicStiffness,
-            words: "an amplitude-dependent (hardening or softening) clamp stiffness",
-            orientation: None,
-            params: vec![
-                def(
-                    "root_stiffness_nm_per_rad",
-                    Transform::Log,
-                    vec![kr0, 40.0 * h.ei_over_l],
-                    1.0,
-                    false,
-                ),
-                def(
-                    "cubic_root_compliance_rad_per_nm3",
-                    Transform::Linear,
-                    vec![0.0, c3_scale, -c3_scale],
-                    c3_scale,
-                    true,
-                ),
-            ],
-        });
-        // a dead band between carriage and beam root: the root offset it leaves after a move is
-        // b/2, a fraction of the peak deflection on a real rig
-        let pk = h.peak_deflection_m.max(1e-4);
-        c.push(Candidate {
-            id: Effect::Backlash,
-            words: "play (a dead band) between the carriage and the beam root",
-            orientation: None,
-            params: vec![def(
-                "backlash_m",
+            ),
+        ],
+    });
+    c
+}
+
+/// The position loop: the plain 2nd-order lag and the feed-forward forms of orders 1–4.
+fn servo_candidates(rate_hz: f64) -> Vec<Candidate> {
+    let mut c = Vec::new();
+    let f0 = rate_hz;
+    c.push(Candidate {
+        id: Effect::ServoLag,
+        words: "finite-bandwidth position loop: the carriage does not follow its command",
+        orientation: None,
+        params: vec![
+            def(
+                "servo_bandwidth_hz",
                 Transform::Log,
-                vec![0.02 * pk, 0.1 * pk],
+                vec![0.05 * f0, 0.3 * f0, 0.45 * f0],
                 1.0,
-                true,
-            )],
-        });
-        // ζ_eq = (4/3π) c A ∫u³/(m/l ∫u²) for the first mode shape u (∫u² ≈ 0.25 l, ∫u³ ≈ 0.16 l):
-        // the drag that doubles ζ1 at the peak deflection A
-        let c0 =
-            h.zeta1 * 3.7 * h.beam_mass_kg / (h.peak_deflection_m.max(1e-4) * h.length_m.max(1e-3));
-        let c0 = if c0.is_finite() && c0 > 0.0 {
-            c0.min(1e6)
-        } else {
-            1.0
-        };
-        c.push(Candidate {
-            id: Effect::QuadraticDamping,
-            words: "amplitude-dependent (quadratic, aerodynamic) damping",
-            orientation: None,
-            params: vec![def(
-                "drag_coefficient_kg_per_m2",
-                Transform::Linear,
-                vec![0.3 * c0, c0],
-                c0 * 0.1,
-                true,
-            )],
-        });
-        c.push(Candidate {
-            id: Effect::SensorDelay,
-            words: "latency of the tip measurement",
-            orientation: None,
-            params: vec![def(
-                "sensor_delay_s",
-                Transform::Linear,
-                vec![0.2 / h.rate_hz, 2.0 / h.rate_hz],
-                0.1 / h.rate_hz,
-                true,
-            )],
-        });
-        c.push(Candidate {
-            id: Effect::SensorGain,
-            words: "scale error of the tip sensor (e.g. camera calibration)",
-            orientation: None,
-            params: vec![def(
-                "sensor_gain_error",
-                Transform::Linear,
-                vec![0.0],
-                0.01,
-                true,
-            )],
-        });
-        c.push(Candidate {
-            id: Effect::GravityAxialLoad,
-            words: "gravity axial load: the beam hangs (tension)",
-            orientation: Some(Orientation::Hanging),
-            params: vec![],
-        });
-        c.push(Candidate {
-            id: Effect::GravityAxialLoad,
-            words: "gravity axial load: the beam stands upright (compression)",
-            orientation: Some(Orientation::Upright),
-            params: vec![],
-        });
-        c.push(mount_candidate(h, false));
-        c.push(mount_candidate(h, true));
+                false,
+            ),
+            def("servo_damping_ratio", Transform::Log, vec![0.7], 1.0, false),
+        ],
+    });
+    // a position loop with velocity and acceleration feed-forward (how drives are tuned):
+    // the same loop, the following error driven only by the parts of ṙ and r̈ the
+    // feed-forward misses; orders 1, 3 and 4 of the command → base transfer function
+    // ([`super::sim::ServoLaw`]) besides; the selection keeps the form of lowest BIC
+    for order in [2, 1, 3, 4] {
+        c.push(servo_candidate(order, f0));
     }
+    c
+}
+
+/// Structural changes of the beam and its clamp: tip mass, root compliance, cubic clamp,
+/// backlash at the root, quadratic drag.
+fn structural_candidates(h: &StartHints) -> Vec<Candidate> {
+    let mut c = Vec::new();
+    c.push(Candidate {
+        id: Effect::TipMass,
+        words: "a lumped mass at the tip (marker, sensor)",
+        orientation: None,
+        params: vec![def(
+            "tip_mass_kg",
+            Transform::Linear,
+            vec![0.03 * h.beam_mass_kg],
+            0.05 * h.beam_mass_kg,
+            true,
+        )],
+    });
+    c.push(Candidate {
+        id: Effect::RootCompliance,
+        words: "a compliant clamp (rotational spring at the root)",
+        orientation: None,
+        params: vec![def(
+            "root_stiffness_nm_per_rad",
+            Transform::Log,
+            vec![10.0 * h.ei_over_l, 40.0 * h.ei_over_l],
+            1.0,
+            false,
+        )],
+    });
+    // amplitude-dependent clamp: M = k_r θ + k₃ θ³, fitted as k_r and the cubic compliance
+    // c₃ = k₃ / k_r⁴ of the inverse law θ ≈ M/k_r − c₃ M³ (the rotation in excess of the
+    // linear clamp under a root moment M). With the first frequency held by the stiffness
+    // scale, k_r is weakly determined and k_r, k₃ act almost only through c₃ (in (k_r, k₃)
+    // or (k_r, k₃/k_r³) their Jacobian columns correlate to −1.000 on a truth case), so c₃
+    // is what the data determine and what the significance guard tests. The root moment of
+    // a cantilever whose tip is deflected by A is M ≈ 3 (EI/l) A / l; the scale of c₃ is
+    // the value whose excess rotation is 10 % of the linear one there.
+    let kr0 = 10.0 * h.ei_over_l;
+    let m_typ =
+        (3.0 * h.ei_over_l * h.peak_deflection_m.max(1e-4) / h.length_m.max(1e-3)).max(1e-9);
+    let c3_scale = 0.1 / (kr0 * m_typ * m_typ);
+    c.push(Candidate {
+        id: Effect::CubicStiffness,
+        words: "an amplitude-dependent (hardening or softening) clamp stiffness",
+        orientation: None,
+        params: vec![
+            def(
+                "root_stiffness_nm_per_rad",
+                Transform::Log,
+                vec![kr0, 40.0 * h.ei_over_l],
+                1.0,
+                false,
+            ),
+            def(
+                "cubic_root_compliance_rad_per_nm3",
+                Transform::Linear,
+                vec![0.0, c3_scale, -c3_scale],
+                c3_scale,
+                true,
+            ),
+        ],
+    });
+    // a dead band between carriage and beam root: the root offset it leaves after a move is
+    // b/2, a fraction of the peak deflection on a real rig
+    let pk = h.peak_deflection_m.max(1e-4);
+    c.push(Candidate {
+        id: Effect::Backlash,
+        words: "play (a dead band) between the carriage and the beam root",
+        orientation: None,
+        params: vec![def(
+            "backlash_m",
+            Transform::Log,
+            vec![0.02 * pk, 0.1 * pk],
+            1.0,
+            true,
+        )],
+    });
+    // ζ_eq = (4/3π) c A ∫u³/(m/l ∫u²) for the first mode shape u (∫u² ≈ 0.25 l, ∫u³ ≈ 0.16 l):
+    // the drag that doubles ζ1 at the peak deflection A
+    let c0 =
+        h.zeta1 * 3.7 * h.beam_mass_kg / (h.peak_deflection_m.max(1e-4) * h.length_m.max(1e-3));
+    let c0 = if c0.is_finite() && c0 > 0.0 {
+        c0.min(1e6)
+    } else {
+        1.0
+    };
+    c.push(Candidate {
+        id: Effect::QuadraticDamping,
+        words: "amplitude-dependent (quadratic, aerodynamic) damping",
+        orientation: None,
+        params: vec![def(
+            "drag_coefficient_kg_per_m2",
+            Transform::Linear,
+            vec![0.3 * c0, c0],
+            c0 * 0.1,
+            true,
+        )],
+    });
+    c
+}
+
+/// Tip-sensor latency and gain, gravity (both orientations), the mount (both forms).
+fn sensor_gravity_mount_candidates(h: &StartHints) -> Vec<Candidate> {
+    let mut c = Vec::new();
+    c.push(Candidate {
+        id: Effect::SensorDelay,
+        words: "latency of the tip measurement",
+        orientation: None,
+        params: vec![def(
+            "sensor_delay_s",
+            Transform::Linear,
+            vec![0.2 / h.rate_hz, 2.0 / h.rate_hz],
+            0.1 / h.rate_hz,
+            true,
+        )],
+    });
+    c.push(Candidate {
+        id: Effect::SensorGain,
+        words: "scale error of the tip sensor (e.g. camera calibration)",
+        orientation: None,
+        params: vec![def(
+            "sensor_gain_error",
+            Transform::Linear,
+            vec![0.0],
+            0.01,
+            true,
+        )],
+    });
+    c.push(Candidate {
+        id: Effect::GravityAxialLoad,
+        words: "gravity axial load: the beam hangs (tension)",
+        orientation: Some(Orientation::Hanging),
+        params: vec![],
+    });
+    c.push(Candidate {
+        id: Effect::GravityAxialLoad,
+        words: "gravity axial load: the beam stands upright (compression)",
+        orientation: Some(Orientation::Upright),
+        params: vec![],
+    });
+    c.push(mount_candidate(h, false));
+    c.push(mount_candidate(h, true));
     c
 }
 

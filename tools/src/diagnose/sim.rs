@@ -809,38 +809,84 @@ pub fn predict(
     cache: &mut Option<BeamCache>,
 ) -> Result<Prediction> {
     let dt = d.dt;
-    let n = d.cmd_m.len();
     let mut out = Prediction::default();
+    let c = match rig.beam {
+        Some(_) => Some(fresh_cache(rig, p, dt, cache)?),
+        None => None,
+    };
     // 1. servo; without a measured base the carriage is pushed back by the beam it carries,
     // so the loop is simulated coupled to the beam modes
-    let law = ServoLaw::of(p);
-    let coupled = law.is_some() && d.drive_m.is_none() && rig.beam.is_some();
-    if coupled {
-        let stale = cache
-            .as_ref()
-            .map_or(true, |c| c.key != structural_key(p, dt));
-        if stale {
-            *cache = Some(beam_cache(rig, p, dt)?);
-        }
-    }
-    let y_servo = match law {
-        Some(law) => law.respond(&d.cmd_m, dt, if coupled { cache.as_ref() } else { None }),
+    let y_servo = match ServoLaw::of(p) {
+        Some(law) => law.respond(&d.cmd_m, dt, if d.drive_m.is_none() { c } else { None }),
         None => d.cmd_m.clone(),
     };
     if d.base_m.is_some() {
         out.base_m = Some(y_servo.clone());
     }
-    // 2. drive
+    // 2. drive: the measured base when recorded
     let drive: &[f64] = d.drive_m.as_deref().unwrap_or(&y_servo);
-    // 3. mount: with a beam, a mount mass on a spring–damper that carries the beam (coupled)
-    if p.mount.is_some() && rig.beam.is_some() {
-        let stale = cache
-            .as_ref()
-            .map_or(true, |c| c.key != structural_key(p, dt));
-        if stale {
-            *cache = Some(beam_cache(rig, p, dt)?);
+    // 3. backlash and mount between the drive and the beam root
+    let root = root_motion(p, drive, dt, c);
+    // 4. beam, tip sensor and motor force
+    let force = match c {
+        Some(c) => {
+            let (w, force) = beam_response(p, &root, drive, dt, c);
+            if d.tip_m.is_some() {
+                out.tip_m = Some(tip_sensor(p, &root, &w, dt));
+            }
+            force
         }
+        None => {
+            if d.tip_m.is_some() {
+                bail!(
+                    "{}: the recording has `tip_pos_m` but the rig has no [beam]",
+                    d.name
+                );
+            }
+            let m = rig.base.mass_kg + p.base_mass_delta_kg;
+            (0..drive.len())
+                .map(|k| m * accel_at(drive, k, dt))
+                .collect()
+        }
+    };
+    // 5. carriage forces and the force channel's latency
+    if d.force_n.is_some() {
+        out.force_n = Some(carriage_forces(p, drive, force, dt));
     }
+    Ok(out)
+}
+
+/// The structural model of `p`, rebuilt only when a structural parameter changed.
+fn fresh_cache<'c>(
+    rig: &Rig,
+    p: &Params,
+    dt: f64,
+    cache: &'c mut Option<BeamCache>,
+) -> Result<&'c BeamCache> {
+    let stale = cache
+        .as_ref()
+        .map_or(true, |c| c.key != structural_key(p, dt));
+    if stale {
+        *cache = Some(beam_cache(rig, p, dt)?);
+    }
+    Ok(cache.as_ref().expect("cache just built"))
+}
+
+/// Acceleration (m/s²) at sample k of a piecewise-linear path: the velocity step there / dt.
+fn accel_at(y: &[f64], k: usize, dt: f64) -> f64 {
+    let n = y.len();
+    let vb = if k == 0 { 0.0 } else { (y[k] - y[k - 1]) / dt };
+    let va = if k + 1 < n {
+        (y[k + 1] - y[k]) / dt
+    } else {
+        0.0
+    };
+    (va - vb) / dt
+}
+
+/// Beam-root position: the drive through the play (`backlash`) and the mount (coupled to the
+/// beam of `c` when it has a mass and there is a beam, else a filter the beam does not load).
+fn root_motion(p: &Params, drive: &[f64], dt: f64, c: Option<&BeamCache>) -> Vec<f64> {
     let played;
     let root_drive: &[f64] = if p.backlash_m != 0.0 {
         played = play(drive, p.backlash_m);
@@ -848,8 +894,8 @@ pub fn predict(
     } else {
         drive
     };
-    let root: Vec<f64> = match (p.mount, cache.as_ref()) {
-        (Some((f, z)), Some(c)) if rig.beam.is_some() && p.mount_mass_kg > 0.0 => coupled_mount(
+    match (p.mount, c) {
+        (Some((f, z)), Some(c)) if p.mount_mass_kg > 0.0 => coupled_mount(
             root_drive,
             dt,
             2.0 * std::f64::consts::PI * f,
@@ -861,147 +907,154 @@ pub fn predict(
             second_order(root_drive, dt, 2.0 * std::f64::consts::PI * f, z, 0.0, 1.0)
         }
         (None, _) => root_drive.to_vec(),
-    };
+    }
+}
+
+/// The beam's modes driven by the root motion (exact per sample for a piecewise-linear root,
+/// with the drag and cubic-clamp impulses): the tip deflection (m) and the motor force (N) of
+/// eq. (5), the carriage (less a mount mass) moving with `drive`.
+fn beam_response(
+    p: &Params,
+    root: &[f64],
+    drive: &[f64],
+    dt: f64,
+    c: &BeamCache,
+) -> (Vec<f64>, Vec<f64>) {
+    let n = root.len();
+    let nm = c.omega.len();
+    let sum_g2: f64 = c.gamma.iter().map(|g| g * g).sum();
     let mount_mass = if p.mount.is_some() {
         p.mount_mass_kg
     } else {
         0.0
     };
-    let accel = |y: &[f64], k: usize| {
-        let vb = if k == 0 { 0.0 } else { (y[k] - y[k - 1]) / dt };
+    let mut x = vec![Vector2::<f64>::zeros(); nm];
+    let mut w = Vec::with_capacity(n);
+    let mut force = vec![0.0; n];
+    let mut modal_f = vec![0.0; nm];
+    let k3 = match p.root_stiffness_nm_per_rad {
+        Some(_) => p.cubic_root_stiffness_nm_per_rad3,
+        None => 0.0,
+    };
+    let cap2 = cubic_cap2(
+        k3,
+        p.root_stiffness_nm_per_rad.unwrap_or(0.0),
+        c.root_rot.iter().map(|s| s * s).sum(),
+        dt,
+    );
+    for k in 0..n {
+        let vb = if k == 0 {
+            0.0
+        } else {
+            (root[k] - root[k - 1]) / dt
+        };
         let va = if k + 1 < n {
-            (y[k + 1] - y[k]) / dt
+            (root[k + 1] - root[k]) / dt
         } else {
             0.0
         };
-        (va - vb) / dt
-    };
-    let mut force = vec![0.0; n];
-    if rig.beam.is_some() {
-        let stale = cache
-            .as_ref()
-            .map_or(true, |c| c.key != structural_key(p, dt));
-        if stale {
-            *cache = Some(beam_cache(rig, p, dt)?);
-        }
-        let c = cache.as_ref().expect("cache just built");
-        let nm = c.omega.len();
-        let sum_g2: f64 = c.gamma.iter().map(|g| g * g).sum();
-        let mut x = vec![Vector2::<f64>::zeros(); nm];
-        let mut w = Vec::with_capacity(n);
-        let npts = c.weights.len();
-        let mut modal_f = vec![0.0; nm];
-        let k3 = match p.root_stiffness_nm_per_rad {
-            Some(_) => p.cubic_root_stiffness_nm_per_rad3,
-            None => 0.0,
-        };
-        let cap2 = cubic_cap2(
-            k3,
-            p.root_stiffness_nm_per_rad.unwrap_or(0.0),
-            c.root_rot.iter().map(|s| s * s).sum(),
-            dt,
-        );
-        for k in 0..n {
-            let vb = if k == 0 {
-                0.0
-            } else {
-                (root[k] - root[k - 1]) / dt
-            };
-            let va = if k + 1 < n {
-                (root[k + 1] - root[k]) / dt
-            } else {
-                0.0
-            };
-            let dv = va - vb;
-            let acc = dv / dt;
-            let mut tip = 0.0;
-            let mut drag_total = 0.0;
-            modal_f.iter_mut().for_each(|f| *f = 0.0);
-            if p.drag_kg_per_m2 > 0.0 {
-                for j in 0..npts {
-                    let mut v = vb;
-                    for r in 0..nm {
-                        v += c.shape[r][j] * x[r][1];
-                    }
-                    let f = -p.drag_kg_per_m2 * c.weights[j] * v.abs() * v;
-                    drag_total += f;
-                    for r in 0..nm {
-                        modal_f[r] += c.shape[r][j] * f;
-                    }
-                }
-            }
-            if k3 != 0.0 {
-                let theta: f64 = (0..nm).map(|r| c.root_rot[r] * x[r][0]).sum();
-                let m3 = cubic_moment(k3, theta, cap2);
-                for r in 0..nm {
-                    modal_f[r] -= c.root_rot[r] * m3;
-                }
-            }
-            let mut f = (c.total_mass - sum_g2) * acc - drag_total;
-            for r in 0..nm {
-                let (om, z) = (c.omega[r], c.zeta[r]);
-                tip += c.tip[r] * x[r][0];
-                f += c.gamma[r] * (-2.0 * z * om * x[r][1] - om * om * x[r][0] + modal_f[r]);
-                x[r][1] += -c.gamma[r] * dv + modal_f[r] * dt;
-                x[r] = c.phi[r] * x[r];
-            }
-            w.push(tip);
-            // the carriage itself moves with the drive, not with the mount
-            force[k] = f + (c.base_mass - mount_mass) * (accel(drive, k) - acc);
-        }
-        if d.tip_m.is_some() {
-            let tip: Vec<f64> = root.iter().zip(&w).map(|(y, w)| y + w).collect();
-            let tip = if p.sensor_delay_s != 0.0 {
-                delayed(&tip, p.sensor_delay_s, dt)
-            } else {
-                tip
-            };
-            out.tip_m = Some(if p.sensor_gain_error != 0.0 {
-                tip.iter()
-                    .map(|v| (1.0 + p.sensor_gain_error) * v)
-                    .collect()
-            } else {
-                tip
-            });
-        }
-    } else {
-        if d.tip_m.is_some() {
-            bail!(
-                "{}: the recording has `tip_pos_m` but the rig has no [beam]",
-                d.name
-            );
-        }
-        let m = rig.base.mass_kg + p.base_mass_delta_kg;
-        for (k, fk) in force.iter_mut().enumerate() {
-            *fk = m * accel(drive, k);
-        }
-    }
-    if d.force_n.is_some() {
-        if p.friction_n != 0.0 || p.viscous_n_s_per_m != 0.0 {
-            for k in 0..n {
-                let v = if k + 1 < n {
-                    (drive[k + 1] - drive[k.saturating_sub(1)])
-                        / (dt * (k + 1 - k.saturating_sub(1)) as f64)
-                } else {
-                    0.0
-                };
-                force[k] += p.friction_n * (v / 1e-3).tanh() + p.viscous_n_s_per_m * v;
-            }
-        }
-        if let Some((a, b, pitch)) = p.cogging {
-            let kw = 2.0 * std::f64::consts::PI / pitch;
-            for k in 0..n {
-                let (s, co) = (kw * drive[k]).sin_cos();
-                force[k] += a * s + b * co;
-            }
-        }
-        out.force_n = Some(if p.force_delay_s != 0.0 {
-            delayed(&force, p.force_delay_s, dt)
+        let dv = va - vb;
+        let acc = dv / dt;
+        modal_f.iter_mut().for_each(|f| *f = 0.0);
+        let drag_total = if p.drag_kg_per_m2 > 0.0 {
+            drag_impulses(p.drag_kg_per_m2, vb, &x, c, &mut modal_f)
         } else {
-            force
-        });
+            0.0
+        };
+        if k3 != 0.0 {
+            let theta: f64 = (0..nm).map(|r| c.root_rot[r] * x[r][0]).sum();
+            let m3 = cubic_moment(k3, theta, cap2);
+            for r in 0..nm {
+                modal_f[r] -= c.root_rot[r] * m3;
+            }
+        }
+        let mut f = (c.total_mass - sum_g2) * acc - drag_total;
+        let mut tip = 0.0;
+        for r in 0..nm {
+            let (om, z) = (c.omega[r], c.zeta[r]);
+            tip += c.tip[r] * x[r][0];
+            f += c.gamma[r] * (-2.0 * z * om * x[r][1] - om * om * x[r][0] + modal_f[r]);
+            x[r][1] += -c.gamma[r] * dv + modal_f[r] * dt;
+            x[r] = c.phi[r] * x[r];
+        }
+        w.push(tip);
+        // the carriage itself moves with the drive, not with the mount
+        force[k] = f + (c.base_mass - mount_mass) * (accel_at(drive, k, dt) - acc);
     }
-    Ok(out)
+    (w, force)
+}
+
+/// The distributed quadratic drag `−c_d |v| v` per unit length at the drag points (absolute
+/// velocity v = root velocity `v_root` + the modes' velocities `x[r][1]`), added to the modal
+/// forces `modal_f`; returns the total drag force (N).
+fn drag_impulses(
+    c_d: f64,
+    v_root: f64,
+    x: &[Vector2<f64>],
+    c: &BeamCache,
+    modal_f: &mut [f64],
+) -> f64 {
+    let nm = x.len();
+    let mut total = 0.0;
+    for j in 0..c.weights.len() {
+        let mut v = v_root;
+        for r in 0..nm {
+            v += c.shape[r][j] * x[r][1];
+        }
+        let f = -c_d * c.weights[j] * v.abs() * v;
+        total += f;
+        for r in 0..nm {
+            modal_f[r] += c.shape[r][j] * f;
+        }
+    }
+    total
+}
+
+/// The tip sensor: absolute tip (root + deflection `w`), late by the sensor latency and scaled
+/// by its gain.
+fn tip_sensor(p: &Params, root: &[f64], w: &[f64], dt: f64) -> Vec<f64> {
+    let tip: Vec<f64> = root.iter().zip(w).map(|(y, w)| y + w).collect();
+    let tip = if p.sensor_delay_s != 0.0 {
+        delayed(&tip, p.sensor_delay_s, dt)
+    } else {
+        tip
+    };
+    if p.sensor_gain_error != 0.0 {
+        tip.iter()
+            .map(|v| (1.0 + p.sensor_gain_error) * v)
+            .collect()
+    } else {
+        tip
+    }
+}
+
+/// Adds friction and cogging on the carriage (moving with `drive`) to the motor force and
+/// applies the force channel's latency.
+fn carriage_forces(p: &Params, drive: &[f64], mut force: Vec<f64>, dt: f64) -> Vec<f64> {
+    let n = drive.len();
+    if p.friction_n != 0.0 || p.viscous_n_s_per_m != 0.0 {
+        for k in 0..n {
+            let v = if k + 1 < n {
+                (drive[k + 1] - drive[k.saturating_sub(1)])
+                    / (dt * (k + 1 - k.saturating_sub(1)) as f64)
+            } else {
+                0.0
+            };
+            force[k] += p.friction_n * (v / 1e-3).tanh() + p.viscous_n_s_per_m * v;
+        }
+    }
+    if let Some((a, b, pitch)) = p.cogging {
+        let kw = 2.0 * std::f64::consts::PI / pitch;
+        for k in 0..n {
+            let (s, co) = (kw * drive[k]).sin_cos();
+            force[k] += a * s + b * co;
+        }
+    }
+    if p.force_delay_s != 0.0 {
+        delayed(&force, p.force_delay_s, dt)
+    } else {
+        force
+    }
 }
 
 #[cfg(test)]
