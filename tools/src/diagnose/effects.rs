@@ -328,6 +328,7 @@ pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
     }
     if rig.beam.is_some() && ch.tip {
         c.extend(structural_candidates(h));
+        c.extend(play_drag_candidates(h));
         c.extend(sensor_gravity_mount_candidates(h));
     }
     c
@@ -417,8 +418,7 @@ fn servo_candidates(rate_hz: f64) -> Vec<Candidate> {
     c
 }
 
-/// Structural changes of the beam and its clamp: tip mass, root compliance, cubic clamp,
-/// backlash at the root, quadratic drag.
+/// Structural changes of the beam and its clamp: tip mass, root compliance, cubic clamp.
 fn structural_candidates(h: &StartHints) -> Vec<Candidate> {
     let mut c = Vec::new();
     c.push(Candidate {
@@ -478,6 +478,12 @@ fn structural_candidates(h: &StartHints) -> Vec<Candidate> {
             ),
         ],
     });
+    c
+}
+
+/// Play at the beam root and quadratic drag.
+fn play_drag_candidates(h: &StartHints) -> Vec<Candidate> {
+    let mut c = Vec::new();
     // a dead band between carriage and beam root: the root offset it leaves after a move is
     // b/2, a fraction of the peak deflection on a real rig
     let pk = h.peak_deflection_m.max(1e-4);

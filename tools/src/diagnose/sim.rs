@@ -465,53 +465,12 @@ impl ServoLaw {
     fn pid(&self, r: &[f64], dt: f64, c: Option<&BeamCache>) -> Vec<f64> {
         let n = r.len();
         let nm = c.map_or(0, |c| c.omega.len());
-        let (m_tot, sum_g2) = c.map_or((1.0, 0.0), |c| {
-            (c.total_mass, c.gamma.iter().map(|g| g * g).sum())
-        });
-        let m_eff = (m_tot - sum_g2).max(1e-9 * m_tot);
-        let g = m_tot / m_eff;
-        let (w, z, al) = (self.omega, self.zeta, self.integral_ratio);
-        let (kd, kp, ki) = (
-            (2.0 * z + al) * w,
-            (1.0 + 2.0 * z * al) * w * w,
-            al * w * w * w,
-        );
-        let lag = self.order >= 4 && self.force_lag_ratio > 0.0;
-        let tau = self.force_lag_ratio / w;
-        // z = [y, ẏ, (η_j, η̇_j)…, ∫(r − y), F?, r, ṙ]
-        let ii = 2 + 2 * nm;
-        let fi = ii + 1;
-        let dim = ii + 1 + usize::from(lag) + 2;
-        let (ri, vi) = (dim - 2, dim - 1);
-        // the commanded force per unit moving mass (without the r̈ feed-forward impulses)
-        let mut uc = vec![0.0; dim];
-        uc[0] = -kp;
-        uc[1] = -kd;
-        uc[ii] = ki;
-        uc[ri] = kp;
-        uc[vi] = kd * self.ff.0;
-        let mut acc_row = vec![0.0; dim];
-        if lag {
-            acc_row[fi] = g;
-        } else {
-            for i in 0..dim {
-                acc_row[i] = g * uc[i];
-            }
-        }
-        let mut a = root_generator(&mut acc_row, m_eff, c);
-        a[(ii, 0)] = -1.0;
-        a[(ii, ri)] = 1.0;
-        if lag {
-            for i in 0..dim {
-                a[(fi, i)] = uc[i] / tau;
-            }
-            a[(fi, fi)] -= 1.0 / tau;
-        }
-        // the drive-force row scales as ω³/β (m/s² per state unit): a larger element bound than
-        // the root transition's, still finite
-        let Some(phi) = bounded_expm(a, dt, 1e10) else {
+        let Some((phi, g, tau)) = self.pid_transition(dt, c) else {
             return vec![f64::NAN; n];
         };
+        let lag = tau > 0.0;
+        let dim = phi.nrows();
+        let (fi, ri, vi) = (3 + 2 * nm, dim - 2, dim - 1);
         let gamma: &[f64] = c.map_or(&[], |c| &c.gamma);
         let mut zv = nalgebra::DVector::<f64>::zeros(dim);
         zv[0] = r[0];
@@ -545,6 +504,61 @@ impl ServoLaw {
             }
         }
         y
+    }
+
+    /// exp(A dt) of the order-3/4 loop (state `[y, ẏ, (η_j, η̇_j)…, ∫(r − y), F?, r, ṙ]`), the
+    /// ratio g = M / (M − ΣΓ²) of the force on the carriage to its acceleration per unit
+    /// moving mass, and the drive lag τ (0 without). `None` for a generator out of bounds.
+    fn pid_transition(
+        &self,
+        dt: f64,
+        c: Option<&BeamCache>,
+    ) -> Option<(nalgebra::DMatrix<f64>, f64, f64)> {
+        let nm = c.map_or(0, |c| c.omega.len());
+        let (m_tot, sum_g2) = c.map_or((1.0, 0.0), |c| {
+            (c.total_mass, c.gamma.iter().map(|g| g * g).sum())
+        });
+        let m_eff = (m_tot - sum_g2).max(1e-9 * m_tot);
+        let g = m_tot / m_eff;
+        let (w, z, al) = (self.omega, self.zeta, self.integral_ratio);
+        let (kd, kp, ki) = (
+            (2.0 * z + al) * w,
+            (1.0 + 2.0 * z * al) * w * w,
+            al * w * w * w,
+        );
+        let lag = self.order >= 4 && self.force_lag_ratio > 0.0;
+        let tau = if lag { self.force_lag_ratio / w } else { 0.0 };
+        let ii = 2 + 2 * nm;
+        let fi = ii + 1;
+        let dim = ii + 1 + usize::from(lag) + 2;
+        let (ri, vi) = (dim - 2, dim - 1);
+        // the commanded force per unit moving mass (without the r̈ feed-forward impulses)
+        let mut uc = vec![0.0; dim];
+        uc[0] = -kp;
+        uc[1] = -kd;
+        uc[ii] = ki;
+        uc[ri] = kp;
+        uc[vi] = kd * self.ff.0;
+        let mut acc_row = vec![0.0; dim];
+        if lag {
+            acc_row[fi] = g;
+        } else {
+            for i in 0..dim {
+                acc_row[i] = g * uc[i];
+            }
+        }
+        let mut a = root_generator(&mut acc_row, m_eff, c);
+        a[(ii, 0)] = -1.0;
+        a[(ii, ri)] = 1.0;
+        if lag {
+            for i in 0..dim {
+                a[(fi, i)] = uc[i] / tau;
+            }
+            a[(fi, fi)] -= 1.0 / tau;
+        }
+        // the drive-force row scales as ω³/β (m/s² per state unit): a larger element bound than
+        // the root transition's, still finite
+        bounded_expm(a, dt, 1e10).map(|phi| (phi, g, tau))
     }
 }
 
