@@ -156,19 +156,17 @@ pub fn sweep(a: SweepCmd) -> Result<()> {
     let Some(p) = a.port else {
         return crate::cli::ident::sweep(a.design);
     };
-    let d = &a.design;
-    let kind = match d.kind.as_str() {
-        "exponential" | "exp" => SweepKind::Exponential,
-        "linear" | "lin" => SweepKind::Linear,
-        k => anyhow::bail!("unknown sweep kind `{k}` (linear or exponential)"),
-    };
+    let spec = a.design.spec()?;
     let request = SweepRequest {
-        kind,
-        f_a_hz: d.f_a_hz,
-        f_b_hz: d.f_b_hz,
-        rate: d.rate,
-        stroke_mm: d.stroke_mm,
-        accel_max_m_s2: d.accel_max,
+        kind: match spec.kind {
+            crate::ident::sweep::SweepKind::Exponential => SweepKind::Exponential,
+            crate::ident::sweep::SweepKind::Linear => SweepKind::Linear,
+        },
+        f_a_hz: spec.f_a_hz,
+        f_b_hz: spec.f_b_hz,
+        rate: spec.rate,
+        stroke_mm: a.design.stroke_mm,
+        accel_max_m_s2: spec.accel_max_m_s2,
     };
     println!("sweeping on {p}; record base and tip now (the sweep is sized and checked first)");
     let plan = sweep_on_board(&mut Session::open(&p)?, &request)?;
