@@ -1,7 +1,8 @@
 //! The layout rules of `tools/src` (`docs/architecture.md`, issue 13), checked on the source:
 //! - only `cli/` and `main.rs` print, draw progress bars or import the CLI: no other file may
 //!   contain `crate::cli`, `beamtools::cli`, `println!`, `print!`, `eprintln!`, `eprint!` or
-//!   `indicatif` (comments and string literals aside);
+//!   `indicatif` (comments, string literals and `#[cfg(test)]` items aside: a test may print
+//!   what it measured);
 //! - no function is longer than [`MAX_FN_LINES`] lines (from its `fn` line to its closing
 //!   brace), found by a small scanner that skips comments, strings and char literals and
 //!   matches braces.
@@ -82,6 +83,44 @@ fn code_only(src: &str) -> Vec<char> {
         }
     }
     out
+}
+
+/// `code` with every item that follows a `#[cfg(test)]` attribute (up to the end of its
+/// braced body) blanked out.
+fn without_test_items(mut code: Vec<char>) -> Vec<char> {
+    let attr: Vec<char> = "#[cfg(test)]".chars().collect();
+    let mut i = 0;
+    while i + attr.len() <= code.len() {
+        if !code[i..].starts_with(&attr) {
+            i += 1;
+            continue;
+        }
+        let from = i + attr.len();
+        let Some(open) = (from..code.len()).find(|&k| code[k] == '{' || code[k] == ';') else {
+            break;
+        };
+        let mut depth = 0i32;
+        let mut end = open + 1; // an item without a body (`use …;`) ends at its `;`
+        for (k, &ch) in code
+            .iter()
+            .enumerate()
+            .skip(open)
+            .take_while(|_| code[open] == '{')
+        {
+            depth += i32::from(ch == '{') - i32::from(ch == '}');
+            if depth == 0 {
+                end = k + 1;
+                break;
+            }
+        }
+        for ch in &mut code[i..end] {
+            if *ch != '\n' {
+                *ch = ' ';
+            }
+        }
+        i = end;
+    }
+    code
 }
 
 /// If a comment, string or char literal starts at `i`, the index just past it; else `i`.
@@ -196,11 +235,10 @@ fn cli_side(rel: &str) -> bool {
 }
 
 #[test]
-#[ignore = "other helpers are still moving their printing into cli/ (issue 13); run with --ignored to list what is left"]
 fn only_cli_prints_or_imports_cli() {
     let mut offenders = Vec::new();
     for (rel, src) in sources().iter().filter(|(rel, _)| !cli_side(rel)) {
-        let code: String = code_only(src).into_iter().collect();
+        let code: String = without_test_items(code_only(src)).into_iter().collect();
         for (n, line) in code.lines().enumerate() {
             for pat in CLI_ONLY.iter().filter(|p| line.contains(*p)) {
                 offenders.push(format!("{rel}:{}: {pat}", n + 1));
@@ -216,7 +254,7 @@ fn only_cli_prints_or_imports_cli() {
 }
 
 #[test]
-#[ignore = "functions over 80 lines remain in modules other helpers are splitting (issue 13); run with --ignored to list them"]
+#[ignore = "9 functions over 80 lines remain after the 07:35 merge (cli/diagnose, diagnose/, truth/: issue 13); run with --ignored to list them"]
 fn no_function_is_over_80_lines() {
     let mut offenders = Vec::new();
     for (rel, src) in sources() {
@@ -236,11 +274,18 @@ fn no_function_is_over_80_lines() {
 
 #[test]
 fn the_scanner_skips_literals_and_measures_bodies() {
-    let src = "fn a() {\n    let s = \"}{ println!\";\n    let c = '}';\n    // println!(\"{\")\n}\nfn b<'x>(v: &'x [u8]) -> usize where u8: Copy { v.len() }\ntrait T { fn c(&self); }\nfn d() { let r = r#\"}\"#; }\n";
+    let src = "fn a() {\n    let s = \"}{ println!\";\n    let c = '}';\n    // println!(\"{\")\n}\nfn b<'x>(v: &'x [u8]) -> usize where u8: Copy { v.len() }\ntrait T { fn c(&self); }\nfn d() { let r = r#\"}\"#; }\n#[cfg(test)]\nuse std::fmt;\n#[cfg(test)]\nmod t { fn e() { eprintln!(\"x\"); } }\n";
     let code = code_only(src);
     let text: String = code.iter().collect();
-    assert!(!text.contains("println!"), "{text}");
+    let before_tests = &text[..text.find("#[cfg(test)]").unwrap()];
+    assert!(!before_tests.contains("println!"), "{text}");
+    let outside: String = without_test_items(code.clone()).into_iter().collect();
+    assert!(
+        !outside.contains("eprintln!") && outside.contains("fn d()"),
+        "{outside}"
+    );
+    assert_eq!(outside.lines().count(), text.lines().count());
     let f = functions(&code);
     let names: Vec<_> = f.iter().map(|(n, l, len)| (n.as_str(), *l, *len)).collect();
-    assert_eq!(names, [("a", 1, 5), ("b", 6, 1), ("d", 8, 1)]);
+    assert_eq!(names, [("a", 1, 5), ("b", 6, 1), ("d", 8, 1), ("e", 12, 1)]);
 }
