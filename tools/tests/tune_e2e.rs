@@ -4,8 +4,9 @@
 use beamtools::board::client::BoardClient;
 use beamtools::board::rig::{RigSensors, VirtualRig};
 use beamtools::board::{load_flash, spawn_on_pty_with_rig, VirtualBoard};
+use beamtools::cli::tune::{tune, TuneArgs};
 use beamtools::model::Rig;
-use beamtools::tune::{tune, TuneArgs, DEFAULT_RIG_TOML};
+use beamtools::tune::DEFAULT_RIG_TOML;
 use clap::Parser;
 use serialport::SerialPort;
 use std::io::{Read, Write};

@@ -312,10 +312,22 @@ pub fn covariance(j: &DMatrix<f64>) -> DMatrix<f64> {
 
 /// [`covariance`] of a column-normalised Jacobian.
 fn scaled_covariance(j: &DMatrix<f64>) -> DMatrix<f64> {
+    let (mut cov, unidentified) = scaled_pseudo_inverse(j);
+    for i in 0..cov.nrows() {
+        if unidentified[i] {
+            cov[(i, i)] = f64::NAN;
+        }
+    }
+    cov
+}
+
+/// Pseudo-inverse of JᵀJ of a column-normalised Jacobian (eigenvalues below 1e-10 of the
+/// largest dropped) and, per parameter, whether it has weight (> 1e-3) in a dropped direction.
+fn scaled_pseudo_inverse(j: &DMatrix<f64>) -> (DMatrix<f64>, Vec<bool>) {
     let n = j.ncols();
     let jtj = j.transpose() * j;
     if !jtj.iter().all(|v| v.is_finite()) {
-        return DMatrix::from_element(n, n, f64::NAN);
+        return (DMatrix::from_element(n, n, f64::NAN), vec![true; n]);
     }
     let eig = nalgebra::SymmetricEigen::new(jtj);
     let lmax = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
@@ -332,12 +344,7 @@ fn scaled_covariance(j: &DMatrix<f64>) -> DMatrix<f64> {
             }
         }
     }
-    for i in 0..n {
-        if null_weight[i] > 1e-3 {
-            cov[(i, i)] = f64::NAN;
-        }
-    }
-    cov
+    (cov, null_weight.iter().map(|w| *w > 1e-3).collect())
 }
 
 /// Linearised 1-σ of every parameter (representation units) from the Jacobian `j` of the
@@ -355,6 +362,88 @@ pub fn std_errors(j: &DMatrix<f64>, cost: f64) -> Vec<f64> {
                 f64::NAN
             } else {
                 v.max(0.0).sqrt()
+            }
+        })
+        .collect()
+}
+
+/// Linearised 1-σ of every parameter (representation units) when the residuals are *not*
+/// independent: the sandwich (Huber–White) covariance `(JᵀJ)⁻¹ S (JᵀJ)⁻¹` with the long-run
+/// covariance of the scores g_t = J_tᵀ r_t estimated by non-overlapping batch means
+/// (S = Σ_blocks G_b G_bᵀ, G_b = Σ_{t∈b} g_t; e.g. Flegal & Jones 2010) inside each of the
+/// independent `segments` (lengths of the consecutive series r is made of: one per recording and
+/// channel; their sum must be `r.len()`, else r is one series). The block length is
+/// `block_factor` × the largest integrated autocorrelation time ([`crate::numeric::stats::autocorrelation_time`],
+/// at most `max_lag` lags) of a score, capped at a tenth of the segment. For white residuals it
+/// equals [`std_errors`] in expectation; for a residual correlated over τ samples it is about
+/// √τ larger, which `s² (JᵀJ)⁻¹` misses. NaN where not identified (as [`covariance`]).
+///
+/// `j`: m × n, `r`: m, `segments`: lengths summing to m.
+pub fn std_errors_long_run(
+    j: &DMatrix<f64>,
+    r: &DVector<f64>,
+    segments: &[usize],
+    max_lag: usize,
+    block_factor: f64,
+) -> Vec<f64> {
+    let (m, n) = (j.nrows(), j.ncols());
+    if n == 0 || m == 0 || r.len() != m {
+        return vec![f64::NAN; n];
+    }
+    let whole = [m];
+    let segs: &[usize] = if segments.iter().sum::<usize>() == m {
+        segments
+    } else {
+        &whole
+    };
+    let norms: Vec<f64> = (0..n)
+        .map(|i| j.column(i).norm())
+        .map(|v| if v > 0.0 && v.is_finite() { v } else { 1.0 })
+        .collect();
+    let mut js = j.clone();
+    for (i, s) in norms.iter().enumerate() {
+        js.column_mut(i).unscale_mut(*s);
+    }
+    let (pinv, unidentified) = scaled_pseudo_inverse(&js);
+    // scores of the normalised parameters
+    let scores: Vec<Vec<f64>> = (0..n)
+        .map(|i| {
+            js.column(i)
+                .iter()
+                .zip(r.iter())
+                .map(|(a, b)| a * b)
+                .collect()
+        })
+        .collect();
+    let mut s_mat = DMatrix::<f64>::zeros(n, n);
+    let mut start = 0;
+    for &len in segs {
+        let end = start + len;
+        if len == 0 {
+            continue;
+        }
+        let tau = scores
+            .iter()
+            .map(|g| crate::numeric::stats::autocorrelation_time(&g[start..end], max_lag))
+            .fold(1.0, f64::max);
+        let block = ((block_factor * tau).ceil() as usize).clamp(1, (len / 10).max(1));
+        let mut b0 = start;
+        while b0 < end {
+            let b1 = (b0 + block).min(end);
+            let g = DVector::from_iterator(n, scores.iter().map(|s| s[b0..b1].iter().sum::<f64>()));
+            s_mat += &g * g.transpose();
+            b0 = b1;
+        }
+        start = end;
+    }
+    let cov = &pinv * s_mat * &pinv;
+    (0..n)
+        .map(|i| {
+            let v = cov[(i, i)];
+            if unidentified[i] || !v.is_finite() {
+                f64::NAN
+            } else {
+                v.max(0.0).sqrt() / norms[i]
             }
         })
         .collect()
@@ -424,5 +513,49 @@ mod tests {
         // an undetermined direction is NaN
         let j2 = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0]);
         assert!(std_errors(&j2, 1.0).iter().all(|v| v.is_nan()));
+    }
+
+    /// The mean of an AR(1) series with φ = 0.9: the naive σ is too small by √τ ≈ √19; the
+    /// long-run σ matches the scatter of the mean over many series; for white noise the two
+    /// agree.
+    #[test]
+    fn long_run_errors_match_the_scatter_of_a_correlated_mean() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        let noise = Normal::new(0.0, 1.0).unwrap();
+        let m = 4000;
+        let (mut means, mut naive, mut long) = (vec![], vec![], vec![]);
+        for phi in [0.9, 0.0] {
+            for _ in 0..60 {
+                let mut y = vec![0.0; m];
+                let mut prev = 0.0;
+                for v in y.iter_mut() {
+                    prev = phi * prev + noise.sample(&mut rng);
+                    *v = prev;
+                }
+                let mean = y.iter().sum::<f64>() / m as f64;
+                let r = DVector::from_iterator(m, y.iter().map(|v| mean - v));
+                let j = DMatrix::from_element(m, 1, 1.0);
+                means.push(mean);
+                naive.push(std_errors(&j, r.norm_squared())[0]);
+                long.push(std_errors_long_run(&j, &r, &[m], 2000, 5.0)[0]);
+            }
+            let scatter = (means.iter().map(|v| v * v).sum::<f64>() / means.len() as f64).sqrt();
+            let avg = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+            let (sn, sl) = (avg(&naive), avg(&long));
+            assert!(
+                (sl / scatter - 1.0).abs() < 0.3,
+                "φ {phi}: long-run {sl} vs scatter {scatter}"
+            );
+            if phi > 0.0 {
+                assert!(sn < 0.4 * scatter, "naive {sn} vs scatter {scatter}");
+            } else {
+                assert!((sn / scatter - 1.0).abs() < 0.3);
+            }
+            means.clear();
+            naive.clear();
+            long.clear();
+        }
     }
 }
