@@ -1,6 +1,9 @@
 //! Small SVG plotting helpers on `plotters` (SVG backend: no fonts or system libraries).
+//!
+//! The `*_svg` functions return the document; [`lines`] and [`lines_marked`] also write it to a
+//! file (kept for callers outside `cli/` that still write their own plots).
 
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, Context, Result};
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use std::path::Path;
@@ -66,6 +69,31 @@ pub fn lines_marked(
     log_y: bool,
     marks: &Marks,
 ) -> Result<()> {
+    let svg = lines_marked_svg(title, x_label, y_label, series, log_y, marks)
+        .map_err(|e| anyhow!("{e} in {}", path.display()))?;
+    std::fs::write(path, svg).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// A line plot of `series` as an SVG document (1000×600).
+pub fn lines_svg(
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+    log_y: bool,
+) -> Result<String> {
+    lines_marked_svg(title, x_label, y_label, series, log_y, &Marks::default())
+}
+
+/// [`lines_svg`] with [`Marks`]. Errors: nothing finite to plot, a drawing error.
+pub fn lines_marked_svg(
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+    log_y: bool,
+    marks: &Marks,
+) -> Result<String> {
     let finite = |v: &&f64| v.is_finite() && (!log_y || **v > 0.0);
     let xs = series.iter().flat_map(|s| s.x.iter()).filter(finite);
     let (x0, x1) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
@@ -76,7 +104,7 @@ pub fn lines_marked(
         (a.min(v), b.max(v))
     });
     if !(x0.is_finite() && y0.is_finite()) {
-        return Err(anyhow!("nothing finite to plot in {}", path.display()));
+        return Err(anyhow!("nothing finite to plot"));
     }
     if y1 - y0 < 1e-12 {
         y0 -= 1.0;
@@ -84,44 +112,47 @@ pub fn lines_marked(
     }
     let pad = 0.05 * (y1 - y0);
     let (ya, yb) = marks.y_range.unwrap_or((y0 - pad, y1 + pad));
-    let root = SVGBackend::new(path, (1000, 600)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
-    macro_rules! draw {
-        ($chart:expr) => {{
-            let mut chart = $chart;
-            chart
-                .configure_mesh()
-                .x_desc(x_label)
-                .y_desc(y_label)
-                .draw()
-                .map_err(|e| anyhow!("{e}"))?;
-            draw_shaded(&mut chart, &marks.shaded_x, (ya, yb))?;
-            draw_lines(&mut chart, series, log_y)?;
-            draw_hlines(&mut chart, &marks.hlines, (x0, x1))?;
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .draw()
-                .map_err(|e| anyhow!("{e}"))?;
-        }};
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (1000, 600)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+        macro_rules! draw {
+            ($chart:expr) => {{
+                let mut chart = $chart;
+                chart
+                    .configure_mesh()
+                    .x_desc(x_label)
+                    .y_desc(y_label)
+                    .draw()
+                    .map_err(|e| anyhow!("{e}"))?;
+                draw_shaded(&mut chart, &marks.shaded_x, (ya, yb))?;
+                draw_lines(&mut chart, series, log_y)?;
+                draw_hlines(&mut chart, &marks.hlines, (x0, x1))?;
+                chart
+                    .configure_series_labels()
+                    .background_style(WHITE.mix(0.8))
+                    .border_style(BLACK)
+                    .draw()
+                    .map_err(|e| anyhow!("{e}"))?;
+            }};
+        }
+        let mut b = ChartBuilder::on(&root);
+        b.caption(title, ("sans-serif", 22))
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(70);
+        if log_y {
+            draw!(b
+                .build_cartesian_2d(x0..x1, (ya.max(1e-300)..yb * 1.5).log_scale())
+                .map_err(|e| anyhow!("{e}"))?);
+        } else {
+            draw!(b
+                .build_cartesian_2d(x0..x1, ya..yb)
+                .map_err(|e| anyhow!("{e}"))?);
+        }
+        root.present().map_err(|e| anyhow!("{e}"))?;
     }
-    let mut b = ChartBuilder::on(&root);
-    b.caption(title, ("sans-serif", 22))
-        .margin(15)
-        .x_label_area_size(45)
-        .y_label_area_size(70);
-    if log_y {
-        draw!(b
-            .build_cartesian_2d(x0..x1, (ya.max(1e-300)..yb * 1.5).log_scale())
-            .map_err(|e| anyhow!("{e}"))?);
-    } else {
-        draw!(b
-            .build_cartesian_2d(x0..x1, ya..yb)
-            .map_err(|e| anyhow!("{e}"))?);
-    }
-    root.present().map_err(|e| anyhow!("{e}"))?;
-    Ok(())
+    Ok(svg)
 }
 
 /// A chart with a linear x axis and any f64 y axis (linear or logarithmic).

@@ -13,7 +13,7 @@ use crate::ident::{IdentOptions, IdentifyOptions, Method, PathChoice, Stage};
 use crate::recording::Recording;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// `identify` arguments.
 #[derive(Args, Debug)]
@@ -224,12 +224,12 @@ pub fn identify(a: IdentifyArgs) -> Result<()> {
         if let Some(p) = &a.stab_plot {
             if let Some(d) = r.methods.iter().find_map(|m| m.diagram.as_ref()) {
                 let mag: Vec<f64> = frf.h1.iter().map(|c| c.norm()).collect();
-                d.plot(p, &frf.freq_hz, &mag, r.band_hz.0, r.band_hz.1)?;
+                write_file(p, &d.svg(&frf.freq_hz, &mag, r.band_hz.0, r.band_hz.1)?)?;
                 println!("stabilisation diagram -> {}", p.display());
             }
         }
         if let Some(p) = &a.frf_plot {
-            report::plot_frf(p, frf, r.band_hz.0, r.band_hz.1)?;
+            write_frf_plots(p, frf, r.band_hz.0, r.band_hz.1)?;
             println!("FRF plot -> {}", p.display());
         }
     }
@@ -473,7 +473,7 @@ pub fn frf(a: FrfArgs) -> Result<()> {
     w.flush()?;
     println!("FRF {} -> {}: {} averages of {} samples ({:?} window, {:.0} % overlap), df = {:.4} Hz -> {}", f.input, f.output, f.n_averages, f.nperseg, opts.window, 100.0 * opts.overlap, f.df_hz(), a.out.display());
     if let Some(p) = &a.plot {
-        report::plot_frf(p, &f, lo.max(f.df_hz()), hi)?;
+        write_frf_plots(p, &f, lo.max(f.df_hz()), hi)?;
         println!("plot -> {}", p.display());
     }
     if let Some(j) = &a.json {
@@ -482,4 +482,20 @@ pub fn frf(a: FrfArgs) -> Result<()> {
         println!("JSON -> {}", j.display());
     }
     Ok(())
+}
+
+/// Writes `text` to `path`.
+fn write_file(path: &Path, text: &str) -> Result<()> {
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// [`report::frf_svgs`] written to `path` and `<stem>-coherence.svg` beside it.
+fn write_frf_plots(path: &Path, frf: &crate::ident::frf::Frf, f_lo: f64, f_hi: f64) -> Result<()> {
+    let (h, coh) = report::frf_svgs(frf, f_lo, f_hi)?;
+    write_file(path, &h)?;
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_default();
+    write_file(&path.with_file_name(format!("{stem}-coherence.svg")), &coh)
 }

@@ -5,7 +5,7 @@ use crate::measures::measure;
 use crate::model::sim::{BaseMotionSim, ForceSim};
 use crate::model::SIM_RATE_HZ;
 use crate::model::{shape_with_engine, trapezoid_reference, BeamModel, ModelOptions, Rig};
-use crate::plot::{lines, Series};
+use crate::plot::{lines_svg, Series};
 use crate::recording::{decimate, Recording};
 use anyhow::{bail, Context, Result};
 use beamshaper::engine::NumericPath;
@@ -238,7 +238,8 @@ fn plot_positions(path: &Path, title: &str, t: &[f64], base: &[f64], tip: &[f64]
             y: &tp,
         },
     ];
-    lines(path, title, "time (s)", "position (mm)", &series, false)?;
+    let svg = lines_svg(title, "time (s)", "position (mm)", &series, false)?;
+    std::fs::write(path, svg).with_context(|| format!("cannot write {}", path.display()))?;
     println!("plot -> {}", path.display());
     Ok(())
 }

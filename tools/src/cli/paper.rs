@@ -7,7 +7,7 @@ use crate::model::{BeamModel, ModelOptions, Rig};
 use crate::paper::bench::{bench_sim as run_bench, N_SAMPLES, RUNS};
 use crate::paper::table1::{reproduce_table1, Table1Options};
 use crate::paper::table2::{reproduce_table2, Table2, FIGURES};
-use crate::plot::{lines, Series};
+use crate::plot::{lines_svg, Series};
 use crate::progress::Progress;
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -147,14 +147,9 @@ fn plot_figures(t: &Table2, dir: &Path) -> Result<()> {
             })
             .collect();
         let title = format!("tip position, {}", file.trim_end_matches(".svg"));
-        lines(
-            &dir.join(file),
-            &title,
-            "time (s)",
-            "tip position (mm)",
-            &series,
-            false,
-        )?;
+        let svg = lines_svg(&title, "time (s)", "tip position (mm)", &series, false)?;
+        let path = dir.join(file);
+        std::fs::write(&path, svg).with_context(|| format!("cannot write {}", path.display()))?;
     }
     Ok(())
 }

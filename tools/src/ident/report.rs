@@ -4,10 +4,9 @@
 use super::frf::Frf;
 use super::pipeline::IdentResult;
 use super::ModeEstimate;
-use crate::plot::{lines, Series};
+use crate::plot::{lines_svg, Series};
 use anyhow::Result;
 use std::fmt::Write;
-use std::path::Path;
 
 /// An [`super::Identification`] as text: path and reason, the modes (f, ζ with 1-σ, at a
 /// precision matched to the σ), rejected estimates, Rayleigh coefficients, warnings.
@@ -114,50 +113,32 @@ pub fn table(r: &IdentResult) -> String {
     s
 }
 
-/// FRF plot (SVG): |H1|, |H2| (log) and coherence over [f_lo, f_hi] in two files:
-/// `path` (magnitudes) and `path` with `-coherence` before the extension.
-pub fn plot_frf(path: &Path, frf: &Frf, f_lo: f64, f_hi: f64) -> Result<()> {
+/// |H1|, |H2| (log scale) and the coherence of `frf` in `f_lo..=f_hi` as two SVG documents.
+pub fn frf_svgs(frf: &Frf, f_lo: f64, f_hi: f64) -> Result<(String, String)> {
     let band = frf.band(f_lo, f_hi);
     let f = &frf.freq_hz[band.clone()];
     let h1: Vec<f64> = frf.h1[band.clone()].iter().map(|c| c.norm()).collect();
     let h2: Vec<f64> = frf.h2[band.clone()].iter().map(|c| c.norm()).collect();
     let title = format!("FRF {} -> {}", frf.input, frf.output);
-    lines(
-        path,
-        &title,
-        "frequency (Hz)",
-        "|H|",
-        &[
-            Series {
-                label: "|H1|".into(),
-                x: f,
-                y: &h1,
-            },
-            Series {
-                label: "|H2|".into(),
-                x: f,
-                y: &h2,
-            },
-        ],
-        true,
-    )?;
-    let stem = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().to_string())
-        .unwrap_or_default();
-    let coh_path = path.with_file_name(format!("{stem}-coherence.svg"));
-    let c = &frf.coherence[band];
-    lines(
-        &coh_path,
-        &format!("coherence ({} averages)", frf.n_averages),
-        "frequency (Hz)",
-        "gamma^2",
-        &[Series {
-            label: "coherence".into(),
+    let mags = [
+        Series {
+            label: "|H1|".into(),
             x: f,
-            y: c,
-        }],
-        false,
-    )?;
-    Ok(())
+            y: &h1,
+        },
+        Series {
+            label: "|H2|".into(),
+            x: f,
+            y: &h2,
+        },
+    ];
+    let frf_svg = lines_svg(&title, "frequency (Hz)", "|H|", &mags, true)?;
+    let coh = [Series {
+        label: "coherence".into(),
+        x: f,
+        y: &frf.coherence[band],
+    }];
+    let title = format!("coherence ({} averages)", frf.n_averages);
+    let coh_svg = lines_svg(&title, "frequency (Hz)", "gamma^2", &coh, false)?;
+    Ok((frf_svg, coh_svg))
 }

@@ -13,7 +13,6 @@ use super::std_dev;
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 use serde::Serialize;
-use std::path::Path;
 
 /// Stability of a pole relative to the previous order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -267,75 +266,72 @@ impl Diagram {
             .collect()
     }
 
-    /// SVG: the poles over (frequency, order), on top of the normalised |H| curve.
-    pub fn plot(
-        &self,
-        path: &Path,
-        freq_hz: &[f64],
-        mag: &[f64],
-        f_lo: f64,
-        f_hi: f64,
-    ) -> Result<()> {
+    /// The diagram as an SVG document: the poles over (frequency, order), on top of the
+    /// normalised |H| (`mag` at `freq_hz`) in `f_lo..=f_hi`.
+    pub fn svg(&self, freq_hz: &[f64], mag: &[f64], f_lo: f64, f_hi: f64) -> Result<String> {
         let max_order = self.orders.iter().map(|o| o.order).max().unwrap_or(1) as f64;
-        let root = SVGBackend::new(path, (1000, 600)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(
-                format!("Stabilisation diagram ({})", self.method),
-                ("sans-serif", 22),
-            )
-            .margin(15)
-            .x_label_area_size(45)
-            .y_label_area_size(60)
-            .build_cartesian_2d(f_lo..f_hi, 0.0..max_order + 1.0)
-            .map_err(|e| anyhow!("{e}"))?;
-        chart
-            .configure_mesh()
-            .x_desc("frequency (Hz)")
-            .y_desc("model order")
-            .draw()
-            .map_err(|e| anyhow!("{e}"))?;
-        let trace = magnitude_trace(freq_hz, mag, (f_lo, f_hi), max_order);
-        if !trace.is_empty() {
-            chart
-                .draw_series(LineSeries::new(
-                    trace,
-                    RGBColor(150, 150, 150).stroke_width(1),
-                ))
-                .map_err(|e| anyhow!("{e}"))?
-                .label("|H| (dB, scaled)")
-                .legend(|(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(150, 150, 150))
-                });
-        }
-        for (st, color, name) in [
-            (Stability::New, RGBColor(200, 200, 200), "new"),
-            (Stability::Freq, BLUE, "frequency stable"),
-            (Stability::Stable, RED, "stable"),
-        ] {
-            let pts = self.points(st, f_lo, f_hi);
-            chart
-                .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
-                .map_err(|e| anyhow!("{e}"))?
-                .label(name)
-                .legend(move |(x, y)| Circle::new((x + 10, y), 3, color.filled()));
-        }
-        for m in &self.modes {
-            chart
-                .draw_series(LineSeries::new(
-                    vec![(m.freq_hz, 0.0), (m.freq_hz, max_order + 1.0)],
-                    BLACK.stroke_width(1),
-                ))
+        let mut svg = String::new();
+        {
+            let root = SVGBackend::with_string(&mut svg, (1000, 600)).into_drawing_area();
+            root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+            let mut chart = ChartBuilder::on(&root)
+                .caption(
+                    format!("Stabilisation diagram ({})", self.method),
+                    ("sans-serif", 22),
+                )
+                .margin(15)
+                .x_label_area_size(45)
+                .y_label_area_size(60)
+                .build_cartesian_2d(f_lo..f_hi, 0.0..max_order + 1.0)
                 .map_err(|e| anyhow!("{e}"))?;
+            chart
+                .configure_mesh()
+                .x_desc("frequency (Hz)")
+                .y_desc("model order")
+                .draw()
+                .map_err(|e| anyhow!("{e}"))?;
+            let trace = magnitude_trace(freq_hz, mag, (f_lo, f_hi), max_order);
+            if !trace.is_empty() {
+                chart
+                    .draw_series(LineSeries::new(
+                        trace,
+                        RGBColor(150, 150, 150).stroke_width(1),
+                    ))
+                    .map_err(|e| anyhow!("{e}"))?
+                    .label("|H| (dB, scaled)")
+                    .legend(|(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(150, 150, 150))
+                    });
+            }
+            for (st, color, name) in [
+                (Stability::New, RGBColor(200, 200, 200), "new"),
+                (Stability::Freq, BLUE, "frequency stable"),
+                (Stability::Stable, RED, "stable"),
+            ] {
+                let pts = self.points(st, f_lo, f_hi);
+                chart
+                    .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
+                    .map_err(|e| anyhow!("{e}"))?
+                    .label(name)
+                    .legend(move |(x, y)| Circle::new((x + 10, y), 3, color.filled()));
+            }
+            for m in &self.modes {
+                chart
+                    .draw_series(LineSeries::new(
+                        vec![(m.freq_hz, 0.0), (m.freq_hz, max_order + 1.0)],
+                        BLACK.stroke_width(1),
+                    ))
+                    .map_err(|e| anyhow!("{e}"))?;
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()
+                .map_err(|e| anyhow!("{e}"))?;
+            root.present().map_err(|e| anyhow!("{e}"))?;
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| anyhow!("{e}"))?;
-        root.present().map_err(|e| anyhow!("{e}"))?;
-        Ok(())
+        Ok(svg)
     }
 }
 

@@ -3,7 +3,7 @@
 //!
 //! - [`table1`]: Table 1, sweep identification (§5.2) by the paper's protocol.
 //! - [`table2`]: Table 2 and Figs. 6–9, shaped moves (§5.3).
-//! - [`bench`]: the simulator against `scipy.signal.lsim` on the same model and input.
+//! - [`mod@bench`]: the simulator against `scipy.signal.lsim` on the same model and input.
 
 pub mod bench;
 pub mod table1;
