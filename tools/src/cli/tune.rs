@@ -6,7 +6,7 @@ use super::finite_f64;
 use crate::board::steps::BoardState;
 use crate::ident::ModeEstimate;
 use crate::measures::MeasuredMove;
-use crate::plot::{lines_marked, Marks, Series};
+use crate::plot::{lines_marked_svg, Marks, Series};
 use crate::shaping::{band, sensitivity, Candidate};
 use crate::tune::{
     Design, Excitation, Foreign, IdentifiedModes, Signal, TuneError, TuneOptions, TuneReport,
@@ -284,15 +284,21 @@ fn sensitivity_plot(a: &TuneArgs, modes: &[ModeEstimate], d: &Design) -> Result<
             y: v,
         });
     }
-    lines_marked(
-        &a.out.join("sensitivity.svg"),
+    let svg = lines_marked_svg(
         &format!("percentage vibration V(f) at zeta {z:.4}"),
         "frequency (Hz)",
         "percentage vibration V (%)",
         &series,
         false,
         &marks,
-    )
+    );
+    write_svg(&a.out.join("sensitivity.svg"), svg)
+}
+
+/// Writes an SVG document drawn by [`crate::plot`].
+fn write_svg(path: &Path, svg: Result<String>) -> Result<()> {
+    let svg = svg.with_context(|| format!("drawing {}", path.display()))?;
+    std::fs::write(path, svg).with_context(|| format!("cannot write {}", path.display()))
 }
 
 /// The tolerance line, the checked band of each mode, the y range of the sensitivity plot.
@@ -335,8 +341,7 @@ fn verification_plot(a: &TuneArgs, mu: &MeasuredMove, ms: &MeasuredMove) -> Resu
             .collect()
     };
     let (ru, rs) = (res(mu, target_u, sgn), res(ms, target_s, -sgn));
-    lines_marked(
-        &a.out.join("verification.svg"),
+    let svg = lines_marked_svg(
         "verification moves measured by the camera: tip − target (clipped)",
         "time since the command started (s)",
         "tip − target (mm)",
@@ -354,7 +359,8 @@ fn verification_plot(a: &TuneArgs, mu: &MeasuredMove, ms: &MeasuredMove) -> Resu
         ],
         false,
         &verification_marks(a, band_mm, tol_mm, lim),
-    )
+    );
+    write_svg(&a.out.join("verification.svg"), svg)
 }
 
 /// The settling band and the tolerance lines (both signs) of the verification plot.
