@@ -2,7 +2,7 @@
 //! ADXL357 6 cm from the tip): the uniform beam calibrated on two lengths mispredicts the
 //! third; the sensor's mass explains it and halves the held-out error.
 
-use beamtools::diagnose::cli::length_modes;
+use beamtools::cli::diagnose::length_modes;
 use beamtools::diagnose::lengths::{diagnose_lengths, to_json, words, LengthEffect, LengthOptions};
 use beamtools::model::Rig;
 use std::path::Path;

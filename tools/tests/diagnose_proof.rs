@@ -1,8 +1,8 @@
 //! Diagnosis on concealed effects from the truth generator: a reduced proof (the full one is
 //! `beamtool diagnose-proof`, recorded in docs/diagnose.md).
 
-use beamtools::diagnose::cli::{proof_table, run_proof};
 use beamtools::diagnose::diagnose;
+use beamtools::diagnose::proof::{proof_table, run_proof};
 use beamtools::diagnose::sim::Prepared;
 use beamtools::model::Rig;
 
@@ -17,8 +17,7 @@ fn nulls_give_none_and_clear_effects_are_named() {
         2,
         1000,
         30.0,
-        None,
-        false,
+        &mut beamtools::progress::Silent,
     )
     .unwrap();
     let table = proof_table(&rows);
@@ -85,25 +84,40 @@ fn bad_input_is_a_clear_error() {
     assert!(e.contains("base_cmd_m"), "{e}");
     rec.base_cmd_m = Some(ramp.clone());
     let d = Prepared::new("x.csv", &rec).unwrap();
-    let e = diagnose(&rig, std::slice::from_ref(&d), &d, &mut |_, _, _| {})
-        .unwrap_err()
-        .to_string();
+    let e = diagnose(
+        &rig,
+        std::slice::from_ref(&d),
+        &d,
+        &mut beamtools::progress::Silent,
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("no [beam]") || e.contains("tip"), "{e}");
     // too short: 2 samples
     let mut short = beamtools::recording::Recording::with_uniform_time(2, 100.0);
     short.base_cmd_m = Some(vec![0.0, 1e-3]);
     short.tip_pos_m = Some(vec![0.0, 1e-3]);
     let s = Prepared::new("short.csv", &short).unwrap();
-    let e = diagnose(&rig, std::slice::from_ref(&d), &s, &mut |_, _, _| {})
-        .unwrap_err()
-        .to_string();
+    let e = diagnose(
+        &rig,
+        std::slice::from_ref(&d),
+        &s,
+        &mut beamtools::progress::Silent,
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("short.csv") && e.contains("too short"), "{e}");
     // a base that never moves carries no information
     let mut still = rec.clone();
     still.base_cmd_m = Some(vec![0.0; n]);
     let s = Prepared::new("still.csv", &still).unwrap();
-    let e = diagnose(&rig, std::slice::from_ref(&s), &d, &mut |_, _, _| {})
-        .unwrap_err()
-        .to_string();
+    let e = diagnose(
+        &rig,
+        std::slice::from_ref(&s),
+        &d,
+        &mut beamtools::progress::Silent,
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("no information"), "{e}");
 }

@@ -571,6 +571,8 @@ pub fn diagnose_lengths(
             allowance,
             structured: None,
             significance: weakest_z,
+            structure_explained: None,
+            implausible: vec![],
         });
         *q = why.is_empty();
         f.verdict = why.join("; ");

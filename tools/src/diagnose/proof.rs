@@ -19,17 +19,17 @@
 //! median(|z|)/0.6745 says how much larger the observed scatter is than the reported σ (1 when σ
 //! is honest and errors are Gaussian).
 
-use super::report::{to_json, validation_summary, write_report};
+use super::report::{to_json, validation_summary};
 use super::sim::Prepared;
-use super::{diagnose as run_diagnosis, fit::CHANNEL_NAMES};
+use super::{diagnose as run_diagnosis, fit::CHANNEL_NAMES, Diagnosis};
 use crate::model::Rig;
+use crate::progress::{Progress, Silent};
 use crate::truth::unmodelled::Unmodelled;
-use crate::truth::{generate, TruthOptions, EFFECTS};
+use crate::truth::{generate, TruthCase, TruthOptions, EFFECTS};
 use anyhow::Result;
 use serde::{Deserialize, Deserializer, Serialize};
 use serde_json::Value;
 use std::collections::BTreeMap;
-use std::path::Path;
 
 /// What a case tests.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -404,9 +404,17 @@ fn estimates(
     out
 }
 
-/// Generates, diagnoses and scores one case.
-pub fn run_case(spec: &CaseSpec, out: Option<&Path>) -> Result<ProofRow> {
-    let t0 = std::time::Instant::now();
+/// A case as generated and diagnosed, for the caller to keep (write the recordings and the
+/// report) before it is dropped.
+pub struct CaseOutput {
+    /// The generated case (rig, recordings, truth).
+    pub case: TruthCase,
+    /// Its diagnosis.
+    pub diagnosis: Diagnosis,
+}
+
+/// Generates the case of `spec` (rig, prepared fit and validation recordings).
+fn generate_case(spec: &CaseSpec) -> Result<(TruthCase, Rig, Vec<Prepared>, Prepared)> {
     let opts = TruthOptions {
         duration_s: spec.duration_s,
         rate_hz: spec.conditions.rate_hz,
@@ -425,9 +433,25 @@ pub fn run_case(spec: &CaseSpec, out: Option<&Path>) -> Result<ProofRow> {
         .map(|(i, r)| Prepared::new(&format!("fit{}", i + 1), r))
         .collect::<Result<_>>()?;
     let val = Prepared::new("validate", &case.validate)?;
-    let d = run_diagnosis(&rig, &fit, &val, &mut |_, _, _| {})?;
-    let (c, before, after) = validation_summary(&d);
-    let j = to_json(&d);
+    Ok((case, rig, fit, val))
+}
+
+/// The located unexplained residual of a diagnosis JSON in words (`channel f0–f1 Hz`).
+fn unexplained_words(j: &Value) -> Option<String> {
+    j["unexplained"]["channel"].as_str().map(|ch| {
+        let b = &j["unexplained"]["band_hz"];
+        format!(
+            "{ch} {:.2}–{:.2} Hz",
+            b[0].as_f64().unwrap_or(f64::NAN),
+            b[1].as_f64().unwrap_or(f64::NAN)
+        )
+    })
+}
+
+/// Scores diagnosis `d` (JSON `j`) of `spec` against the generated `case`.
+fn score_case(spec: &CaseSpec, case: &TruthCase, d: &Diagnosis, rig: &Rig) -> ProofRow {
+    let j = to_json(d);
+    let (c, before, after) = validation_summary(d);
     let named_raw: Vec<String> = json_effects(&j).into_iter().map(|(n, _)| n).collect();
     let group = spec.group;
     let hidden: Vec<&str> = match group {
@@ -440,14 +464,7 @@ pub fn run_case(spec: &CaseSpec, out: Option<&Path>) -> Result<ProofRow> {
             .iter()
             .any(|(_, e)| e["parameters"]["orientation"].as_str() == v.as_str())
     });
-    let unexplained = j["unexplained"]["channel"].as_str().map(|ch| {
-        let b = &j["unexplained"]["band_hz"];
-        format!(
-            "{ch} {:.2}–{:.2} Hz",
-            b[0].as_f64().unwrap_or(f64::NAN),
-            b[1].as_f64().unwrap_or(f64::NAN)
-        )
-    });
+    let unexplained = unexplained_words(&j);
     let correct = match group {
         Group::Unmodelled => named == "none" && unexplained.is_some(),
         _ => named == spec.label && orientation_ok.unwrap_or(true),
@@ -464,11 +481,6 @@ pub fn run_case(spec: &CaseSpec, out: Option<&Path>) -> Result<ProofRow> {
             let rel = (e.value - e.truth).abs() / e.truth.abs().max(1e-300);
             (e.kind.clone(), e.truth, e.value, rel)
         });
-    if let Some(o) = out {
-        let dir = o.join(format!("{}-{}", spec.label, spec.seed));
-        case.write(&dir)?;
-        write_report(&d, &dir.join("report"))?;
-    }
     let channels = case.truth["channels"]
         .as_array()
         .map(|a| {
@@ -477,7 +489,7 @@ pub fn run_case(spec: &CaseSpec, out: Option<&Path>) -> Result<ProofRow> {
                 .collect()
         })
         .unwrap_or_default();
-    Ok(ProofRow {
+    ProofRow {
         truth: spec.label.clone(),
         group,
         seed: spec.seed,
@@ -491,9 +503,20 @@ pub fn run_case(spec: &CaseSpec, out: Option<&Path>) -> Result<ProofRow> {
         estimates: est,
         orientation_ok,
         nrmse: (before, after, CHANNEL_NAMES[c].to_string()),
-        seconds: t0.elapsed().as_secs_f64(),
+        seconds: 0.0,
         error: None,
-    })
+    }
+}
+
+/// Generates, diagnoses and scores one case; returns the row and what was generated and
+/// diagnosed.
+pub fn run_case(spec: &CaseSpec) -> Result<(ProofRow, CaseOutput)> {
+    let t0 = std::time::Instant::now();
+    let (case, rig, fit, val) = generate_case(spec)?;
+    let d = run_diagnosis(&rig, &fit, &val, &mut Silent)?;
+    let mut row = score_case(spec, &case, &d, &rig);
+    row.seconds = t0.elapsed().as_secs_f64();
+    Ok((row, CaseOutput { case, diagnosis: d }))
 }
 
 /// The row of a case whose generation or diagnosis failed with `msg`.
@@ -518,49 +541,65 @@ fn failed_row(spec: &CaseSpec, msg: String, seconds: f64) -> ProofRow {
 }
 
 /// [`run_case`], with an error or a panic of the diagnosis turned into a failed row.
-fn run_case_guarded(spec: &CaseSpec, out: Option<&Path>) -> ProofRow {
+fn run_case_guarded(spec: &CaseSpec) -> (ProofRow, Option<CaseOutput>) {
     let t0 = std::time::Instant::now();
-    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run_case(spec, out))) {
-        Ok(Ok(r)) => r,
-        Ok(Err(e)) => failed_row(spec, format!("error: {e:#}"), t0.elapsed().as_secs_f64()),
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run_case(spec))) {
+        Ok(Ok((r, o))) => (r, Some(o)),
+        Ok(Err(e)) => (
+            failed_row(spec, format!("error: {e:#}"), t0.elapsed().as_secs_f64()),
+            None,
+        ),
         Err(p) => {
             let m = p
                 .downcast_ref::<&str>()
                 .map(|s| s.to_string())
                 .or_else(|| p.downcast_ref::<String>().cloned())
                 .unwrap_or_default();
-            failed_row(spec, format!("panic: {m}"), t0.elapsed().as_secs_f64())
+            (
+                failed_row(spec, format!("panic: {m}"), t0.elapsed().as_secs_f64()),
+                None,
+            )
         }
     }
 }
 
-/// Runs every case in order (no parallelism: the machine is shared), with one progress line per
-/// case on stderr when `show`.
-pub fn run_plan(cases: &[CaseSpec], out: Option<&Path>, show: bool) -> Result<Vec<ProofRow>> {
-    let t0 = std::time::Instant::now();
+/// One line per case: `i/n label seed (conditions): named … ok|WRONG (s)`, plus the error.
+pub fn case_line(i: usize, n: usize, r: &ProofRow) -> String {
+    let mut s = format!(
+        "{}/{} {} seed {} ({}): named {}{} {} ({:.1} s)",
+        i + 1,
+        n,
+        r.truth,
+        r.seed,
+        r.conditions,
+        r.named,
+        r.unexplained
+            .as_ref()
+            .map_or(String::new(), |u| format!(", unexplained {u}")),
+        if r.correct { "ok" } else { "WRONG" },
+        r.seconds
+    );
+    if let Some(e) = &r.error {
+        s += &format!("\n    {e}");
+    }
+    s
+}
+
+/// Runs every case in order (no parallelism: the machine is shared). Each case is a stage of
+/// `progress` and its result line ([`case_line`]) a note; `keep` receives each case's row and,
+/// unless it failed, what was generated and diagnosed.
+pub fn run_plan(
+    cases: &[CaseSpec],
+    progress: &mut dyn Progress,
+    keep: &mut dyn FnMut(&CaseSpec, &ProofRow, Option<CaseOutput>) -> Result<()>,
+) -> Result<Vec<ProofRow>> {
     let mut rows = Vec::with_capacity(cases.len());
     for (i, c) in cases.iter().enumerate() {
-        let r = run_case_guarded(c, out);
-        if show {
-            eprintln!(
-                "[{:>6.0} s] {}/{} {} seed {} ({}): named {}{} {} ({:.1} s)",
-                t0.elapsed().as_secs_f64(),
-                i + 1,
-                cases.len(),
-                r.truth,
-                r.seed,
-                r.conditions,
-                r.named,
-                r.unexplained
-                    .as_ref()
-                    .map_or(String::new(), |u| format!(", unexplained {u}")),
-                if r.correct { "ok" } else { "WRONG" },
-                r.seconds
-            );
-            if let Some(e) = &r.error {
-                eprintln!("    {e}");
-            }
-        }
+        progress.stage(&format!("{} seed {}", c.label, c.seed));
+        progress.advance(i as u64, cases.len() as u64);
+        let (r, o) = run_case_guarded(c);
+        progress.note(&case_line(i, cases.len(), &r));
+        keep(c, &r, o)?;
         rows.push(r);
     }
     Ok(rows)
@@ -574,8 +613,7 @@ pub fn run_proof(
     nulls: usize,
     seed0: u64,
     duration_s: f64,
-    out: Option<&Path>,
-    show: bool,
+    progress: &mut dyn Progress,
 ) -> Result<Vec<ProofRow>> {
     let specs = plan(&PlanOptions {
         singles: effects.iter().map(|s| s.to_string()).collect(),
@@ -590,7 +628,7 @@ pub fn run_proof(
         max_samples: usize::MAX,
         vary: false,
     });
-    run_plan(&specs, out, show)
+    run_plan(&specs, progress, &mut |_, _, _| Ok(()))
 }
 
 /// Coverage of ±2σ for one parameter kind.

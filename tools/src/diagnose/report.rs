@@ -1,13 +1,10 @@
-//! Report of a diagnosis: the JSON of the issue, plain words, and SVG plots.
+//! Report of a diagnosis: the JSON of the issue and plain words (the SVG plots and files are
+//! drawn by `crate::cli::diagnose`).
 
-use super::fit::{residuals, CHANNEL_NAMES};
+use super::fit::CHANNEL_NAMES;
 use super::{CandidateOutcome, Diagnosis};
 use crate::effect::Effect;
-use crate::ident::spectrum::amplitude_spectrum;
-use crate::plot::{lines, Series};
-use anyhow::Result;
 use serde_json::{json, Map, Value};
-use std::path::Path;
 
 /// Parameters of the effect `id` whose values sit at `off..off + len` of a fit, as (JSON name
 /// with unit, value, σ); cogging sine/cosine become amplitude and pitch, gravity its
@@ -122,59 +119,46 @@ pub fn validation_summary(d: &Diagnosis) -> (usize, f64, f64) {
     }
 }
 
-/// The JSON report (`effect`, `parameters`, `validation`, `candidates` as the issue specifies,
-/// plus uncertainties, calibration and location).
-pub fn to_json(d: &Diagnosis) -> Value {
-    let nc = d.calibration.names.len();
-    let mut params = Map::new();
-    let mut unc = Map::new();
-    let mut effects = Vec::new();
-    let fe = final_effects(d);
-    for (i, (id, p, orient, o)) in fe.iter().enumerate() {
-        let mut pm = Map::new();
-        let mut um = Map::new();
-        for (n, v, s) in p {
-            pm.insert(n.clone(), json!(v));
-            um.insert(
-                n.clone(),
-                if s.is_finite() { json!(s) } else { Value::Null },
-            );
-        }
-        if let Some(o) = orient {
-            pm.insert("orientation".into(), json!(o));
-        }
-        if *id == Effect::ServoLag {
-            if let Some((rms, peak)) = following_error(d) {
-                pm.insert("servo_following_error_rms_m".into(), json!(rms));
-                pm.insert("servo_following_error_peak_m".into(), json!(peak));
-            }
-        }
-        if i == 0 {
-            params = pm.clone();
-            unc = um.clone();
-        }
-        let c = o.best_channel;
-        effects.push(json!({
-            "effect": id, "words": o.words, "parameters": pm, "uncertainty": um,
-            "validation": {"channel": CHANNEL_NAMES[c], "nrmse_before": o.nrmse_before[c],
-                "nrmse_after": o.val_nrmse[c], "reduction": o.reduction, "model_form_allowance": o.allowance,
-                "delta_neg2loglik": o.delta_val},
-            "delta_bic": o.delta_bic,
-        }));
+/// One selected effect in the JSON: (object, parameters, uncertainties).
+fn effect_json(
+    d: &Diagnosis,
+    id: Effect,
+    p: &[(String, f64, f64)],
+    orient: &Option<String>,
+    o: &CandidateOutcome,
+) -> (Value, Map<String, Value>, Map<String, Value>) {
+    let mut pm = Map::new();
+    let mut um = Map::new();
+    for (n, v, s) in p {
+        pm.insert(n.clone(), json!(v));
+        um.insert(
+            n.clone(),
+            if s.is_finite() { json!(s) } else { Value::Null },
+        );
     }
-    let (c, before, after) = validation_summary(d);
-    let mut per = Map::new();
-    let after_all = d.final_val_nrmse;
-    for k in 0..3 {
-        if d.val_nrmse_nominal[k].is_finite() {
-            per.insert(
-                CHANNEL_NAMES[k].into(),
-                json!({"nrmse_before": d.val_nrmse_nominal[k], "nrmse_after": after_all[k]}),
-            );
+    if let Some(o) = orient {
+        pm.insert("orientation".into(), json!(o));
+    }
+    if id == Effect::ServoLag {
+        if let Some((rms, peak)) = following_error(d) {
+            pm.insert("servo_following_error_rms_m".into(), json!(rms));
+            pm.insert("servo_following_error_peak_m".into(), json!(peak));
         }
     }
-    let cands: Vec<Value> = d
-        .candidates
+    let c = o.best_channel;
+    let e = json!({
+        "effect": id, "words": o.words, "parameters": pm, "uncertainty": um,
+        "validation": {"channel": CHANNEL_NAMES[c], "nrmse_before": o.nrmse_before[c],
+            "nrmse_after": o.val_nrmse[c], "reduction": o.reduction, "model_form_allowance": o.allowance,
+            "delta_neg2loglik": o.delta_val},
+        "delta_bic": o.delta_bic,
+    });
+    (e, pm, um)
+}
+
+/// The first round's candidates in the JSON.
+fn candidates_json(d: &Diagnosis) -> Vec<Value> {
+    d.candidates
         .iter()
         .map(|o| {
             let (p, orient) = effect_parameters(o);
@@ -193,9 +177,40 @@ pub fn to_json(d: &Diagnosis) -> Value {
                 "passed": o.passed, "reason": o.reason, "parameters": pm,
             })
         })
-        .collect();
+        .collect()
+}
+
+/// Validation NRMSE per recorded channel before (calibrated nominal) and after (final model).
+fn per_channel_json(d: &Diagnosis) -> Map<String, Value> {
+    let mut per = Map::new();
+    for k in 0..3 {
+        if d.val_nrmse_nominal[k].is_finite() {
+            per.insert(
+                CHANNEL_NAMES[k].into(),
+                json!({"nrmse_before": d.val_nrmse_nominal[k], "nrmse_after": d.final_val_nrmse[k]}),
+            );
+        }
+    }
+    per
+}
+
+/// The JSON report (`effect`, `parameters`, `validation`, `candidates` as the issue specifies,
+/// plus `effects`, `unexplained`, uncertainties, calibration, location and the honesty
+/// measurements).
+pub fn to_json(d: &Diagnosis) -> Value {
+    let mut params = Map::new();
+    let mut unc = Map::new();
+    let mut effects = Vec::new();
+    for (i, (id, p, orient, o)) in final_effects(d).iter().enumerate() {
+        let (e, pm, um) = effect_json(d, *id, p, orient, o);
+        if i == 0 {
+            (params, unc) = (pm, um);
+        }
+        effects.push(e);
+    }
+    let (c, before, after) = validation_summary(d);
     let mut cal = Map::new();
-    for i in 0..nc {
+    for i in 0..d.calibration.names.len() {
         cal.insert(
             d.calibration.names[i].into(),
             json!({"value": d.calibration.values[i], "std": d.calibration.std[i]}),
@@ -207,11 +222,12 @@ pub fn to_json(d: &Diagnosis) -> Value {
         "effects": effects,
         "unexplained": d.unexplained.as_ref().map(|u| serde_json::to_value(u).unwrap_or(Value::Null)),
         "assumptions": d.assumptions,
+        "honesty": serde_json::to_value(&d.honesty).unwrap_or(Value::Null),
         "selection_rounds": d.rounds,
         "parameters": params,
         "uncertainty": unc,
-        "validation": {"nrmse_before": before, "nrmse_after": after, "channel": CHANNEL_NAMES[c], "per_channel": per},
-        "candidates": cands,
+        "validation": {"nrmse_before": before, "nrmse_after": after, "channel": CHANNEL_NAMES[c], "per_channel": per_channel_json(d)},
+        "candidates": candidates_json(d),
         "calibration": cal,
         "location": serde_json::to_value(&d.location).unwrap_or(Value::Null),
         "model_evaluations": d.evaluations,
@@ -224,12 +240,11 @@ pub fn to_json(d: &Diagnosis) -> Value {
     })
 }
 
-/// Plain-words report.
-pub fn words(d: &Diagnosis) -> String {
-    let nc = d.calibration.names.len();
+/// The calibration, where the residual lies, the model modes and the assumptions, in words.
+fn calibration_words(d: &Diagnosis) -> String {
     let mut s = String::new();
     s += "Calibration of the nominal model (fit recordings):\n";
-    for i in 0..nc {
+    for i in 0..d.calibration.names.len() {
         s += &format!(
             "  {} = {:.5} ± {:.2e}\n",
             d.calibration.names[i], d.calibration.values[i], d.calibration.std[i]
@@ -251,6 +266,12 @@ pub fn words(d: &Diagnosis) -> String {
     for a in &d.assumptions {
         s += &format!("ASSUMPTION: {a}\n");
     }
+    s
+}
+
+/// Every selected effect with its parameters and validation gain, in words.
+fn effects_words(d: &Diagnosis) -> String {
+    let mut s = String::new();
     let (c, before, _) = validation_summary(d);
     let fe = final_effects(d);
     if fe.is_empty() {
@@ -287,26 +308,41 @@ pub fn words(d: &Diagnosis) -> String {
             o.whiteness.1
         );
     }
+    s
+}
+
+/// What stays unexplained, in words.
+fn unexplained_words(d: &Diagnosis) -> String {
     match &d.unexplained {
-        Some(u) => {
-            s += &format!(
-                "\nUNEXPLAINED: {} keeps a structured residual {:.1}× its noise (NRMSE {:.4}, Ljung–Box {:.0}) in {:.2}–{:.2} Hz{}; windows {:?}; correlation with commanded velocity {:+.2}, acceleration {:+.2}\n",
-                u.channel,
-                u.residual_over_noise,
-                u.nrmse,
-                u.ljung_box_q,
-                u.band_hz[0],
-                u.band_hz[1],
-                u.nearest_model_mode_hz
-                    .map(|f| format!(" (nearest model mode {f:.2} Hz)"))
-                    .unwrap_or_default(),
-                u.windows,
-                u.correlation_velocity,
-                u.correlation_acceleration
-            );
-        }
-        None => s += "\nNothing structured above noise is left on the validation recording.\n",
+        Some(u) => format!(
+            "\nUNEXPLAINED: {} keeps a structured residual {:.1}× its noise (rms {:.1}× the noise, NRMSE {:.4}, Ljung–Box {:.0}) in {:.2}–{:.2} Hz{}; windows {:?}; correlation with commanded velocity {:+.2}, acceleration {:+.2}{}\n",
+            u.channel,
+            u.structured_over_noise,
+            u.residual_over_noise,
+            u.nrmse,
+            u.ljung_box_q,
+            u.band_hz[0],
+            u.band_hz[1],
+            u.nearest_model_mode_hz
+                .map(|f| format!(" (nearest model mode {f:.2} Hz)"))
+                .unwrap_or_default(),
+            u.windows,
+            u.correlation_velocity,
+            u.correlation_acceleration,
+            u.closest_catalogue_effect
+                .as_ref()
+                .map(|c| format!("\n  closest catalogue effect, not named: {c}"))
+                .unwrap_or_default()
+        ),
+        None => "\nNothing structured above noise is left on the validation recording.\n".into(),
     }
+}
+
+/// Plain-words report.
+pub fn words(d: &Diagnosis) -> String {
+    let mut s = calibration_words(d);
+    s += &effects_words(d);
+    s += &unexplained_words(d);
     s += "\nCandidates (best validation gain first):\n";
     for o in &d.candidates {
         s += &format!(
@@ -321,110 +357,4 @@ pub fn words(d: &Diagnosis) -> String {
         );
     }
     s
-}
-
-/// Writes `report.md`, `diagnosis.json` and the SVG plots into `dir`.
-pub fn write_report(d: &Diagnosis, dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir)?;
-    std::fs::write(
-        dir.join("report.md"),
-        format!("# Diagnosis\n\n```\n{}```\n", words(d)),
-    )?;
-    std::fs::write(
-        dir.join("diagnosis.json"),
-        serde_json::to_string_pretty(&to_json(d))?,
-    )?;
-    let v = &d.validate;
-    let t = &v.time_s;
-    let aug = &d.final_val_pred;
-    let r0 = residuals(v, &d.val_pred_nominal);
-    let r1 = residuals(v, aug);
-    for c in 0..3 {
-        let meas = match c {
-            0 => &v.base_m,
-            1 => &v.tip_m,
-            _ => &v.force_n,
-        };
-        let (Some(meas), Some(r0), Some(r1)) = (meas, &r0[c], &r1[c]) else {
-            continue;
-        };
-        let nominal: Vec<f64> = meas.iter().zip(r0).map(|(m, r)| m - r).collect();
-        let augmented: Vec<f64> = meas.iter().zip(r1).map(|(m, r)| m - r).collect();
-        let name = CHANNEL_NAMES[c];
-        lines(
-            &dir.join(format!("{name}_recording.svg")),
-            &format!(
-                "validation {name}: recording, nominal, augmented ({})",
-                d.effect
-            ),
-            "time (s)",
-            name,
-            &[
-                Series {
-                    label: "recording".into(),
-                    x: t,
-                    y: meas,
-                },
-                Series {
-                    label: "nominal (calibrated)".into(),
-                    x: t,
-                    y: &nominal,
-                },
-                Series {
-                    label: format!("augmented ({})", d.effect),
-                    x: t,
-                    y: &augmented,
-                },
-            ],
-            false,
-        )?;
-        lines(
-            &dir.join(format!("{name}_residual.svg")),
-            &format!("validation {name} residual before/after"),
-            "time (s)",
-            name,
-            &[
-                Series {
-                    label: "nominal".into(),
-                    x: t,
-                    y: r0,
-                },
-                Series {
-                    label: format!("augmented ({})", d.effect),
-                    x: t,
-                    y: r1,
-                },
-            ],
-            false,
-        )?;
-        let (f, m0) = amplitude_spectrum(r0, 1.0 / v.dt);
-        let (_, m1) = amplitude_spectrum(r1, 1.0 / v.dt);
-        lines(
-            &dir.join(format!("{name}_residual_spectrum.svg")),
-            &format!(
-                "validation {name} residual spectrum (model modes {:?} Hz)",
-                d.location
-                    .model_freqs_hz
-                    .iter()
-                    .map(|f| (f * 100.0).round() / 100.0)
-                    .collect::<Vec<_>>()
-            ),
-            "frequency (Hz)",
-            "amplitude",
-            &[
-                Series {
-                    label: "nominal".into(),
-                    x: &f,
-                    y: &m0,
-                },
-                Series {
-                    label: format!("augmented ({})", d.effect),
-                    x: &f,
-                    y: &m1,
-                },
-            ],
-            true,
-        )?;
-    }
-    Ok(())
 }

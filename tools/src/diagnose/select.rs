@@ -27,7 +27,18 @@
 //! 4. **whiteness** (recordings): the correlated part of that validation residual (Σ of the
 //!    squared autocovariances over [`LJUNG_BOX_LAGS`] lags, the Ljung–Box numerator) decreases;
 //! 5. **significance**: an effect parameter whose zero means "no effect" is ≥ [`MIN_SIGMAS`] σ
-//!    from zero.
+//!    from zero;
+//! 6. **it accounts for the structure** (recordings): on that channel the *structured* part of
+//!    the validation residual — its variance above the white-noise floor, S = var(r) − σ̂², σ̂ the
+//!    first-difference noise estimate of [`super::unexplained::difference_noise`] (the smaller
+//!    of the two residuals' estimates) — falls by at least [`MIN_STRUCTURE_EXPLAINED`] (most of
+//!    it). An effect that removes a sliver of a large structured residual is not what that
+//!    residual is; the residual is reported unexplained instead of being given its name;
+//! 7. **physically possible** (recordings): no parameter sits on the wrong side of a physical
+//!    limit by more than 2 σ (a negative sensor delay — the sensor reporting before the motion —,
+//!    negative Coulomb friction or viscous damping), and no parameter sits at a search limit of
+//!    its range (within 1 % of a bound of a bounded parameter, except a bound at 0, which means
+//!    "absent"): there the fit did not find the effect, it ran out of room.
 //!
 //! Among those, the largest validation likelihood gain wins; if none passes, the answer is
 //! `none`. In `diagnose` forward selection applies the guard once per round against the model
@@ -46,6 +57,8 @@ pub const VALIDATION_MARGIN: f64 = 10.0;
 pub const MIN_SIGMAS: f64 = 3.0;
 /// Ljung–Box lags.
 pub const LJUNG_BOX_LAGS: usize = 20;
+/// Least fraction of the structured validation residual an effect must remove (condition 6).
+pub const MIN_STRUCTURE_EXPLAINED: f64 = 0.5;
 
 /// What a candidate brought, in the terms of the guard (module docs).
 #[derive(Clone, Debug)]
@@ -63,6 +76,10 @@ pub struct Evidence {
     pub structured: Option<(f64, f64)>,
     /// Largest |value|/σ of a null-at-zero parameter (∞ if it has none).
     pub significance: f64,
+    /// Fraction of the structured residual the candidate removes (`None`: not a time series).
+    pub structure_explained: Option<f64>,
+    /// Physical limits the fit violates, in words (condition 7).
+    pub implausible: Vec<String>,
 }
 
 /// The guard of the module docs: the list of failed conditions, in words (empty: named).
@@ -97,6 +114,16 @@ pub fn guard(e: &Evidence) -> Vec<String> {
             e.significance
         ));
     }
+    if let Some(f) = e.structure_explained {
+        if !(f >= MIN_STRUCTURE_EXPLAINED) {
+            fails.push(format!(
+                "removes only {:.0} % of the structured residual (less than {:.0} %): it does not account for it",
+                100.0 * f,
+                100.0 * MIN_STRUCTURE_EXPLAINED
+            ));
+        }
+    }
+    fails.extend(e.implausible.iter().cloned());
     fails
 }
 
@@ -112,18 +139,22 @@ mod tests {
             allowance: 0.05,
             structured: Some((2.0, 1.0)),
             significance: 12.0,
+            structure_explained: Some(0.9),
+            implausible: vec![],
         }
     }
 
     #[test]
     fn every_condition_can_fail_alone() {
         assert!(guard(&strong()).is_empty());
-        let cases: [fn(&mut Evidence); 5] = [
+        let cases: [fn(&mut Evidence); 7] = [
             |e| e.delta_bic = -5.0,
             |e| e.delta_val = 3.0,
             |e| e.allowance = 0.45,
             |e| e.structured = Some((1.0, 1.5)),
             |e| e.significance = 2.0,
+            |e| e.structure_explained = Some(0.2),
+            |e| e.implausible = vec!["negative delay".into()],
         ];
         for f in cases {
             let mut e = strong();

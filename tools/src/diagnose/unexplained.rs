@@ -3,10 +3,11 @@
 //! A channel's validation residual r is *unexplained* when it is both
 //! 1. **structured**: the Ljung–Box statistic over [`LJUNG_BOX_LAGS`] lags exceeds the χ²(20)
 //!    0.1 % critical value 45.3 (white noise would exceed it once in a thousand recordings), and
-//! 2. **well above the noise**: its rms exceeds [`NOISE_FACTOR`] × the sensor-noise rms, the noise
-//!    estimated from the residual itself by the first-difference estimator
-//!    σ̂² = mean((r_{k+1} − r_k)²) / 2 (von Neumann 1941; exact for white noise, an upper bound when
-//!    the residual has fast structure).
+//! 2. **well above the noise**: its structured rms √(rms² − σ̂²) is at least
+//!    [`STRUCTURE_OVER_NOISE`] × the noise rms σ̂, σ̂² the residual's one-step prediction-error
+//!    variance from its own 20 previous samples ([`innovation_variance`]): what its past cannot
+//!    predict. (The first-difference estimator σ̂² = mean((r_{k+1} − r_k)²)/2, von Neumann 1941,
+//!    [`difference_noise`], counts structure near the Nyquist rate as noise.)
 //!
 //! It is located, never named: the channel, the band holding half its spectral power around
 //! the spectral peak, the 1 s windows where its rms is over twice the median window rms, the
@@ -17,12 +18,14 @@ use super::fit::CHANNEL_NAMES;
 use super::select::{ljung_box, LJUNG_BOX_LAGS};
 use super::sim::{Prediction, Prepared};
 use crate::ident::spectrum::amplitude_spectrum;
+use crate::numeric::stats::innovation_variance;
 use serde::Serialize;
 
 /// χ²(20) upper 0.1 % point.
 pub const LJUNG_BOX_CRITICAL: f64 = 45.3;
-/// Residual rms over noise rms that counts as "well above noise".
-pub const NOISE_FACTOR: f64 = 3.0;
+/// Structured rms (above the noise floor) over the noise rms that counts as "well above noise":
+/// the structure is at least as large as the noise (the residual rms ≥ √2 × the noise rms).
+pub const STRUCTURE_OVER_NOISE: f64 = 1.0;
 
 /// A located residual the catalogue does not explain.
 #[derive(Clone, Debug, Serialize)]
@@ -37,6 +40,8 @@ pub struct Unexplained {
     pub nrmse: f64,
     /// rms of the residual over the estimated noise rms.
     pub residual_over_noise: f64,
+    /// Structured rms √(rms² − σ̂²) over the noise rms σ̂.
+    pub structured_over_noise: f64,
     /// Ljung–Box Q (20 lags) of the residual.
     pub ljung_box_q: f64,
     /// Nearest model mode (Hz) to the band centre, if any model modes exist.
@@ -45,6 +50,9 @@ pub struct Unexplained {
     pub correlation_velocity: f64,
     /// Correlation with the commanded acceleration.
     pub correlation_acceleration: f64,
+    /// The catalogue effect that came closest on the last selection round and why it was not
+    /// named (`None` when no candidate was tried).
+    pub closest_catalogue_effect: Option<String>,
 }
 
 fn rms(v: &[f64]) -> f64 {
@@ -82,6 +90,112 @@ pub fn difference_noise(r: &[f64]) -> f64 {
     (s / (2.0 * (r.len() - 1) as f64)).sqrt()
 }
 
+/// Band (Hz): the half-power edges around the residual's spectral peak above 0.05 Hz.
+fn band_of(r: &[f64], rate: f64) -> [f64; 2] {
+    let (f, a) = amplitude_spectrum(r, rate);
+    let (mut ip, mut amax) = (0, 0.0);
+    for (i, (&fi, &ai)) in f.iter().zip(&a).enumerate() {
+        if fi > 0.05 && ai > amax {
+            amax = ai;
+            ip = i;
+        }
+    }
+    let half = amax / std::f64::consts::SQRT_2;
+    let mut lo = ip;
+    while lo > 0 && a[lo - 1] >= half {
+        lo -= 1;
+    }
+    let mut hi = ip;
+    while hi + 1 < a.len() && a[hi + 1] >= half {
+        hi += 1;
+    }
+    [f[lo], f[hi]]
+}
+
+/// The 1 s windows (s, merged when adjacent, at most 5) where the residual's rms is over twice
+/// the median window rms.
+fn windows_of(centred: &[f64], time_s: &[f64], rate: f64) -> Vec<[f64; 2]> {
+    let w = (rate.round() as usize).max(1);
+    let wr: Vec<f64> = centred.chunks(w).map(rms).collect();
+    let mut sorted = wr.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    let mut windows: Vec<[f64; 2]> = Vec::new();
+    for (i, v) in wr.iter().enumerate() {
+        if *v > 2.0 * median {
+            let t0 = time_s[i * w];
+            let t1 = time_s[((i + 1) * w).min(time_s.len()) - 1];
+            match windows.last_mut() {
+                Some(last) if (t0 - last[1]).abs() <= 1.5 / rate => last[1] = t1,
+                _ => windows.push([t0, t1]),
+            }
+        }
+    }
+    windows.truncate(5);
+    windows
+}
+
+/// Commanded velocity and acceleration (forward differences).
+fn command_rates(cmd_m: &[f64], rate: f64) -> (Vec<f64>, Vec<f64>) {
+    let diff = |v: &[f64]| -> Vec<f64> {
+        (0..v.len())
+            .map(|k| {
+                let k1 = (k + 1).min(v.len() - 1);
+                (v[k1] - v[k]) * rate
+            })
+            .collect()
+    };
+    let vel = diff(cmd_m);
+    let acc = diff(&vel);
+    (vel, acc)
+}
+
+/// The residual `r` of channel `c` located, when it is structured and above the noise
+/// (module docs); `None` otherwise.
+fn locate_channel(d: &Prepared, c: usize, r: &[f64], model_freqs: &[f64]) -> Option<Unexplained> {
+    if r.len() < 4 * LJUNG_BOX_LAGS {
+        return None;
+    }
+    let rate = 1.0 / d.dt;
+    let noise = innovation_variance(r, LJUNG_BOX_LAGS).sqrt();
+    let m = r.iter().sum::<f64>() / r.len() as f64;
+    let centred: Vec<f64> = r.iter().map(|x| x - m).collect();
+    let e = rms(&centred);
+    let structured = (e * e - noise * noise).max(0.0).sqrt();
+    let ratio = if noise > 0.0 {
+        structured / noise
+    } else {
+        f64::INFINITY
+    };
+    let q = ljung_box(r, LJUNG_BOX_LAGS);
+    if !(q > LJUNG_BOX_CRITICAL && ratio >= STRUCTURE_OVER_NOISE) {
+        return None;
+    }
+    let sig = super::channel_signal(d, c);
+    let ms = sig.iter().sum::<f64>() / sig.len().max(1) as f64;
+    let ss = rms(&sig.iter().map(|x| x - ms).collect::<Vec<_>>());
+    let band = band_of(r, rate);
+    let centre = 0.5 * (band[0] + band[1]);
+    let nearest = model_freqs
+        .iter()
+        .copied()
+        .min_by(|x, y| (x - centre).abs().total_cmp(&(y - centre).abs()));
+    let (vel, acc) = command_rates(&d.cmd_m, rate);
+    Some(Unexplained {
+        channel: CHANNEL_NAMES[c].to_string(),
+        band_hz: band,
+        windows: windows_of(&centred, &d.time_s, rate),
+        nrmse: e / ss.max(1e-300),
+        residual_over_noise: e / noise.max(1e-300),
+        structured_over_noise: ratio,
+        ljung_box_q: q,
+        nearest_model_mode_hz: nearest,
+        correlation_velocity: corr(&centred, &vel),
+        correlation_acceleration: corr(&centred, &acc),
+        closest_catalogue_effect: None,
+    })
+}
+
 /// The channel whose validation residual is most clearly structured and above noise, located;
 /// `None` when every channel's residual is white or at the noise level.
 pub fn assess(
@@ -90,98 +204,15 @@ pub fn assess(
     _pred: &Prediction,
     model_freqs: &[f64],
 ) -> Option<Unexplained> {
-    let rate = 1.0 / d.dt;
     let mut best: Option<Unexplained> = None;
     for c in 0..3 {
         let Some(r) = &vres[c] else { continue };
-        if r.len() < 4 * LJUNG_BOX_LAGS {
+        let Some(u) = locate_channel(d, c, r, model_freqs) else {
             continue;
-        }
-        let noise = difference_noise(r);
-        let m = r.iter().sum::<f64>() / r.len() as f64;
-        let centred: Vec<f64> = r.iter().map(|x| x - m).collect();
-        let e = rms(&centred);
-        let ratio = if noise > 0.0 {
-            e / noise
-        } else {
-            f64::INFINITY
-        };
-        let q = ljung_box(r, LJUNG_BOX_LAGS);
-        if !(q > LJUNG_BOX_CRITICAL && ratio > NOISE_FACTOR) {
-            continue;
-        }
-        let sig = super::channel_signal(d, c);
-        let ms = sig.iter().sum::<f64>() / sig.len().max(1) as f64;
-        let ss = rms(&sig.iter().map(|x| x - ms).collect::<Vec<_>>());
-        let nrmse = e / ss.max(1e-300);
-        // band: half-power edges around the spectral peak (above 0.05 Hz)
-        let (f, a) = amplitude_spectrum(r, rate);
-        let (mut ip, mut amax) = (0, 0.0);
-        for (i, (&fi, &ai)) in f.iter().zip(&a).enumerate() {
-            if fi > 0.05 && ai > amax {
-                amax = ai;
-                ip = i;
-            }
-        }
-        let half = amax / std::f64::consts::SQRT_2;
-        let mut lo = ip;
-        while lo > 0 && a[lo - 1] >= half {
-            lo -= 1;
-        }
-        let mut hi = ip;
-        while hi + 1 < a.len() && a[hi + 1] >= half {
-            hi += 1;
-        }
-        let band = [f[lo], f[hi]];
-        let centre = 0.5 * (band[0] + band[1]);
-        let nearest = model_freqs
-            .iter()
-            .copied()
-            .min_by(|x, y| (x - centre).abs().total_cmp(&(y - centre).abs()));
-        // windows of 1 s
-        let w = (rate.round() as usize).max(1);
-        let wr: Vec<f64> = centred.chunks(w).map(rms).collect();
-        let mut sorted = wr.clone();
-        sorted.sort_by(f64::total_cmp);
-        let median = sorted[sorted.len() / 2];
-        let mut windows: Vec<[f64; 2]> = Vec::new();
-        for (i, v) in wr.iter().enumerate() {
-            if *v > 2.0 * median {
-                let t0 = d.time_s[i * w];
-                let t1 = d.time_s[((i + 1) * w).min(d.time_s.len()) - 1];
-                match windows.last_mut() {
-                    Some(last) if (t0 - last[1]).abs() <= 1.5 / rate => last[1] = t1,
-                    _ => windows.push([t0, t1]),
-                }
-            }
-        }
-        windows.truncate(5);
-        let vel: Vec<f64> = (0..d.cmd_m.len())
-            .map(|k| {
-                let k1 = (k + 1).min(d.cmd_m.len() - 1);
-                (d.cmd_m[k1] - d.cmd_m[k]) * rate
-            })
-            .collect();
-        let acc: Vec<f64> = (0..vel.len())
-            .map(|k| {
-                let k1 = (k + 1).min(vel.len() - 1);
-                (vel[k1] - vel[k]) * rate
-            })
-            .collect();
-        let u = Unexplained {
-            channel: CHANNEL_NAMES[c].to_string(),
-            band_hz: band,
-            windows,
-            nrmse,
-            residual_over_noise: ratio,
-            ljung_box_q: q,
-            nearest_model_mode_hz: nearest,
-            correlation_velocity: corr(&centred, &vel),
-            correlation_acceleration: corr(&centred, &acc),
         };
         if best
             .as_ref()
-            .map_or(true, |b| u.residual_over_noise > b.residual_over_noise)
+            .map_or(true, |b| u.structured_over_noise > b.structured_over_noise)
         {
             best = Some(u);
         }

@@ -74,6 +74,28 @@ pub struct LmOutcome {
     pub evaluations: usize,
     /// Why the minimiser stopped, in words (`evaluation budget spent` when the budget ended it).
     pub termination: String,
+    /// The crate's termination counts as a success (converged, zero residuals, residuals
+    /// orthogonal to the Jacobian); false when the budget ended it.
+    pub converged: bool,
+    /// Why it stopped in words ([`termination_text`], or `evaluation budget spent`).
+    pub reason: String,
+}
+
+/// The Levenberg–Marquardt termination in words (no debug text in messages).
+pub fn termination_text(t: &levenberg_marquardt::TerminationReason) -> String {
+    use levenberg_marquardt::TerminationReason as T;
+    match t {
+        T::Converged { .. } => "converged".into(),
+        T::ResidualsZero => "zero residuals".into(),
+        T::Orthogonal => "residuals orthogonal to the Jacobian".into(),
+        T::LostPatience => "too many evaluations".into(),
+        T::NoImprovementPossible(s) => format!("no improvement possible ({s})"),
+        T::NoParameters => "no parameters".into(),
+        T::NoResiduals => "no residuals".into(),
+        T::WrongDimensions(s) => format!("wrong dimensions ({s})"),
+        T::Numerical(s) => format!("numerical problem ({s})"),
+        T::User(s) => s.to_string(),
+    }
 }
 
 /// Projects `x` onto the box `bounds`.
@@ -87,8 +109,13 @@ pub fn project(x: &DVector<f64>, bounds: &Option<(Vec<f64>, Vec<f64>)>) -> DVect
     }
 }
 
+/// An analytic Jacobian: x ↦ ∂r/∂x (m × n), `None` where it cannot be evaluated.
+pub type JacobianFn<'f> = &'f dyn Fn(&DVector<f64>) -> Option<DMatrix<f64>>;
+
 struct Adapter<'f, F> {
     f: &'f F,
+    /// Analytic Jacobian; finite differences of `opts` when `None`.
+    jac: Option<JacobianFn<'f>>,
     opts: &'f LmOptions,
     x: DVector<f64>,
     evaluations: Cell<usize>,
@@ -143,6 +170,9 @@ impl<F: Fn(&DVector<f64>) -> Option<DVector<f64>>> LeastSquaresProblem<f64, Dyn,
 
     fn jacobian(&self) -> Option<DMatrix<f64>> {
         let r0 = self.residuals()?;
+        if let Some(jac) = self.jac {
+            return jac(&self.x);
+        }
         let x = self.x.clone();
         fd_jacobian(&|y: &DVector<f64>| self.eval(y), &x, &r0, self.opts)
     }
@@ -186,9 +216,36 @@ pub fn minimize<F>(f: &F, x0: DVector<f64>, opts: &LmOptions) -> LmOutcome
 where
     F: Fn(&DVector<f64>) -> Option<DVector<f64>>,
 {
+    minimize_inner(f, None, x0, opts)
+}
+
+/// [`minimize`] with an analytic Jacobian `jac` instead of finite differences (`opts.steps` and
+/// `opts.difference` are then unused; Jacobian evaluations do not count against the budget).
+pub fn minimize_with_jacobian<F>(
+    f: &F,
+    jac: JacobianFn<'_>,
+    x0: DVector<f64>,
+    opts: &LmOptions,
+) -> LmOutcome
+where
+    F: Fn(&DVector<f64>) -> Option<DVector<f64>>,
+{
+    minimize_inner(f, Some(jac), x0, opts)
+}
+
+fn minimize_inner<F>(
+    f: &F,
+    jac: Option<JacobianFn<'_>>,
+    x0: DVector<f64>,
+    opts: &LmOptions,
+) -> LmOutcome
+where
+    F: Fn(&DVector<f64>) -> Option<DVector<f64>>,
+{
     let x0 = project(&x0, &opts.bounds);
     let adapter = Adapter {
         f,
+        jac,
         opts,
         x: x0.clone(),
         evaluations: Cell::new(0),
@@ -201,10 +258,15 @@ where
         .with_ftol(opts.ftol)
         .with_xtol(opts.xtol)
         .minimize(adapter);
-    let termination = if adapter.spent.get() {
-        "evaluation budget spent".to_string()
+    let spent = "evaluation budget spent".to_string();
+    let (termination, reason, converged) = if adapter.spent.get() {
+        (spent.clone(), spent, false)
     } else {
-        format!("{:?}", report.termination)
+        (
+            format!("{:?}", report.termination),
+            termination_text(&report.termination),
+            report.termination.was_successful(),
+        )
     };
     let (cost, x) = adapter.best.borrow().clone().unwrap_or((f64::INFINITY, x0));
     LmOutcome {
@@ -212,6 +274,8 @@ where
         cost,
         evaluations: adapter.evaluations.get(),
         termination,
+        converged,
+        reason,
     }
 }
 
@@ -248,10 +312,22 @@ pub fn covariance(j: &DMatrix<f64>) -> DMatrix<f64> {
 
 /// [`covariance`] of a column-normalised Jacobian.
 fn scaled_covariance(j: &DMatrix<f64>) -> DMatrix<f64> {
+    let (mut cov, unidentified) = scaled_pseudo_inverse(j);
+    for i in 0..cov.nrows() {
+        if unidentified[i] {
+            cov[(i, i)] = f64::NAN;
+        }
+    }
+    cov
+}
+
+/// Pseudo-inverse of JᵀJ of a column-normalised Jacobian (eigenvalues below 1e-10 of the
+/// largest dropped) and, per parameter, whether it has weight (> 1e-3) in a dropped direction.
+fn scaled_pseudo_inverse(j: &DMatrix<f64>) -> (DMatrix<f64>, Vec<bool>) {
     let n = j.ncols();
     let jtj = j.transpose() * j;
     if !jtj.iter().all(|v| v.is_finite()) {
-        return DMatrix::from_element(n, n, f64::NAN);
+        return (DMatrix::from_element(n, n, f64::NAN), vec![true; n]);
     }
     let eig = nalgebra::SymmetricEigen::new(jtj);
     let lmax = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
@@ -268,12 +344,7 @@ fn scaled_covariance(j: &DMatrix<f64>) -> DMatrix<f64> {
             }
         }
     }
-    for i in 0..n {
-        if null_weight[i] > 1e-3 {
-            cov[(i, i)] = f64::NAN;
-        }
-    }
-    cov
+    (cov, null_weight.iter().map(|w| *w > 1e-3).collect())
 }
 
 /// Linearised 1-σ of every parameter (representation units) from the Jacobian `j` of the
@@ -291,6 +362,88 @@ pub fn std_errors(j: &DMatrix<f64>, cost: f64) -> Vec<f64> {
                 f64::NAN
             } else {
                 v.max(0.0).sqrt()
+            }
+        })
+        .collect()
+}
+
+/// Linearised 1-σ of every parameter (representation units) when the residuals are *not*
+/// independent: the sandwich (Huber–White) covariance `(JᵀJ)⁻¹ S (JᵀJ)⁻¹` with the long-run
+/// covariance of the scores g_t = J_tᵀ r_t estimated by non-overlapping batch means
+/// (S = Σ_blocks G_b G_bᵀ, G_b = Σ_{t∈b} g_t; e.g. Flegal & Jones 2010) inside each of the
+/// independent `segments` (lengths of the consecutive series r is made of: one per recording and
+/// channel; their sum must be `r.len()`, else r is one series). The block length is
+/// `block_factor` × the largest integrated autocorrelation time ([`crate::numeric::stats::autocorrelation_time`],
+/// at most `max_lag` lags) of a score, capped at a tenth of the segment. For white residuals it
+/// equals [`std_errors`] in expectation; for a residual correlated over τ samples it is about
+/// √τ larger, which `s² (JᵀJ)⁻¹` misses. NaN where not identified (as [`covariance`]).
+///
+/// `j`: m × n, `r`: m, `segments`: lengths summing to m.
+pub fn std_errors_long_run(
+    j: &DMatrix<f64>,
+    r: &DVector<f64>,
+    segments: &[usize],
+    max_lag: usize,
+    block_factor: f64,
+) -> Vec<f64> {
+    let (m, n) = (j.nrows(), j.ncols());
+    if n == 0 || m == 0 || r.len() != m {
+        return vec![f64::NAN; n];
+    }
+    let whole = [m];
+    let segs: &[usize] = if segments.iter().sum::<usize>() == m {
+        segments
+    } else {
+        &whole
+    };
+    let norms: Vec<f64> = (0..n)
+        .map(|i| j.column(i).norm())
+        .map(|v| if v > 0.0 && v.is_finite() { v } else { 1.0 })
+        .collect();
+    let mut js = j.clone();
+    for (i, s) in norms.iter().enumerate() {
+        js.column_mut(i).unscale_mut(*s);
+    }
+    let (pinv, unidentified) = scaled_pseudo_inverse(&js);
+    // scores of the normalised parameters
+    let scores: Vec<Vec<f64>> = (0..n)
+        .map(|i| {
+            js.column(i)
+                .iter()
+                .zip(r.iter())
+                .map(|(a, b)| a * b)
+                .collect()
+        })
+        .collect();
+    let mut s_mat = DMatrix::<f64>::zeros(n, n);
+    let mut start = 0;
+    for &len in segs {
+        let end = start + len;
+        if len == 0 {
+            continue;
+        }
+        let tau = scores
+            .iter()
+            .map(|g| crate::numeric::stats::autocorrelation_time(&g[start..end], max_lag))
+            .fold(1.0, f64::max);
+        let block = ((block_factor * tau).ceil() as usize).clamp(1, (len / 10).max(1));
+        let mut b0 = start;
+        while b0 < end {
+            let b1 = (b0 + block).min(end);
+            let g = DVector::from_iterator(n, scores.iter().map(|s| s[b0..b1].iter().sum::<f64>()));
+            s_mat += &g * g.transpose();
+            b0 = b1;
+        }
+        start = end;
+    }
+    let cov = &pinv * s_mat * &pinv;
+    (0..n)
+        .map(|i| {
+            let v = cov[(i, i)];
+            if unidentified[i] || !v.is_finite() {
+                f64::NAN
+            } else {
+                v.max(0.0).sqrt() / norms[i]
             }
         })
         .collect()
@@ -360,5 +513,49 @@ mod tests {
         // an undetermined direction is NaN
         let j2 = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0]);
         assert!(std_errors(&j2, 1.0).iter().all(|v| v.is_nan()));
+    }
+
+    /// The mean of an AR(1) series with φ = 0.9: the naive σ is too small by √τ ≈ √19; the
+    /// long-run σ matches the scatter of the mean over many series; for white noise the two
+    /// agree.
+    #[test]
+    fn long_run_errors_match_the_scatter_of_a_correlated_mean() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        let noise = Normal::new(0.0, 1.0).unwrap();
+        let m = 4000;
+        let (mut means, mut naive, mut long) = (vec![], vec![], vec![]);
+        for phi in [0.9, 0.0] {
+            for _ in 0..60 {
+                let mut y = vec![0.0; m];
+                let mut prev = 0.0;
+                for v in y.iter_mut() {
+                    prev = phi * prev + noise.sample(&mut rng);
+                    *v = prev;
+                }
+                let mean = y.iter().sum::<f64>() / m as f64;
+                let r = DVector::from_iterator(m, y.iter().map(|v| mean - v));
+                let j = DMatrix::from_element(m, 1, 1.0);
+                means.push(mean);
+                naive.push(std_errors(&j, r.norm_squared())[0]);
+                long.push(std_errors_long_run(&j, &r, &[m], 2000, 5.0)[0]);
+            }
+            let scatter = (means.iter().map(|v| v * v).sum::<f64>() / means.len() as f64).sqrt();
+            let avg = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+            let (sn, sl) = (avg(&naive), avg(&long));
+            assert!(
+                (sl / scatter - 1.0).abs() < 0.3,
+                "φ {phi}: long-run {sl} vs scatter {scatter}"
+            );
+            if phi > 0.0 {
+                assert!(sn < 0.4 * scatter, "naive {sn} vs scatter {scatter}");
+            } else {
+                assert!((sn / scatter - 1.0).abs() < 0.3);
+            }
+            means.clear();
+            naive.clear();
+            long.clear();
+        }
     }
 }

@@ -116,6 +116,43 @@ pub fn ljung_box(r: &[f64], lags: usize) -> f64 {
     q * n as f64 * (n + 2) as f64
 }
 
+/// One-step prediction-error (innovation) variance of `r` under its best linear predictor from
+/// the `order` samples before (an autoregressive fit by Levinson–Durbin on the biased sample
+/// autocovariances; Box & Jenkins, §3.2). What it leaves is the part of `r` its own past cannot
+/// predict: for white noise plus a structure that is smooth *or* oscillatory it estimates the
+/// white-noise variance, where the first-difference estimator counts fast structure as noise.
+/// `var(r) − innovation_variance` is the predictable (structured) variance. 0 for fewer than
+/// `order + 2` samples or a constant `r`.
+pub fn innovation_variance(r: &[f64], order: usize) -> f64 {
+    let n = r.len();
+    if n < order + 2 {
+        return 0.0;
+    }
+    let m = r.iter().sum::<f64>() / n as f64;
+    let c: Vec<f64> = (0..=order)
+        .map(|k| (k..n).map(|i| (r[i] - m) * (r[i - k] - m)).sum::<f64>() / n as f64)
+        .collect();
+    if !(c[0] > 0.0) {
+        return 0.0;
+    }
+    let mut a = vec![0.0; order + 1];
+    let mut e = c[0];
+    for k in 1..=order {
+        let acc: f64 = (1..k).map(|j| a[j] * c[k - j]).sum();
+        let kappa = (c[k] - acc) / e;
+        let prev = a.clone();
+        a[k] = kappa;
+        for j in 1..k {
+            a[j] = prev[j] - kappa * prev[k - j];
+        }
+        e *= 1.0 - kappa * kappa;
+        if !(e > 0.0) {
+            return 0.0;
+        }
+    }
+    e
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -173,5 +210,23 @@ mod tests {
         );
         assert!((neg2ll(&[100.0, 0.0, 100.0], &n)).abs() < 1e-12);
         assert!((delta_bic(-10.0, 2, 100) - (-10.0 + 2.0 * 100f64.ln())).abs() < 1e-12);
+    }
+
+    #[test]
+    fn innovation_variance_sees_fast_structure_as_structure() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+        let n = Normal::new(0.0, 1.0).unwrap();
+        let white: Vec<f64> = (0..20000).map(|_| n.sample(&mut rng)).collect();
+        assert!((innovation_variance(&white, 20) - 1.0).abs() < 0.05);
+        // a sine at 0.4 × the sample rate of amplitude 3 (variance 4.5) on top
+        let fast: Vec<f64> = white
+            .iter()
+            .enumerate()
+            .map(|(k, x)| x + 3.0 * (2.0 * std::f64::consts::PI * 0.4 * k as f64).sin())
+            .collect();
+        let e = innovation_variance(&fast, 20);
+        assert!((e - 1.0).abs() < 0.15, "{e}");
     }
 }

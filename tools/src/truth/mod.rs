@@ -15,7 +15,6 @@
 //! largely absorbs. Geometry, material, damping, noise, channels and move profiles are drawn
 //! widely at random from the seed.
 
-pub mod cli;
 pub mod fe;
 pub mod plant;
 pub mod profile;
@@ -163,20 +162,27 @@ pub fn generate(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCas
     Err(last.unwrap_or_else(|| anyhow::anyhow!("no stable draw")))
 }
 
-fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCase> {
-    let parts = parse_effects(effect)?;
-    if parts.contains(&Effect::Backlash) && parts.contains(&Effect::MountResonance) {
-        bail!("backlash and mount_resonance sit in the same place of the truth plant; hide one");
-    }
-    let mut rng = StdRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0x5eed);
-    let rate = opts.rate_hz;
-    let pi2 = 2.0 * std::f64::consts::PI;
-    let mut truth: BTreeMap<String, serde_json::Value> = BTreeMap::new();
-    // carriage-only for some base-side cases
-    let base_side = parts.iter().all(|e| !e.needs_beam());
-    let with_beam = !(base_side && rng.gen_bool(0.25)) || opts.unmodelled.is_some();
-    // geometry with f1 in 0.6..5 Hz
-    let mut geo;
+/// A case being drawn: everything the steps of [`generate_once`] share.
+struct Draft {
+    parts: Vec<Effect>,
+    truth: BTreeMap<String, serde_json::Value>,
+    geo: Geometry,
+    beam: FeBeam,
+    beam_mass: f64,
+    carriage: f64,
+    zeta: (f64, f64),
+    sensors: Sensors,
+    plant: Plant,
+    spec: ProfileSpec,
+    with_beam: bool,
+    has_base: bool,
+    has_force: bool,
+    rate: f64,
+    cubic_ratio: Option<f64>,
+}
+
+/// Steel or aluminium, length, width (optionally tapered) and thickness with f1 in 0.6–5 Hz.
+fn draw_geometry(rng: &mut StdRng) -> Result<Geometry> {
     loop {
         let steel = rng.gen_bool(0.5);
         let (density, youngs) = if steel {
@@ -190,7 +196,7 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         } else {
             rng.gen_range(0.5..1.0)
         };
-        geo = Geometry {
+        let geo = Geometry {
             length_m: rng.gen_range(0.35..1.0),
             density,
             youngs,
@@ -199,60 +205,73 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         };
         let f1 = f1_hz(&fe_of(&geo))?;
         if (0.6..5.0).contains(&f1) {
+            return Ok(geo);
+        }
+    }
+}
+
+/// Gravity: hanging or upright, thickness rescaled so the load shifts f1 by 4–12 %.
+fn apply_gravity(
+    rng: &mut StdRng,
+    beam: &mut FeBeam,
+    geo: &mut Geometry,
+    truth: &mut BTreeMap<String, serde_json::Value>,
+) -> Result<()> {
+    let sign = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+    let target = rng.gen_range(0.04..0.12);
+    for _ in 0..30 {
+        let f0 = f1_hz(beam)?;
+        let fg = f1_hz(&FeBeam {
+            gravity_sign: sign,
+            ..beam.clone()
+        })
+        .unwrap_or(0.0);
+        let shift = (fg / f0 - 1.0).abs();
+        if (shift / target - 1.0).abs() < 0.05 {
             break;
         }
+        let h = (beam.thickness_m.0 * (shift / target).powf(0.5)).clamp(2e-4, 5e-3);
+        beam.thickness_m = (h, h);
     }
-    let mut beam = fe_of(&geo);
-    // gravity: rescale thickness so the load shifts f1 by 2..8 %
-    if parts.contains(&Effect::GravityAxialLoad) {
-        let sign = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-        let target = rng.gen_range(0.04..0.12);
-        for _ in 0..30 {
-            let f0 = f1_hz(&beam)?;
-            let fg = f1_hz(&FeBeam {
-                gravity_sign: sign,
-                ..beam.clone()
-            })
-            .unwrap_or(0.0);
-            let shift = (fg / f0 - 1.0).abs();
-            if (shift / target - 1.0).abs() < 0.05 {
-                break;
-            }
-            let h = (beam.thickness_m.0 * (shift / target).powf(0.5)).clamp(2e-4, 5e-3);
-            beam.thickness_m = (h, h);
-        }
-        geo.thickness = beam.thickness_m.0;
-        beam.gravity_sign = sign;
-        truth.insert(
-            "orientation".into(),
-            (if sign > 0.0 { "hanging" } else { "upright" }).into(),
-        );
-    }
-    let beam_mass = geo.density * 0.5 * (geo.width.0 + geo.width.1) * geo.thickness * geo.length_m;
-    let carriage = rng.gen_range(1.0..6.0);
-    let zeta = (
-        log_uniform(&mut rng, 0.003, 0.03),
-        log_uniform(&mut rng, 0.003, 0.03),
+    geo.thickness = beam.thickness_m.0;
+    beam.gravity_sign = sign;
+    truth.insert(
+        "orientation".into(),
+        (if sign > 0.0 { "hanging" } else { "upright" }).into(),
     );
-    // sensors
-    let sensors = unmodelled::scale_noise(
+    Ok(())
+}
+
+/// Sensor noise and quantisation, scaled by `noise_scale`.
+fn draw_sensors(rng: &mut StdRng, noise_scale: f64) -> Sensors {
+    unmodelled::scale_noise(
         Sensors {
-            tip_noise_m: log_uniform(&mut rng, 2e-5, 3e-4),
+            tip_noise_m: log_uniform(rng, 2e-5, 3e-4),
             tip_quantum_m: if rng.gen_bool(0.5) { 1e-5 } else { 1e-4 },
             tip_delay_s: 0.0,
             tip_gain: 1.0,
-            encoder_noise_m: log_uniform(&mut rng, 2e-7, 2e-6),
+            encoder_noise_m: log_uniform(rng, 2e-7, 2e-6),
             encoder_quantum_m: 1e-6,
-            force_noise_n: log_uniform(&mut rng, 0.01, 0.2),
+            force_noise_n: log_uniform(rng, 0.01, 0.2),
             force_quantum_n: 0.01,
         },
-        opts.noise_scale,
-    );
+        noise_scale,
+    )
+}
+
+/// The plant without effects: a cascaded P/PI servo of 30–60 Hz with feed-forward.
+fn nominal_plant(
+    rng: &mut StdRng,
+    carriage: f64,
+    payload_kg: f64,
+    zeta: (f64, f64),
+    sensors: Sensors,
+) -> Plant {
     let mut plant = Plant {
         beam: None,
         zeta,
         carriage_mass_kg: carriage,
-        feedforward_mass_kg: carriage + if with_beam { beam_mass } else { 0.0 },
+        feedforward_mass_kg: carriage + payload_kg,
         servo: Servo {
             position_bandwidth_hz: rng.gen_range(30.0..60.0),
             velocity_bandwidth_hz: 0.0,
@@ -267,19 +286,30 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         sensors,
     };
     plant.servo.velocity_bandwidth_hz = (4.0 * plant.servo.position_bandwidth_hz).min(150.0);
-    let spec = ProfileSpec {
-        duration_s: opts.duration_s,
+    plant
+}
+
+/// Move profile: span, speeds, accelerations, dwells.
+fn draw_spec(rng: &mut StdRng, duration_s: f64) -> ProfileSpec {
+    ProfileSpec {
+        duration_s,
         span_m: rng.gen_range(0.06..0.3),
         speed_m_s: (0.05, rng.gen_range(0.1..0.4)),
         accel_m_s2: (0.5, rng.gen_range(1.0..5.0)),
         dwell_s: (rng.gen_range(1.0..2.0), rng.gen_range(2.5..6.0)),
-    };
-    let v_typ = 0.5 * (spec.speed_m_s.0 + spec.speed_m_s.1);
-    // channels
+    }
+}
+
+/// Which of `base_pos_m` and `force_n` are recorded: (has_base, has_force).
+fn draw_channels(
+    rng: &mut StdRng,
+    parts: &[Effect],
+    opts: &TruthOptions,
+    with_beam: bool,
+) -> (bool, bool) {
     let mut has_base = rng.gen_bool(0.6);
     let mut has_force = rng.gen_bool(0.6);
-    let has_tip = with_beam;
-    for e in &parts {
+    for e in parts {
         if *e == Effect::ServoLag {
             has_base = rng.gen_bool(0.3);
         } else if e.shows_in() == [Channel::Force] {
@@ -298,111 +328,162 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
     if !with_beam {
         has_base = true;
     }
-    // effect strengths
-    let mut cubic_ratio = None;
-    for effect in parts.iter().copied() {
+    (has_base, has_force)
+}
+
+impl Draft {
+    /// Sets the strength of every hidden effect (in `parts` order).
+    fn apply_effects(&mut self, rng: &mut StdRng) -> Result<()> {
+        for effect in self.parts.clone() {
+            match effect {
+                Effect::BaseFriction | Effect::CoggingRipple | Effect::ServoLag => {
+                    self.apply_carriage_effect(rng, effect)
+                }
+                Effect::TipMass | Effect::RootCompliance | Effect::CubicStiffness => {
+                    self.apply_beam_effect(rng, effect)?
+                }
+                Effect::Backlash
+                | Effect::SensorDelay
+                | Effect::SensorGain
+                | Effect::MountResonance => self.apply_drive_or_sensor_effect(rng, effect)?,
+                Effect::QuadraticDamping | Effect::GravityAxialLoad => {}
+            }
+        }
+        Ok(())
+    }
+
+    fn put(&mut self, name: &str, v: f64) {
+        self.truth.insert(name.into(), v.into());
+    }
+
+    /// Friction, cogging, servo lag.
+    fn apply_carriage_effect(&mut self, rng: &mut StdRng, effect: Effect) {
+        let pi2 = 2.0 * std::f64::consts::PI;
+        let sensors = self.sensors;
         match effect {
             Effect::BaseFriction => {
                 // a few noise σ, and at least 3–8 % of the peak inertial force (below that the
                 // 100 Hz discretisation of the motor force masks it; see docs/diagnose.md)
-                let inertial = (carriage + beam_mass) * spec.accel_m_s2.1;
+                let inertial = (self.carriage + self.beam_mass) * self.spec.accel_m_s2.1;
                 let fc = (rng.gen_range(1.5..4.0) * sensors.force_noise_n)
                     .max(rng.gen_range(0.03..0.08) * inertial);
+                let v_typ = 0.5 * (self.spec.speed_m_s.0 + self.spec.speed_m_s.1);
                 let visc = rng.gen_range(0.0..1.0) * fc / v_typ;
-                plant.friction = Friction {
+                self.plant.friction = Friction {
                     coulomb_n: fc,
                     viscous_n_s_per_m: visc,
                     stribeck_m_s: 2e-3,
                 };
-                truth.insert("friction_n".into(), fc.into());
-                truth.insert("viscous_n_s_per_m".into(), visc.into());
+                self.put("friction_n", fc);
+                self.put("viscous_n_s_per_m", visc);
             }
             Effect::CoggingRipple => {
                 let a = rng.gen_range(1.5..4.0) * sensors.force_noise_n * std::f64::consts::SQRT_2;
                 let p = rng.gen_range(0.015..0.05);
-                plant.cogging = Some((a, p, rng.gen_range(0.0..pi2)));
-                truth.insert("cogging_amplitude_n".into(), a.into());
-                truth.insert("cogging_pitch_m".into(), p.into());
+                self.plant.cogging = Some((a, p, rng.gen_range(0.0..pi2)));
+                self.put("cogging_amplitude_n", a);
+                self.put("cogging_pitch_m", p);
             }
-            Effect::ServoLag => {
-                let sigma = if has_base {
+            _ => {
+                let sigma = if self.has_base {
                     50.0 * sensors.encoder_noise_m
                 } else {
                     sensors.tip_noise_m
                 };
-                let wp = spec.speed_m_s.1 / (rng.gen_range(2.0..6.0) * sigma);
+                let wp = self.spec.speed_m_s.1 / (rng.gen_range(2.0..6.0) * sigma);
                 let f = (wp / pi2).clamp(3.0, 60.0);
-                plant.servo = Servo {
+                self.plant.servo = Servo {
                     position_bandwidth_hz: f,
                     velocity_bandwidth_hz: (4.0 * f).min(150.0),
                     feedforward: false,
                 };
-                truth.insert("servo_bandwidth_hz".into(), f.into());
+                self.put("servo_bandwidth_hz", f);
             }
+        }
+    }
+
+    /// Tip mass, root compliance, cubic clamp.
+    fn apply_beam_effect(&mut self, rng: &mut StdRng, effect: Effect) -> Result<()> {
+        match effect {
             Effect::TipMass => {
-                let m = rng.gen_range(0.05..0.2) * beam_mass;
-                beam.tip_mass_kg = m;
-                truth.insert("tip_mass_kg".into(), m.into());
+                let m = rng.gen_range(0.05..0.2) * self.beam_mass;
+                self.beam.tip_mass_kg = m;
+                self.put("tip_mass_kg", m);
             }
             Effect::RootCompliance => {
-                let kr = root_stiffness_for(&beam, 1.0 - rng.gen_range(0.06..0.15))?;
-                beam.root_stiffness_nm_per_rad = Some(kr);
-                truth.insert("root_stiffness_nm_per_rad".into(), kr.into());
+                let kr = root_stiffness_for(&self.beam, 1.0 - rng.gen_range(0.06..0.15))?;
+                self.beam.root_stiffness_nm_per_rad = Some(kr);
+                self.put("root_stiffness_nm_per_rad", kr);
             }
-            Effect::CubicStiffness => {
+            _ => {
                 // a compliant clamp (f1 3–10 % low) whose stiffness changes by a fraction of
                 // itself at the peak root rotation of the fit moves: +40…120 % (hardening) or
                 // −5…−15 % (softening; tangent stiffness ≥ 55 % of k_r at the linear peak, which
                 // a softening clamp exceeds)
-                let kr = root_stiffness_for(&beam, 1.0 - rng.gen_range(0.03..0.10))?;
-                beam.root_stiffness_nm_per_rad = Some(kr);
-                truth.insert("root_stiffness_nm_per_rad".into(), kr.into());
-                cubic_ratio = Some(if rng.gen_bool(0.5) {
+                let kr = root_stiffness_for(&self.beam, 1.0 - rng.gen_range(0.03..0.10))?;
+                self.beam.root_stiffness_nm_per_rad = Some(kr);
+                self.put("root_stiffness_nm_per_rad", kr);
+                self.cubic_ratio = Some(if rng.gen_bool(0.5) {
                     rng.gen_range(0.4..1.2)
                 } else {
                     -rng.gen_range(0.05..0.15)
                 });
             }
+        }
+        Ok(())
+    }
+
+    /// Backlash, sensor delay, sensor gain, mount resonance.
+    fn apply_drive_or_sensor_effect(&mut self, rng: &mut StdRng, effect: Effect) -> Result<()> {
+        let sensors = self.sensors;
+        match effect {
             Effect::Backlash => {
-                plant.backlash = Some(backlash_of(
-                    &mut rng, &plant, &sensors, &spec, beam_mass, rate,
+                self.plant.backlash = Some(backlash_of(
+                    rng,
+                    &self.plant,
+                    &sensors,
+                    &self.spec,
+                    self.beam_mass,
+                    self.rate,
                 ));
-                let b = plant.backlash.as_ref().map_or(0.0, |b| b.gap_m);
-                truth.insert("backlash_m".into(), b.into());
+                let b = self.plant.backlash.as_ref().map_or(0.0, |b| b.gap_m);
+                self.put("backlash_m", b);
             }
             Effect::SensorDelay => {
-                let tau = (rng.gen_range(2.0..6.0) * sensors.tip_noise_m / spec.speed_m_s.1)
+                let tau = (rng.gen_range(2.0..6.0) * sensors.tip_noise_m / self.spec.speed_m_s.1)
                     .clamp(0.002, 0.03);
-                plant.sensors.tip_delay_s = tau;
-                truth.insert("sensor_delay_s".into(), tau.into());
+                self.plant.sensors.tip_delay_s = tau;
+                self.put("sensor_delay_s", tau);
             }
             Effect::SensorGain => {
                 // a camera calibration off by 2–8 % either way
                 let g =
                     1.0 + rng.gen_range(0.02..0.08) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-                plant.sensors.tip_gain = g;
-                truth.insert("sensor_gain".into(), g.into());
+                self.plant.sensors.tip_gain = g;
+                self.put("sensor_gain", g);
             }
-            Effect::MountResonance => {
-                let f2 = beam.modes(2)?.omega_rad_s[1] / pi2;
-                let fm = (rng.gen_range(1.3..3.0) * f2).clamp(8.0, 0.4 * rate);
-                plant.mount = Some(Mount {
-                    mass_kg: rng.gen_range(0.15..0.4) * carriage,
+            _ => {
+                let pi2 = 2.0 * std::f64::consts::PI;
+                let f2 = self.beam.modes(2)?.omega_rad_s[1] / pi2;
+                let fm = (rng.gen_range(1.3..3.0) * f2).clamp(8.0, 0.4 * self.rate);
+                self.plant.mount = Some(Mount {
+                    mass_kg: rng.gen_range(0.15..0.4) * self.carriage,
                     freq_hz: fm,
                     zeta: rng.gen_range(0.02..0.1),
                 });
-                truth.insert("mount_frequency_hz".into(), fm.into());
+                self.put("mount_frequency_hz", fm);
             }
-            Effect::QuadraticDamping | Effect::GravityAxialLoad => {}
         }
+        Ok(())
     }
-    let fine_dt = 1.0 / (rate * FINE_STEPS as f64);
-    let tip_sensor = (sensors.tip_noise_m, sensors.tip_quantum_m);
-    let extra = unmodelled::draw(opts.unmodelled, seed, &beam, rate, tip_sensor)?;
-    truth.extend(extra.truth());
-    if with_beam {
-        let n_keep = 8;
-        let mut modes = extra.modes(&beam, n_keep)?;
+
+    /// The beam's modes below the fine integration's reach, with the out-of-catalogue physics.
+    fn attach_modes(&mut self, extra: &unmodelled::Drawn, fine_dt: f64) -> Result<()> {
+        if !self.with_beam {
+            return Ok(());
+        }
+        let pi2 = 2.0 * std::f64::consts::PI;
+        let mut modes = extra.modes(&self.beam, 8)?;
         let limit = pi2 * (0.1 / fine_dt).min(250.0);
         let keep = modes
             .omega_rad_s
@@ -413,36 +494,33 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         modes.omega_rad_s.truncate(keep);
         modes.participation.truncate(keep);
         modes.node_w.truncate(keep);
-        plant.beam = Some((modes, geo.length_m / beam.elements as f64));
+        self.plant.beam = Some((modes, self.geo.length_m / self.beam.elements as f64));
+        Ok(())
     }
-    let mut rng_profiles: Vec<StdRng> = (0..=opts.n_fit)
-        .map(|i| StdRng::seed_from_u64(seed ^ (0xABCD + i as u64 * 7919)))
-        .collect();
-    let cmds: Vec<Vec<(f64, f64, f64)>> = rng_profiles
-        .iter_mut()
-        .map(|r| random_profile(&spec, fine_dt, r))
-        .collect();
-    if let Some(ratio) = cubic_ratio {
-        let kr = beam
+
+    /// The cubic clamp coefficient from the peak root rotation of the linear plant on `cmd`.
+    fn set_cubic(&mut self, ratio: f64, cmd: &[(f64, f64, f64)], fine_dt: f64) -> Result<()> {
+        let kr = self
+            .beam
             .root_stiffness_nm_per_rad
             .context("cubic clamp without a compliant root")?;
-        let run = plant.run(&cmds[0], fine_dt);
+        let run = self.plant.run(cmd, fine_dt);
         let peak = run
             .root_rot_rad
             .iter()
             .fold(0.0, |a: f64, t| a.max(t.abs()));
         let k3 = ratio * kr / peak.max(1e-9).powi(2);
-        plant.cubic_root_nm_per_rad3 = k3;
-        truth.insert("cubic_root_stiffness_nm_per_rad3".into(), k3.into());
-        truth.insert(
-            "cubic_root_compliance_rad_per_nm3".into(),
-            (k3 / kr.powi(4)).into(),
-        );
+        self.plant.cubic_root_nm_per_rad3 = k3;
+        self.put("cubic_root_stiffness_nm_per_rad3", k3);
+        self.put("cubic_root_compliance_rad_per_nm3", k3 / kr.powi(4));
+        Ok(())
     }
-    if parts.contains(&Effect::QuadraticDamping) {
-        // drag giving an equivalent linear damping of 0.4..1.0 ζ1 at the peak tip deflection
-        let (modes, h) = plant.beam.as_ref().context("beam")?;
-        let run = plant.run(&cmds[0], fine_dt);
+
+    /// Drag giving an equivalent linear damping of 0.4–1.0 ζ1 at the peak tip deflection of
+    /// `cmd`.
+    fn set_drag(&mut self, rng: &mut StdRng, cmd: &[(f64, f64, f64)], fine_dt: f64) -> Result<()> {
+        let (modes, h) = self.plant.beam.as_ref().context("beam")?;
+        let run = self.plant.run(cmd, fine_dt);
         let peak = run
             .tip_m
             .iter()
@@ -454,18 +532,31 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         let cube: f64 = (1..nn)
             .map(|j| if j + 1 == nn { 0.5 * h } else { *h } * phi[j].abs().powi(3))
             .sum();
-        let c = rng.gen_range(0.4..1.0) * zeta.0 * 3.0 * std::f64::consts::PI / 4.0
+        let c = rng.gen_range(0.4..1.0) * self.zeta.0 * 3.0 * std::f64::consts::PI / 4.0
             * phi[nn - 1].abs()
             / (peak.max(1e-4) * cube);
-        plant.drag_kg_per_m2 = c;
-        truth.insert("drag_coefficient_kg_per_m2".into(), c.into());
+        self.plant.drag_kg_per_m2 = c;
+        self.put("drag_coefficient_kg_per_m2", c);
+        Ok(())
     }
-    // simulate and sample
-    let mut noise_rng = StdRng::seed_from_u64(seed ^ 0x00C0_FFEE);
-    let mut recs = Vec::new();
-    for (i_rec, cmd) in cmds.iter().enumerate() {
+
+    /// Simulates `cmd` and samples it at the output rate with noise, quantisation, latency, gain
+    /// and the out-of-catalogue sensor physics; refuses an unstable or rattling draw.
+    #[allow(clippy::too_many_arguments)]
+    fn record(
+        &self,
+        cmd: &[(f64, f64, f64)],
+        i_rec: usize,
+        fine_dt: f64,
+        extra: &unmodelled::Drawn,
+        noise_rng: &mut StdRng,
+        duration_s: f64,
+    ) -> Result<Recording> {
+        let plant = &self.plant;
+        let sensors = self.sensors;
+        let rate = self.rate;
         let mut run = plant.run(cmd, fine_dt);
-        let bound = 10.0 * (spec.span_m + geo.length_m);
+        let bound = 10.0 * (self.spec.span_m + self.geo.length_m);
         if run
             .tip_m
             .iter()
@@ -474,7 +565,7 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         {
             bail!("the truth plant's servo loop is unstable for this draw");
         }
-        if plant.backlash.is_some() && rattles(&plant, cmd, fine_dt, &run, bound) {
+        if plant.backlash.is_some() && rattles(plant, cmd, fine_dt, &run, bound) {
             bail!(
                 "the truth plant's servo loop is unstable for this draw (it rattles in the play)"
             );
@@ -487,11 +578,11 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
         let q = |v: f64, qn: f64| if qn > 0.0 { (v / qn).round() * qn } else { v };
         let mut gauss = |s: f64| {
             Normal::new(0.0, s)
-                .map(|d| d.sample(&mut noise_rng))
+                .map(|d| d.sample(noise_rng))
                 .unwrap_or(0.0)
         };
         rec.base_cmd_m = Some((0..n).map(|k| cmd[k * FINE_STEPS].0).collect());
-        if has_base {
+        if self.has_base {
             rec.base_pos_m = Some(
                 (0..n)
                     .map(|k| {
@@ -503,7 +594,7 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
                     .collect(),
             );
         }
-        if has_tip {
+        if self.with_beam {
             let d = plant.sensors.tip_delay_s / fine_dt;
             rec.tip_pos_m = Some(
                 (0..n)
@@ -517,7 +608,7 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
                             run.tip_m[i] * (1.0 - a)
                                 + run.tip_m[(i + 1).min(run.tip_m.len() - 1)] * a
                         };
-                        let drift = extra.drift_m(i_rec, k as f64 / rate, opts.duration_s);
+                        let drift = extra.drift_m(i_rec, k as f64 / rate, duration_s);
                         q(
                             plant.sensors.tip_gain * v + drift + gauss(sensors.tip_noise_m),
                             sensors.tip_quantum_m,
@@ -526,7 +617,7 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
                     .collect(),
             );
         }
-        if has_force {
+        if self.has_force {
             // the drive reports the mean force over each sample period
             rec.force_n = Some(
                 (0..n)
@@ -540,56 +631,144 @@ fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCa
                     .collect(),
             );
         }
-        recs.push(rec);
+        Ok(rec)
     }
-    // the user's rig file: first-order wrong
-    let e_rig = geo.youngs * (1.0 + rng.gen_range(-0.06..0.06));
-    let m_rig = carriage * (1.0 + rng.gen_range(-0.12..0.12));
-    let z_rig = (
-        zeta.0 * rng.gen_range(0.6..1.7),
-        zeta.1 * rng.gen_range(0.6..1.7),
-    );
-    let mut toml = format!("# truth case: effect hidden; seed {seed}\n");
-    if with_beam {
-        toml += &format!(
-            "[beam]\nlength_m = {}\ndensity_kg_m3 = {}\nyoungs_modulus_pa = {}\nstations = [\n  {{ x_m = 0.0, width_m = {}, thickness_m = {} }},\n  {{ x_m = {}, width_m = {}, thickness_m = {} }},\n]\n",
-            geo.length_m, geo.density, e_rig, geo.width.0, geo.thickness, geo.length_m, geo.width.1, geo.thickness
+
+    /// The user's rig file, first-order wrong (E ±6 %, carriage ±12 %, ζ ×0.6–1.7), and the
+    /// nominal truths.
+    fn rig_file(&mut self, rng: &mut StdRng, seed: u64) -> String {
+        let (geo, rate, zeta, carriage) = (&self.geo, self.rate, self.zeta, self.carriage);
+        let e_rig = geo.youngs * (1.0 + rng.gen_range(-0.06..0.06));
+        let m_rig = carriage * (1.0 + rng.gen_range(-0.12..0.12));
+        let z_rig = (
+            zeta.0 * rng.gen_range(0.6..1.7),
+            zeta.1 * rng.gen_range(0.6..1.7),
         );
+        let mut toml = format!("# truth case: effect hidden; seed {seed}\n");
+        if self.with_beam {
+            toml += &format!(
+                "[beam]\nlength_m = {}\ndensity_kg_m3 = {}\nyoungs_modulus_pa = {}\nstations = [\n  {{ x_m = 0.0, width_m = {}, thickness_m = {} }},\n  {{ x_m = {}, width_m = {}, thickness_m = {} }},\n]\n",
+                geo.length_m, geo.density, e_rig, geo.width.0, geo.thickness, geo.length_m, geo.width.1, geo.thickness
+            );
+        }
+        toml += &format!("[base]\nmass_kg = {m_rig}\n[damping]\nratios = [{}, {}]\n[sensors]\nsample_rate_hz = {rate}\n", z_rig.0, z_rig.1);
+        let youngs = geo.youngs;
+        let geometry = serde_json::to_value(geo).unwrap_or_default();
+        self.put("true_youngs_modulus_pa", youngs);
+        self.put("true_carriage_mass_kg", carriage);
+        self.truth
+            .insert("true_damping_ratios".into(), vec![zeta.0, zeta.1].into());
+        let (tn, fnn) = (self.sensors.tip_noise_m, self.sensors.force_noise_n);
+        self.put("tip_noise_m", tn);
+        self.put("force_noise_n", fnn);
+        self.put("sample_rate_hz", rate);
+        self.truth.insert("geometry".into(), geometry);
+        let channels = [
+            (self.has_base, "base_pos_m"),
+            (self.with_beam, "tip_pos_m"),
+            (self.has_force, "force_n"),
+        ];
+        self.truth.insert(
+            "channels".into(),
+            channels
+                .iter()
+                .filter(|c| c.0)
+                .map(|c| c.1)
+                .collect::<Vec<_>>()
+                .into(),
+        );
+        toml
     }
-    toml += &format!("[base]\nmass_kg = {m_rig}\n[damping]\nratios = [{}, {}]\n[sensors]\nsample_rate_hz = {rate}\n", z_rig.0, z_rig.1);
-    truth.insert("true_youngs_modulus_pa".into(), geo.youngs.into());
-    truth.insert("true_carriage_mass_kg".into(), carriage.into());
-    truth.insert("true_damping_ratios".into(), vec![zeta.0, zeta.1].into());
-    truth.insert("tip_noise_m".into(), sensors.tip_noise_m.into());
-    truth.insert("force_noise_n".into(), sensors.force_noise_n.into());
-    truth.insert("sample_rate_hz".into(), rate.into());
-    truth.insert(
-        "geometry".into(),
-        serde_json::to_value(&geo).unwrap_or_default(),
-    );
-    let channels = [
-        (has_base, "base_pos_m"),
-        (has_tip, "tip_pos_m"),
-        (has_force, "force_n"),
-    ];
-    truth.insert(
-        "channels".into(),
-        channels
-            .iter()
-            .filter(|c| c.0)
-            .map(|c| c.1)
-            .collect::<Vec<_>>()
-            .into(),
-    );
+}
+
+/// Draws the plant, effects and recordings of one seed (see [`generate`]); the steps draw from
+/// one random stream in a fixed order, so a seed always gives the same case.
+fn generate_once(effect: &str, seed: u64, opts: &TruthOptions) -> Result<TruthCase> {
+    let mut d = draft(effect, seed, opts)?;
+    let mut rng = d.1;
+    let fine_dt = 1.0 / (opts.rate_hz * FINE_STEPS as f64);
+    let tip_sensor = (d.0.sensors.tip_noise_m, d.0.sensors.tip_quantum_m);
+    let extra = unmodelled::draw(opts.unmodelled, seed, &d.0.beam, opts.rate_hz, tip_sensor)?;
+    d.0.truth.extend(extra.truth());
+    let mut d = d.0;
+    d.attach_modes(&extra, fine_dt)?;
+    let mut rng_profiles: Vec<StdRng> = (0..=opts.n_fit)
+        .map(|i| StdRng::seed_from_u64(seed ^ (0xABCD + i as u64 * 7919)))
+        .collect();
+    let cmds: Vec<Vec<(f64, f64, f64)>> = rng_profiles
+        .iter_mut()
+        .map(|r| random_profile(&d.spec, fine_dt, r))
+        .collect();
+    if let Some(ratio) = d.cubic_ratio {
+        d.set_cubic(ratio, &cmds[0], fine_dt)?;
+    }
+    if d.parts.contains(&Effect::QuadraticDamping) {
+        d.set_drag(&mut rng, &cmds[0], fine_dt)?;
+    }
+    let mut noise_rng = StdRng::seed_from_u64(seed ^ 0x00C0_FFEE);
+    let mut recs = Vec::new();
+    for (i_rec, cmd) in cmds.iter().enumerate() {
+        recs.push(d.record(cmd, i_rec, fine_dt, &extra, &mut noise_rng, opts.duration_s)?);
+    }
+    let toml = d.rig_file(&mut rng, seed);
     let validate = recs.pop().context("no recordings")?;
     Ok(TruthCase {
         effect: effect.to_string(),
         seed,
         rig_toml: toml,
-        truth,
+        truth: d.truth,
         fit: recs,
         validate,
     })
+}
+
+/// The drawn plant and effect strengths of `effect` at `seed`, and the random stream to go on
+/// with.
+fn draft(effect: &str, seed: u64, opts: &TruthOptions) -> Result<(Draft, StdRng)> {
+    let parts = parse_effects(effect)?;
+    if parts.contains(&Effect::Backlash) && parts.contains(&Effect::MountResonance) {
+        bail!("backlash and mount_resonance sit in the same place of the truth plant; hide one");
+    }
+    let mut rng = StdRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0x5eed);
+    let mut truth: BTreeMap<String, serde_json::Value> = BTreeMap::new();
+    // carriage-only for some base-side cases
+    let base_side = parts.iter().all(|e| !e.needs_beam());
+    let with_beam = !(base_side && rng.gen_bool(0.25)) || opts.unmodelled.is_some();
+    let mut geo = draw_geometry(&mut rng)?;
+    let mut beam = fe_of(&geo);
+    if parts.contains(&Effect::GravityAxialLoad) {
+        apply_gravity(&mut rng, &mut beam, &mut geo, &mut truth)?;
+    }
+    let beam_mass = geo.density * 0.5 * (geo.width.0 + geo.width.1) * geo.thickness * geo.length_m;
+    let carriage = rng.gen_range(1.0..6.0);
+    let zeta = (
+        log_uniform(&mut rng, 0.003, 0.03),
+        log_uniform(&mut rng, 0.003, 0.03),
+    );
+    let sensors = draw_sensors(&mut rng, opts.noise_scale);
+    let payload = if with_beam { beam_mass } else { 0.0 };
+    let plant = nominal_plant(&mut rng, carriage, payload, zeta, sensors);
+    let spec = draw_spec(&mut rng, opts.duration_s);
+    let (has_base, has_force) = draw_channels(&mut rng, &parts, opts, with_beam);
+    let mut d = Draft {
+        parts,
+        truth,
+        geo,
+        beam,
+        beam_mass,
+        carriage,
+        zeta,
+        sensors,
+        plant,
+        spec,
+        with_beam,
+        has_base,
+        has_force,
+        rate: opts.rate_hz,
+        cubic_ratio: None,
+    };
+    d.apply_effects(&mut rng)?;
+    Ok((d, rng))
 }
 
 /// True when the play of `plant` hides an unstable servo or lets it fall into a self-excited

@@ -25,6 +25,6 @@ pub fn diagnose_generated(effect: &str, seed: u64) -> (serde_json::Value, serde_
         .map(|r| Prepared::new("fit", r).unwrap())
         .collect();
     let val = Prepared::new("validate", &case.validate).unwrap();
-    let d = diagnose(&rig, &fit, &val, &mut |_, _, _| {}).unwrap();
+    let d = diagnose(&rig, &fit, &val, &mut beamtools::progress::Silent).unwrap();
     (to_json(&d), serde_json::to_value(&case.truth).unwrap())
 }

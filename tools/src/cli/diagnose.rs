@@ -1,9 +1,14 @@
-//! `diagnose` and `diagnose-proof` subcommands.
+//! `diagnose`, `diagnose-proof` and `diagnose-lengths` subcommands: arguments, files, progress
+//! and printing around the library in [`crate::diagnose`].
 
-use super::report::{to_json, words, write_report};
-use super::sim::Prepared;
-use super::{diagnose as run_diagnosis, Diagnosis};
+use crate::diagnose::fit::{residuals, CHANNEL_NAMES};
+use crate::diagnose::report::{to_json, words};
+use crate::diagnose::sim::Prepared;
+use crate::diagnose::{diagnose as run_diagnosis, Diagnosis};
+use crate::ident::spectrum::amplitude_spectrum;
 use crate::model::Rig;
+use crate::plot::{lines, Series};
+use crate::progress::Progress;
 use crate::recording::Recording;
 use crate::truth::EFFECTS;
 use anyhow::{Context, Result};
@@ -41,13 +46,73 @@ fn bar(len: u64) -> ProgressBar {
     b
 }
 
+/// Shows library progress: a bar on a terminal, one line per stage (and note) on stderr
+/// otherwise (logs, CI, pipes); nothing when not `show`n.
+pub struct StageProgress {
+    bar: ProgressBar,
+    lines: bool,
+    show: bool,
+    t0: std::time::Instant,
+    stage: String,
+}
+
+impl StageProgress {
+    /// A sink that shows (or, when `!show`, hides) progress.
+    pub fn new(show: bool) -> Self {
+        use std::io::IsTerminal;
+        let lines = show && !std::io::stderr().is_terminal();
+        let bar = bar(1);
+        if !show || lines {
+            bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+        }
+        StageProgress {
+            bar,
+            lines,
+            show,
+            t0: std::time::Instant::now(),
+            stage: String::new(),
+        }
+    }
+
+    /// Removes the bar.
+    pub fn finish(&self) {
+        self.bar.finish_and_clear();
+    }
+}
+
+impl Progress for StageProgress {
+    fn stage(&mut self, name: &str) {
+        self.stage = name.to_string();
+        self.bar.set_message(name.to_string());
+    }
+
+    fn advance(&mut self, done: u64, total: u64) {
+        self.bar.set_length(total);
+        self.bar.set_position(done);
+        if self.lines {
+            eprintln!(
+                "[{:>6.1} s] {done}/{total} {}",
+                self.t0.elapsed().as_secs_f64(),
+                self.stage
+            );
+        }
+    }
+
+    fn note(&mut self, text: &str) {
+        if self.show {
+            self.bar
+                .suspend(|| eprintln!("[{:>6.0} s] {text}", self.t0.elapsed().as_secs_f64()));
+        }
+    }
+}
+
 /// Reads and prepares one recording.
 pub fn load(path: &Path) -> Result<Prepared> {
     let rec = Recording::read_csv(path)?;
     Prepared::new(&path.display().to_string(), &rec)
 }
 
-/// Runs a diagnosis on files, with a progress bar.
+/// Runs a diagnosis on files, with progress shown when `show`.
 pub fn diagnose_files(
     rig: &Path,
     fit: &[PathBuf],
@@ -57,30 +122,137 @@ pub fn diagnose_files(
     let rig = Rig::from_toml_file(rig)?;
     let fit: Vec<Prepared> = fit.iter().map(|p| load(p)).collect::<Result<_>>()?;
     let val = load(validate)?;
-    let pb = bar(1);
-    // a bar on a terminal; one line per stage on stderr otherwise (logs, CI, pipes)
-    use std::io::IsTerminal;
-    let lines = show && !std::io::stderr().is_terminal();
-    if !show || lines {
-        pb.set_draw_target(indicatif::ProgressDrawTarget::hidden());
-    }
-    let t0 = std::time::Instant::now();
-    let d = run_diagnosis(&rig, &fit, &val, &mut |i, n, m| {
-        pb.set_length(n as u64);
-        pb.set_position(i as u64);
-        pb.set_message(m.to_string());
-        if lines {
-            eprintln!("[{:>5.1} s] {i}/{n} {m}", t0.elapsed().as_secs_f64());
-        }
-    })?;
-    pb.finish_and_clear();
+    let mut progress = StageProgress::new(show);
+    let d = run_diagnosis(&rig, &fit, &val, &mut progress)?;
+    progress.finish();
     Ok(d)
+}
+
+/// Writes `report.md`, `diagnosis.json` and the SVG plots into `dir`.
+pub fn write_report(d: &Diagnosis, dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir)?;
+    std::fs::write(
+        dir.join("report.md"),
+        format!("# Diagnosis\n\n```\n{}```\n", words(d)),
+    )?;
+    std::fs::write(
+        dir.join("diagnosis.json"),
+        serde_json::to_string_pretty(&to_json(d))?,
+    )?;
+    let v = &d.validate;
+    let r0 = residuals(v, &d.val_pred_nominal);
+    let r1 = residuals(v, &d.final_val_pred);
+    for c in 0..3 {
+        let meas = match c {
+            0 => &v.base_m,
+            1 => &v.tip_m,
+            _ => &v.force_n,
+        };
+        if let (Some(meas), Some(r0), Some(r1)) = (meas, &r0[c], &r1[c]) {
+            channel_plots(d, dir, c, meas, r0, r1)?;
+        }
+    }
+    Ok(())
+}
+
+/// Recording vs nominal vs augmented, residuals before/after and their spectra of channel `c`.
+fn channel_plots(
+    d: &Diagnosis,
+    dir: &Path,
+    c: usize,
+    meas: &[f64],
+    r0: &[f64],
+    r1: &[f64],
+) -> Result<()> {
+    let t = &d.validate.time_s;
+    let nominal: Vec<f64> = meas.iter().zip(r0).map(|(m, r)| m - r).collect();
+    let augmented: Vec<f64> = meas.iter().zip(r1).map(|(m, r)| m - r).collect();
+    let name = CHANNEL_NAMES[c];
+    lines(
+        &dir.join(format!("{name}_recording.svg")),
+        &format!(
+            "validation {name}: recording, nominal, augmented ({})",
+            d.effect
+        ),
+        "time (s)",
+        name,
+        &[
+            Series {
+                label: "recording".into(),
+                x: t,
+                y: meas,
+            },
+            Series {
+                label: "nominal (calibrated)".into(),
+                x: t,
+                y: &nominal,
+            },
+            Series {
+                label: format!("augmented ({})", d.effect),
+                x: t,
+                y: &augmented,
+            },
+        ],
+        false,
+    )?;
+    lines(
+        &dir.join(format!("{name}_residual.svg")),
+        &format!("validation {name} residual before/after"),
+        "time (s)",
+        name,
+        &[
+            Series {
+                label: "nominal".into(),
+                x: t,
+                y: r0,
+            },
+            Series {
+                label: format!("augmented ({})", d.effect),
+                x: t,
+                y: r1,
+            },
+        ],
+        false,
+    )?;
+    let (f, m0) = amplitude_spectrum(r0, 1.0 / d.validate.dt);
+    let (_, m1) = amplitude_spectrum(r1, 1.0 / d.validate.dt);
+    lines(
+        &dir.join(format!("{name}_residual_spectrum.svg")),
+        &format!(
+            "validation {name} residual spectrum (model modes {:?} Hz)",
+            d.location
+                .model_freqs_hz
+                .iter()
+                .map(|f| (f * 100.0).round() / 100.0)
+                .collect::<Vec<_>>()
+        ),
+        "frequency (Hz)",
+        "amplitude",
+        &[
+            Series {
+                label: "nominal".into(),
+                x: &f,
+                y: &m0,
+            },
+            Series {
+                label: format!("augmented ({})", d.effect),
+                x: &f,
+                y: &m1,
+            },
+        ],
+        true,
+    )
 }
 
 /// Runs `diagnose`.
 pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
     let t0 = std::time::Instant::now();
     let d = diagnose_files(&a.rig, &a.fit, &a.validate, true)?;
+    if std::env::var_os("DIAG_SELECT").is_some() {
+        for line in &d.trace {
+            eprintln!("{line}");
+        }
+    }
     print!("{}", words(&d));
     println!(
         "({} model evaluations, {:.1} s)",
@@ -97,8 +269,6 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
     }
     Ok(())
 }
-
-pub use super::proof::{proof_table, run_proof, ProofRow};
 
 /// `diagnose-proof` arguments.
 #[derive(Args, Debug)]
@@ -162,14 +332,16 @@ fn list(s: &Option<String>, default: &[&str]) -> Vec<String> {
 
 /// Runs `diagnose-proof`.
 pub fn proof(a: ProofArgs) -> Result<()> {
-    use super::proof::{plan, run_plan, score, sorted_label, PlanOptions, DEFAULT_PAIRS};
+    use crate::diagnose::proof::{
+        plan, proof_table, run_plan, score, sorted_label, PlanOptions, DEFAULT_PAIRS,
+    };
     use crate::truth::unmodelled::Unmodelled;
     if !a.rescore.is_empty() {
-        let rows = super::proof::read_rows(&a.rescore)?;
+        let rows = crate::diagnose::proof::read_rows(&a.rescore)?;
         print!(
             "{}{}",
-            super::proof::confusion(&rows),
-            super::proof::summary_text(&score(&rows))
+            crate::diagnose::proof::confusion(&rows),
+            crate::diagnose::proof::summary_text(&score(&rows))
         );
         return Ok(());
     }
@@ -201,7 +373,17 @@ pub fn proof(a: ProofArgs) -> Result<()> {
         anyhow::bail!("no cases to run (check --only)");
     }
     eprintln!("diagnose-proof: {} cases", specs.len());
-    let rows = run_plan(&specs, Some(&a.out), true)?;
+    let mut progress = StageProgress::new(true);
+    let out = a.out.clone();
+    let rows = run_plan(&specs, &mut progress, &mut |spec, _, o| {
+        if let Some(o) = o {
+            let dir = out.join(format!("{}-{}", spec.label, spec.seed));
+            o.case.write(&dir)?;
+            write_report(&o.diagnosis, &dir.join("report"))?;
+        }
+        Ok(())
+    })?;
+    progress.finish();
     let table = proof_table(&rows);
     print!("{table}");
     std::fs::create_dir_all(&a.out)?;
@@ -282,8 +464,8 @@ pub fn length_modes(
     path: &Path,
     sensor: f64,
     n_modes: usize,
-) -> Result<super::lengths::LengthModes> {
-    let (t, x, what) = crate::ident::cli::free_decay_of(path)?;
+) -> Result<crate::diagnose::lengths::LengthModes> {
+    let (t, x, what) = crate::ident::identify::free_decay_of(path)?;
     let r = crate::ident::freedecay::identify_free_decay(
         &t,
         &x,
@@ -300,23 +482,23 @@ pub fn length_modes(
         let m2 = r
             .modes
             .iter()
-            .filter(|m| (m.freq_hz / (super::lengths::UNIFORM_F2_OVER_F1 * f1) - 1.0).abs() < 0.25)
+            .filter(|m| (m.freq_hz / (crate::diagnose::lengths::UNIFORM_F2_OVER_F1 * f1) - 1.0).abs() < 0.25)
             .min_by(|a, b| {
-                (a.freq_hz / f1 - super::lengths::UNIFORM_F2_OVER_F1)
+                (a.freq_hz / f1 - crate::diagnose::lengths::UNIFORM_F2_OVER_F1)
                     .abs()
-                    .total_cmp(&(b.freq_hz / f1 - super::lengths::UNIFORM_F2_OVER_F1).abs())
+                    .total_cmp(&(b.freq_hz / f1 - crate::diagnose::lengths::UNIFORM_F2_OVER_F1).abs())
             })
             .with_context(|| {
                 format!(
                     "{}: no second bending mode within ±25 % of 6.27 × f1 = {:.2} Hz (modes found: {:?} Hz)",
                     path.display(),
-                    super::lengths::UNIFORM_F2_OVER_F1 * f1,
+                    crate::diagnose::lengths::UNIFORM_F2_OVER_F1 * f1,
                     r.modes.iter().map(|m| (m.freq_hz * 100.0).round() / 100.0).collect::<Vec<_>>()
                 )
             })?;
         freq_hz.push((m2.freq_hz, m2.freq_hz_std));
     }
-    Ok(super::lengths::LengthModes {
+    Ok(crate::diagnose::lengths::LengthModes {
         length_m: l,
         sensor_from_tip_m: sensor,
         freq_hz,
@@ -366,21 +548,21 @@ pub fn diagnose_lengths(a: LengthsArgs) -> Result<()> {
     let pb = bar(1);
     pb.set_message("fitting hypotheses (leave-one-length-out)");
     pb.enable_steady_tick(std::time::Duration::from_millis(200));
-    let d = super::lengths::diagnose_lengths(
+    let d = crate::diagnose::lengths::diagnose_lengths(
         &rig,
         &data,
-        &super::lengths::LengthOptions {
+        &crate::diagnose::lengths::LengthOptions {
             n_modes: a.modes,
             ..Default::default()
         },
     )?;
     pb.finish_and_clear();
-    print!("\n{}", super::lengths::words(&d));
+    print!("\n{}", crate::diagnose::lengths::words(&d));
     println!("({:.1} s)", t0.elapsed().as_secs_f64());
     if let Some(j) = &a.json {
         std::fs::write(
             j,
-            serde_json::to_string_pretty(&super::lengths::to_json(&d))?,
+            serde_json::to_string_pretty(&crate::diagnose::lengths::to_json(&d))?,
         )
         .with_context(|| format!("cannot write {}", j.display()))?;
         println!("JSON -> {}", j.display());

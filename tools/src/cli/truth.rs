@@ -1,6 +1,6 @@
 //! `truth` subcommand: write one concealed-effect case (rig + recordings + truth.json).
 
-use super::{generate, TruthOptions};
+use crate::truth::{generate, TruthOptions};
 use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
@@ -24,7 +24,7 @@ pub struct TruthArgs {
     pub n_fit: usize,
     /// Physics outside the diagnosis catalogue to switch on (off by default).
     #[arg(long, value_enum)]
-    pub unmodelled: Option<super::unmodelled::Unmodelled>,
+    pub unmodelled: Option<crate::truth::unmodelled::Unmodelled>,
     /// Output sample rate (Hz).
     #[arg(long, default_value_t = 100.0)]
     pub rate_hz: f64,

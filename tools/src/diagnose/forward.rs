@@ -1,0 +1,787 @@
+//! Forward selection ([`select_forward`]): each round fits every remaining candidate jointly
+//! with the calibration and the effects already chosen, applies every guard
+//! ([`super::select::guard`] and the calibration-matter rules) against the current model, adds
+//! the best that passes and stops when none does (at most [`MAX_EFFECTS`]).
+//!
+//! Every fit draws on one [`Budget`] of model evaluations, never on the clock, so the same
+//! recordings give the same answer on any machine.
+
+use super::effects::{Calib, Candidate, Transform};
+use super::fit::{self, channel_rss, fit, residuals, FitResult};
+use super::select::*;
+use super::sim::{Prediction, Prepared};
+use super::unexplained::LJUNG_BOX_CRITICAL;
+use super::{nrmse, stage, CandidateOutcome};
+use crate::model::Rig;
+use crate::numeric::arx;
+use crate::numeric::stats::innovation_variance;
+use crate::progress::Progress;
+
+/// Most effects forward selection adds.
+pub const MAX_EFFECTS: usize = 4;
+
+/// Work budget of one diagnosis in *sample-evaluations*: model evaluations × samples of the fit
+/// recordings simulated per evaluation. Counted, not timed, so the answer does not depend on
+/// the machine or its load; 2e8 is about 35 s of one core for a 4-basis-function beam
+/// (2.4 ms per evaluation of 13 800 samples, measured on case13 of the independent set), so
+/// that three 60–90 s recordings with four effects stay under a minute on a loaded 2-core
+/// machine.
+pub const WORK_BUDGET_SAMPLE_EVALUATIONS: f64 = 2.0e8;
+/// Bounds of the resulting number of model evaluations of one diagnosis.
+pub const EVALUATION_BUDGET_RANGE: (usize, usize) = (2_000, 40_000);
+
+/// The model-evaluation budget of one diagnosis and what has been spent of it.
+pub(crate) struct Budget {
+    pub(crate) total: usize,
+    pub(crate) spent: usize,
+}
+
+impl Budget {
+    /// The budget for fit recordings of `fit_samples` samples in total.
+    pub(crate) fn for_samples(fit_samples: usize) -> Budget {
+        let (lo, hi) = EVALUATION_BUDGET_RANGE;
+        let total = (WORK_BUDGET_SAMPLE_EVALUATIONS / fit_samples.max(1) as f64) as usize;
+        Budget {
+            total: total.clamp(lo, hi),
+            spent: 0,
+        }
+    }
+
+    /// An equal share of what is left for one of `parts` remaining fits (at least 1/200 of the
+    /// budget, so that a late fit still gets a few iterations).
+    pub(crate) fn share(&self, parts: usize) -> usize {
+        (self.total.saturating_sub(self.spent) / parts.max(1)).max(self.total / 200)
+    }
+
+    pub(crate) fn spend(&mut self, evaluations: usize) {
+        self.spent += evaluations;
+    }
+
+    pub(crate) fn fraction_spent(&self) -> f64 {
+        self.spent as f64 / self.total as f64
+    }
+}
+
+/// The model a round compares against: its fit and residuals on fit and validation data.
+#[derive(Clone, Debug)]
+pub(crate) struct Reference {
+    pub(crate) fit: FitResult,
+    pub(crate) rss: [f64; 3],
+    pub(crate) vres: [Option<Vec<f64>>; 3],
+    pub(crate) vrss: [f64; 3],
+    pub(crate) vn: [usize; 3],
+    pub(crate) vpred: Prediction,
+    pub(crate) val_nrmse: [f64; 3],
+    /// Per channel, the normal equations of the physics-free correction of this model's
+    /// residual on the fit recordings and on the validation recording.
+    pub(crate) generic: [Option<(arx::Normal, arx::Normal)>; 3],
+    /// Per channel, the integrated autocorrelation time of this model's residual on the fit
+    /// recordings (length-weighted mean) and on the validation recording.
+    pub(crate) tau_fit: [f64; 3],
+    pub(crate) tau_val: [f64; 3],
+    /// Per channel, how much the validation rms residual changes when this model is refitted
+    /// to one fit recording alone (the smallest |relative change| over the fit recordings;
+    /// [`Ctx::split_spread`]), 0 until computed.
+    pub(crate) split: [f64; 3],
+}
+
+/// Most lags summed for an autocorrelation time.
+const MAX_TAU_LAG: usize = 2000;
+
+/// What every evaluation shares.
+pub(crate) struct Ctx<'a> {
+    pub(crate) rig: &'a Rig,
+    pub(crate) fit_data: &'a [Prepared],
+    pub(crate) validate: &'a Prepared,
+    pub(crate) sigma: [f64; 3],
+    pub(crate) calib: &'a Calib,
+    pub(crate) model_freqs: &'a [f64],
+    /// Selection trace, one entry per line ([`super::Diagnosis::trace`]).
+    pub(crate) trace: std::cell::RefCell<Vec<String>>,
+}
+
+impl Ctx<'_> {
+    pub(crate) fn trace(&self, line: String) {
+        self.trace.borrow_mut().push(line);
+    }
+
+    pub(crate) fn reference(&self, set: &[&Candidate], f: FitResult) -> Option<Reference> {
+        let prob = fit::Problem::new(
+            self.rig,
+            self.fit_data,
+            self.sigma,
+            self.calib,
+            set,
+            f.x.clone(),
+        );
+        let preds = prob.predictions(&f.x)?;
+        let res: Vec<_> = self
+            .fit_data
+            .iter()
+            .zip(&preds)
+            .map(|(d, p)| residuals(d, p))
+            .collect();
+        let (rss, _) = channel_rss(&res);
+        let vdata = std::slice::from_ref(self.validate);
+        let vprob = fit::Problem::new(self.rig, vdata, self.sigma, self.calib, set, f.x.clone());
+        let vpred = vprob.predictions(&f.x)?.remove(0);
+        let vres = residuals(self.validate, &vpred);
+        let (vrss, vn) = channel_rss(std::slice::from_ref(&vres));
+        let val_nrmse = nrmse(self.validate, &vpred);
+        let generic = std::array::from_fn(|c| {
+            let m = generic_signal_count(c);
+            let (mut fit_ne, mut val_ne) = (arx::Normal::new(m), arx::Normal::new(m));
+            for ((d, p), r) in self.fit_data.iter().zip(&preds).zip(&res) {
+                if let (Some(r), Some(s)) = (&r[c], generic_signals(d, p, c)) {
+                    fit_ne.add(r, &s.iter().map(|v| v.as_slice()).collect::<Vec<_>>());
+                }
+            }
+            let (Some(r), Some(s)) = (&vres[c], generic_signals(self.validate, &vpred, c)) else {
+                return None;
+            };
+            val_ne.add(r, &s.iter().map(|v| v.as_slice()).collect::<Vec<_>>());
+            (fit_ne.rss() > 0.0).then_some((fit_ne, val_ne))
+        });
+        let tau_fit = std::array::from_fn(|c| {
+            let (mut acc, mut n) = (0.0, 0usize);
+            for r in res.iter().filter_map(|r| r[c].as_ref()) {
+                acc += r.len() as f64 * autocorrelation_time(r, MAX_TAU_LAG);
+                n += r.len();
+            }
+            if n > 0 {
+                acc / n as f64
+            } else {
+                1.0
+            }
+        });
+        let tau_val = std::array::from_fn(|c| {
+            vres[c]
+                .as_ref()
+                .map_or(1.0, |r| autocorrelation_time(r, MAX_TAU_LAG))
+        });
+        Some(Reference {
+            split: [0.0; 3],
+            generic,
+            tau_fit,
+            tau_val,
+            fit: f,
+            rss,
+            vres,
+            vrss,
+            vn,
+            vpred,
+            val_nrmse,
+        })
+    }
+
+    /// The split-refit spread of `base` (model `set`): refitted to each fit recording alone
+    /// (warm from `base`, `max_evaluations` shared), the relative change of the validation rms
+    /// residual per channel; its smallest magnitude over the recordings is how much re-tuning
+    /// the existing parameters to other excitation at least moves the validation error — a gain
+    /// within it is not evidence of new physics (the smallest, because one recording alone may
+    /// leave the model undetermined). Zero with a single fit recording. Returns it and the model
+    /// evaluations used.
+    pub(crate) fn split_spread(
+        &self,
+        set: &[&Candidate],
+        base: &Reference,
+        max_evaluations: usize,
+    ) -> ([f64; 3], usize) {
+        let mut spread = [f64::INFINITY; 3];
+        let mut used = 0;
+        if self.fit_data.len() < 2 {
+            return ([0.0; 3], 0);
+        }
+        let share = max_evaluations / self.fit_data.len();
+        for i in 0..self.fit_data.len() {
+            let one = std::slice::from_ref(&self.fit_data[i]);
+            let f = fit(
+                self.rig,
+                one,
+                self.sigma,
+                self.calib,
+                set,
+                Some(&base.fit.x),
+                share,
+                false,
+            );
+            used += f.evaluations;
+            let vdata = std::slice::from_ref(self.validate);
+            let vprob =
+                fit::Problem::new(self.rig, vdata, self.sigma, self.calib, set, f.x.clone());
+            let Some(mut vp) = vprob.predictions(&f.x) else {
+                continue;
+            };
+            let vres = residuals(self.validate, &vp.remove(0));
+            let (vrss, _) = channel_rss(std::slice::from_ref(&vres));
+            for c in 0..3 {
+                if base.vn[c] > 0 && base.vrss[c] > 0.0 {
+                    let change = 1.0 - (vrss[c] / base.vrss[c]).sqrt();
+                    if change.is_finite() {
+                        spread[c] = spread[c].min(change.abs());
+                    }
+                }
+            }
+        }
+        for v in spread.iter_mut().filter(|v| !v.is_finite()) {
+            *v = 0.0;
+        }
+        self.trace(format!(
+            "split-refit spread of the validation residual per channel: {spread:?}"
+        ));
+        (spread, used)
+    }
+
+    /// Fits `set` (the effects chosen so far + candidate `ci`, last) jointly with the calibration
+    /// and applies every guard against `base`.
+    pub(crate) fn evaluate(
+        &self,
+        set: &[&Candidate],
+        ci: usize,
+        base: &Reference,
+        max_evaluations: usize,
+        explore: bool,
+    ) -> Option<CandidateOutcome> {
+        set.last()?;
+        let f = fit(
+            self.rig,
+            self.fit_data,
+            self.sigma,
+            self.calib,
+            set,
+            Some(&base.fit.x),
+            max_evaluations,
+            explore,
+        );
+        let r = self.reference(set, f)?;
+        Some(self.assess(set, ci, r, base))
+    }
+
+    /// Applies every guard ([`select::guard`] and the calibration-matter rules) to candidate
+    /// `ci` (last of `set`), fitted as `r`, against the model `base` it extends.
+    pub(crate) fn assess(
+        &self,
+        set: &[&Candidate],
+        ci: usize,
+        r: Reference,
+        base: &Reference,
+    ) -> CandidateOutcome {
+        let cand = *set.last().expect("a candidate");
+        let f = r.fit.clone();
+        let k = cand.params.len().max(1);
+        let off = f.values.len() - cand.params.len();
+        // likelihood ratios with the samples counted as independent ones: n / τ per channel,
+        // τ of the residual under the null (the model this candidate extends)
+        let n_fit = n_of(self.fit_data);
+        let n_eff: f64 = (0..3).map(|c| n_fit[c] as f64 / base.tau_fit[c]).sum();
+        let delta_bic = delta_neg2ll_effective(&r.rss, &base.rss, &n_fit, &base.tau_fit)
+            + k as f64 * n_eff.max(1.0).ln();
+        self.trace(format!(
+            "{}: fit rss {:?} vs reference {:?}; values {:?}",
+            cand.id, r.rss, base.rss, f.values
+        ));
+        let delta_val = delta_neg2ll_effective(&r.vrss, &base.vrss, &base.vn, &base.tau_val);
+        let (best_channel, reduction) = best_reduction(&r, base);
+        let lb = |v: &Option<Vec<f64>>| v.as_ref().map_or(0.0, |r| ljung_box(r, LJUNG_BOX_LAGS));
+        let whiteness = (lb(&base.vres[best_channel]), lb(&r.vres[best_channel]));
+        let significance = significance(cand, &f, off);
+        let sp = |v: &Option<Vec<f64>>| {
+            v.as_ref()
+                .map_or(0.0, |r| structured_power(r, LJUNG_BOX_LAGS))
+        };
+        let allowance = base.generic[best_channel]
+            .as_ref()
+            .and_then(|(fit_ne, val_ne)| arx::best_correction(fit_ne, val_ne, k))
+            .map_or(0.0, |c| c.val_reduction())
+            .max(base.split[best_channel]);
+        let mut fails = guard(&Evidence {
+            delta_bic,
+            delta_val,
+            reduction,
+            allowance,
+            structured: Some((sp(&base.vres[best_channel]), sp(&r.vres[best_channel]))),
+            significance,
+            structure_explained: structure_explained(
+                base.vres[best_channel].as_deref(),
+                r.vres[best_channel].as_deref(),
+            ),
+            implausible: implausible(cand, &f, off),
+        });
+        if !(whiteness.0 > LJUNG_BOX_CRITICAL) {
+            fails.push(format!(
+                "the residual it would explain is white (Ljung–Box Q {:.0} ≤ {LJUNG_BOX_CRITICAL}): nothing to explain",
+                whiteness.0
+            ));
+        }
+        fails.extend(self.calibration_matter(cand, &f, off));
+        let passed = fails.is_empty();
+        CandidateOutcome {
+            id: cand.id,
+            words: cand.words.to_string(),
+            cand_index: ci,
+            param_offset: off,
+            k,
+            delta_bic,
+            delta_val,
+            val_nrmse: r.val_nrmse,
+            nrmse_before: base.val_nrmse,
+            best_channel,
+            reduction,
+            whiteness,
+            significance,
+            passed,
+            reason: if passed {
+                "passes every guard".into()
+            } else {
+                fails.join("; ")
+            },
+            val_pred: r.vpred,
+            fit: f,
+            allowance,
+        }
+    }
+
+    /// The calibration-matter rules: a resonance (mount, or a lightly damped servo loop) at one
+    /// of the model's own modes is that mode's damping or the stiffness scale, never a new
+    /// resonance; a mount fitted at the ceiling of its search range is not identified.
+    fn calibration_matter(&self, cand: &Candidate, f: &FitResult, off: usize) -> Vec<String> {
+        let mut fails = Vec::new();
+        let pos = |name: &str| cand.params.iter().position(|q| q.name == name);
+        let sd = |i: usize| {
+            let s = f.std[off + i];
+            if s.is_finite() {
+                s
+            } else {
+                0.0
+            }
+        };
+        // a lightly damped servo loop is a resonance of the base motion: the same rule as a mount
+        if let (Some(i), Some(j)) = (pos("servo_bandwidth_hz"), pos("servo_damping_ratio")) {
+            let (fs, zs) = (f.values[off + i], f.values[off + j]);
+            if zs < 0.3 {
+                let tol = 2.0 * sd(i) + zs * fs;
+                if let Some(fr) = self.model_freqs.iter().find(|fr| (fs - **fr).abs() <= tol) {
+                    fails.push(format!(
+                        "a resonant servo loop (ζ {zs:.2}) at {fs:.2} Hz coincides with the model's own mode at {fr:.2} Hz: a calibration matter"
+                    ));
+                }
+            }
+        }
+        if let Some(i) = pos("mount_frequency_hz") {
+            // separated from every in-band model mode by more than its own 2 σ and the mount's
+            // half-power half-width ζ_m f_m (ζ_m capped at 0.1)
+            let fm = f.values[off + i];
+            let zm = pos("mount_damping_ratio").map_or(0.05, |j| f.values[off + j]);
+            let tol = 2.0 * sd(i) + zm.min(0.1) * fm;
+            if let Some(fr) = self.model_freqs.iter().find(|fr| (fm - **fr).abs() <= tol) {
+                fails.push(format!(
+                    "mount frequency {fm:.2} Hz coincides with the model's own mode at {fr:.2} Hz (within {tol:.2} Hz): a calibration matter, not a new resonance"
+                ));
+            }
+            // the recording holds no information at the ceiling (0.4 × the sample rate)
+            let ceiling = cand.params[i].starts.iter().cloned().fold(0.0, f64::max);
+            if fm >= 0.95 * ceiling {
+                fails.push(format!(
+                    "mount frequency {fm:.1} Hz at the edge of the observable band ({ceiling:.1} Hz): not identified"
+                ));
+            }
+        }
+        fails
+    }
+}
+
+/// What forward selection ends with.
+pub(crate) struct Selection {
+    /// Catalogue indices of the chosen effects, in order.
+    pub(crate) chosen: Vec<usize>,
+    /// Each chosen effect as evaluated when it was added.
+    pub(crate) outcomes: Vec<CandidateOutcome>,
+    /// The final model (calibration + chosen effects, jointly refitted).
+    pub(crate) reference: Reference,
+    /// Every round's candidates (best validation gain first).
+    pub(crate) rounds: Vec<Vec<CandidateOutcome>>,
+    /// Progress steps used.
+    pub(crate) step: usize,
+}
+
+/// Candidates that do not conflict with any chosen effect.
+fn pool_of(cands: &[Candidate], chosen: &[usize]) -> Vec<usize> {
+    (0..cands.len())
+        .filter(|&i| {
+            chosen
+                .iter()
+                .all(|&k| !cands[k].id.conflicts_with(cands[i].id))
+        })
+        .collect()
+}
+
+/// The candidates of `chosen`.
+fn set_of<'c>(cands: &'c [Candidate], chosen: &[usize]) -> Vec<&'c Candidate> {
+    chosen.iter().map(|&k| &cands[k]).collect()
+}
+
+/// Refits the current model alone first, so that a better joint optimum of what is already
+/// chosen is never credited to the next candidate; then measures its split-refit spread.
+fn refresh_reference(
+    ctx: &Ctx,
+    cands: &[Candidate],
+    chosen: &[usize],
+    reference: &mut Reference,
+    budget: &mut Budget,
+    pool_len: usize,
+    round: usize,
+) {
+    let set = set_of(cands, chosen);
+    if round > 0 {
+        let f = fit(
+            ctx.rig,
+            ctx.fit_data,
+            ctx.sigma,
+            ctx.calib,
+            &set,
+            Some(&reference.fit.x),
+            budget.share(pool_len + 2),
+            false,
+        );
+        budget.spend(f.evaluations);
+        if f.cost < reference.fit.cost {
+            if let Some(r) = ctx.reference(&set, f) {
+                *reference = r;
+            }
+        }
+    }
+    let (split, used) = ctx.split_spread(&set, reference, budget.share(pool_len + 2));
+    budget.spend(used);
+    reference.split = split;
+}
+
+/// Fits every candidate of `pool` on top of `chosen` and assesses it against `reference`.
+#[allow(clippy::too_many_arguments)]
+fn fit_round(
+    ctx: &Ctx,
+    cands: &[Candidate],
+    chosen: &[usize],
+    pool: &[usize],
+    reference: &Reference,
+    budget: &mut Budget,
+    progress: &mut dyn Progress,
+    step: &mut usize,
+    round: usize,
+) -> Vec<CandidateOutcome> {
+    let mut outs = Vec::new();
+    for (j, &ci) in pool.iter().enumerate() {
+        let total_steps = *step + pool.len() - j + 1;
+        stage(
+            progress,
+            *step,
+            total_steps,
+            &format!("round {}: fitting {}", round + 1, cands[ci].id),
+        );
+        *step += 1;
+        let set: Vec<&Candidate> = chosen
+            .iter()
+            .map(|&k| &cands[k])
+            .chain(std::iter::once(&cands[ci]))
+            .collect();
+        let share = budget.share(pool.len() - j + 1);
+        if let Some(o) = ctx.evaluate(&set, ci, reference, share, round == 0) {
+            budget.spend(o.fit.evaluations);
+            outs.push(o);
+        }
+    }
+    outs.sort_by(|a, b| a.delta_val.total_cmp(&b.delta_val));
+    super::keep_lowest_bic_form(&mut outs);
+    outs
+}
+
+/// Backward check: the effects already chosen, refitted from the joint optimum without the
+/// newcomer. If they alone do better there than the reference, part of the newcomer's gain was
+/// only a better optimum of what was already chosen: every passing candidate is judged again
+/// against that better reference. Returns the index of the pick in `outs`.
+#[allow(clippy::too_many_arguments)]
+fn backward_check(
+    ctx: &Ctx,
+    cands: &[Candidate],
+    chosen: &[usize],
+    outs: &mut [CandidateOutcome],
+    reference: &mut Reference,
+    budget: &mut Budget,
+    pool_len: usize,
+    round: usize,
+) -> Option<usize> {
+    let mut pick = outs.iter().position(|o| o.passed);
+    let mut checked: Vec<usize> = Vec::new();
+    while round > 0 && checked.len() < 3 {
+        let Some(s) = pick else { break };
+        if checked.contains(&outs[s].cand_index) {
+            break;
+        }
+        checked.push(outs[s].cand_index);
+        let prev = set_of(cands, chosen);
+        let warm = outs[s].fit.x.rows(0, reference.fit.x.len()).into_owned();
+        let f = fit(
+            ctx.rig,
+            ctx.fit_data,
+            ctx.sigma,
+            ctx.calib,
+            &prev,
+            Some(&warm),
+            budget.share(pool_len + 1),
+            false,
+        );
+        budget.spend(f.evaluations);
+        ctx.trace(format!(
+            "backward check of {}: chosen effects alone from the joint optimum cost {:.6e} (reference {:.6e}, with it {:.6e})\n  reference {:?}\n  joint     {:?}\n  refit     {:?}",
+            outs[s].id, f.cost, reference.fit.cost, outs[s].fit.cost,
+            reference.fit.values, outs[s].fit.values, f.values
+        ));
+        if !(f.cost < reference.fit.cost) {
+            break;
+        }
+        let Some(mut better) = ctx.reference(&prev, f) else {
+            break;
+        };
+        better.split = reference.split;
+        *reference = better;
+        for o in outs.iter_mut().filter(|o| o.passed) {
+            let set: Vec<&Candidate> = prev
+                .iter()
+                .copied()
+                .chain(std::iter::once(&cands[o.cand_index]))
+                .collect();
+            if let Some(r) = ctx.reference(&set, o.fit.clone()) {
+                *o = ctx.assess(&set, o.cand_index, r, reference);
+            }
+        }
+        outs.sort_by(|a, b| a.delta_val.total_cmp(&b.delta_val));
+        super::keep_lowest_bic_form(outs);
+        pick = outs.iter().position(|o| o.passed);
+    }
+    pick
+}
+
+/// Forward selection from `nominal` (module docs). `step` is the first progress step.
+pub(crate) fn select_forward(
+    ctx: &Ctx,
+    cands: &[Candidate],
+    nominal: Reference,
+    budget: &mut Budget,
+    progress: &mut dyn Progress,
+    step: usize,
+) -> Selection {
+    let mut sel = Selection {
+        chosen: Vec::new(),
+        outcomes: Vec::new(),
+        reference: nominal,
+        rounds: Vec::new(),
+        step,
+    };
+    for round in 0..MAX_EFFECTS {
+        let pool = pool_of(cands, &sel.chosen);
+        if pool.is_empty() || (round > 0 && budget.fraction_spent() > 0.8) {
+            break;
+        }
+        refresh_reference(
+            ctx,
+            cands,
+            &sel.chosen,
+            &mut sel.reference,
+            budget,
+            pool.len(),
+            round,
+        );
+        let mut outs = fit_round(
+            ctx,
+            cands,
+            &sel.chosen,
+            &pool,
+            &sel.reference,
+            budget,
+            progress,
+            &mut sel.step,
+            round,
+        );
+        let pick = backward_check(
+            ctx,
+            cands,
+            &sel.chosen,
+            &mut outs,
+            &mut sel.reference,
+            budget,
+            pool.len(),
+            round,
+        );
+        for o in &outs {
+            ctx.trace(format!(
+                "round {} {}: ΔBIC {:.1} Δval {:.1} reduction {:.3} allowance {:.3} {}",
+                round + 1,
+                o.id,
+                o.delta_bic,
+                o.delta_val,
+                o.reduction,
+                o.allowance,
+                o.reason
+            ));
+        }
+        if let Some(s) = pick {
+            if !accept(ctx, cands, &mut sel, &mut outs, s) {
+                break;
+            }
+        }
+        sel.rounds.push(outs);
+        if pick.is_none() {
+            break;
+        }
+    }
+    sel
+}
+
+/// Adds `outs[s]` to the selection; false when the augmented model cannot be simulated (the
+/// selection then ends without it).
+fn accept(
+    ctx: &Ctx,
+    cands: &[Candidate],
+    sel: &mut Selection,
+    outs: &mut [CandidateOutcome],
+    s: usize,
+) -> bool {
+    for (i, o) in outs.iter_mut().enumerate() {
+        if i != s && o.passed {
+            o.reason =
+                "passes the guard but gains less on validation than the selected effect".into();
+        }
+    }
+    let o = outs[s].clone();
+    sel.chosen.push(o.cand_index);
+    let set = set_of(cands, &sel.chosen);
+    match ctx.reference(&set, o.fit.clone()) {
+        Some(r) => sel.reference = r,
+        None => return false,
+    }
+    sel.outcomes.push(o);
+    true
+}
+
+/// The channel whose validation rms residual `r` reduces most against `base`, and the relative
+/// reduction.
+fn best_reduction(r: &Reference, base: &Reference) -> (usize, f64) {
+    let mut best = (0, f64::NEG_INFINITY);
+    for c in 0..3 {
+        if base.vn[c] > 0 {
+            let red = 1.0 - (r.vrss[c] / base.vrss[c].max(1e-300)).sqrt();
+            if red > best.1 {
+                best = (c, red);
+            }
+        }
+    }
+    best
+}
+
+/// Largest |value|/σ over the candidate's null-at-zero parameters (∞ if it has none; a NaN σ,
+/// "not identified", counts 0).
+fn significance(cand: &Candidate, f: &FitResult, off: usize) -> f64 {
+    let z = cand
+        .params
+        .iter()
+        .enumerate()
+        .filter(|(_, d)| d.zero_is_null)
+        .map(|(i, _)| f.values[off + i].abs() / f.std[off + i].max(1e-300))
+        .map(|z| if z.is_nan() { 0.0 } else { z })
+        .fold(f64::NEG_INFINITY, f64::max);
+    if z == f64::NEG_INFINITY {
+        f64::INFINITY
+    } else {
+        z
+    }
+}
+
+/// Fraction of the structured validation residual (variance above the white-noise floor, the
+/// smaller innovation variance of the two, [`innovation_variance`]) that `after` removes from
+/// `before` ([`super::select`] condition 6); `None` without both.
+pub(crate) fn structure_explained(before: Option<&[f64]>, after: Option<&[f64]>) -> Option<f64> {
+    let (b, a) = (before?, after?);
+    let var = |r: &[f64]| {
+        let m = r.iter().sum::<f64>() / r.len().max(1) as f64;
+        r.iter().map(|x| (x - m).powi(2)).sum::<f64>() / r.len().max(1) as f64
+    };
+    let noise = innovation_variance(b, LJUNG_BOX_LAGS).min(innovation_variance(a, LJUNG_BOX_LAGS));
+    let (sb, sa) = ((var(b) - noise).max(0.0), (var(a) - noise).max(0.0));
+    if !(sb > 0.0) {
+        return Some(0.0);
+    }
+    Some(1.0 - sa / sb)
+}
+
+/// Parameters that sign- or range-limited physics forbids ([`super::select`] condition 7).
+fn implausible(cand: &Candidate, f: &FitResult, off: usize) -> Vec<String> {
+    let mut out = Vec::new();
+    for (i, p) in cand.params.iter().enumerate() {
+        let (v, sd, x) = (f.values[off + i], f.std[off + i], f.x[off + i]);
+        let sd = if sd.is_finite() { sd } else { 0.0 };
+        if NON_NEGATIVE.contains(&p.name) && v < -2.0 * sd {
+            out.push(format!(
+                "{} = {v:.3e} is negative by more than 2 σ: physically impossible",
+                p.name
+            ));
+        }
+        if let Transform::Bounded(lo, hi) = p.transform {
+            // logistic representation: within 1 % of an end of the range
+            let at_hi = x > (99.0f64).ln();
+            let at_lo = x < -(99.0f64).ln() && lo != 0.0;
+            if at_hi || at_lo {
+                out.push(format!(
+                    "{} = {v:.3} at the limit of its search range [{lo}, {hi}]: not found, out of room",
+                    p.name
+                ));
+            }
+        }
+    }
+    out
+}
+
+/// Parameters that are non-negative by physics: a sensor cannot report before the motion,
+/// friction and damping take energy out.
+const NON_NEGATIVE: [&str; 3] = ["sensor_delay_s", "friction_n", "viscous_n_s_per_m"];
+
+/// Signals of the physics-free correction of channel `c` ([`crate::numeric::arx`]): base —
+/// the predicted base and the command; tip — the predicted tip, the predicted *deflection*
+/// (tip − drive, what a filter between the base and the beam root changes) and the drive
+/// (measured base, else the command); force — the predicted force and the drive.
+fn generic_signals(d: &Prepared, p: &Prediction, c: usize) -> Option<Vec<Vec<f64>>> {
+    let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
+    match c {
+        0 => Some(vec![p.base_m.clone()?, d.cmd_m.clone()]),
+        1 => {
+            let tip = p.tip_m.clone()?;
+            let deflection = tip.iter().zip(drive).map(|(a, b)| a - b).collect();
+            Some(vec![tip, deflection, drive.clone()])
+        }
+        _ => Some(vec![p.force_n.clone()?, drive.clone()]),
+    }
+}
+
+/// Number of signals [`generic_signals`] gives for channel `c`.
+fn generic_signal_count(c: usize) -> usize {
+    if c == 1 {
+        3
+    } else {
+        2
+    }
+}
+
+fn n_of(data: &[Prepared]) -> [usize; 3] {
+    let mut n = [0; 3];
+    for d in data {
+        let m = d.cmd_m.len();
+        if d.base_m.is_some() {
+            n[0] += m;
+        }
+        if d.tip_m.is_some() {
+            n[1] += m;
+        }
+        if d.force_n.is_some() {
+            n[2] += m;
+        }
+    }
+    n
+}

@@ -1,0 +1,232 @@
+//! Whether the named effects account for what they were credited with, and honest 1-σ values.
+//!
+//! Three measurements on the model forward selection ends with:
+//! 1. **Long-run 1-σ** ([`long_run_std`]): the residuals are not independent (model-form error,
+//!    coloured noise), so the linearised `s² (JᵀJ)⁻¹` is too small by about √τ; the sandwich
+//!    covariance with batch-mean scores ([`crate::numeric::lm::std_errors_long_run`]) is what
+//!    the report gives.
+//! 2. **Parameter stability** ([`stability`]): a physical parameter is a property of the rig, not
+//!    of the recording. The final model is refitted to each fit recording alone (warm from the
+//!    joint optimum); for every effect parameter z = (θ₁ − θ₂)/√(σ₁² + σ₂²) with long-run σ of
+//!    each refit (representation units: ln for scale parameters). An effect that only absorbs
+//!    physics it does not model fits each excitation differently.
+//! 3. **Residual statistics per channel** ([`residual_stats`]) of the validation residual before
+//!    and after the named effects: rms over the first-difference noise estimate, the structured
+//!    rms above that noise, Ljung–Box Q and the integrated autocorrelation time.
+
+use super::effects::{Calib, Candidate};
+use super::fit::{self, FitResult, CHANNEL_NAMES};
+use super::select::{ljung_box, LJUNG_BOX_LAGS};
+use super::sim::Prepared;
+use crate::model::Rig;
+use crate::numeric::{
+    lm,
+    stats::{autocorrelation_time, innovation_variance},
+};
+use nalgebra::DVector;
+use serde::Serialize;
+
+/// Most lags of an autocorrelation time.
+pub const MAX_LAG: usize = 2000;
+/// Batch length of the long-run covariance in units of the scores' autocorrelation time.
+pub const BLOCK_FACTOR: f64 = 5.0;
+
+/// Lengths of the independent series the whitened residual vector of `data` is made of (one
+/// per recording and recorded channel, in [`fit::Problem::whitened`] order).
+pub fn segments(data: &[Prepared]) -> Vec<usize> {
+    let mut s = Vec::new();
+    for d in data {
+        let n = d.cmd_m.len();
+        for present in [d.base_m.is_some(), d.tip_m.is_some(), d.force_n.is_some()] {
+            if present {
+                s.push(n);
+            }
+        }
+    }
+    s
+}
+
+/// Long-run 1-σ of every parameter of `f` (calibration + `set`) on `data`, in representation
+/// units (see module docs), and the model evaluations it took.
+pub fn long_run_std_repr(
+    rig: &Rig,
+    data: &[Prepared],
+    sigma: [f64; 3],
+    calib: &Calib,
+    set: &[&Candidate],
+    f: &FitResult,
+) -> (Vec<f64>, usize) {
+    let problem = fit::Problem::new(rig, data, sigma, calib, set, f.x.clone());
+    let j = problem.jacobian_at(&f.x);
+    let r: DVector<f64> = problem.whitened(&f.x);
+    let evaluations = *problem.evaluations.borrow();
+    (
+        lm::std_errors_long_run(&j, &r, &segments(data), MAX_LAG, BLOCK_FACTOR),
+        evaluations,
+    )
+}
+
+/// [`long_run_std_repr`] in physical units, replacing `f.std`; returns the evaluations used.
+pub fn long_run_std(
+    rig: &Rig,
+    data: &[Prepared],
+    sigma: [f64; 3],
+    calib: &Calib,
+    set: &[&Candidate],
+    f: &mut FitResult,
+) -> usize {
+    let (s, used) = long_run_std_repr(rig, data, sigma, calib, set, f);
+    let problem = fit::Problem::new(rig, data, sigma, calib, set, f.x.clone());
+    let defs = problem.defs();
+    for (i, d) in defs.iter().enumerate() {
+        f.std[i] = s[i] * d.dvalue(f.x[i]).abs();
+    }
+    used
+}
+
+/// Residual statistics of one channel (module docs, 3).
+#[derive(Clone, Debug, Serialize)]
+pub struct ResidualStats {
+    /// Channel name.
+    pub channel: String,
+    /// rms of the centred residual.
+    pub rms: f64,
+    /// Noise estimate σ̂ (one-step prediction error, [`innovation_variance`]).
+    pub noise: f64,
+    /// √max(rms² − σ̂², 0) / σ̂: the structured rms in noise units.
+    pub structured_over_noise: f64,
+    /// Ljung–Box Q over [`LJUNG_BOX_LAGS`] lags.
+    pub ljung_box_q: f64,
+    /// Integrated autocorrelation time (samples).
+    pub tau: f64,
+}
+
+/// [`ResidualStats`] of every recorded channel of `res`.
+pub fn residual_stats(res: &[Option<Vec<f64>>; 3]) -> Vec<ResidualStats> {
+    let mut out = Vec::new();
+    for (c, r) in res.iter().enumerate() {
+        let Some(r) = r else { continue };
+        if r.len() < 3 {
+            continue;
+        }
+        let m = r.iter().sum::<f64>() / r.len() as f64;
+        let centred: Vec<f64> = r.iter().map(|x| x - m).collect();
+        let rms = (centred.iter().map(|x| x * x).sum::<f64>() / r.len() as f64).sqrt();
+        let noise = innovation_variance(r, LJUNG_BOX_LAGS).sqrt();
+        let excess = (rms * rms - noise * noise).max(0.0).sqrt();
+        out.push(ResidualStats {
+            channel: CHANNEL_NAMES[c].to_string(),
+            rms,
+            noise,
+            structured_over_noise: excess / noise.max(1e-300),
+            ljung_box_q: ljung_box(r, LJUNG_BOX_LAGS),
+            tau: autocorrelation_time(r, MAX_LAG),
+        });
+    }
+    out
+}
+
+/// Stability of one effect's parameters between the fit recordings (module docs, 2).
+#[derive(Clone, Debug, Serialize)]
+pub struct Stability {
+    /// Effect id.
+    pub effect: String,
+    /// Per parameter: name, value of each refit (physical), z of the largest pairwise difference
+    /// (representation units, long-run σ).
+    pub parameters: Vec<(String, Vec<f64>, f64)>,
+    /// Largest |z| over the parameters.
+    pub max_abs_z: f64,
+}
+
+/// Refits the final model (`set`, joint optimum `f`) to each fit recording alone with
+/// `max_evaluations` shared, and measures every effect parameter's stability. Empty with one
+/// fit recording. Returns it and the model evaluations used.
+pub fn stability(
+    rig: &Rig,
+    fit_data: &[Prepared],
+    sigma: [f64; 3],
+    calib: &Calib,
+    set: &[&Candidate],
+    f: &FitResult,
+    max_evaluations: usize,
+) -> (Vec<Stability>, usize) {
+    if fit_data.len() < 2 || set.is_empty() {
+        return (vec![], 0);
+    }
+    let share = max_evaluations / fit_data.len();
+    let mut used = 0;
+    let mut refits: Vec<(FitResult, Vec<f64>)> = Vec::new();
+    for d in fit_data {
+        let one = std::slice::from_ref(d);
+        let g = fit::fit(rig, one, sigma, calib, set, Some(&f.x), share, false);
+        used += g.evaluations;
+        let (s, u) = long_run_std_repr(rig, one, sigma, calib, set, &g);
+        used += u;
+        refits.push((g, s));
+    }
+    let mut out = Vec::new();
+    let mut off = calib.len();
+    for c in set {
+        let mut params = Vec::new();
+        let mut max_z: f64 = 0.0;
+        for (i, p) in c.params.iter().enumerate() {
+            let k = off + i;
+            let mut z: f64 = 0.0;
+            for a in 0..refits.len() {
+                for b in a + 1..refits.len() {
+                    let (fa, sa) = (&refits[a].0, refits[a].1[k]);
+                    let (fb, sb) = (&refits[b].0, refits[b].1[k]);
+                    let d = (fa.x[k] - fb.x[k]).abs() / (sa * sa + sb * sb).sqrt();
+                    if d.is_finite() {
+                        z = z.max(d);
+                    }
+                }
+            }
+            max_z = max_z.max(z);
+            params.push((
+                p.name.to_string(),
+                refits.iter().map(|(g, _)| g.values[k]).collect(),
+                z,
+            ));
+        }
+        out.push(Stability {
+            effect: c.id.to_string(),
+            parameters: params,
+            max_abs_z: max_z,
+        });
+        off += c.params.len();
+    }
+    (out, used)
+}
+
+/// What [`super::diagnose`] measured about the final model (module docs).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Honesty {
+    /// Validation residual statistics of the calibrated nominal model.
+    pub nominal: Vec<ResidualStats>,
+    /// Validation residual statistics of the final model.
+    pub after: Vec<ResidualStats>,
+    /// Parameter stability of every named effect.
+    pub stability: Vec<Stability>,
+    /// Effect parameters fitted at (within 1 % of) a bound of their range: (effect, parameter).
+    pub at_bound: Vec<(String, String)>,
+}
+
+/// Effect parameters of `f` (calibration of `nc` parameters, then `set`) whose bounded
+/// representation sits within 1 % of an end of its range.
+pub fn at_bound(set: &[&Candidate], f: &FitResult, nc: usize) -> Vec<(String, String)> {
+    let mut out = Vec::new();
+    let mut off = nc;
+    for c in set {
+        for (i, p) in c.params.iter().enumerate() {
+            if let super::effects::Transform::Bounded(..) = p.transform {
+                // logistic u = 1/(1+e^{−x}) within 1 % of 0 or 1
+                if f.x[off + i].abs() > (99.0f64).ln() {
+                    out.push((c.id.to_string(), p.name.to_string()));
+                }
+            }
+        }
+        off += c.params.len();
+    }
+    out
+}
