@@ -2,11 +2,13 @@
 //! candidate extension switchable, predicting the recorded channels of one recording.
 //!
 //! Chain (each block off unless its parameters are set):
-//! 1. servo: the base follows its command through a finite-bandwidth position loop,
-//!    `ÿ + 2ζ_sω_s ẏ + ω_s² y = k_a r̈ + 2ζ_sω_s k_v ṙ + ω_s² (1 − …) r`, i.e. the following error
+//! 1. servo: the base follows its command through a finite-bandwidth position loop whose
+//!    command → base transfer function has order 1–4 ([`ServoLaw`]): order 2 is
+//!    `ÿ + 2ζ_sω_s ẏ + ω_s² y = k_a r̈ + 2ζ_sω_s k_v ṙ + ω_s² r`, i.e. the following error
 //!    e = y − r obeys `ë + 2ζ_sω_s ė + ω_s² e = −(1 − k_a) r̈ − 2ζ_sω_s (1 − k_v) ṙ` (`servo_lag`;
 //!    k_v = k_a = 0 is a plain 2nd-order lag, PID with velocity/acceleration feed-forward has
-//!    fractions near 1); predicted `base_pos_m`;
+//!    fractions near 1); order 3 adds the integral action of a PID loop, order 4 a lag of the
+//!    drive force, order 1 is a first-order lag; predicted `base_pos_m`;
 //! 2. the beam is driven by the *measured* base position when recorded (so carriage effects do
 //!    not leak into the tip channel), else by the predicted one;
 //! 3. backlash: a dead band of total width b between the carriage and the beam root, as the
@@ -14,7 +16,8 @@
 //!    `backlash`): the root stays where it was left until the drive takes it up from the other
 //!    side (a root held by friction inside the gap, driven through a rigid contact);
 //!    mount: the beam root is a mount mass on a spring–damper from the carriage, loaded by the
-//!    beam (coupled to its modes, [`coupled_mount`]; `mount_resonance`);
+//!    beam (coupled to its modes, [`coupled_mount`]; `mount_resonance` with `mount_mass_kg`), or
+//!    a massless filter of the root motion (a mount the beam does not load);
 //! 4. beam: clamped-base modes of [`BeamModel`] (M, K of eqs. 13–20 with tip mass, root spring,
 //!    gravity axial load and the calibration scale), `η̈_r + 2ζ_rω_r η̇_r + ω_r² η_r = −Γ_r ÿ_r + f_r`,
 //!    integrated exactly between samples for a piecewise-linear base (as `model::sim`), with the
