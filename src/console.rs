@@ -100,10 +100,12 @@ pub enum Action {
     Load,
 }
 
-/// The console: owns the operator's [`Settings`].
+/// The console: owns the operator's [`Settings`], and remembers a stored record that was
+/// refused (at boot or by `load`) until a `save` replaces it, so that `status` can say so.
 #[derive(Clone, Debug)]
 pub struct Console {
     settings: Settings,
+    refused_record: Option<StorageError>,
 }
 /// The result of executing one command.
 type CmdResult = Result<(), Refusal>;
@@ -122,7 +124,16 @@ const HELP: &[&str] = &[
 impl Console {
     /// A console whose settings are `settings` (already applied to the runtime by the glue).
     pub fn new(settings: Settings) -> Self {
-        Console { settings }
+        Console {
+            settings,
+            refused_record: None,
+        }
+    }
+
+    /// Why the stored record was refused (at boot or by the last `load`), until a successful
+    /// `save` replaces it; `None` when it was accepted or there is none.
+    pub fn refused_record(&self) -> Option<StorageError> {
+        self.refused_record
     }
 
     /// The settings in force (or pending in the runtime).
@@ -139,6 +150,7 @@ impl Console {
         stepdir_count: u16,
         out: &mut impl Write,
     ) -> Console {
+        let refused = loaded.as_ref().err().copied();
         let (settings, note): (Settings, &str) = match loaded {
             Ok(Some(s)) => (s, "settings loaded from flash"),
             Ok(None) => (Settings::DEFAULT, "no saved settings, using defaults"),
@@ -157,7 +169,9 @@ impl Console {
         rt.with(|r| r.configure_at_boot(params, stepdir_count));
         let _ = writeln!(out, "# boot: {note}");
         let _ = writeln!(out, "ok boot");
-        Console::new(settings)
+        let mut console = Console::new(settings);
+        console.refused_record = refused;
+        console
     }
 
     /// Executes one line and writes the reply. Never panics; on `err` nothing changes.
@@ -294,14 +308,23 @@ impl Console {
     }
 
     /// Reports the outcome of a save the glue performed after [`Action::Save`].
-    pub fn finish_save<E: core::fmt::Display>(&self, result: Result<(), E>, out: &mut impl Write) {
+    /// A successful save replaces a refused record (`status` no longer reports it).
+    pub fn finish_save<E: core::fmt::Display>(
+        &mut self,
+        result: Result<(), E>,
+        out: &mut impl Write,
+    ) {
         let _ = match result {
-            Ok(()) => writeln!(out, "ok save"),
+            Ok(()) => {
+                self.refused_record = None;
+                writeln!(out, "ok save")
+            }
             Err(e) => writeln!(out, "err storage: save failed ({e}); previous record kept"),
         };
     }
 
-    /// Applies the settings the glue loaded after [`Action::Load`]. A refused record leaves
+    /// Applies the settings the glue loaded after [`Action::Load`] (and remembers whether the
+    /// stored record was refused, for `status`). A refused record leaves
     /// the settings in force and answers `err corrupt:`, `err version:` (another format
     /// version) or `err storage:`, after a `# load:` line naming the problem.
     pub fn finish_load(
@@ -310,6 +333,7 @@ impl Console {
         rt: &mut impl RuntimeAccess,
         out: &mut impl Write,
     ) {
+        self.refused_record = result.as_ref().err().copied();
         let r = match result {
             Ok(Some(s)) => self.commit(s, rt, out, "load"),
             Ok(None) => Err(Refusal::new("storage", "no saved settings")),
@@ -394,8 +418,16 @@ impl Console {
         Ok(())
     }
 
+    /// `status`: a `# stored settings refused (…)` line while the stored record is refused,
+    /// then the [`StatusReply`].
     fn status(&self, rt: &mut impl RuntimeAccess, out: &mut impl Write) -> CmdResult {
         let s = rt.with(|r| r.status());
+        if let Some(e) = self.refused_record {
+            let _ = writeln!(
+                out,
+                "# stored record refused: {e}; not in use until `save` replaces it"
+            );
+        }
         let _ = writeln!(
             out,
             "{}",

@@ -125,6 +125,45 @@ fn save_and_load_are_delegated_to_the_glue() {
     assert_eq!(b.console.settings(), &Settings::DEFAULT);
 }
 
+/// A stored record refused at boot or by `load` is reported by `status` until a `save`
+/// replaces it; an accepted record or none is not mentioned.
+#[test]
+fn status_reports_a_refused_stored_record_until_save() {
+    let mut b = Board::new();
+    assert!(!b.ok("status").contains("refused"));
+    let mut boot = String::new();
+    b.console =
+        beamshaper::console::Console::boot(Err(StorageError::Version(1)), &mut *b.rt, 0, &mut boot);
+    assert_eq!(b.console.refused_record(), Some(StorageError::Version(1)));
+    let st = b.ok("status");
+    let first = st.lines().next().unwrap();
+    assert!(
+        first.starts_with("# stored record refused: stored settings are format version 1"),
+        "{st}"
+    );
+    assert!(st.lines().last().unwrap().starts_with("ok status"), "{st}");
+    let mut out = String::new();
+    b.console
+        .finish_save::<&str>(Err("flash driver error"), &mut out);
+    assert!(
+        b.ok("status").contains("refused"),
+        "a failed save replaces nothing"
+    );
+    b.console.finish_save::<&str>(Ok(()), &mut out);
+    assert!(!b.ok("status").contains("refused"));
+    b.console
+        .finish_load(Err(StorageError::Corrupt), &mut *b.rt, &mut out);
+    assert!(b
+        .ok("status")
+        .contains("# stored record refused: stored settings corrupt"));
+    b.console
+        .finish_load(Ok(Some(Settings::DEFAULT)), &mut *b.rt, &mut out);
+    assert!(
+        !b.ok("status").contains("refused"),
+        "the stored record was accepted"
+    );
+}
+
 #[test]
 fn line_buffer_handles_crlf_and_overlong_lines() {
     let mut lb = LineBuffer::new();

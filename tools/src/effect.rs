@@ -132,6 +132,14 @@ impl Effect {
                 p!("servo_damping_ratio", "position-loop damping ratio (1)"),
                 p!("servo_velocity_ff", "velocity feed-forward fraction (1)"),
                 p!("servo_acceleration_ff", "acceleration feed-forward fraction (1)"),
+                p!(
+                    "servo_integral_ratio",
+                    "PID loop (order 3–4): integral pole / natural frequency (1)",
+                ),
+                p!(
+                    "servo_force_lag_ratio",
+                    "order-4 loop: drive-force lag time constant × natural frequency (1)",
+                ),
             ],
             Effect::TipMass => &[p!("tip_mass_kg", "lumped mass at the tip (kg)")],
             Effect::RootCompliance => &[p!(
@@ -147,6 +155,10 @@ impl Effect {
             Effect::MountResonance => &[
                 p!("mount_frequency_hz", "mount resonance frequency (Hz)"),
                 p!("mount_damping_ratio", "mount damping ratio (1)"),
+                p!(
+                    "mount_mass_kg",
+                    "mount mass carrying the beam (kg; absent for a mount the beam does not load)",
+                ),
             ],
             Effect::CoggingRipple => &[
                 p!("cogging_amplitude_n", "ripple amplitude (N)"),

@@ -10,6 +10,8 @@
 //!   stays within ±`band` (default 2 % of |move|) of the target (so a longer shaper costs its
 //!   extra delay, as in the paper's discussion of ZVDD vs ZV).
 
+use beamshaper::shaper::Shaper;
+
 /// Measures of one response.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MoveMeasures {
@@ -129,11 +131,12 @@ pub fn cut_move(
 /// measured from the end of its own command, as the paper's V (eq. 27) and a measured move
 /// do; `x` taken about its mean. This is
 /// independent of any identified model, so it exposes a misidentified mode. `None` if the
-/// record is shorter than T + window.
+/// record is shorter than T + window. The superposition is the core's
+/// [`Shaper::apply_at`] (the one place that convolves a shaper with a signal).
 pub fn superposed_vibration_pct(
     x: &[f64],
     dt_s: f64,
-    impulses: &[(f64, f64)],
+    shaper: &Shaper,
     window_s: f64,
 ) -> Option<f64> {
     let mean = x.iter().sum::<f64>() / x.len().max(1) as f64;
@@ -143,7 +146,7 @@ pub fn superposed_vibration_pct(
         let a = u - k as f64;
         (1.0 - a) * (x[k] - mean) + a * (x[(k + 1).min(x.len() - 1)] - mean)
     };
-    let dur = impulses.iter().map(|i| i.1).fold(0.0, f64::max);
+    let dur = shaper.duration_s();
     let n = (window_s / dt_s) as usize;
     if (dur + window_s) / dt_s + 2.0 > x.len() as f64 || n < 4 {
         return None;
@@ -151,7 +154,7 @@ pub fn superposed_vibration_pct(
     let (mut shaped, mut raw) = (0.0f64, 0.0f64);
     for j in 0..n {
         let t = dur + j as f64 * dt_s;
-        let s: f64 = impulses.iter().map(|&(a, ti)| a * at(t - ti)).sum();
+        let s = shaper.apply_at(t, &at);
         shaped = shaped.max(s.abs());
         raw = raw.max(at(j as f64 * dt_s).abs());
     }
@@ -169,7 +172,7 @@ pub fn superposed_vibration_pct(
 pub fn superposed_vibration_worst_pct(
     x: &[f64],
     dt_s: f64,
-    impulses: &[(f64, f64)],
+    shaper: &Shaper,
     window_s: f64,
     resolution_pct: f64,
 ) -> Option<f64> {
@@ -187,7 +190,12 @@ pub fn superposed_vibration_worst_pct(
         .collect();
     d.sort_by(f64::total_cmp);
     let sigma = d[d.len() / 2] / (0.6745 * 20f64.sqrt());
-    let gain = impulses.iter().map(|i| i.0 * i.0).sum::<f64>().sqrt();
+    let gain = shaper
+        .impulses()
+        .iter()
+        .map(|i| i.amplitude * i.amplitude)
+        .sum::<f64>()
+        .sqrt();
     let peak = x.iter().map(|v| (v - mean).abs()).fold(0.0, f64::max);
     let w = (window_s / dt_s) as usize;
     [0.1, 0.2, 0.3, 0.4, 0.5, 0.6]
@@ -201,7 +209,7 @@ pub fn superposed_vibration_worst_pct(
                 .fold(0.0, f64::max);
             let resolves = 100.0 * 3.0 * sigma * gain <= resolution_pct * raw;
             (raw >= 0.2 * peak && resolves)
-                .then(|| superposed_vibration_pct(&x[k..], dt_s, impulses, window_s))?
+                .then(|| superposed_vibration_pct(&x[k..], dt_s, shaper, window_s))?
         })
         .reduce(f64::max)
 }

@@ -1,6 +1,7 @@
 //! Small SVG plotting helpers on `plotters` (SVG backend: no fonts or system libraries).
 
 use anyhow::{anyhow, Result};
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -94,66 +95,9 @@ pub fn lines_marked(
                 .y_desc(y_label)
                 .draw()
                 .map_err(|e| anyhow!("{e}"))?;
-            for (lo, hi, label) in &marks.shaded_x {
-                let (lo, hi) = (*lo, *hi);
-                let fill = RGBColor(120, 170, 255).mix(0.25);
-                chart
-                    .draw_series(std::iter::once(Rectangle::new(
-                        [(lo, ya), (hi, yb)],
-                        fill.filled(),
-                    )))
-                    .map_err(|e| anyhow!("{e}"))?
-                    .label(label.clone())
-                    .legend(move |(x, y)| {
-                        Rectangle::new([(x, y - 5), (x + 20, y + 5)], fill.filled())
-                    });
-            }
-            for (i, s) in series.iter().enumerate() {
-                let c = COLORS[i % COLORS.len()];
-                chart
-                    .draw_series(LineSeries::new(
-                        s.x.iter()
-                            .zip(s.y)
-                            .filter(|(_, y)| !log_y || **y > 0.0)
-                            .map(|(&x, &y)| (x, y)),
-                        c.stroke_width(2),
-                    ))
-                    .map_err(|e| anyhow!("{e}"))?
-                    .label(s.label.clone())
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
-                    });
-            }
-            let mut seen: Vec<&str> = Vec::new();
-            for (k, (y, label)) in marks.hlines.iter().enumerate() {
-                let c = [
-                    RGBColor(0, 150, 0),
-                    RGBColor(200, 0, 200),
-                    RGBColor(120, 120, 120),
-                ][seen.iter().position(|l| *l == label).unwrap_or(seen.len()) % 3];
-                let y = *y;
-                let dash: Vec<(f64, f64)> = (0..200)
-                    .filter(|i| i % 2 == 0)
-                    .flat_map(|i| {
-                        let a = x0 + (x1 - x0) * i as f64 / 200.0;
-                        let b = x0 + (x1 - x0) * (i + 1) as f64 / 200.0;
-                        [(a, y), (b, y)]
-                    })
-                    .collect();
-                let s = chart
-                    .draw_series(
-                        dash.chunks(2)
-                            .map(|p| PathElement::new(p.to_vec(), c.stroke_width(2))),
-                    )
-                    .map_err(|e| anyhow!("{e}"))?;
-                if !seen.contains(&label.as_str()) {
-                    s.label(label.clone()).legend(move |(x, yy)| {
-                        PathElement::new(vec![(x, yy), (x + 20, yy)], c.stroke_width(2))
-                    });
-                    seen.push(label);
-                }
-                let _ = k;
-            }
+            draw_shaded(&mut chart, &marks.shaded_x, (ya, yb))?;
+            draw_lines(&mut chart, series, log_y)?;
+            draw_hlines(&mut chart, &marks.hlines, (x0, x1))?;
             chart
                 .configure_series_labels()
                 .background_style(WHITE.mix(0.8))
@@ -177,5 +121,93 @@ pub fn lines_marked(
             .map_err(|e| anyhow!("{e}"))?);
     }
     root.present().map_err(|e| anyhow!("{e}"))?;
+    Ok(())
+}
+
+/// A chart with a linear x axis and any f64 y axis (linear or logarithmic).
+type Chart<'a, DB, Y> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, Y>>;
+
+/// The shaded x intervals of [`Marks`], over the y range `y_range`.
+fn draw_shaded<DB: DrawingBackend, Y: Ranged<ValueType = f64>>(
+    chart: &mut Chart<'_, DB, Y>,
+    shaded_x: &[(f64, f64, String)],
+    y_range: (f64, f64),
+) -> Result<()> {
+    let (ya, yb) = y_range;
+    for (lo, hi, label) in shaded_x {
+        let (lo, hi) = (*lo, *hi);
+        let fill = RGBColor(120, 170, 255).mix(0.25);
+        chart
+            .draw_series(std::iter::once(Rectangle::new(
+                [(lo, ya), (hi, yb)],
+                fill.filled(),
+            )))
+            .map_err(|e| anyhow!("{e}"))?
+            .label(label.clone())
+            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], fill.filled()));
+    }
+    Ok(())
+}
+
+/// The series as lines (non-positive values skipped on a logarithmic axis).
+fn draw_lines<DB: DrawingBackend, Y: Ranged<ValueType = f64>>(
+    chart: &mut Chart<'_, DB, Y>,
+    series: &[Series],
+    log_y: bool,
+) -> Result<()> {
+    for (i, s) in series.iter().enumerate() {
+        let c = COLORS[i % COLORS.len()];
+        chart
+            .draw_series(LineSeries::new(
+                s.x.iter()
+                    .zip(s.y)
+                    .filter(|(_, y)| !log_y || **y > 0.0)
+                    .map(|(&x, &y)| (x, y)),
+                c.stroke_width(2),
+            ))
+            .map_err(|e| anyhow!("{e}"))?
+            .label(s.label.clone())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+    }
+    Ok(())
+}
+
+/// The dashed horizontal lines of [`Marks`] across `x_range`, one colour and one legend
+/// entry per distinct label.
+fn draw_hlines<DB: DrawingBackend, Y: Ranged<ValueType = f64>>(
+    chart: &mut Chart<'_, DB, Y>,
+    hlines: &[(f64, String)],
+    x_range: (f64, f64),
+) -> Result<()> {
+    let (x0, x1) = x_range;
+    let mut seen: Vec<&str> = Vec::new();
+    for (y, label) in hlines {
+        let c = [
+            RGBColor(0, 150, 0),
+            RGBColor(200, 0, 200),
+            RGBColor(120, 120, 120),
+        ][seen.iter().position(|l| *l == label).unwrap_or(seen.len()) % 3];
+        let y = *y;
+        let dash: Vec<(f64, f64)> = (0..200)
+            .filter(|i| i % 2 == 0)
+            .flat_map(|i| {
+                let a = x0 + (x1 - x0) * i as f64 / 200.0;
+                let b = x0 + (x1 - x0) * (i + 1) as f64 / 200.0;
+                [(a, y), (b, y)]
+            })
+            .collect();
+        let s = chart
+            .draw_series(
+                dash.chunks(2)
+                    .map(|p| PathElement::new(p.to_vec(), c.stroke_width(2))),
+            )
+            .map_err(|e| anyhow!("{e}"))?;
+        if !seen.contains(&label.as_str()) {
+            s.label(label.clone()).legend(move |(x, yy)| {
+                PathElement::new(vec![(x, yy), (x + 20, yy)], c.stroke_width(2))
+            });
+            seen.push(label);
+        }
+    }
     Ok(())
 }

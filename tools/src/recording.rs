@@ -663,3 +663,20 @@ mod tests {
         assert_eq!(fmt_sig(0.0074, 2), "0.0074");
     }
 }
+
+/// `rec` at `rate_hz` by keeping every `round(rate / rate_hz)`-th sample of every channel
+/// (no anti-alias filter: for simulator output that is already band-limited, e.g. the 1 kHz
+/// simulation of a rig sampled at 100 Hz). A factor below 1 keeps every sample; notes are
+/// dropped.
+pub fn decimate(rec: &Recording, rate_hz: f64) -> Recording {
+    let f = ((rec.sample_rate_hz() / rate_hz).round() as usize).max(1);
+    let pick = |v: &Option<Vec<f64>>| v.as_ref().map(|v| v.iter().step_by(f).copied().collect());
+    Recording {
+        time_s: rec.time_s.iter().step_by(f).copied().collect(),
+        base_cmd_m: pick(&rec.base_cmd_m),
+        base_pos_m: pick(&rec.base_pos_m),
+        tip_pos_m: pick(&rec.tip_pos_m),
+        force_n: pick(&rec.force_n),
+        notes: vec![],
+    }
+}

@@ -95,7 +95,7 @@ fn move_and_ring_down_with_a_dithering_servo() {
     let tr = truth(&m).unwrap().clamped;
     let sim = BaseMotionSim::new(&m, 1e-3).unwrap();
     let (y, _) = trapezoid_reference(0.0, 0.02, 0.2, 2.0, 1000.0, 40.0).unwrap();
-    let mut rec = beamtools::model::cli::decimate(&sim.recording(&y, 0.0), 100.0);
+    let mut rec = beamtools::recording::decimate(&sim.recording(&y, 0.0), 100.0);
     let mut rng = rand::rngs::StdRng::seed_from_u64(3);
     // Encoder quantisation of 1 µm and a servo wandering by up to ±2 µm.
     for v in rec.base_pos_m.as_mut().unwrap().iter_mut() {
@@ -332,7 +332,7 @@ fn lvm_spectrum_through_the_entry_point() {
     let m = model();
     let sim = BaseMotionSim::new(&m, 1e-3).unwrap();
     let (y, _) = trapezoid_reference(0.0, 0.02, 0.2, 2.0, 1000.0, 10.0).unwrap();
-    let mut rec = beamtools::model::cli::decimate(&sim.recording(&y, 0.0), 100.0);
+    let mut rec = beamtools::recording::decimate(&sim.recording(&y, 0.0), 100.0);
     let mut rng = rand::rngs::StdRng::seed_from_u64(4);
     for v in rec.base_pos_m.as_mut().unwrap().iter_mut() {
         *v += rng.gen_range(-2e-6..2e-6);

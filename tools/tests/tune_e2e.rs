@@ -4,8 +4,9 @@
 use beamtools::board::client::BoardClient;
 use beamtools::board::rig::{RigSensors, VirtualRig};
 use beamtools::board::{load_flash, spawn_on_pty_with_rig, VirtualBoard};
+use beamtools::cli::tune::{tune, TuneArgs};
 use beamtools::model::Rig;
-use beamtools::tune::{tune, TuneArgs, DEFAULT_RIG_TOML};
+use beamtools::tune::DEFAULT_RIG_TOML;
 use clap::Parser;
 use serialport::SerialPort;
 use std::io::{Read, Write};
@@ -288,7 +289,7 @@ fn tune_succeeds_on_a_sweep_and_on_a_dithering_move_with_ring_down() {
     sweep.write_csv(dir.join("sweep.csv")).unwrap();
     let sim = BaseMotionSim::new(&m, 1e-3).unwrap();
     let (y, _) = trapezoid_reference(0.0, 0.02, 0.2, 2.0, 1000.0, 40.0).unwrap();
-    let mut mv = beamtools::model::cli::decimate(&sim.recording(&y, 0.0), 100.0);
+    let mut mv = beamtools::recording::decimate(&sim.recording(&y, 0.0), 100.0);
     let mut rng = rand::rngs::StdRng::seed_from_u64(7);
     for v in mv.base_pos_m.as_mut().unwrap().iter_mut() {
         *v = ((*v + rng.gen_range(-2e-6..=2e-6)) * 1e6).round() * 1e-6;

@@ -1,13 +1,70 @@
 //! Serial-console client for the board (real or virtual), on the `serialport` crate.
 //!
 //! Speaks the console protocol of [`beamshaper::protocol`]: one command line out, reply lines
-//! back (classified by [`ReplyLine`]) until a final `ok …` or `err <code>: …` line.
+//! back (classified by [`ReplyLine`]) until a final `ok …` or `err <code>: …` line. Every
+//! failure is a [`ClientError`].
 
-use anyhow::{anyhow, bail, Context, Result};
 use beamshaper::protocol::ReplyLine;
 use serialport::SerialPort;
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
+use thiserror::Error;
+
+/// Why a console exchange failed.
+#[derive(Debug, Error)]
+pub enum ClientError {
+    /// The port cannot be opened.
+    #[error("cannot open serial port {port}")]
+    Open {
+        /// The port's path.
+        port: String,
+        /// Why.
+        #[source]
+        source: serialport::Error,
+    },
+    /// Writing the command failed.
+    #[error("serial write")]
+    Write(#[source] std::io::Error),
+    /// No complete reply came back.
+    #[error("waiting for the reply to `{command}`")]
+    NoReply {
+        /// The command sent.
+        command: String,
+        /// Why.
+        #[source]
+        source: LineError,
+    },
+    /// The board answered `err <code>: <message>`.
+    #[error("board refused `{command}`: {reply}")]
+    Refused {
+        /// The command sent.
+        command: String,
+        /// The reply without `err `.
+        reply: String,
+    },
+    /// A reply line is neither `# …`, `ok …` nor `err …`.
+    #[error("malformed reply to `{command}`: `{line}` (expected `# …`, `ok …` or `err …`)")]
+    Malformed {
+        /// The command sent.
+        command: String,
+        /// The line received.
+        line: String,
+    },
+}
+
+/// Why a reply line could not be read.
+#[derive(Debug, Error)]
+pub enum LineError {
+    /// The bytes are not UTF-8.
+    #[error("board sent non-UTF-8 bytes")]
+    NotUtf8,
+    /// Nothing complete within the timeout.
+    #[error("board stopped answering (no complete reply within {0:?})")]
+    Silent(Duration),
+    /// The port failed.
+    #[error("serial read")]
+    Read(#[source] std::io::Error),
+}
 
 /// A reply: the informational `# ` lines and the final `ok …` line (read its fields with the
 /// core's reply types, [`beamshaper::protocol`]).
@@ -28,11 +85,14 @@ pub struct BoardClient {
 
 impl BoardClient {
     /// Opens `path` at 115200 8N1 and drains any boot messages.
-    pub fn open(path: &str) -> Result<Self> {
+    pub fn open(path: &str) -> Result<Self, ClientError> {
         let port = serialport::new(path, 115_200)
             .timeout(Duration::from_millis(20))
             .open()
-            .with_context(|| format!("cannot open serial port {path}"))?;
+            .map_err(|source| ClientError::Open {
+                port: path.to_string(),
+                source,
+            })?;
         let mut c = BoardClient {
             port,
             pending: Vec::new(),
@@ -60,52 +120,56 @@ impl BoardClient {
         self.pending.clear();
     }
 
-    fn read_line(&mut self, deadline: Instant) -> Result<String> {
+    fn read_line(&mut self, deadline: Instant) -> Result<String, LineError> {
         let mut buf = [0u8; 256];
         loop {
             if let Some(i) = self.pending.iter().position(|&b| b == b'\n') {
                 let line: Vec<u8> = self.pending.drain(..=i).collect();
-                let s =
-                    String::from_utf8(line).map_err(|_| anyhow!("board sent non-UTF-8 bytes"))?;
+                let s = String::from_utf8(line).map_err(|_| LineError::NotUtf8)?;
                 return Ok(s.trim_end_matches(['\r', '\n']).to_string());
             }
             if Instant::now() > deadline {
-                bail!(
-                    "board stopped answering (no complete reply within {:?})",
-                    self.timeout
-                );
+                return Err(LineError::Silent(self.timeout));
             }
             match self.port.read(&mut buf) {
                 Ok(n) => self.pending.extend_from_slice(&buf[..n]),
                 Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
-                Err(e) => return Err(e).context("serial read"),
+                Err(e) => return Err(LineError::Read(e)),
             }
         }
     }
 
     /// Sends one command line and waits for its reply. Errors: an `err` reply (code and
     /// message in the error), a malformed reply line, or no reply within the timeout.
-    pub fn command(&mut self, line: &str) -> Result<Reply> {
+    pub fn command(&mut self, line: &str) -> Result<Reply, ClientError> {
         self.port
             .write_all(format!("{line}\n").as_bytes())
-            .context("serial write")?;
+            .map_err(ClientError::Write)?;
         self.port.flush().ok();
         let deadline = Instant::now() + self.timeout;
         let mut info = Vec::new();
         loop {
             let l = self
                 .read_line(deadline)
-                .with_context(|| format!("waiting for the reply to `{line}`"))?;
+                .map_err(|source| ClientError::NoReply {
+                    command: line.to_string(),
+                    source,
+                })?;
             match ReplyLine::parse(&l) {
                 ReplyLine::Info(text) => info.push(text.to_string()),
                 ReplyLine::Ok(_) => return Ok(Reply { info, ok: l }),
                 ReplyLine::Err(..) => {
-                    let e = l.strip_prefix("err ").unwrap_or(&l);
-                    bail!("board refused `{line}`: {e}");
+                    return Err(ClientError::Refused {
+                        command: line.to_string(),
+                        reply: l.strip_prefix("err ").unwrap_or(&l).to_string(),
+                    });
                 }
                 ReplyLine::Other("") => continue,
                 ReplyLine::Other(_) => {
-                    bail!("malformed reply to `{line}`: `{l}` (expected `# …`, `ok …` or `err …`)")
+                    return Err(ClientError::Malformed {
+                        command: line.to_string(),
+                        line: l,
+                    })
                 }
             }
         }

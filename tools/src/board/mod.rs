@@ -10,8 +10,8 @@ pub mod client;
 pub mod plan;
 pub mod rig;
 pub mod session;
+pub mod steps;
 
-use anyhow::{Context, Result};
 use beamshaper::config::Settings;
 use beamshaper::console::{Action, Console, LineBuffer, LineError};
 use beamshaper::protocol::{Refusal, LINE_TOO_LONG};
@@ -21,6 +21,36 @@ use serialport::SerialPort;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
+use thiserror::Error;
+
+/// Why the virtual board cannot be served.
+#[derive(Debug, Error)]
+pub enum VboardError {
+    /// `--time-scale` out of range ([`check_time_scale`]).
+    #[error("{0}")]
+    TimeScale(String),
+    /// The pseudo-terminal cannot be created or has no name.
+    #[error("cannot create a pseudo-terminal")]
+    Pty(#[source] serialport::Error),
+    /// The pseudo-terminal has no device name.
+    #[error("pseudo-terminal has no name")]
+    PtyName,
+    /// The serial port failed.
+    #[error("virtual board: serial {0}")]
+    Serial(&'static str, #[source] std::io::Error),
+}
+
+/// An error and its causes, `: `-separated (what `{:#}` of an `anyhow` error shows).
+pub fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        text.push_str(": ");
+        text.push_str(&c.to_string());
+        cause = c.source();
+    }
+    text
+}
 
 /// The core plus emulated flash.
 pub struct VirtualBoard {
@@ -129,7 +159,7 @@ impl VirtualBoard {
                     (steps * step_nm) as f64 * 1e-9,
                 );
                 if let Err(e) = res {
-                    self.rig_error = Some(format!("{e:#}"));
+                    self.rig_error = Some(error_chain(&e));
                     self.rig = None;
                 }
             }
@@ -145,25 +175,27 @@ impl VirtualBoard {
     /// board's tick rate × `time_scale` of wall-clock time ([`TickClock`]: a tick-rate change
     /// takes effect from the moment it is applied, without a freeze or a burst).
     /// Errors: an invalid `time_scale` ([`check_time_scale`]), a serial error.
-    pub fn serve(&mut self, port: &mut dyn SerialPort, time_scale: f64) -> Result<()> {
-        check_time_scale(time_scale).map_err(|e| anyhow::anyhow!(e))?;
+    pub fn serve(&mut self, port: &mut dyn SerialPort, time_scale: f64) -> Result<(), VboardError> {
+        check_time_scale(time_scale).map_err(VboardError::TimeScale)?;
         let start = Instant::now();
         let mut clock = TickClock::new(0.0, self.rt.tick_rate_hz(), time_scale);
         let mut buf = [0u8; 256];
-        port.set_timeout(Duration::from_millis(1))?;
+        port.set_timeout(Duration::from_millis(1))
+            .map_err(|e| VboardError::Serial("timeout", e.into()))?;
         loop {
             match port.read(&mut buf) {
                 Ok(0) => {}
                 Ok(n) => {
                     let reply = self.receive(&buf[..n]);
                     if !reply.is_empty() {
-                        port.write_all(reply.as_bytes())?;
-                        port.flush()?;
+                        port.write_all(reply.as_bytes())
+                            .and_then(|_| port.flush())
+                            .map_err(|e| VboardError::Serial("write", e))?;
                     }
                 }
                 Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
                 Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
-                Err(e) => return Err(e).context("virtual board: serial read"),
+                Err(e) => return Err(VboardError::Serial("read", e)),
             }
             let now_s = start.elapsed().as_secs_f64();
             for _ in 0..clock.due(now_s) {
@@ -356,7 +388,7 @@ mod clock_tests {
 /// Creates a pseudo-terminal pair and serves a virtual board on its master side in a
 /// background thread. Returns the slave device path (e.g. `/dev/pts/5`) to open with
 /// [`client::BoardClient::open`], exactly like a real board's `/dev/ttyACM0`.
-pub fn spawn_on_pty(flash: Option<PathBuf>, time_scale: f64) -> Result<String> {
+pub fn spawn_on_pty(flash: Option<PathBuf>, time_scale: f64) -> Result<String, VboardError> {
     spawn_on_pty_with_rig(flash, time_scale, None)
 }
 
@@ -365,10 +397,9 @@ pub fn spawn_on_pty_with_rig(
     flash: Option<PathBuf>,
     time_scale: f64,
     rig: Option<rig::VirtualRig>,
-) -> Result<String> {
-    let (mut master, slave) =
-        serialport::TTYPort::pair().context("cannot create a pseudo-terminal")?;
-    let path = slave.name().context("pseudo-terminal has no name")?;
+) -> Result<String, VboardError> {
+    let (mut master, slave) = serialport::TTYPort::pair().map_err(VboardError::Pty)?;
+    let path = slave.name().ok_or(VboardError::PtyName)?;
     // Keep the slave side open for the lifetime of the thread so the master never sees EOF
     // between client connections.
     std::thread::spawn(move || {

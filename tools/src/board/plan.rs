@@ -4,6 +4,7 @@
 //! cannot be captured or that the board would refuse is rejected before any motion starts.
 
 use beamshaper::config::Settings;
+use beamshaper::engine::TapTable;
 use beamshaper::output::{check_move_step_rate, check_step_rate};
 use beamshaper::reference::{trapezoid_peak_speed, MoveError, SineSweep, SweepKind, TrapezoidMove};
 use beamshaper::runtime::{CAPTURE_LEN, HISTORY_LEN};
@@ -80,8 +81,54 @@ pub fn plan_move(
     accel_mm_s2: f64,
     settle_s: f64,
 ) -> Result<MovePlan, PlanError> {
-    let arg = |m: String| Err(PlanError::Argument(m));
     let target_mm = start_mm + move_mm;
+    check_move_arguments(move_mm, target_mm, speed_mm_s, accel_mm_s2)?;
+    let taps = settings
+        .tap_table(HISTORY_LEN)
+        .map_err(|e| PlanError::Shaper(e.to_string()))?;
+    let tick_hz = settings.tick_rate_hz as f64;
+    let mv = trapezoid(start_mm, target_mm, speed_mm_s, accel_mm_s2, tick_hz)?;
+    let need = check_step_rate_of_move(
+        settings,
+        &taps,
+        start_mm,
+        target_mm,
+        speed_mm_s,
+        accel_mm_s2,
+    )?;
+    let move_ticks = mv.duration_ticks() as u64;
+    let observe_ticks =
+        move_ticks + taps.duration_ticks() as u64 + (settle_s.max(0.0) * tick_hz).ceil() as u64;
+    let every = observe_ticks.div_ceil(CAPTURE_LEN as u64 - 16).max(1);
+    if every > 10_000 {
+        return Err(PlanError::Capture(observe_ticks as f64 / tick_hz));
+    }
+    Ok(MovePlan {
+        start_mm,
+        target_mm,
+        speed_mm_s,
+        accel_mm_s2,
+        move_ticks,
+        observe_ticks,
+        capture_every: every as u32,
+        peak_step_rate_hz: need,
+    })
+}
+
+/// Position in the board's counts (nm) of `mm`.
+fn nm(mm: f64) -> i32 {
+    (mm * 1e6).round() as i32
+}
+
+/// Refuses a zero or non-finite move, a target outside the console's range, a speed or
+/// acceleration outside the console's ranges.
+fn check_move_arguments(
+    move_mm: f64,
+    target_mm: f64,
+    speed_mm_s: f64,
+    accel_mm_s2: f64,
+) -> Result<(), PlanError> {
+    let arg = |m: String| Err(PlanError::Argument(m));
     if !move_mm.is_finite() || move_mm.abs() < 1e-3 {
         return arg(format!(
             "the verification move must be at least 0.001 mm (got {move_mm} mm): a zero move has no residual vibration to measure"
@@ -102,12 +149,18 @@ pub fn plan_move(
             "acceleration must be > 0 and ≤ {ACCEL_LIMIT_MM_S2} mm/s² (got {accel_mm_s2})"
         ));
     }
-    let taps = settings
-        .tap_table(HISTORY_LEN)
-        .map_err(|e| PlanError::Shaper(e.to_string()))?;
-    let tick_hz = settings.tick_rate_hz as f64;
-    let nm = |mm: f64| (mm * 1e6).round() as i32;
-    let mv = TrapezoidMove::new(
+    Ok(())
+}
+
+/// The core's trapezoid of the move (as the board will run it).
+fn trapezoid(
+    start_mm: f64,
+    target_mm: f64,
+    speed_mm_s: f64,
+    accel_mm_s2: f64,
+    tick_hz: f64,
+) -> Result<TrapezoidMove, PlanError> {
+    TrapezoidMove::new(
         nm(start_mm),
         nm(target_mm),
         (speed_mm_s * 1e6) as f32,
@@ -123,8 +176,19 @@ pub fn plan_move(
             }
             .to_string(),
         )
-    })?;
-    // The board's own rule (core `output::check_move_step_rate`), against the limit minus the margin.
+    })
+}
+
+/// The board's own step-rate rule (core `output::check_move_step_rate`) against its limit
+/// minus the margin; returns the shaped peak step rate (steps/s) the move needs.
+fn check_step_rate_of_move(
+    settings: &Settings,
+    taps: &TapTable,
+    start_mm: f64,
+    target_mm: f64,
+    speed_mm_s: f64,
+    accel_mm_s2: f64,
+) -> Result<f64, PlanError> {
     let max = settings.max_step_rate_hz;
     let with_margin = (STEP_RATE_USE * max as f64).floor() as u32;
     let distance_nm = (nm(target_mm) as i64 - nm(start_mm) as i64).unsigned_abs() as u32;
@@ -132,38 +196,21 @@ pub fn plan_move(
     let need = trapezoid_peak_speed(distance_nm as f32, speed_nm_s, accel_nm_s2) as f64
         * taps.abs_weight_sum() as f64
         / settings.step_nm.max(1) as f64;
-    if let Err(e) = check_move_step_rate(
-        &taps,
+    check_move_step_rate(
+        taps,
         settings.step_nm,
         with_margin,
         distance_nm,
         speed_nm_s,
         accel_nm_s2,
-    ) {
-        return Err(PlanError::StepRate {
-            need: e.shaped_peak_steps_s as f64,
-            max,
-            pct: 100.0 * STEP_RATE_USE,
-            speed_ok: (e.max_reference_speed_nm_s as f64 * 1e-6 * 0.999 * 10.0).floor() / 10.0,
-        });
-    }
-    let move_ticks = mv.duration_ticks() as u64;
-    let observe_ticks =
-        move_ticks + taps.duration_ticks() as u64 + (settle_s.max(0.0) * tick_hz).ceil() as u64;
-    let every = observe_ticks.div_ceil(CAPTURE_LEN as u64 - 16).max(1);
-    if every > 10_000 {
-        return Err(PlanError::Capture(observe_ticks as f64 / tick_hz));
-    }
-    Ok(MovePlan {
-        start_mm,
-        target_mm,
-        speed_mm_s,
-        accel_mm_s2,
-        move_ticks,
-        observe_ticks,
-        capture_every: every as u32,
-        peak_step_rate_hz: need,
-    })
+    )
+    .map_err(|e| PlanError::StepRate {
+        need: e.shaped_peak_steps_s as f64,
+        max,
+        pct: 100.0 * STEP_RATE_USE,
+        speed_ok: (e.max_reference_speed_nm_s as f64 * 1e-6 * 0.999 * 10.0).floor() / 10.0,
+    })?;
+    Ok(need)
 }
 
 /// A planned sweep (`sweep lin|exp <f0> <f1> <amplitude_mm> <duration_s>`).

@@ -8,8 +8,8 @@
 //!   `ẍ + 2ζ_s ω_s ẋ + ω_s² x = ω_s² r` (default 25 Hz, ζ_s = 0.8), exact zero-order-hold
 //!   discretisation;
 //! - **beam**: clamped-base modes of the rig's Galerkin model, `η̈ + 2ζω η̇ + ω² η = −Γ ÿ`,
-//!   driven by the carriage's velocity change each tick (the same scheme as
-//!   [`crate::model::sim::BaseMotionSim`]), tip = x + Σ φ_r(l) η_r;
+//!   driven by the carriage's velocity change each tick, stepped by the model's simulator
+//!   ([`crate::model::sim::BaseMotionSim::step`]), tip = x + Σ φ_r(l) η_r;
 //! - **sensors**: an encoder on the carriage (quantised to `encoder_m`) and a camera on the
 //!   tip at `sample_rate_hz` with a `latency_s` delay and Gaussian noise `noise_m`.
 //!
@@ -17,16 +17,48 @@
 //! `base_pos_m` = encoder, `tip_pos_m` = camera), one flushed line per frame, so another
 //! process can read it while the board runs ([`read_sensor_log`]).
 
-use crate::model::sim::mode_zoh;
+use crate::model::sim::{mode_zoh, BaseMotionSim, BaseMotionState};
 use crate::model::{BeamModel, ModelOptions, Rig};
 use crate::recording::Recording;
-use anyhow::{bail, Context, Result};
 use nalgebra::{Matrix2, Vector2};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use std::collections::VecDeque;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// Why the virtual rig cannot be built, write its log, or its log cannot be read.
+#[derive(Debug, Error)]
+pub enum RigError {
+    /// Sensor or servo parameters out of range (the message says which).
+    #[error("{0}")]
+    Sensors(String),
+    /// The rig's beam model is unusable.
+    #[error(transparent)]
+    Model(Box<dyn std::error::Error + Send + Sync + 'static>),
+    /// A file operation on the sensor log failed.
+    #[error("cannot {what} the sensor log {}", path.display())]
+    File {
+        /// `create`, `write`, `read`.
+        what: &'static str,
+        /// The log.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A complete line of the log is not 4 numbers.
+    #[error("{} line {line}: `{text}` is not 4 numbers", path.display())]
+    Line {
+        /// The log.
+        path: PathBuf,
+        /// Line number (1-based).
+        line: usize,
+        /// Its text.
+        text: String,
+    },
+}
 
 /// Sensor and servo parameters of the virtual rig.
 #[derive(Clone, Debug, PartialEq)]
@@ -70,10 +102,8 @@ pub struct VirtualRig {
     servo_gamma: Vector2<f64>,
     servo_w2: f64,
     carriage: Vector2<f64>,
-    phi: Vec<Matrix2<f64>>,
-    participation: Vec<f64>,
-    tip_per_mode: Vec<f64>,
-    eta: Vec<Vector2<f64>>,
+    beam: BaseMotionSim,
+    beam_state: BaseMotionState,
     frame_every: u64,
     latency: VecDeque<f64>,
     latency_ticks: usize,
@@ -89,33 +119,27 @@ impl VirtualRig {
     /// Builds the rig of `rig` for a board ticking at `tick_hz`, writing the sensor log to
     /// `log`. Errors: no beam, unusable model, sensor rate not a divisor-friendly fraction of
     /// the tick rate (must be ≤ tick rate), unwritable log.
-    pub fn new(rig: &Rig, sensors: RigSensors, tick_hz: f64, log: &Path) -> Result<Self> {
+    pub fn new(rig: &Rig, sensors: RigSensors, tick_hz: f64, log: &Path) -> Result<Self, RigError> {
+        check_sensors(&sensors, tick_hz)?;
         let s = &sensors;
-        if !(s.sample_rate_hz > 0.0 && s.sample_rate_hz <= tick_hz) {
-            bail!(
-                "sensor rate {} Hz must be > 0 and at most the board's tick rate {tick_hz} Hz",
-                s.sample_rate_hz
-            );
-        }
-        if !(s.latency_s >= 0.0 && s.noise_m >= 0.0 && s.encoder_m > 0.0 && s.servo_hz > 0.0) {
-            bail!("sensor latency, noise, encoder resolution and servo bandwidth must be positive");
-        }
-        let model = BeamModel::new(rig, &ModelOptions::default())?;
-        let modes = model.clamped_modes()?;
+        let model_err = |e: anyhow::Error| RigError::Model(e.into());
+        let model = BeamModel::new(rig, &ModelOptions::default()).map_err(model_err)?;
         let dt = 1.0 / tick_hz;
+        let beam = BaseMotionSim::new(&model, dt).map_err(model_err)?;
         let ws = 2.0 * std::f64::consts::PI * s.servo_hz;
         let (servo_phi, servo_gamma) = mode_zoh(ws, s.servo_zeta, dt);
-        let phi = modes
-            .omega_rad_s
-            .iter()
-            .zip(&modes.zeta)
-            .map(|(&w, &z)| mode_zoh(w, z, dt).0)
-            .collect();
-        let file = std::fs::File::create(log)
-            .with_context(|| format!("cannot create the sensor log {}", log.display()))?;
+        let file_err = |what| {
+            move |source| RigError::File {
+                what,
+                path: log.to_path_buf(),
+                source,
+            }
+        };
+        let file = std::fs::File::create(log).map_err(file_err("create"))?;
         let mut out = std::io::BufWriter::new(file);
-        writeln!(out, "time_s,base_cmd_m,base_pos_m,tip_pos_m")?;
-        out.flush()?;
+        writeln!(out, "time_s,base_cmd_m,base_pos_m,tip_pos_m")
+            .and_then(|_| out.flush())
+            .map_err(file_err("write"))?;
         let latency_ticks = (s.latency_s * tick_hz).round() as usize;
         Ok(VirtualRig {
             dt,
@@ -123,14 +147,13 @@ impl VirtualRig {
             servo_gamma,
             servo_w2: ws * ws,
             carriage: Vector2::zeros(),
-            eta: vec![Vector2::zeros(); modes.omega_rad_s.len()],
-            phi,
-            participation: modes.participation.clone(),
-            tip_per_mode: modes.tip.clone(),
+            beam_state: beam.rest(),
+            beam,
             frame_every: (tick_hz / s.sample_rate_hz).round().max(1.0) as u64,
             latency: VecDeque::from(vec![0.0; latency_ticks + 1]),
             latency_ticks,
-            noise: Normal::new(0.0, s.noise_m.max(1e-30))?,
+            noise: Normal::new(0.0, s.noise_m.max(1e-30))
+                .map_err(|e| RigError::Sensors(format!("camera noise: {e}")))?,
             rng: rand::rngs::StdRng::seed_from_u64(s.seed),
             sensors,
             ticks: 0,
@@ -145,17 +168,13 @@ impl VirtualRig {
     }
 
     /// Advances one tick with the board's shaped setpoint (m) and its emitted step position (m).
-    pub fn tick(&mut self, setpoint_m: f64, step_pos_m: f64) -> Result<()> {
+    pub fn tick(&mut self, setpoint_m: f64, step_pos_m: f64) -> Result<(), RigError> {
         let v_before = self.carriage[1];
         self.carriage =
             self.servo_phi * self.carriage + self.servo_gamma * (self.servo_w2 * step_pos_m);
-        let dv = self.carriage[1] - v_before;
-        let mut tip = self.carriage[0];
-        for r in 0..self.eta.len() {
-            self.eta[r][1] -= self.participation[r] * dv;
-            self.eta[r] = self.phi[r] * self.eta[r];
-            tip += self.tip_per_mode[r] * self.eta[r][0];
-        }
+        self.beam
+            .step(&mut self.beam_state, self.carriage[1] - v_before);
+        let tip = self.beam.tip_m(&self.beam_state, self.carriage[0]);
         self.latency.push_back(tip);
         while self.latency.len() > self.latency_ticks + 1 {
             self.latency.pop_front();
@@ -166,25 +185,44 @@ impl VirtualRig {
                 self.latency.front().copied().unwrap_or(tip) + self.noise.sample(&mut self.rng);
             let q = self.sensors.encoder_m;
             let enc = (self.carriage[0] / q).round() * q;
-            writeln!(
-                self.out,
-                "{:.6},{:.9},{:.9},{:.9}",
-                self.ticks as f64 * self.dt,
-                setpoint_m,
-                enc,
-                seen
-            )?;
-            self.out.flush()?;
+            let t = self.ticks as f64 * self.dt;
+            writeln!(self.out, "{t:.6},{setpoint_m:.9},{enc:.9},{seen:.9}")
+                .and_then(|_| self.out.flush())
+                .map_err(|source| RigError::File {
+                    what: "write",
+                    path: self.path.clone(),
+                    source,
+                })?;
         }
         Ok(())
     }
 }
 
+/// Refuses a sensor rate above the tick rate (or ≤ 0) and negative latency, noise, encoder
+/// resolution or servo bandwidth.
+fn check_sensors(s: &RigSensors, tick_hz: f64) -> Result<(), RigError> {
+    if !(s.sample_rate_hz > 0.0 && s.sample_rate_hz <= tick_hz) {
+        return Err(RigError::Sensors(format!(
+            "sensor rate {} Hz must be > 0 and at most the board's tick rate {tick_hz} Hz",
+            s.sample_rate_hz
+        )));
+    }
+    if !(s.latency_s >= 0.0 && s.noise_m >= 0.0 && s.encoder_m > 0.0 && s.servo_hz > 0.0) {
+        return Err(RigError::Sensors(
+            "sensor latency, noise, encoder resolution and servo bandwidth must be positive".into(),
+        ));
+    }
+    Ok(())
+}
+
 /// Reads the sensor log written so far (complete lines only) between board times
 /// `from_s` and `to_s`. Errors: unreadable file, a complete line that does not parse.
-pub fn read_sensor_log(path: &Path, from_s: f64, to_s: f64) -> Result<Recording> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read the sensor log {}", path.display()))?;
+pub fn read_sensor_log(path: &Path, from_s: f64, to_s: f64) -> Result<Recording, RigError> {
+    let text = std::fs::read_to_string(path).map_err(|source| RigError::File {
+        what: "read",
+        path: path.to_path_buf(),
+        source,
+    })?;
     let complete = match text.rfind('\n') {
         Some(i) => &text[..=i],
         None => "",
@@ -202,12 +240,10 @@ pub fn read_sensor_log(path: &Path, from_s: f64, to_s: f64) -> Result<Recording>
             .collect::<std::result::Result<_, _>>()
             .ok()
             .filter(|v: &Vec<f64>| v.len() == 4)
-            .with_context(|| {
-                format!(
-                    "{} line {}: `{line}` is not 4 numbers",
-                    path.display(),
-                    i + 1
-                )
+            .ok_or_else(|| RigError::Line {
+                path: path.to_path_buf(),
+                line: i + 1,
+                text: line.to_string(),
             })?;
         if v[0] < from_s || v[0] > to_s {
             continue;
@@ -221,4 +257,58 @@ pub fn read_sensor_log(path: &Path, from_s: f64, to_s: f64) -> Result<Recording>
         }
     }
     Ok(rec)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The rig steps its beam with the model's simulator: stepping the velocity changes of a
+    /// base trajectory one sample at a time gives the batch run's tip deflection (one sample
+    /// later: `run` reports each sample before its kick).
+    #[test]
+    fn stepping_the_beam_matches_the_batch_simulator() {
+        let rig = Rig::from_toml_str(crate::tune::DEFAULT_RIG_TOML).unwrap();
+        let model = BeamModel::new(&rig, &ModelOptions::default()).unwrap();
+        let dt = 1e-3;
+        let sim = BaseMotionSim::new(&model, dt).unwrap();
+        let (y, _) = crate::model::trapezoid_reference(0.0, 0.05, 0.2, 2.0, 1.0 / dt, 3.0).unwrap();
+        let (w, _) = sim.run(&y);
+        let mut state = sim.rest();
+        let v = |k: usize| match k {
+            0 => 0.0,
+            k if k < y.len() => (y[k] - y[k - 1]) / dt,
+            _ => 0.0,
+        };
+        let peak = w.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        assert!(peak > 1e-3, "the move must excite the beam ({peak} m)");
+        for k in 0..y.len() - 1 {
+            sim.step(&mut state, v(k + 1) - v(k));
+            let stepped = sim.tip_m(&state, 0.0);
+            assert!(
+                (stepped - w[k + 1]).abs() <= 1e-12 * peak,
+                "sample {k}: {stepped} vs {}",
+                w[k + 1]
+            );
+        }
+    }
+
+    #[test]
+    fn sensor_parameters_out_of_range_are_refused() {
+        let rig = Rig::from_toml_str(crate::tune::DEFAULT_RIG_TOML).unwrap();
+        let log = std::env::temp_dir().join(format!("rig-test-{}.csv", std::process::id()));
+        let mut s = RigSensors::camera(&rig);
+        s.sample_rate_hz = 2000.0;
+        let e = VirtualRig::new(&rig, s, 1000.0, &log).err().unwrap();
+        assert!(
+            e.to_string().contains("at most the board's tick rate"),
+            "{e}"
+        );
+        let mut s = RigSensors::camera(&rig);
+        s.servo_hz = 0.0;
+        assert!(matches!(
+            VirtualRig::new(&rig, s, 1000.0, &log),
+            Err(RigError::Sensors(_))
+        ));
+    }
 }

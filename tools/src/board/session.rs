@@ -19,7 +19,7 @@ use thiserror::Error;
 pub enum SessionError {
     /// The transport failed or the board answered `err` (the message says which).
     #[error(transparent)]
-    Board(#[from] anyhow::Error),
+    Board(#[from] super::client::ClientError),
     /// A reply lacks a field or a field does not parse.
     #[error("malformed reply to `{command}`: {what} in `{line}`")]
     Malformed {

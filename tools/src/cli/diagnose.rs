@@ -465,7 +465,7 @@ pub fn length_modes(
     sensor: f64,
     n_modes: usize,
 ) -> Result<crate::diagnose::lengths::LengthModes> {
-    let (t, x, what) = crate::ident::cli::free_decay_of(path)?;
+    let (t, x, what) = crate::ident::identify::free_decay_of(path)?;
     let r = crate::ident::freedecay::identify_free_decay(
         &t,
         &x,

@@ -34,6 +34,10 @@ pub struct ParamDef {
     pub scale: f64,
     /// True if the effect vanishes at value 0 (tested for significance).
     pub zero_is_null: bool,
+    /// Values (physical units) at which the cost is scanned before the least-squares starts,
+    /// the other parameters at their first start: the best two become this parameter's starts
+    /// (a resonance frequency whose cost surface has a minimum per model mode). Empty: none.
+    pub scan: Vec<f64>,
 }
 
 impl ParamDef {
@@ -96,7 +100,7 @@ pub struct Channels {
 }
 
 /// Features of the data used to start the nonlinear fits.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct StartHints {
     /// Beam mass (kg) (0 without a beam).
     pub beam_mass_kg: f64,
@@ -120,6 +124,8 @@ pub struct StartHints {
     pub length_m: f64,
     /// Carriage mass of the rig (kg).
     pub carriage_mass_kg: f64,
+    /// Clamped natural frequencies (Hz) of the calibrated nominal model.
+    pub mode_freqs_hz: Vec<f64>,
 }
 
 fn def(
@@ -135,6 +141,7 @@ fn def(
         starts,
         scale,
         zero_is_null,
+        scan: Vec::new(),
     }
 }
 
@@ -241,265 +248,385 @@ pub fn apply_calibration(calib: &Calib, values: &[f64], p: &mut Params) {
     }
 }
 
+/// The `servo_lag` candidate of one order of the command → base transfer function
+/// ([`super::sim::ServoLaw`]) with velocity and acceleration feed-forward, for recordings at
+/// `rate_hz`: order 1 (bandwidth, k_v), 2 (+ damping ratio, k_a), 3 (+ integral pole ratio α),
+/// 4 (+ drive-force lag ratio β).
+pub fn servo_candidate(order: usize, rate_hz: f64) -> Candidate {
+    let f0 = rate_hz;
+    let mut params = vec![def(
+        "servo_bandwidth_hz",
+        Transform::Log,
+        vec![0.05 * f0, 0.3 * f0],
+        1.0,
+        false,
+    )];
+    if order >= 2 {
+        params.push(def(
+            "servo_damping_ratio",
+            Transform::Log,
+            vec![0.7],
+            1.0,
+            false,
+        ));
+    }
+    params.push(def(
+        "servo_velocity_ff",
+        Transform::Bounded(0.0, 1.2),
+        vec![0.9],
+        1.0,
+        false,
+    ));
+    if order >= 2 {
+        params.push(def(
+            "servo_acceleration_ff",
+            Transform::Bounded(0.0, 1.2),
+            vec![0.5],
+            1.0,
+            false,
+        ));
+    }
+    if order >= 3 {
+        params.push(def(
+            "servo_integral_ratio",
+            Transform::Bounded(0.0, 3.0),
+            vec![0.3],
+            1.0,
+            false,
+        ));
+    }
+    if order >= 4 {
+        params.push(def(
+            "servo_force_lag_ratio",
+            Transform::Bounded(0.02, 1.5),
+            vec![0.2],
+            1.0,
+            false,
+        ));
+    }
+    Candidate {
+        id: Effect::ServoLag,
+        words: match order {
+            1 => "first-order position loop with velocity feed-forward: the carriage does not follow its command",
+            2 => "finite-bandwidth position loop with velocity/acceleration feed-forward: the carriage does not follow its command",
+            3 => "PID position loop with velocity/acceleration feed-forward (order 3): the carriage does not follow its command",
+            _ => "PID position loop with feed-forward and a lagging drive force (order 4): the carriage does not follow its command",
+        },
+        orientation: None,
+        params,
+    }
+}
+
 /// The candidates testable on data with channels `ch`.
 pub fn catalogue(rig: &Rig, ch: &Channels, h: &StartHints) -> Vec<Candidate> {
     let mut c = Vec::new();
-    let beam = rig.beam.is_some();
     if ch.force {
-        c.push(Candidate {
-            id: Effect::BaseFriction,
-            words: "friction on the carriage (Coulomb + viscous)",
-            orientation: None,
-            params: vec![
-                def(
-                    "friction_n",
-                    Transform::Linear,
-                    vec![h.friction.0],
-                    0.1,
-                    true,
-                ),
-                def(
-                    "viscous_n_s_per_m",
-                    Transform::Linear,
-                    vec![h.friction.1],
-                    1.0,
-                    true,
-                ),
-            ],
-        });
-        c.push(Candidate {
-            id: Effect::CoggingRipple,
-            words: "force ripple periodic in the carriage position (cogging)",
-            orientation: None,
-            params: vec![
-                def(
-                    "cogging_sin_n",
-                    Transform::Linear,
-                    vec![h.cogging.0],
-                    0.1,
-                    true,
-                ),
-                def(
-                    "cogging_cos_n",
-                    Transform::Linear,
-                    vec![h.cogging.1],
-                    0.1,
-                    true,
-                ),
-                def(
-                    "cogging_pitch_m",
-                    Transform::Log,
-                    vec![h.cogging.2],
-                    1.0,
-                    false,
-                ),
-            ],
-        });
+        c.extend(carriage_force_candidates(h));
     }
     if ch.base || (ch.cmd_drives_beam && (ch.tip || ch.force)) {
-        let f0 = h.rate_hz;
-        c.push(Candidate {
-            id: Effect::ServoLag,
-            words: "finite-bandwidth position loop: the carriage does not follow its command",
-            orientation: None,
-            params: vec![
-                def(
-                    "servo_bandwidth_hz",
-                    Transform::Log,
-                    vec![0.05 * f0, 0.3 * f0, 0.45 * f0],
-                    1.0,
-                    false,
-                ),
-                def("servo_damping_ratio", Transform::Log, vec![0.7], 1.0, false),
-            ],
-        });
-        // a position loop with velocity and acceleration feed-forward (how drives are tuned):
-        // the same loop, the following error driven only by the parts of ṙ and r̈ the
-        // feed-forward misses
-        c.push(Candidate {
-            id: Effect::ServoLag,
-            words: "finite-bandwidth position loop with velocity/acceleration feed-forward: the carriage does not follow its command",
-            orientation: None,
-            params: vec![
-                def(
-                    "servo_bandwidth_hz",
-                    Transform::Log,
-                    vec![0.05 * f0, 0.3 * f0],
-                    1.0,
-                    false,
-                ),
-                def("servo_damping_ratio", Transform::Log, vec![0.7], 1.0, false),
-                def(
-                    "servo_velocity_ff",
-                    Transform::Bounded(0.0, 1.2),
-                    vec![0.9],
-                    1.0,
-                    false,
-                ),
-                def(
-                    "servo_acceleration_ff",
-                    Transform::Bounded(0.0, 1.2),
-                    vec![0.5],
-                    1.0,
-                    false,
-                ),
-            ],
-        });
+        c.extend(servo_candidates(h.rate_hz));
     }
-    if beam && ch.tip {
-        c.push(Candidate {
-            id: Effect::TipMass,
-            words: "a lumped mass at the tip (marker, sensor)",
-            orientation: None,
-            params: vec![def(
-                "tip_mass_kg",
-                Transform::Linear,
-                vec![0.03 * h.beam_mass_kg],
-                0.05 * h.beam_mass_kg,
-                true,
-            )],
-        });
-        c.push(Candidate {
-            id: Effect::RootCompliance,
-            words: "a compliant clamp (rotational spring at the root)",
-            orientation: None,
-            params: vec![def(
-                "root_stiffness_nm_per_rad",
-                Transform::Log,
-                vec![10.0 * h.ei_over_l, 40.0 * h.ei_over_l],
-                1.0,
-                false,
-            )],
-        });
-        // amplitude-dependent clamp: M = k_r θ + k₃ θ³, fitted as k_r and the cubic compliance
-        // c₃ = k₃ / k_r⁴ of the inverse law θ ≈ M/k_r − c₃ M³ (the rotation in excess of the
-        // linear clamp under a root moment M). With the first frequency held by the stiffness
-        // scale, k_r is weakly determined and k_r, k₃ act almost only through c₃ (in (k_r, k₃)
-        // or (k_r, k₃/k_r³) their Jacobian columns correlate to −1.000 on a truth case), so c₃
-        // is what the data determine and what the significance guard tests. The root moment of
-        // a cantilever whose tip is deflected by A is M ≈ 3 (EI/l) A / l; the scale of c₃ is
-        // the value whose excess rotation is 10 % of the linear one there.
-        let kr0 = 10.0 * h.ei_over_l;
-        let m_typ =
-            (3.0 * h.ei_over_l * h.peak_deflection_m.max(1e-4) / h.length_m.max(1e-3)).max(1e-9);
-        let c3_scale = 0.1 / (kr0 * m_typ * m_typ);
-        c.push(Candidate {
-            id: Effect::CubicStiffness,
-            words: "an amplitude-dependent (hardening or softening) clamp stiffness",
-            orientation: None,
-            params: vec![
-                def(
-                    "root_stiffness_nm_per_rad",
-                    Transform::Log,
-                    vec![kr0, 40.0 * h.ei_over_l],
-                    1.0,
-                    false,
-                ),
-                def(
-                    "cubic_root_compliance_rad_per_nm3",
-                    Transform::Linear,
-                    vec![0.0, c3_scale, -c3_scale],
-                    c3_scale,
-                    true,
-                ),
-            ],
-        });
-        // a dead band between carriage and beam root: the root offset it leaves after a move is
-        // b/2, a fraction of the peak deflection on a real rig
-        let pk = h.peak_deflection_m.max(1e-4);
-        c.push(Candidate {
-            id: Effect::Backlash,
-            words: "play (a dead band) between the carriage and the beam root",
-            orientation: None,
-            params: vec![def(
-                "backlash_m",
-                Transform::Log,
-                vec![0.02 * pk, 0.1 * pk],
-                1.0,
-                true,
-            )],
-        });
-        // ζ_eq = (4/3π) c A ∫u³/(m/l ∫u²) for the first mode shape u (∫u² ≈ 0.25 l, ∫u³ ≈ 0.16 l):
-        // the drag that doubles ζ1 at the peak deflection A
-        let c0 =
-            h.zeta1 * 3.7 * h.beam_mass_kg / (h.peak_deflection_m.max(1e-4) * h.length_m.max(1e-3));
-        let c0 = if c0.is_finite() && c0 > 0.0 {
-            c0.min(1e6)
-        } else {
-            1.0
-        };
-        c.push(Candidate {
-            id: Effect::QuadraticDamping,
-            words: "amplitude-dependent (quadratic, aerodynamic) damping",
-            orientation: None,
-            params: vec![def(
-                "drag_coefficient_kg_per_m2",
-                Transform::Linear,
-                vec![0.3 * c0, c0],
-                c0 * 0.1,
-                true,
-            )],
-        });
-        c.push(Candidate {
-            id: Effect::SensorDelay,
-            words: "latency of the tip measurement",
-            orientation: None,
-            params: vec![def(
-                "sensor_delay_s",
-                Transform::Linear,
-                vec![0.2 / h.rate_hz, 2.0 / h.rate_hz],
-                0.1 / h.rate_hz,
-                true,
-            )],
-        });
-        c.push(Candidate {
-            id: Effect::SensorGain,
-            words: "scale error of the tip sensor (e.g. camera calibration)",
-            orientation: None,
-            params: vec![def(
-                "sensor_gain_error",
-                Transform::Linear,
-                vec![0.0],
-                0.01,
-                true,
-            )],
-        });
-        c.push(Candidate {
-            id: Effect::GravityAxialLoad,
-            words: "gravity axial load: the beam hangs (tension)",
-            orientation: Some(Orientation::Hanging),
-            params: vec![],
-        });
-        c.push(Candidate {
-            id: Effect::GravityAxialLoad,
-            words: "gravity axial load: the beam stands upright (compression)",
-            orientation: Some(Orientation::Upright),
-            params: vec![],
-        });
-        let fmax = 0.4 * h.rate_hz;
-        c.push(Candidate {
-            id: Effect::MountResonance,
-            words: "a resonance of the carriage/mount between motor and beam root",
-            orientation: None,
-            params: vec![
-                def(
-                    "mount_frequency_hz",
-                    Transform::Log,
-                    vec![(1.5 * h.f2_hz).min(fmax), (3.0 * h.f2_hz).min(fmax), fmax],
-                    1.0,
-                    false,
-                ),
-                def(
-                    "mount_damping_ratio",
-                    Transform::Bounded(0.005, 1.0),
-                    vec![0.05],
-                    1.0,
-                    false,
-                ),
-            ],
-        });
+    if rig.beam.is_some() && ch.tip {
+        c.extend(structural_candidates(h));
+        c.extend(play_drag_candidates(h));
+        c.extend(sensor_gravity_mount_candidates(h));
     }
     c
+}
+
+/// Forces on the carriage: friction and cogging (force channel).
+fn carriage_force_candidates(h: &StartHints) -> Vec<Candidate> {
+    let mut c = Vec::new();
+    c.push(Candidate {
+        id: Effect::BaseFriction,
+        words: "friction on the carriage (Coulomb + viscous)",
+        orientation: None,
+        params: vec![
+            def(
+                "friction_n",
+                Transform::Linear,
+                vec![h.friction.0],
+                0.1,
+                true,
+            ),
+            def(
+                "viscous_n_s_per_m",
+                Transform::Linear,
+                vec![h.friction.1],
+                1.0,
+                true,
+            ),
+        ],
+    });
+    c.push(Candidate {
+        id: Effect::CoggingRipple,
+        words: "force ripple periodic in the carriage position (cogging)",
+        orientation: None,
+        params: vec![
+            def(
+                "cogging_sin_n",
+                Transform::Linear,
+                vec![h.cogging.0],
+                0.1,
+                true,
+            ),
+            def(
+                "cogging_cos_n",
+                Transform::Linear,
+                vec![h.cogging.1],
+                0.1,
+                true,
+            ),
+            def(
+                "cogging_pitch_m",
+                Transform::Log,
+                vec![h.cogging.2],
+                1.0,
+                false,
+            ),
+        ],
+    });
+    c
+}
+
+/// The position loop: the plain 2nd-order lag and the feed-forward forms of orders 1–4.
+fn servo_candidates(rate_hz: f64) -> Vec<Candidate> {
+    let mut c = Vec::new();
+    let f0 = rate_hz;
+    c.push(Candidate {
+        id: Effect::ServoLag,
+        words: "finite-bandwidth position loop: the carriage does not follow its command",
+        orientation: None,
+        params: vec![
+            def(
+                "servo_bandwidth_hz",
+                Transform::Log,
+                vec![0.05 * f0, 0.3 * f0, 0.45 * f0],
+                1.0,
+                false,
+            ),
+            def("servo_damping_ratio", Transform::Log, vec![0.7], 1.0, false),
+        ],
+    });
+    // a position loop with velocity and acceleration feed-forward (how drives are tuned):
+    // the same loop, the following error driven only by the parts of ṙ and r̈ the
+    // feed-forward misses; orders 1, 3 and 4 of the command → base transfer function
+    // ([`super::sim::ServoLaw`]) besides; the selection keeps the form of lowest BIC
+    for order in [2, 1, 3, 4] {
+        c.push(servo_candidate(order, f0));
+    }
+    c
+}
+
+/// Structural changes of the beam and its clamp: tip mass, root compliance, cubic clamp.
+fn structural_candidates(h: &StartHints) -> Vec<Candidate> {
+    let mut c = Vec::new();
+    c.push(Candidate {
+        id: Effect::TipMass,
+        words: "a lumped mass at the tip (marker, sensor)",
+        orientation: None,
+        params: vec![def(
+            "tip_mass_kg",
+            Transform::Linear,
+            vec![0.03 * h.beam_mass_kg],
+            0.05 * h.beam_mass_kg,
+            true,
+        )],
+    });
+    c.push(Candidate {
+        id: Effect::RootCompliance,
+        words: "a compliant clamp (rotational spring at the root)",
+        orientation: None,
+        params: vec![def(
+            "root_stiffness_nm_per_rad",
+            Transform::Log,
+            vec![10.0 * h.ei_over_l, 40.0 * h.ei_over_l],
+            1.0,
+            false,
+        )],
+    });
+    // amplitude-dependent clamp: M = k_r θ + k₃ θ³, fitted as k_r and the cubic compliance
+    // c₃ = k₃ / k_r⁴ of the inverse law θ ≈ M/k_r − c₃ M³ (the rotation in excess of the
+    // linear clamp under a root moment M). With the first frequency held by the stiffness
+    // scale, k_r is weakly determined and k_r, k₃ act almost only through c₃ (in (k_r, k₃)
+    // or (k_r, k₃/k_r³) their Jacobian columns correlate to −1.000 on a truth case), so c₃
+    // is what the data determine and what the significance guard tests. The root moment of
+    // a cantilever whose tip is deflected by A is M ≈ 3 (EI/l) A / l; the scale of c₃ is
+    // the value whose excess rotation is 10 % of the linear one there.
+    let kr0 = 10.0 * h.ei_over_l;
+    let m_typ =
+        (3.0 * h.ei_over_l * h.peak_deflection_m.max(1e-4) / h.length_m.max(1e-3)).max(1e-9);
+    let c3_scale = 0.1 / (kr0 * m_typ * m_typ);
+    c.push(Candidate {
+        id: Effect::CubicStiffness,
+        words: "an amplitude-dependent (hardening or softening) clamp stiffness",
+        orientation: None,
+        params: vec![
+            def(
+                "root_stiffness_nm_per_rad",
+                Transform::Log,
+                vec![kr0, 40.0 * h.ei_over_l],
+                1.0,
+                false,
+            ),
+            def(
+                "cubic_root_compliance_rad_per_nm3",
+                Transform::Linear,
+                vec![0.0, c3_scale, -c3_scale],
+                c3_scale,
+                true,
+            ),
+        ],
+    });
+    c
+}
+
+/// Play at the beam root and quadratic drag.
+fn play_drag_candidates(h: &StartHints) -> Vec<Candidate> {
+    let mut c = Vec::new();
+    // a dead band between carriage and beam root: the root offset it leaves after a move is
+    // b/2, a fraction of the peak deflection on a real rig
+    let pk = h.peak_deflection_m.max(1e-4);
+    c.push(Candidate {
+        id: Effect::Backlash,
+        words: "play (a dead band) between the carriage and the beam root",
+        orientation: None,
+        params: vec![def(
+            "backlash_m",
+            Transform::Log,
+            vec![0.02 * pk, 0.1 * pk],
+            1.0,
+            true,
+        )],
+    });
+    // ζ_eq = (4/3π) c A ∫u³/(m/l ∫u²) for the first mode shape u (∫u² ≈ 0.25 l, ∫u³ ≈ 0.16 l):
+    // the drag that doubles ζ1 at the peak deflection A
+    let c0 =
+        h.zeta1 * 3.7 * h.beam_mass_kg / (h.peak_deflection_m.max(1e-4) * h.length_m.max(1e-3));
+    let c0 = if c0.is_finite() && c0 > 0.0 {
+        c0.min(1e6)
+    } else {
+        1.0
+    };
+    c.push(Candidate {
+        id: Effect::QuadraticDamping,
+        words: "amplitude-dependent (quadratic, aerodynamic) damping",
+        orientation: None,
+        params: vec![def(
+            "drag_coefficient_kg_per_m2",
+            Transform::Linear,
+            vec![0.3 * c0, c0],
+            c0 * 0.1,
+            true,
+        )],
+    });
+    c
+}
+
+/// Tip-sensor latency and gain, gravity (both orientations), the mount (both forms).
+fn sensor_gravity_mount_candidates(h: &StartHints) -> Vec<Candidate> {
+    let mut c = Vec::new();
+    c.push(Candidate {
+        id: Effect::SensorDelay,
+        words: "latency of the tip measurement",
+        orientation: None,
+        params: vec![def(
+            "sensor_delay_s",
+            Transform::Linear,
+            vec![0.2 / h.rate_hz, 2.0 / h.rate_hz],
+            0.1 / h.rate_hz,
+            true,
+        )],
+    });
+    c.push(Candidate {
+        id: Effect::SensorGain,
+        words: "scale error of the tip sensor (e.g. camera calibration)",
+        orientation: None,
+        params: vec![def(
+            "sensor_gain_error",
+            Transform::Linear,
+            vec![0.0],
+            0.01,
+            true,
+        )],
+    });
+    c.push(Candidate {
+        id: Effect::GravityAxialLoad,
+        words: "gravity axial load: the beam hangs (tension)",
+        orientation: Some(Orientation::Hanging),
+        params: vec![],
+    });
+    c.push(Candidate {
+        id: Effect::GravityAxialLoad,
+        words: "gravity axial load: the beam stands upright (compression)",
+        orientation: Some(Orientation::Upright),
+        params: vec![],
+    });
+    c.push(mount_candidate(h, false));
+    c.push(mount_candidate(h, true));
+    c
+}
+
+/// Log-spaced frequencies (Hz) from 1.5 f1 to `fmax`, 4 per octave, without those within 10 %
+/// of one of the model's own modes (where a resonance is a calibration matter): the scan of a
+/// mount frequency over the recording's band.
+pub fn mount_scan_hz(mode_freqs_hz: &[f64], fmax: f64) -> Vec<f64> {
+    let lo = 1.5 * mode_freqs_hz.first().copied().unwrap_or(1.0);
+    let mut v = Vec::new();
+    let mut f = lo;
+    while f < fmax {
+        if mode_freqs_hz.iter().all(|m| (f - m).abs() > 0.1 * m) {
+            v.push(f);
+        }
+        f *= 2f64.powf(0.25);
+    }
+    v
+}
+
+/// The `mount_resonance` candidate: a spring–damper between the carriage and the beam root
+/// (frequency + damping ratio), either as a massless filter of the root motion (a mount much
+/// heavier than the beam: the beam does not load it) or, `coupled`, as a mount mass carrying
+/// the beam ([`super::sim`]'s `coupled_mount`, the mass a structural part of the carriage:
+/// 5–95 % of its mass). The frequency is scanned over the band before the fit.
+pub fn mount_candidate(h: &StartHints, coupled: bool) -> Candidate {
+    let fmax = 0.4 * h.rate_hz;
+    let mut freq = def(
+        "mount_frequency_hz",
+        Transform::Log,
+        vec![(1.5 * h.f2_hz).min(fmax), (3.0 * h.f2_hz).min(fmax), fmax],
+        1.0,
+        false,
+    );
+    freq.scan = mount_scan_hz(&h.mode_freqs_hz, fmax);
+    let mut params = vec![
+        freq,
+        def(
+            "mount_damping_ratio",
+            Transform::Bounded(0.005, 1.0),
+            vec![0.05],
+            1.0,
+            false,
+        ),
+    ];
+    if coupled {
+        params.push(def(
+            "mount_mass_kg",
+            Transform::Bounded(0.05 * h.carriage_mass_kg, 0.95 * h.carriage_mass_kg),
+            vec![0.25 * h.carriage_mass_kg],
+            1.0,
+            false,
+        ));
+    }
+    Candidate {
+        id: Effect::MountResonance,
+        words: if coupled {
+            "a resonance of a mount mass carrying the beam, between motor and beam root"
+        } else {
+            "a resonance of the carriage/mount between motor and beam root"
+        },
+        orientation: None,
+        params,
+    }
 }
 
 /// Applies a candidate's effect values (physical units, in `cand.params` order).
@@ -534,6 +661,17 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
                 get("servo_velocity_ff").unwrap_or(0.0).clamp(-0.5, 1.5),
                 get("servo_acceleration_ff").unwrap_or(0.0).clamp(-0.5, 1.5),
             );
+            p.servo_integral_ratio = get("servo_integral_ratio").unwrap_or(0.0);
+            p.servo_force_lag_ratio = get("servo_force_lag_ratio").unwrap_or(0.0);
+            p.servo_order = if get("servo_force_lag_ratio").is_some() {
+                4
+            } else if get("servo_integral_ratio").is_some() {
+                3
+            } else if get("servo_damping_ratio").is_some() {
+                2
+            } else {
+                1
+            };
         }
         Effect::TipMass => p.tip_mass_kg = get("tip_mass_kg").unwrap_or(0.0).abs(),
         Effect::RootCompliance => p.root_stiffness_nm_per_rad = get("root_stiffness_nm_per_rad"),

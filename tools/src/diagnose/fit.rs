@@ -101,7 +101,12 @@ pub struct Problem<'a> {
     caches: RefCell<Vec<Option<BeamCache>>>,
     /// Model evaluations so far.
     pub evaluations: RefCell<usize>,
+    /// The first reasons the model refused a parameter set (for [`FitResult::trace`]).
+    pub refusals: RefCell<Vec<String>>,
 }
+
+/// Refusals kept per problem.
+const MAX_REFUSALS: usize = 5;
 
 impl<'a> Problem<'a> {
     /// A problem over `calib` (+ the parameters of every effect in `cands`, in order) starting
@@ -123,6 +128,7 @@ impl<'a> Problem<'a> {
             x: x0,
             caches: RefCell::new(vec![None; data.len()]),
             evaluations: RefCell::new(0),
+            refusals: RefCell::new(Vec::new()),
         }
     }
 
@@ -178,9 +184,7 @@ impl<'a> Problem<'a> {
             .map(|(d, c)| match predict(self.rig, &p, d, c) {
                 Ok(v) => Some(v),
                 Err(e) => {
-                    if std::env::var_os("DIAG_DEBUG").is_some() {
-                        eprintln!("prediction failed: {e:#}");
-                    }
+                    self.refuse(format!("prediction failed: {e:#}"));
                     None
                 }
             })
@@ -205,18 +209,24 @@ impl<'a> Problem<'a> {
                 if v.iter().all(|e| e.is_finite()) {
                     DVector::from_vec(v)
                 } else {
-                    if std::env::var_os("DIAG_DEBUG").is_some() {
-                        eprintln!(
-                            "non-finite residual: sigma {:?}, first at {:?} of {}",
-                            self.sigma,
-                            v.iter().position(|e| !e.is_finite()),
-                            v.len()
-                        );
-                    }
+                    self.refuse(format!(
+                        "non-finite residual: sigma {:?}, first at {:?} of {}",
+                        self.sigma,
+                        v.iter().position(|e| !e.is_finite()),
+                        v.len()
+                    ));
                     DVector::from_element(total, 1e3)
                 }
             }
             None => DVector::from_element(total, 1e3),
+        }
+    }
+
+    /// Keeps the first [`MAX_REFUSALS`] reasons the model refused a parameter set.
+    fn refuse(&self, why: String) {
+        let mut r = self.refusals.borrow_mut();
+        if r.len() < MAX_REFUSALS {
+            r.push(why);
         }
     }
 
@@ -282,6 +292,75 @@ fn stiffness_scan(
     Some(best.1)
 }
 
+/// For every parameter of the newest candidate (last of `cands`) with scan values
+/// ([`ParamDef::scan`]): the cost at each value, the other parameters at the first start; the
+/// two best values that are more than 15 % apart replace that parameter's starts (the other
+/// starts are kept). Returns the starts and the model evaluations used.
+fn scan_starts(
+    rig: &Rig,
+    data: &[Prepared],
+    sigma: [f64; 3],
+    calib: &Calib,
+    cands: &[&Candidate],
+    defs: &[&ParamDef],
+    starts: Vec<DVector<f64>>,
+) -> (Vec<DVector<f64>>, usize) {
+    let Some(last) = cands.last() else {
+        return (starts, 0);
+    };
+    let off = defs.len() - last.params.len();
+    let mut starts = starts;
+    let mut used = 0;
+    for (i, d) in defs.iter().enumerate().skip(off) {
+        if d.scan.is_empty() {
+            continue;
+        }
+        let problem = Problem::new(rig, data, sigma, calib, cands, starts[0].clone());
+        let mut costs: Vec<(f64, f64)> = d
+            .scan
+            .iter()
+            .map(|&v| {
+                let mut x = starts[0].clone();
+                x[i] = d.repr(v);
+                (problem.cost_at(&x), v)
+            })
+            .filter(|(c, _)| c.is_finite())
+            .collect();
+        used += d.scan.len();
+        costs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut picks: Vec<f64> = Vec::new();
+        for (_, v) in costs {
+            if picks.iter().all(|p| (v / p).ln().abs() > 1.15f64.ln()) {
+                picks.push(v);
+            }
+            if picks.len() == 2 {
+                break;
+            }
+        }
+        if picks.is_empty() {
+            continue;
+        }
+        let start_values: Vec<f64> = d.starts.iter().map(|v| d.repr(*v)).collect();
+        // the starts that differ only in this parameter's start value collapse onto the picks
+        let mut next: Vec<DVector<f64>> = Vec::new();
+        for s in &starts {
+            let is_grid = start_values.iter().any(|v| (s[i] - v).abs() < 1e-12);
+            for &p in &picks {
+                let mut x = s.clone();
+                if is_grid {
+                    x[i] = d.repr(p);
+                }
+                if !next.contains(&x) {
+                    next.push(x);
+                }
+            }
+        }
+        next.truncate(6);
+        starts = next;
+    }
+    (starts, used)
+}
+
 /// Result of one fit.
 #[derive(Clone, Debug)]
 pub struct FitResult {
@@ -297,6 +376,9 @@ pub struct FitResult {
     pub cost: f64,
     /// Model evaluations used.
     pub evaluations: usize,
+    /// What happened, start by start (start and end point, cost, evaluations, termination)
+    /// and the first model refusals: for a caller that shows diagnostics.
+    pub trace: Vec<String>,
 }
 
 /// Fits `cand` (or the calibration alone) from every combination of starting values (at most
@@ -317,15 +399,64 @@ pub fn fit(
     max_evaluations: usize,
     explore: bool,
 ) -> FitResult {
-    let safety_net = Instant::now() + std::time::Duration::from_secs_f64(SAFETY_NET_S);
     let defs: Vec<&ParamDef> = calib
         .defs
         .iter()
         .chain(cands.iter().flat_map(|c| c.params.iter()))
         .collect();
-    let nc = calib.len();
-    let cand = cands.last();
-    // starting points: warm calibration × the effect's start grid
+    let starts = start_grid(&defs, calib.len(), warm, !cands.is_empty() && explore);
+    let (mut starts, grid_evaluations) = scan_starts(rig, data, sigma, calib, cands, &defs, starts);
+    let scanned = if explore {
+        stiffness_scan(rig, data, sigma, calib, cands, &defs, &starts[0])
+    } else {
+        None
+    };
+    let scan_evaluations = grid_evaluations + if scanned.is_some() { 21 } else { 0 };
+    if let Some(scanned) = scanned {
+        if starts.iter().all(|s| (s - &scanned).norm() > 1e-6) {
+            starts.push(scanned);
+        }
+    }
+    let problem = |x0: &DVector<f64>| Problem::new(rig, data, sigma, calib, cands, x0.clone());
+    let run = run_starts(&problem, starts, max_evaluations, scan_evaluations);
+    let (cost, x) = (run.cost, run.x);
+    let final_problem = problem(&x);
+    let j = final_problem.jacobian_at(&x);
+    let std_repr = lm::std_errors(&j, cost);
+    let values: Vec<f64> = defs
+        .iter()
+        .enumerate()
+        .map(|(i, d)| d.value(x[i]))
+        .collect();
+    let std: Vec<f64> = defs
+        .iter()
+        .enumerate()
+        .map(|(i, d)| std_repr[i] * d.dvalue(x[i]).abs())
+        .collect();
+    let evaluations = run.evaluations + *final_problem.evaluations.borrow();
+    let mut trace = run.trace;
+    trace.extend(final_problem.refusals.take());
+    FitResult {
+        x,
+        values,
+        std,
+        names: defs.iter().map(|d| d.name).collect(),
+        cost,
+        evaluations,
+        trace,
+    }
+}
+
+/// The starting points of a fit: every combination of the parameters' start values (at most
+/// 6), the calibration part overwritten by `warm`; with `fresh_damping`, one more from the
+/// rig's damping ratios (the warm calibration may have "explained" a mismatched mode by
+/// damping it out, ζ → its cap; an effect that moves that mode back needs that start).
+fn start_grid(
+    defs: &[&ParamDef],
+    nc: usize,
+    warm: Option<&DVector<f64>>,
+    fresh_damping: bool,
+) -> Vec<DVector<f64>> {
     let mut starts: Vec<DVector<f64>> = vec![DVector::from_iterator(
         defs.len(),
         defs.iter().map(|d| d.repr(d.starts[0])),
@@ -342,49 +473,58 @@ pub fn fit(
         starts.extend(more);
         starts.truncate(6);
     }
-    if let Some(w) = warm {
-        for s in starts.iter_mut() {
-            for i in 0..w.len().min(s.len()) {
-                s[i] = w[i];
-            }
-        }
-        // The warm calibration may have "explained" a mismatched mode by damping it out
-        // (ζ → its cap); an effect that moves that mode back needs a start with the rig's
-        // damping ratios as well.
-        let mut fresh = starts[0].clone();
-        let mut changed = false;
-        for (i, d) in defs.iter().enumerate().take(nc) {
-            if d.name.starts_with("zeta") {
-                let v = d.repr(d.starts[0]);
-                changed |= (fresh[i] - v).abs() > 0.5;
-                fresh[i] = v;
-            }
-        }
-        if changed && cand.is_some() && explore {
-            starts.push(fresh);
-        }
-        // starts the warm vector made identical would give identical fits
-        let mut distinct: Vec<DVector<f64>> = Vec::new();
-        for s in starts {
-            if !distinct.contains(&s) {
-                distinct.push(s);
-            }
-        }
-        starts = distinct;
-    }
-    let scanned = if explore {
-        stiffness_scan(rig, data, sigma, calib, cands, &defs, &starts[0])
-    } else {
-        None
+    let Some(w) = warm else {
+        return starts;
     };
-    let scan_evaluations = if scanned.is_some() { 21 } else { 0 };
-    if let Some(scanned) = scanned {
-        if starts.iter().all(|s| (s - &scanned).norm() > 1e-6) {
-            starts.push(scanned);
+    for s in starts.iter_mut() {
+        for i in 0..w.len().min(s.len()) {
+            s[i] = w[i];
         }
     }
+    let mut fresh = starts[0].clone();
+    let mut changed = false;
+    for (i, d) in defs.iter().enumerate().take(nc) {
+        if d.name.starts_with("zeta") {
+            let v = d.repr(d.starts[0]);
+            changed |= (fresh[i] - v).abs() > 0.5;
+            fresh[i] = v;
+        }
+    }
+    if changed && fresh_damping {
+        starts.push(fresh);
+    }
+    // starts the warm vector made identical would give identical fits
+    let mut distinct: Vec<DVector<f64>> = Vec::new();
+    for s in starts {
+        if !distinct.contains(&s) {
+            distinct.push(s);
+        }
+    }
+    distinct
+}
+
+/// The best of several least-squares starts.
+struct StartsRun {
+    cost: f64,
+    x: DVector<f64>,
+    /// Model evaluations, including `already` of [`run_starts`].
+    evaluations: usize,
+    trace: Vec<String>,
+}
+
+/// Levenberg–Marquardt from every start in turn, each with an equal share of what is left of
+/// `max_evaluations` (`already` spent before) and the patience 30; stops early once the
+/// budget or the wall-clock safety net is spent (keeping the best so far).
+fn run_starts<'a>(
+    problem: &dyn Fn(&DVector<f64>) -> Problem<'a>,
+    starts: Vec<DVector<f64>>,
+    max_evaluations: usize,
+    already: usize,
+) -> StartsRun {
+    let safety_net = Instant::now() + std::time::Duration::from_secs_f64(SAFETY_NET_S);
     let mut best: Option<(f64, DVector<f64>)> = None;
-    let mut evals = scan_evaluations;
+    let mut evals = already;
+    let mut trace = Vec::new();
     let n_starts = starts.len();
     for (i, x0) in starts.into_iter().enumerate() {
         if best.is_some() && (evals >= max_evaluations || Instant::now() >= safety_net) {
@@ -392,65 +532,40 @@ pub fn fit(
         }
         // each start gets an equal share of what is left (at least one Jacobian's worth)
         let share = (max_evaluations.saturating_sub(evals) / (n_starts - i)).max(2 * x0.len() + 2);
-        let problem = Problem::new(rig, data, sigma, calib, cands, x0.clone());
-        if std::env::var_os("DIAG_DEBUG").is_some() {
-            eprintln!(
-                "start {:?} x0 {:?} cost {:.4e} budget {share}",
-                cand.map(|c| c.id),
-                x0.as_slice(),
-                problem.whitened(&x0).norm_squared()
-            );
-        }
+        let pb = problem(&x0);
+        let c0 = pb.cost_at(&x0);
         let opts = LmOptions {
             max_evaluations: share,
             patience: 30,
             ftol: 1e-8,
             xtol: 1e-8,
-            ..LmOptions::new(problem.steps())
+            ..LmOptions::new(pb.steps())
         };
-        let residual =
-            |x: &DVector<f64>| (Instant::now() < safety_net).then(|| problem.whitened(x));
+        let residual = |x: &DVector<f64>| (Instant::now() < safety_net).then(|| pb.whitened(x));
         let out = lm::minimize(&residual, x0.clone(), &opts);
         let (cost, xe) = if out.cost.is_finite() {
             (out.cost, out.x)
         } else {
-            (problem.cost_at(&x0), x0.clone())
+            (c0, x0.clone())
         };
-        if std::env::var_os("DIAG_DEBUG").is_some() {
-            eprintln!(
-                "  end x {:?} cost {:.4e} after {} evaluations: {}",
-                xe.as_slice(),
-                cost,
-                out.evaluations,
-                out.termination
-            );
-        }
+        trace.push(format!(
+            "start {:?} cost {c0:.4e} budget {share} → x {:?} cost {cost:.4e} after {} evaluations: {}",
+            x0.as_slice(),
+            xe.as_slice(),
+            out.evaluations,
+            out.termination
+        ));
+        trace.extend(pb.refusals.take());
         evals += out.evaluations;
         if best.as_ref().map_or(true, |b| cost < b.0) {
             best = Some((cost, xe));
         }
     }
     let (cost, x) = best.expect("at least one start");
-    let problem = Problem::new(rig, data, sigma, calib, cands, x.clone());
-    let j = problem.jacobian_at(&x);
-    let std_repr = lm::std_errors(&j, cost);
-    let values: Vec<f64> = defs
-        .iter()
-        .enumerate()
-        .map(|(i, d)| d.value(x[i]))
-        .collect();
-    let std: Vec<f64> = defs
-        .iter()
-        .enumerate()
-        .map(|(i, d)| std_repr[i] * d.dvalue(x[i]).abs())
-        .collect();
-    let evaluations = evals + *problem.evaluations.borrow();
-    FitResult {
-        x,
-        values,
-        std,
-        names: defs.iter().map(|d| d.name).collect(),
+    StartsRun {
         cost,
-        evaluations,
+        x,
+        evaluations: evals,
+        trace,
     }
 }

@@ -490,6 +490,7 @@ fn fit_round(
         }
     }
     outs.sort_by(|a, b| a.delta_val.total_cmp(&b.delta_val));
+    super::keep_lowest_bic_form(&mut outs);
     outs
 }
 
@@ -553,6 +554,7 @@ fn backward_check(
             }
         }
         outs.sort_by(|a, b| a.delta_val.total_cmp(&b.delta_val));
+        super::keep_lowest_bic_form(outs);
         pick = outs.iter().position(|o| o.passed);
     }
     pick

@@ -448,6 +448,7 @@ fn start_hints(rig: &Rig, fit_data: &[Prepared], cal: &Calibrated, m: &ModelFact
         peak_deflection_m: peak_def,
         friction,
         cogging: (rip.1, rip.2, rip.0),
+        mode_freqs_hz: m.freqs_hz.clone(),
         speed_m_s: speed,
         zeta1: cal.params.zeta.map_or(rig.damping_ratios().0, |z| z.0),
         length_m: m.length_m,
@@ -644,6 +645,30 @@ pub(crate) fn stage(
 ) {
     progress.stage(name);
     progress.advance(step as u64, total as u64);
+}
+
+/// Alternative forms of one effect (the servo loop's orders, the mount's forms, the two
+/// orientations) describe the same physics: of those that pass, only the one with the lowest
+/// ΔBIC on the fit recordings stays a contender (the order is chosen by the information
+/// criterion, not by the validation recording).
+pub(super) fn keep_lowest_bic_form(outs: &mut [CandidateOutcome]) {
+    for i in 0..outs.len() {
+        if !outs[i].passed {
+            continue;
+        }
+        let best = outs
+            .iter()
+            .filter(|o| o.passed && o.id == outs[i].id)
+            .map(|o| o.delta_bic)
+            .fold(f64::INFINITY, f64::min);
+        if outs[i].delta_bic > best {
+            outs[i].passed = false;
+            outs[i].reason = format!(
+                "another form of {} has the lower BIC (ΔBIC {:.1} against {:.1})",
+                outs[i].id, best, outs[i].delta_bic
+            );
+        }
+    }
 }
 
 /// Fewest samples and seconds a recording needs: 100 samples and 5 s (several periods of a

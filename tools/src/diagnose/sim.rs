@@ -57,6 +57,13 @@ pub struct Params {
     pub servo: Option<(f64, f64)>,
     /// Velocity and acceleration feed-forward fractions of the position loop (0 = plain lag).
     pub servo_ff: (f64, f64),
+    /// Order of the position loop's command → base transfer function ([`ServoLaw`]): 1 a
+    /// first-order lag, 2 a PD loop, 3 a PID loop, 4 a PID loop whose drive force lags.
+    pub servo_order: usize,
+    /// Integral action of a PID loop (order ≥ 3): its real closed-loop pole at α·ω_s.
+    pub servo_integral_ratio: f64,
+    /// Drive-force lag of an order-4 loop (current loop, digital delay): time constant β/ω_s.
+    pub servo_force_lag_ratio: f64,
     /// Tip mass (kg).
     pub tip_mass_kg: f64,
     /// Root rotational stiffness (N·m/rad).
@@ -97,6 +104,9 @@ impl Default for Params {
             viscous_n_s_per_m: 0.0,
             servo: None,
             servo_ff: (0.0, 0.0),
+            servo_order: 2,
+            servo_integral_ratio: 0.0,
+            servo_force_lag_ratio: 0.0,
             tip_mass_kg: 0.0,
             root_stiffness_nm_per_rad: None,
             drag_kg_per_m2: 0.0,
@@ -336,35 +346,244 @@ fn root_transition(
     c: &BeamCache,
     dt: f64,
 ) -> Option<nalgebra::DMatrix<f64>> {
+    bounded_expm(root_generator(acc_row, m_eff, Some(c)), dt, 1e4)
+}
+
+/// The generator A of [`root_transition`] (dimension `acc_row.len()`; rows of states other
+/// than the root, the modes and the drive are left zero for the caller). Without a beam
+/// (`c = None`) the root is a rigid mass: `acc_row` alone.
+fn root_generator(
+    acc_row: &mut [f64],
+    m_eff: f64,
+    c: Option<&BeamCache>,
+) -> nalgebra::DMatrix<f64> {
     let dim = acc_row.len();
-    for j in 0..c.omega.len() {
-        let (om, z) = (c.omega[j], c.zeta[j]);
-        acc_row[2 + 2 * j] = c.gamma[j] * om * om / m_eff;
-        acc_row[3 + 2 * j] = c.gamma[j] * 2.0 * z * om / m_eff;
+    let nm = c.map_or(0, |c| c.omega.len());
+    if let Some(c) = c {
+        for j in 0..nm {
+            let (om, z) = (c.omega[j], c.zeta[j]);
+            acc_row[2 + 2 * j] = c.gamma[j] * om * om / m_eff;
+            acc_row[3 + 2 * j] = c.gamma[j] * 2.0 * z * om / m_eff;
+        }
     }
     let mut a = nalgebra::DMatrix::<f64>::zeros(dim, dim);
     a[(0, 1)] = 1.0;
     for i in 0..dim {
         a[(1, i)] = acc_row[i];
     }
-    for j in 0..c.omega.len() {
-        let (om, z) = (c.omega[j], c.zeta[j]);
-        let (q, qd) = (2 + 2 * j, 3 + 2 * j);
-        a[(q, qd)] = 1.0;
-        for i in 0..dim {
-            a[(qd, i)] = -c.gamma[j] * acc_row[i];
+    if let Some(c) = c {
+        for j in 0..nm {
+            let (om, z) = (c.omega[j], c.zeta[j]);
+            let (q, qd) = (2 + 2 * j, 3 + 2 * j);
+            a[(q, qd)] = 1.0;
+            for i in 0..dim {
+                a[(qd, i)] = -c.gamma[j] * acc_row[i];
+            }
+            a[(qd, qd)] -= 2.0 * z * om;
+            a[(qd, q)] -= om * om;
         }
-        a[(qd, qd)] -= 2.0 * z * om;
-        a[(qd, q)] -= om * om;
     }
     a[(dim - 2, dim - 1)] = 1.0;
+    a
+}
+
+/// exp(A·dt), or `None` for a generator far outside the band (largest element of A dt ≥
+/// `limit`) or non-finite (the scaling-and-squaring would not end on an infinite norm).
+fn bounded_expm(a: nalgebra::DMatrix<f64>, dt: f64, limit: f64) -> Option<nalgebra::DMatrix<f64>> {
     let ad = a * dt;
     let norm = ad.amax();
-    if !(norm.is_finite() && norm < 1e4) {
+    if !(norm.is_finite() && norm < limit) {
         return None;
     }
     let phi = ad.exp();
     phi.iter().all(|v| v.is_finite()).then_some(phi)
+}
+
+/// A position loop of selectable order (the `servo_lag` candidate), as the command → base
+/// transfer function of a rigid carriage (and, coupled, with the beam pushing back):
+/// - order 1: a first-order lag with velocity feed-forward, `ẏ = k_v ṙ + ω (r − y)`;
+/// - order 2: PD with feed-forward, poles `s² + 2ζωs + ω²` ([`second_order`], [`coupled_servo`]);
+/// - order 3: PID with feed-forward, `F/M = k_a r̈ + K_d (k_v ṙ − ẏ) + K_p (r − y) + K_i ∫(r − y)`
+///   with the rigid closed-loop poles `(s² + 2ζωs + ω²)(s + αω)`: `K_d = (2ζ + α)ω`,
+///   `K_p = (1 + 2ζα)ω²`, `K_i = αω³` (α → 0 is the PD loop);
+/// - order 4: the order-3 loop whose drive force follows its command through a first-order lag
+///   of time constant β/ω (current loop, digital computation delay): `τ Ḟ = F_c − F`.
+///
+/// Source: Ellis, *Control System Design Guide* (4th ed., 2012), ch. 17 (position loops with
+/// velocity/acceleration feed-forward); the order is chosen by the selection's information
+/// criterion among the fitted forms.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ServoLaw {
+    /// Order 1–4.
+    pub order: usize,
+    /// ω (rad/s).
+    pub omega: f64,
+    /// ζ (orders ≥ 2).
+    pub zeta: f64,
+    /// Velocity and acceleration feed-forward fractions k_v, k_a.
+    pub ff: (f64, f64),
+    /// α (orders ≥ 3).
+    pub integral_ratio: f64,
+    /// β (order 4).
+    pub force_lag_ratio: f64,
+}
+
+impl ServoLaw {
+    /// The law of `p` (`None` without a servo).
+    pub fn of(p: &Params) -> Option<ServoLaw> {
+        let (f, z) = p.servo?;
+        Some(ServoLaw {
+            order: p.servo_order.clamp(1, 4),
+            omega: 2.0 * std::f64::consts::PI * f,
+            zeta: z,
+            ff: p.servo_ff,
+            integral_ratio: p.servo_integral_ratio.max(0.0),
+            force_lag_ratio: p.servo_force_lag_ratio.max(0.0),
+        })
+    }
+
+    /// Base position for the command `r` sampled every `dt` s (piecewise linear between
+    /// samples), coupled to the beam of `c` when given (the loop force then acts on the
+    /// carriage, eq. 5 in modal form), else for a rigid load.
+    pub fn respond(&self, r: &[f64], dt: f64, c: Option<&BeamCache>) -> Vec<f64> {
+        match (self.order, c) {
+            (1, _) => first_order(r, dt, self.omega, self.ff.0),
+            (2, None) => second_order(
+                r,
+                dt,
+                self.omega,
+                self.zeta,
+                1.0 - self.ff.0,
+                1.0 - self.ff.1,
+            ),
+            (2, Some(c)) => coupled_servo(r, dt, self.omega, self.zeta, self.ff, c),
+            _ => self.pid(r, dt, c),
+        }
+    }
+
+    /// Orders 3–4 (state space, exact per sample by one matrix exponential).
+    fn pid(&self, r: &[f64], dt: f64, c: Option<&BeamCache>) -> Vec<f64> {
+        let n = r.len();
+        let nm = c.map_or(0, |c| c.omega.len());
+        let Some((phi, g, tau)) = self.pid_transition(dt, c) else {
+            return vec![f64::NAN; n];
+        };
+        let lag = tau > 0.0;
+        let dim = phi.nrows();
+        let (fi, ri, vi) = (3 + 2 * nm, dim - 2, dim - 1);
+        let gamma: &[f64] = c.map_or(&[], |c| &c.gamma);
+        let mut zv = nalgebra::DVector::<f64>::zeros(dim);
+        zv[0] = r[0];
+        let mut y = Vec::with_capacity(n);
+        let mut v_prev = 0.0;
+        for k in 0..n {
+            y.push(zv[0]);
+            let v = if k + 1 < n {
+                (r[k + 1] - r[k]) / dt
+            } else {
+                0.0
+            };
+            // acceleration feed-forward of the velocity step at this sample: an impulse of
+            // force (through the drive lag when there is one)
+            let imp = self.ff.1 * (v - v_prev);
+            if lag {
+                zv[fi] += imp / tau;
+            } else {
+                zv[1] += g * imp;
+                for j in 0..nm {
+                    zv[3 + 2 * j] -= gamma[j] * g * imp;
+                }
+            }
+            v_prev = v;
+            zv[ri] = r[k];
+            zv[vi] = v;
+            zv = &phi * &zv;
+            if !zv[0].is_finite() {
+                y.extend(std::iter::repeat(f64::NAN).take(n - y.len()));
+                break;
+            }
+        }
+        y
+    }
+
+    /// exp(A dt) of the order-3/4 loop (state `[y, ẏ, (η_j, η̇_j)…, ∫(r − y), F?, r, ṙ]`), the
+    /// ratio g = M / (M − ΣΓ²) of the force on the carriage to its acceleration per unit
+    /// moving mass, and the drive lag τ (0 without). `None` for a generator out of bounds.
+    fn pid_transition(
+        &self,
+        dt: f64,
+        c: Option<&BeamCache>,
+    ) -> Option<(nalgebra::DMatrix<f64>, f64, f64)> {
+        let nm = c.map_or(0, |c| c.omega.len());
+        let (m_tot, sum_g2) = c.map_or((1.0, 0.0), |c| {
+            (c.total_mass, c.gamma.iter().map(|g| g * g).sum())
+        });
+        let m_eff = (m_tot - sum_g2).max(1e-9 * m_tot);
+        let g = m_tot / m_eff;
+        let (w, z, al) = (self.omega, self.zeta, self.integral_ratio);
+        let (kd, kp, ki) = (
+            (2.0 * z + al) * w,
+            (1.0 + 2.0 * z * al) * w * w,
+            al * w * w * w,
+        );
+        let lag = self.order >= 4 && self.force_lag_ratio > 0.0;
+        let tau = if lag { self.force_lag_ratio / w } else { 0.0 };
+        let ii = 2 + 2 * nm;
+        let fi = ii + 1;
+        let dim = ii + 1 + usize::from(lag) + 2;
+        let (ri, vi) = (dim - 2, dim - 1);
+        // the commanded force per unit moving mass (without the r̈ feed-forward impulses)
+        let mut uc = vec![0.0; dim];
+        uc[0] = -kp;
+        uc[1] = -kd;
+        uc[ii] = ki;
+        uc[ri] = kp;
+        uc[vi] = kd * self.ff.0;
+        let mut acc_row = vec![0.0; dim];
+        if lag {
+            acc_row[fi] = g;
+        } else {
+            for i in 0..dim {
+                acc_row[i] = g * uc[i];
+            }
+        }
+        let mut a = root_generator(&mut acc_row, m_eff, c);
+        a[(ii, 0)] = -1.0;
+        a[(ii, ri)] = 1.0;
+        if lag {
+            for i in 0..dim {
+                a[(fi, i)] = uc[i] / tau;
+            }
+            a[(fi, fi)] -= 1.0 / tau;
+        }
+        // the drive-force row scales as ω³/β (m/s² per state unit): a larger element bound than
+        // the root transition's, still finite
+        bounded_expm(a, dt, 1e10).map(|phi| (phi, g, tau))
+    }
+}
+
+/// y = r + e with `ė + ωe = −(1 − k_v) ṙ` (a first-order lag with velocity feed-forward k_v),
+/// exact for a piecewise-linear r.
+fn first_order(r: &[f64], dt: f64, omega: f64, kv: f64) -> Vec<f64> {
+    let a = (-omega * dt).exp();
+    let b = if omega * dt > 1e-12 {
+        (1.0 - a) / omega
+    } else {
+        dt
+    };
+    let n = r.len();
+    let mut e = 0.0;
+    let mut y = Vec::with_capacity(n);
+    for k in 0..n {
+        y.push(r[k] + e);
+        let v = if k + 1 < n {
+            (r[k + 1] - r[k]) / dt
+        } else {
+            0.0
+        };
+        e = a * e - (1.0 - kv) * v * b;
+    }
+    y
 }
 
 /// Beam-root position behind a mount: a mass m_m on a spring–damper from the carriage y, loaded
@@ -604,55 +823,84 @@ pub fn predict(
     cache: &mut Option<BeamCache>,
 ) -> Result<Prediction> {
     let dt = d.dt;
-    let n = d.cmd_m.len();
     let mut out = Prediction::default();
+    let c = match rig.beam {
+        Some(_) => Some(fresh_cache(rig, p, dt, cache)?),
+        None => None,
+    };
     // 1. servo; without a measured base the carriage is pushed back by the beam it carries,
     // so the loop is simulated coupled to the beam modes
-    if p.servo.is_some() && d.drive_m.is_none() && rig.beam.is_some() {
-        let stale = cache
-            .as_ref()
-            .map_or(true, |c| c.key != structural_key(p, dt));
-        if stale {
-            *cache = Some(beam_cache(rig, p, dt)?);
-        }
-    }
-    let coupled = match (p.servo, d.drive_m.is_none(), cache.as_ref()) {
-        (Some((f, z)), true, Some(c)) if rig.beam.is_some() => Some(coupled_servo(
-            &d.cmd_m,
-            dt,
-            2.0 * std::f64::consts::PI * f,
-            z,
-            p.servo_ff,
-            c,
-        )),
-        _ => None,
-    };
-    let y_servo = match (p.servo, coupled) {
-        (_, Some(y)) => y,
-        (Some((f, z)), None) => second_order(
-            &d.cmd_m,
-            dt,
-            2.0 * std::f64::consts::PI * f,
-            z,
-            1.0 - p.servo_ff.0,
-            1.0 - p.servo_ff.1,
-        ),
-        (None, None) => d.cmd_m.clone(),
+    let y_servo = match ServoLaw::of(p) {
+        Some(law) => law.respond(&d.cmd_m, dt, if d.drive_m.is_none() { c } else { None }),
+        None => d.cmd_m.clone(),
     };
     if d.base_m.is_some() {
         out.base_m = Some(y_servo.clone());
     }
-    // 2. drive
+    // 2. drive: the measured base when recorded
     let drive: &[f64] = d.drive_m.as_deref().unwrap_or(&y_servo);
-    // 3. mount: with a beam, a mount mass on a spring–damper that carries the beam (coupled)
-    if p.mount.is_some() && rig.beam.is_some() {
-        let stale = cache
-            .as_ref()
-            .map_or(true, |c| c.key != structural_key(p, dt));
-        if stale {
-            *cache = Some(beam_cache(rig, p, dt)?);
+    // 3. backlash and mount between the drive and the beam root
+    let root = root_motion(p, drive, dt, c);
+    // 4. beam, tip sensor and motor force
+    let force = match c {
+        Some(c) => {
+            let (w, force) = beam_response(p, &root, drive, dt, c);
+            if d.tip_m.is_some() {
+                out.tip_m = Some(tip_sensor(p, &root, &w, dt));
+            }
+            force
         }
+        None => {
+            if d.tip_m.is_some() {
+                bail!(
+                    "{}: the recording has `tip_pos_m` but the rig has no [beam]",
+                    d.name
+                );
+            }
+            let m = rig.base.mass_kg + p.base_mass_delta_kg;
+            (0..drive.len())
+                .map(|k| m * accel_at(drive, k, dt))
+                .collect()
+        }
+    };
+    // 5. carriage forces and the force channel's latency
+    if d.force_n.is_some() {
+        out.force_n = Some(carriage_forces(p, drive, force, dt));
     }
+    Ok(out)
+}
+
+/// The structural model of `p`, rebuilt only when a structural parameter changed.
+fn fresh_cache<'c>(
+    rig: &Rig,
+    p: &Params,
+    dt: f64,
+    cache: &'c mut Option<BeamCache>,
+) -> Result<&'c BeamCache> {
+    let stale = cache
+        .as_ref()
+        .map_or(true, |c| c.key != structural_key(p, dt));
+    if stale {
+        *cache = Some(beam_cache(rig, p, dt)?);
+    }
+    Ok(cache.as_ref().expect("cache just built"))
+}
+
+/// Acceleration (m/s²) at sample k of a piecewise-linear path: the velocity step there / dt.
+fn accel_at(y: &[f64], k: usize, dt: f64) -> f64 {
+    let n = y.len();
+    let vb = if k == 0 { 0.0 } else { (y[k] - y[k - 1]) / dt };
+    let va = if k + 1 < n {
+        (y[k + 1] - y[k]) / dt
+    } else {
+        0.0
+    };
+    (va - vb) / dt
+}
+
+/// Beam-root position: the drive through the play (`backlash`) and the mount (coupled to the
+/// beam of `c` when it has a mass and there is a beam, else a filter the beam does not load).
+fn root_motion(p: &Params, drive: &[f64], dt: f64, c: Option<&BeamCache>) -> Vec<f64> {
     let played;
     let root_drive: &[f64] = if p.backlash_m != 0.0 {
         played = play(drive, p.backlash_m);
@@ -660,8 +908,8 @@ pub fn predict(
     } else {
         drive
     };
-    let root: Vec<f64> = match (p.mount, cache.as_ref()) {
-        (Some((f, z)), Some(c)) if rig.beam.is_some() && p.mount_mass_kg > 0.0 => coupled_mount(
+    match (p.mount, c) {
+        (Some((f, z)), Some(c)) if p.mount_mass_kg > 0.0 => coupled_mount(
             root_drive,
             dt,
             2.0 * std::f64::consts::PI * f,
@@ -673,147 +921,154 @@ pub fn predict(
             second_order(root_drive, dt, 2.0 * std::f64::consts::PI * f, z, 0.0, 1.0)
         }
         (None, _) => root_drive.to_vec(),
-    };
+    }
+}
+
+/// The beam's modes driven by the root motion (exact per sample for a piecewise-linear root,
+/// with the drag and cubic-clamp impulses): the tip deflection (m) and the motor force (N) of
+/// eq. (5), the carriage (less a mount mass) moving with `drive`.
+fn beam_response(
+    p: &Params,
+    root: &[f64],
+    drive: &[f64],
+    dt: f64,
+    c: &BeamCache,
+) -> (Vec<f64>, Vec<f64>) {
+    let n = root.len();
+    let nm = c.omega.len();
+    let sum_g2: f64 = c.gamma.iter().map(|g| g * g).sum();
     let mount_mass = if p.mount.is_some() {
         p.mount_mass_kg
     } else {
         0.0
     };
-    let accel = |y: &[f64], k: usize| {
-        let vb = if k == 0 { 0.0 } else { (y[k] - y[k - 1]) / dt };
+    let mut x = vec![Vector2::<f64>::zeros(); nm];
+    let mut w = Vec::with_capacity(n);
+    let mut force = vec![0.0; n];
+    let mut modal_f = vec![0.0; nm];
+    let k3 = match p.root_stiffness_nm_per_rad {
+        Some(_) => p.cubic_root_stiffness_nm_per_rad3,
+        None => 0.0,
+    };
+    let cap2 = cubic_cap2(
+        k3,
+        p.root_stiffness_nm_per_rad.unwrap_or(0.0),
+        c.root_rot.iter().map(|s| s * s).sum(),
+        dt,
+    );
+    for k in 0..n {
+        let vb = if k == 0 {
+            0.0
+        } else {
+            (root[k] - root[k - 1]) / dt
+        };
         let va = if k + 1 < n {
-            (y[k + 1] - y[k]) / dt
+            (root[k + 1] - root[k]) / dt
         } else {
             0.0
         };
-        (va - vb) / dt
-    };
-    let mut force = vec![0.0; n];
-    if rig.beam.is_some() {
-        let stale = cache
-            .as_ref()
-            .map_or(true, |c| c.key != structural_key(p, dt));
-        if stale {
-            *cache = Some(beam_cache(rig, p, dt)?);
-        }
-        let c = cache.as_ref().expect("cache just built");
-        let nm = c.omega.len();
-        let sum_g2: f64 = c.gamma.iter().map(|g| g * g).sum();
-        let mut x = vec![Vector2::<f64>::zeros(); nm];
-        let mut w = Vec::with_capacity(n);
-        let npts = c.weights.len();
-        let mut modal_f = vec![0.0; nm];
-        let k3 = match p.root_stiffness_nm_per_rad {
-            Some(_) => p.cubic_root_stiffness_nm_per_rad3,
-            None => 0.0,
-        };
-        let cap2 = cubic_cap2(
-            k3,
-            p.root_stiffness_nm_per_rad.unwrap_or(0.0),
-            c.root_rot.iter().map(|s| s * s).sum(),
-            dt,
-        );
-        for k in 0..n {
-            let vb = if k == 0 {
-                0.0
-            } else {
-                (root[k] - root[k - 1]) / dt
-            };
-            let va = if k + 1 < n {
-                (root[k + 1] - root[k]) / dt
-            } else {
-                0.0
-            };
-            let dv = va - vb;
-            let acc = dv / dt;
-            let mut tip = 0.0;
-            let mut drag_total = 0.0;
-            modal_f.iter_mut().for_each(|f| *f = 0.0);
-            if p.drag_kg_per_m2 > 0.0 {
-                for j in 0..npts {
-                    let mut v = vb;
-                    for r in 0..nm {
-                        v += c.shape[r][j] * x[r][1];
-                    }
-                    let f = -p.drag_kg_per_m2 * c.weights[j] * v.abs() * v;
-                    drag_total += f;
-                    for r in 0..nm {
-                        modal_f[r] += c.shape[r][j] * f;
-                    }
-                }
-            }
-            if k3 != 0.0 {
-                let theta: f64 = (0..nm).map(|r| c.root_rot[r] * x[r][0]).sum();
-                let m3 = cubic_moment(k3, theta, cap2);
-                for r in 0..nm {
-                    modal_f[r] -= c.root_rot[r] * m3;
-                }
-            }
-            let mut f = (c.total_mass - sum_g2) * acc - drag_total;
-            for r in 0..nm {
-                let (om, z) = (c.omega[r], c.zeta[r]);
-                tip += c.tip[r] * x[r][0];
-                f += c.gamma[r] * (-2.0 * z * om * x[r][1] - om * om * x[r][0] + modal_f[r]);
-                x[r][1] += -c.gamma[r] * dv + modal_f[r] * dt;
-                x[r] = c.phi[r] * x[r];
-            }
-            w.push(tip);
-            // the carriage itself moves with the drive, not with the mount
-            force[k] = f + (c.base_mass - mount_mass) * (accel(drive, k) - acc);
-        }
-        if d.tip_m.is_some() {
-            let tip: Vec<f64> = root.iter().zip(&w).map(|(y, w)| y + w).collect();
-            let tip = if p.sensor_delay_s != 0.0 {
-                delayed(&tip, p.sensor_delay_s, dt)
-            } else {
-                tip
-            };
-            out.tip_m = Some(if p.sensor_gain_error != 0.0 {
-                tip.iter()
-                    .map(|v| (1.0 + p.sensor_gain_error) * v)
-                    .collect()
-            } else {
-                tip
-            });
-        }
-    } else {
-        if d.tip_m.is_some() {
-            bail!(
-                "{}: the recording has `tip_pos_m` but the rig has no [beam]",
-                d.name
-            );
-        }
-        let m = rig.base.mass_kg + p.base_mass_delta_kg;
-        for (k, fk) in force.iter_mut().enumerate() {
-            *fk = m * accel(drive, k);
-        }
-    }
-    if d.force_n.is_some() {
-        if p.friction_n != 0.0 || p.viscous_n_s_per_m != 0.0 {
-            for k in 0..n {
-                let v = if k + 1 < n {
-                    (drive[k + 1] - drive[k.saturating_sub(1)])
-                        / (dt * (k + 1 - k.saturating_sub(1)) as f64)
-                } else {
-                    0.0
-                };
-                force[k] += p.friction_n * (v / 1e-3).tanh() + p.viscous_n_s_per_m * v;
-            }
-        }
-        if let Some((a, b, pitch)) = p.cogging {
-            let kw = 2.0 * std::f64::consts::PI / pitch;
-            for k in 0..n {
-                let (s, co) = (kw * drive[k]).sin_cos();
-                force[k] += a * s + b * co;
-            }
-        }
-        out.force_n = Some(if p.force_delay_s != 0.0 {
-            delayed(&force, p.force_delay_s, dt)
+        let dv = va - vb;
+        let acc = dv / dt;
+        modal_f.iter_mut().for_each(|f| *f = 0.0);
+        let drag_total = if p.drag_kg_per_m2 > 0.0 {
+            drag_impulses(p.drag_kg_per_m2, vb, &x, c, &mut modal_f)
         } else {
-            force
-        });
+            0.0
+        };
+        if k3 != 0.0 {
+            let theta: f64 = (0..nm).map(|r| c.root_rot[r] * x[r][0]).sum();
+            let m3 = cubic_moment(k3, theta, cap2);
+            for r in 0..nm {
+                modal_f[r] -= c.root_rot[r] * m3;
+            }
+        }
+        let mut f = (c.total_mass - sum_g2) * acc - drag_total;
+        let mut tip = 0.0;
+        for r in 0..nm {
+            let (om, z) = (c.omega[r], c.zeta[r]);
+            tip += c.tip[r] * x[r][0];
+            f += c.gamma[r] * (-2.0 * z * om * x[r][1] - om * om * x[r][0] + modal_f[r]);
+            x[r][1] += -c.gamma[r] * dv + modal_f[r] * dt;
+            x[r] = c.phi[r] * x[r];
+        }
+        w.push(tip);
+        // the carriage itself moves with the drive, not with the mount
+        force[k] = f + (c.base_mass - mount_mass) * (accel_at(drive, k, dt) - acc);
     }
-    Ok(out)
+    (w, force)
+}
+
+/// The distributed quadratic drag `−c_d |v| v` per unit length at the drag points (absolute
+/// velocity v = root velocity `v_root` + the modes' velocities `x[r][1]`), added to the modal
+/// forces `modal_f`; returns the total drag force (N).
+fn drag_impulses(
+    c_d: f64,
+    v_root: f64,
+    x: &[Vector2<f64>],
+    c: &BeamCache,
+    modal_f: &mut [f64],
+) -> f64 {
+    let nm = x.len();
+    let mut total = 0.0;
+    for j in 0..c.weights.len() {
+        let mut v = v_root;
+        for r in 0..nm {
+            v += c.shape[r][j] * x[r][1];
+        }
+        let f = -c_d * c.weights[j] * v.abs() * v;
+        total += f;
+        for r in 0..nm {
+            modal_f[r] += c.shape[r][j] * f;
+        }
+    }
+    total
+}
+
+/// The tip sensor: absolute tip (root + deflection `w`), late by the sensor latency and scaled
+/// by its gain.
+fn tip_sensor(p: &Params, root: &[f64], w: &[f64], dt: f64) -> Vec<f64> {
+    let tip: Vec<f64> = root.iter().zip(w).map(|(y, w)| y + w).collect();
+    let tip = if p.sensor_delay_s != 0.0 {
+        delayed(&tip, p.sensor_delay_s, dt)
+    } else {
+        tip
+    };
+    if p.sensor_gain_error != 0.0 {
+        tip.iter()
+            .map(|v| (1.0 + p.sensor_gain_error) * v)
+            .collect()
+    } else {
+        tip
+    }
+}
+
+/// Adds friction and cogging on the carriage (moving with `drive`) to the motor force and
+/// applies the force channel's latency.
+fn carriage_forces(p: &Params, drive: &[f64], mut force: Vec<f64>, dt: f64) -> Vec<f64> {
+    let n = drive.len();
+    if p.friction_n != 0.0 || p.viscous_n_s_per_m != 0.0 {
+        for k in 0..n {
+            let v = if k + 1 < n {
+                (drive[k + 1] - drive[k.saturating_sub(1)])
+                    / (dt * (k + 1 - k.saturating_sub(1)) as f64)
+            } else {
+                0.0
+            };
+            force[k] += p.friction_n * (v / 1e-3).tanh() + p.viscous_n_s_per_m * v;
+        }
+    }
+    if let Some((a, b, pitch)) = p.cogging {
+        let kw = 2.0 * std::f64::consts::PI / pitch;
+        for k in 0..n {
+            let (s, co) = (kw * drive[k]).sin_cos();
+            force[k] += a * s + b * co;
+        }
+    }
+    if p.force_delay_s != 0.0 {
+        delayed(&force, p.force_delay_s, dt)
+    } else {
+        force
+    }
 }
 
 #[cfg(test)]
@@ -882,6 +1137,49 @@ mod tests {
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
         assert!(diff > 1e-7 && diff < e.max(1e-6) * 10.0, "{diff} {e}");
+    }
+
+    #[test]
+    fn servo_orders_nest_and_stay_finite() {
+        // order 3 with a vanishing integral is the PD loop of order 2, order 4 with a vanishing
+        // drive lag is order 3, rigid and coupled alike; order 1 lags by (1 − k_v) v / ω
+        let rig = rig();
+        let rec = move_rec();
+        let d = Prepared::new("t", &rec).unwrap();
+        let c = beam_cache(&rig, &Params::default(), d.dt).unwrap();
+        let w = 2.0 * std::f64::consts::PI * 8.0;
+        let law = |order, al, be| ServoLaw {
+            order,
+            omega: w,
+            zeta: 0.7,
+            ff: (0.9, 0.5),
+            integral_ratio: al,
+            force_lag_ratio: be,
+        };
+        let maxdiff = |a: &[f64], b: &[f64]| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max)
+        };
+        for cc in [None, Some(&c)] {
+            let y2 = law(2, 0.0, 0.0).respond(&d.cmd_m, d.dt, cc);
+            let y3 = law(3, 1e-6, 0.0).respond(&d.cmd_m, d.dt, cc);
+            assert!(maxdiff(&y2, &y3) < 1e-7, "{}", maxdiff(&y2, &y3));
+            let y3 = law(3, 0.5, 0.0).respond(&d.cmd_m, d.dt, cc);
+            let y4 = law(4, 0.5, 1e-4).respond(&d.cmd_m, d.dt, cc);
+            let y4b = law(4, 0.5, 0.2).respond(&d.cmd_m, d.dt, cc);
+            assert!(y4b.iter().all(|v| v.is_finite()));
+            assert!(maxdiff(&y3, &y4) < 1e-5, "{}", maxdiff(&y3, &y4));
+            assert!(maxdiff(&y3, &y4b) > 1e-6);
+        }
+        let y1 = law(1, 0.0, 0.0).respond(&d.cmd_m, d.dt, None);
+        let lag = y1
+            .iter()
+            .zip(&d.cmd_m)
+            .map(|(a, b)| b - a)
+            .fold(0.0, f64::max);
+        assert!((lag - 0.1 * 0.2 / w).abs() < 0.05 * 0.1 * 0.2 / w, "{lag}");
     }
 
     #[test]

@@ -45,9 +45,6 @@ pub fn track_sweep(x: &[f64], rate_hz: f64, frame_s: f64, band_hz: (f64, f64)) -
     let win: Vec<f64> = (0..l)
         .map(|k| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * k as f64 / l as f64).cos())
         .collect();
-    let mut planner = RealFftPlanner::<f64>::new();
-    let fwd = planner.plan_fft_forward(l);
-    let inv = planner.plan_fft_inverse(l);
     let pad = l;
     let total = n + 2 * pad;
     let mut xp = vec![0.0; total];
@@ -58,76 +55,23 @@ pub fn track_sweep(x: &[f64], rate_hz: f64, frame_s: f64, band_hz: (f64, f64)) -
         .collect();
     let nb = l / 2 + 1;
     let df = rate_hz / l as f64;
-    let mut specs: Vec<Vec<Complex64>> = Vec::with_capacity(frames.len());
-    let mut buf = fwd.make_input_vec();
-    for &s in &frames {
-        for k in 0..l {
-            buf[k] = xp[s + k] * win[k];
-        }
-        let mut sp = fwd.make_output_vec();
-        fwd.process(&mut buf, &mut sp)
-            .map_err(|e| anyhow::anyhow!("STFT: {e}"))?;
-        specs.push(sp);
-    }
-    // Ridge: the strongest bin inside the search band, then a 5-frame median.
+    let mut specs = stft(&xp, &frames, &win)?;
     let k_lo = ((band_hz.0 / df).floor() as usize).clamp(1, nb - 1);
     let k_hi = ((band_hz.1 / df).ceil() as usize).clamp(k_lo, nb - 1);
-    let raw: Vec<f64> = specs
-        .iter()
-        .map(|sp| {
-            (k_lo..=k_hi)
-                .max_by(|&a, &b| sp[a].norm_sqr().total_cmp(&sp[b].norm_sqr()))
-                .unwrap_or(k_lo) as f64
-                * df
-        })
-        .collect();
-    let ridge: Vec<f64> = (0..raw.len())
-        .map(|i| {
-            let mut w: Vec<f64> = raw[i.saturating_sub(2)..(i + 3).min(raw.len())].to_vec();
-            w.sort_by(|a, b| a.total_cmp(b));
-            w[w.len() / 2]
-        })
-        .collect();
-    let mut out = vec![0.0; total];
-    let mut norm = vec![0.0; total];
-    let (mut e_all, mut e_kept) = (0.0, 0.0);
-    let (mut b_all, mut b_kept) = (0usize, 0usize);
-    let frame_t = l as f64 / rate_hz;
-    let hop_t = hop as f64 / rate_hz;
-    for (i, (&s, sp)) in frames.iter().zip(specs.iter_mut()).enumerate() {
+    let ridge = ridge_hz(&specs, k_lo, k_hi, df);
+    let hop_s = hop as f64 / rate_hz;
+    let mut kept = Kept::default();
+    for (i, sp) in specs.iter_mut().enumerate() {
         let (a, b) = (i.saturating_sub(2), (i + 2).min(frames.len() - 1));
         let rate = if b > a {
-            (ridge[b] - ridge[a]).abs() / ((b - a) as f64 * hop_t)
+            (ridge[b] - ridge[a]).abs() / ((b - a) as f64 * hop_s)
         } else {
             0.0
         };
-        let half = 0.5 * rate * frame_t + 3.0 * df;
-        for (k, c) in sp.iter_mut().enumerate() {
-            let e = c.norm_sqr();
-            let in_band = (k_lo..=k_hi).contains(&k);
-            if in_band {
-                e_all += e;
-                b_all += 1;
-            }
-            if ((k as f64 * df) - ridge[i]).abs() <= half {
-                if in_band {
-                    e_kept += e;
-                    b_kept += 1;
-                }
-            } else {
-                *c = Complex64::new(0.0, 0.0);
-            }
-        }
-        sp[0].im = 0.0;
-        sp[nb - 1].im = 0.0;
-        let mut o = inv.make_output_vec();
-        inv.process(sp, &mut o)
-            .map_err(|e| anyhow::anyhow!("ISTFT: {e}"))?;
-        for k in 0..l {
-            out[s + k] += o[k] / l as f64 * win[k];
-            norm[s + k] += win[k] * win[k];
-        }
+        let half = 0.5 * rate * (l as f64 / rate_hz) + 3.0 * df;
+        mask_frame(sp, ridge[i], half, df, (k_lo, k_hi), &mut kept);
     }
+    let (out, norm) = overlap_add(&mut specs, &frames, &win, total)?;
     let x: Vec<f64> = (pad..pad + n)
         .map(|k| {
             if norm[k] > 1e-9 {
@@ -139,9 +83,116 @@ pub fn track_sweep(x: &[f64], rate_hz: f64, frame_s: f64, band_hz: (f64, f64)) -
         .collect();
     Ok(Tracked {
         x,
-        kept_energy: if e_all > 0.0 { e_kept / e_all } else { 0.0 },
-        kept_bins: b_kept as f64 / b_all.max(1) as f64,
+        kept_energy: if kept.e_all > 0.0 {
+            kept.e_kept / kept.e_all
+        } else {
+            0.0
+        },
+        kept_bins: kept.b_kept as f64 / kept.b_all.max(1) as f64,
     })
+}
+
+/// Spectra of the frames of `xp` starting at `frames`, windowed by `win` (its length is the
+/// frame length).
+fn stft(xp: &[f64], frames: &[usize], win: &[f64]) -> Result<Vec<Vec<Complex64>>> {
+    let l = win.len();
+    let fwd = RealFftPlanner::<f64>::new().plan_fft_forward(l);
+    let mut specs: Vec<Vec<Complex64>> = Vec::with_capacity(frames.len());
+    let mut buf = fwd.make_input_vec();
+    for &s in frames {
+        for k in 0..l {
+            buf[k] = xp[s + k] * win[k];
+        }
+        let mut sp = fwd.make_output_vec();
+        fwd.process(&mut buf, &mut sp)
+            .map_err(|e| anyhow::anyhow!("STFT: {e}"))?;
+        specs.push(sp);
+    }
+    Ok(specs)
+}
+
+/// The ridge (Hz) of every frame: the strongest bin in `k_lo..=k_hi`, then a 5-frame median.
+fn ridge_hz(specs: &[Vec<Complex64>], k_lo: usize, k_hi: usize, df: f64) -> Vec<f64> {
+    let raw: Vec<f64> = specs
+        .iter()
+        .map(|sp| {
+            (k_lo..=k_hi)
+                .max_by(|&a, &b| sp[a].norm_sqr().total_cmp(&sp[b].norm_sqr()))
+                .unwrap_or(k_lo) as f64
+                * df
+        })
+        .collect();
+    (0..raw.len())
+        .map(|i| {
+            let mut w: Vec<f64> = raw[i.saturating_sub(2)..(i + 3).min(raw.len())].to_vec();
+            w.sort_by(|a, b| a.total_cmp(b));
+            w[w.len() / 2]
+        })
+        .collect()
+}
+
+/// Energy and bins of the search band, all and inside the mask.
+#[derive(Default)]
+struct Kept {
+    e_all: f64,
+    e_kept: f64,
+    b_all: usize,
+    b_kept: usize,
+}
+
+/// Zeroes the bins of `sp` farther than `half` Hz from `ridge` Hz, counting the search band
+/// `k_band` (inclusive) into `kept`; makes DC and Nyquist real.
+fn mask_frame(
+    sp: &mut [Complex64],
+    ridge: f64,
+    half: f64,
+    df: f64,
+    k_band: (usize, usize),
+    kept: &mut Kept,
+) {
+    for (k, c) in sp.iter_mut().enumerate() {
+        let e = c.norm_sqr();
+        let in_band = (k_band.0..=k_band.1).contains(&k);
+        if in_band {
+            kept.e_all += e;
+            kept.b_all += 1;
+        }
+        if ((k as f64 * df) - ridge).abs() <= half {
+            if in_band {
+                kept.e_kept += e;
+                kept.b_kept += 1;
+            }
+        } else {
+            *c = Complex64::new(0.0, 0.0);
+        }
+    }
+    let nb = sp.len();
+    sp[0].im = 0.0;
+    sp[nb - 1].im = 0.0;
+}
+
+/// Weighted overlap-add of the inverse spectra (window `win` again) into `total` samples, and
+/// the sum of squared windows to normalise by.
+fn overlap_add(
+    specs: &mut [Vec<Complex64>],
+    frames: &[usize],
+    win: &[f64],
+    total: usize,
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    let l = win.len();
+    let inv = RealFftPlanner::<f64>::new().plan_fft_inverse(l);
+    let mut out = vec![0.0; total];
+    let mut norm = vec![0.0; total];
+    for (&s, sp) in frames.iter().zip(specs.iter_mut()) {
+        let mut o = inv.make_output_vec();
+        inv.process(sp, &mut o)
+            .map_err(|e| anyhow::anyhow!("ISTFT: {e}"))?;
+        for k in 0..l {
+            out[s + k] += o[k] / l as f64 * win[k];
+            norm[s + k] += win[k] * win[k];
+        }
+    }
+    Ok((out, norm))
 }
 
 /// Fraction of the variance of `x` (mean removed) above `f_hz`: ≈ 0 for a generated command
@@ -246,8 +297,8 @@ pub fn base_from_command(
 /// n ln(RSS/n) + p ln n over lead ∈ {0, `lead_max`} and lag ∈ {0, 1, 2, 4, …, `lag_max`} (for
 /// each lead the lags ascend until two in a row do not improve the BIC): a
 /// base that follows its command needs one tap, a servo a few; every needless tap adds the
-/// sensor noise's projection to the prediction (ζ2 scattered by ±4 % with a fixed 111-tap FIR,
-/// ±0.6 % with the clean command itself on the reference rig).
+/// sensor noise's projection to the prediction (measured effect on ζ2: docs/ident.md, "Numbers
+/// behind the design choices").
 pub fn base_from_command_bic(
     cmd: &[f64],
     base: &[f64],

@@ -15,9 +15,9 @@
 
 use super::spectrum::{amplitude_spectrum, peaks};
 use super::{std_dev, ModeEstimate};
+use crate::numeric::lm::{minimize_with_jacobian, LmOptions};
 use anyhow::{bail, Result};
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
-use nalgebra::{storage::Owned, DVector, Dyn, OMatrix, Vector4, U4};
+use nalgebra::{DMatrix, DVector};
 use realfft::RealFftPlanner;
 use serde::Serialize;
 use std::f64::consts::PI;
@@ -104,46 +104,30 @@ pub fn band_pass(x: &[f64], rate_hz: f64, lo_hz: f64, hi_hz: f64) -> Vec<f64> {
     out
 }
 
-struct SinusoidFit<'a> {
-    t: &'a [f64],
-    x: &'a [f64],
-    p: Vector4<f64>, // A, σ, ω_d, φ
+/// Residuals A e^{−σt} cos(ω_d t + φ) − x of p = (A, σ, ω_d, φ) on the samples (t, x).
+fn sinusoid_residuals(t: &[f64], x: &[f64], p: &DVector<f64>) -> Option<DVector<f64>> {
+    let (a, s, w, ph) = (p[0], p[1], p[2], p[3]);
+    Some(DVector::from_iterator(
+        t.len(),
+        t.iter()
+            .zip(x)
+            .map(|(&t, &x)| a * (-s * t).exp() * (w * t + ph).cos() - x),
+    ))
 }
 
-impl LeastSquaresProblem<f64, Dyn, U4> for SinusoidFit<'_> {
-    type ResidualStorage = Owned<f64, Dyn>;
-    type JacobianStorage = Owned<f64, Dyn, U4>;
-    type ParameterStorage = Owned<f64, U4>;
-
-    fn set_params(&mut self, p: &Vector4<f64>) {
-        self.p = *p;
+/// The analytic Jacobian of [`sinusoid_residuals`] (len(t) × 4).
+fn sinusoid_jacobian(t: &[f64], p: &DVector<f64>) -> Option<DMatrix<f64>> {
+    let (a, s, w, ph) = (p[0], p[1], p[2], p[3]);
+    let mut j = DMatrix::<f64>::zeros(t.len(), 4);
+    for (k, &t) in t.iter().enumerate() {
+        let e = (-s * t).exp();
+        let (sn, cs) = (w * t + ph).sin_cos();
+        j[(k, 0)] = e * cs;
+        j[(k, 1)] = -a * t * e * cs;
+        j[(k, 2)] = -a * e * sn * t;
+        j[(k, 3)] = -a * e * sn;
     }
-    fn params(&self) -> Vector4<f64> {
-        self.p
-    }
-    fn residuals(&self) -> Option<DVector<f64>> {
-        let (a, s, w, ph) = (self.p[0], self.p[1], self.p[2], self.p[3]);
-        Some(DVector::from_iterator(
-            self.t.len(),
-            self.t
-                .iter()
-                .zip(self.x)
-                .map(|(&t, &x)| a * (-s * t).exp() * (w * t + ph).cos() - x),
-        ))
-    }
-    fn jacobian(&self) -> Option<OMatrix<f64, Dyn, U4>> {
-        let (a, s, w, ph) = (self.p[0], self.p[1], self.p[2], self.p[3]);
-        let mut j = OMatrix::<f64, Dyn, U4>::zeros(self.t.len());
-        for (k, &t) in self.t.iter().enumerate() {
-            let e = (-s * t).exp();
-            let (sn, cs) = (w * t + ph).sin_cos();
-            j[(k, 0)] = e * cs;
-            j[(k, 1)] = -a * t * e * cs;
-            j[(k, 2)] = -a * e * sn * t;
-            j[(k, 3)] = -a * e * sn;
-        }
-        Some(j)
-    }
+    Some(j)
 }
 
 /// Positive peaks (index, value) of `x`, parabolically refined in time.
@@ -190,6 +174,31 @@ pub fn identify_free_decay(
     signal: &[f64],
     opts: &FreeDecayOptions,
 ) -> Result<FreeDecayResult> {
+    check_decay_input(time_s, signal)?;
+    let mut warnings = Vec::new();
+    let (t, x, rate) = uniform_time(time_s, signal, &mut warnings);
+    let (f1, other) = mode_candidates(&x, rate, opts)?;
+    let first = analyse_mode(&x, rate, f1, &mut warnings)?;
+    let modes = higher_modes(&x, rate, &first.mode, &other, &mut warnings);
+    let (log_decrement, sinusoid_fit, segment_s) = (
+        first.log_decrement,
+        first.sinusoid_fit,
+        (t[0] + first.segment_s.0, t[0] + first.segment_s.1),
+    );
+    Ok(FreeDecayResult {
+        mode: first.mode,
+        modes,
+        log_decrement,
+        sinusoid_fit,
+        segment_s,
+        sample_rate_hz: rate,
+        other_peaks_hz: other,
+        warnings,
+    })
+}
+
+/// Equal lengths ≥ 64, finite values, strictly increasing time.
+fn check_decay_input(time_s: &[f64], signal: &[f64]) -> Result<()> {
     if time_s.len() != signal.len() || time_s.len() < 64 {
         bail!(
             "a free decay needs at least 64 samples of time and signal (got {} and {})",
@@ -207,7 +216,16 @@ pub fn identify_free_decay(
     if let Some(k) = time_s.windows(2).position(|w| w[1] <= w[0]) {
         bail!("time not strictly increasing at sample {}", k + 1);
     }
-    let mut warnings = Vec::new();
+    Ok(())
+}
+
+/// (time, signal, rate): as given when the steps are uniform within 1 %, else resampled at the
+/// median step by linear interpolation (with a warning).
+fn uniform_time(
+    time_s: &[f64],
+    signal: &[f64],
+    warnings: &mut Vec<String>,
+) -> (Vec<f64>, Vec<f64>, f64) {
     let mut dts: Vec<f64> = time_s.windows(2).map(|w| w[1] - w[0]).collect();
     dts.sort_by(|a, b| a.total_cmp(b));
     let dt = dts[dts.len() / 2];
@@ -222,8 +240,14 @@ pub fn identify_free_decay(
     } else {
         (time_s.to_vec(), signal.to_vec())
     };
+    (t, x, rate)
+}
+
+/// The first mode's spectral peak f1 (the lowest peak within `mode_fraction` of the
+/// strongest) and the higher-mode candidates (Hz).
+fn mode_candidates(x: &[f64], rate: f64, opts: &FreeDecayOptions) -> Result<(f64, Vec<f64>)> {
     let f_max = opts.f_max_hz.min(0.45 * rate);
-    let (f, mag) = amplitude_spectrum(&x, rate);
+    let (f, mag) = amplitude_spectrum(x, rate);
     let pk = peaks(&f, &mag, opts.f_min_hz, f_max);
     let strongest = pk.first().map(|p| p.1).ok_or_else(|| {
         anyhow::anyhow!("no spectral peak between {} and {f_max} Hz", opts.f_min_hz)
@@ -244,11 +268,22 @@ pub fn identify_free_decay(
         .map(|p| p.0)
         .take(16)
         .collect();
-    let first = analyse_mode(&x, rate, f1, &mut warnings)?;
-    let mut modes = vec![first.mode.clone()];
+    Ok((f1, other))
+}
+
+/// The first mode and those of the candidates `other` that decay like a mode at their own
+/// frequency, ascending; a warning names the candidates that do not decay.
+fn higher_modes(
+    x: &[f64],
+    rate: f64,
+    first: &ModeEstimate,
+    other: &[f64],
+    warnings: &mut Vec<String>,
+) -> Vec<ModeEstimate> {
+    let mut modes = vec![first.clone()];
     let mut not_decaying = Vec::new();
-    for &fo in &other {
-        match analyse_mode(&x, rate, fo, &mut Vec::new()) {
+    for &fo in other {
+        match analyse_mode(x, rate, fo, &mut Vec::new()) {
             // A genuine mode decays at the frequency of its own peak; a sidelobe or noise
             // peak analysed in its band locks onto leakage of a stronger mode instead.
             Ok(m)
@@ -274,21 +309,7 @@ pub fn identify_free_decay(
         ));
     }
     modes.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
-    let (log_decrement, sinusoid_fit, segment_s) = (
-        first.log_decrement,
-        first.sinusoid_fit,
-        (t[0] + first.segment_s.0, t[0] + first.segment_s.1),
-    );
-    Ok(FreeDecayResult {
-        mode: first.mode,
-        modes,
-        log_decrement,
-        sinusoid_fit,
-        segment_s,
-        sample_rate_hz: rate,
-        other_peaks_hz: other,
-        warnings,
-    })
+    modes
 }
 
 struct ModeAnalysis {
@@ -300,9 +321,16 @@ struct ModeAnalysis {
     segment_s: (f64, f64),
 }
 
-/// Log decrement and damped-sinusoid fit of the mode near `f1` (Hz).
-fn analyse_mode(x: &[f64], rate: f64, f1: f64, warnings: &mut Vec<String>) -> Result<ModeAnalysis> {
-    let xb = band_pass(&x, rate, 0.7 * f1, 1.3 * f1);
+/// The decay of the mode near `f1` (Hz): the band-passed signal and its positive peaks
+/// (sample index, value) from the largest until they sink below 5 % of it or 3 × the in-band
+/// noise.
+fn decay_segment(
+    x: &[f64],
+    rate: f64,
+    f1: f64,
+    warnings: &mut Vec<String>,
+) -> Result<(Vec<f64>, Vec<(f64, f64)>)> {
+    let xb = band_pass(x, rate, 0.7 * f1, 1.3 * f1);
     let all = positive_peaks(&xb);
     if all.len() < 6 {
         bail!("fewer than 6 cycles of the {f1:.3} Hz mode in the record");
@@ -332,6 +360,46 @@ fn analyse_mode(x: &[f64], rate: f64, f1: f64, warnings: &mut Vec<String>) -> Re
     if seg.len() < 10 {
         warnings.push(format!("short decay: {} cycles", seg.len()));
     }
+    Ok((xb, seg.to_vec()))
+}
+
+/// Least-squares damped sinusoid A e^{−σt} cos(ω_d t + φ) on the band-passed decay `xb` over
+/// the peaks `seg` (≤ 40 points per `period` samples), from the log decrement's (f_n, ζ):
+/// its (f_n, ζ), the fraction of the energy it explains, whether the minimiser converged and
+/// why it stopped.
+fn sinusoid_fit(
+    xb: &[f64],
+    seg: &[(f64, f64)],
+    rate: f64,
+    period: f64,
+    fn_ld: f64,
+    zeta_ld: f64,
+) -> (f64, f64, f64, bool, String) {
+    let fd = rate / period;
+    let (k0, k1) = (seg[0].0 as usize, seg[seg.len() - 1].0 as usize);
+    let step = ((period / 40.0) as usize).max(1);
+    let ts: Vec<f64> = (k0..=k1)
+        .step_by(step)
+        .map(|k| (k - k0) as f64 / rate)
+        .collect();
+    let xs: Vec<f64> = (k0..=k1).step_by(step).map(|k| xb[k]).collect();
+    let wd0 = 2.0 * PI * fd;
+    let p0 = DVector::from_vec(vec![seg[0].1, zeta_ld * 2.0 * PI * fn_ld, wd0, 0.0]);
+    let res = |p: &DVector<f64>| sinusoid_residuals(&ts, &xs, p);
+    let jac = |p: &DVector<f64>| sinusoid_jacobian(&ts, p);
+    // The adapter's finite-difference steps are unused with an analytic Jacobian.
+    let fit = minimize_with_jacobian(&res, &jac, p0, &LmOptions::new(vec![0.0; 4]));
+    let (sigma, wd) = (fit.x[1], fit.x[2]);
+    let wn = (wd * wd + sigma * sigma).sqrt();
+    let ss: f64 = xs.iter().map(|v| v * v).sum();
+    let r2 = 1.0 - fit.cost / ss.max(1e-300);
+    (wn / (2.0 * PI), sigma / wn, r2, fit.converged, fit.reason)
+}
+
+/// Log decrement and damped-sinusoid fit of the mode near `f1` (Hz).
+fn analyse_mode(x: &[f64], rate: f64, f1: f64, warnings: &mut Vec<String>) -> Result<ModeAnalysis> {
+    let (xb, seg) = decay_segment(x, rate, f1, warnings)?;
+    let seg = &seg[..];
     let (delta, period) = log_decrement(seg);
     let zeta_ld = zeta_from_log_decrement(delta.max(1e-9));
     let fd = rate / period;
@@ -341,36 +409,14 @@ fn analyse_mode(x: &[f64], rate: f64, f1: f64, warnings: &mut Vec<String>) -> Re
         .filter(|c| c.len() >= 3)
         .map(|c| zeta_from_log_decrement(log_decrement(c).0.max(1e-9)))
         .collect();
-    // Damped-sinusoid fit on the band-passed segment, ≤ 40 points per period.
-    let (k0, k1) = (seg[0].0 as usize, seg[seg.len() - 1].0 as usize);
-    let step = ((period / 40.0) as usize).max(1);
-    let ts: Vec<f64> = (k0..=k1)
-        .step_by(step)
-        .map(|k| (k - k0) as f64 / rate)
-        .collect();
-    let xs: Vec<f64> = (k0..=k1).step_by(step).map(|k| xb[k]).collect();
-    let wd0 = 2.0 * PI * fd;
-    let problem = SinusoidFit {
-        t: &ts,
-        x: &xs,
-        p: Vector4::new(seg[0].1, zeta_ld * 2.0 * PI * fn_ld, wd0, 0.0),
-    };
-    let (fit, report) = LevenbergMarquardt::new().minimize(problem);
-    let (sigma, wd) = (fit.p[1], fit.p[2]);
-    let wn = (wd * wd + sigma * sigma).sqrt();
-    let (fn_fit, zeta_fit) = (wn / (2.0 * PI), sigma / wn);
-    let ss: f64 = xs.iter().map(|v| v * v).sum();
-    let r2 = 1.0 - 2.0 * report.objective_function / ss.max(1e-300);
-    let fit_ok = report.termination.was_successful()
-        && zeta_fit.is_finite()
-        && zeta_fit >= 0.0
-        && (fn_fit / fn_ld - 1.0).abs() < 0.05;
+    let (fn_fit, zeta_fit, r2, converged, reason) =
+        sinusoid_fit(&xb, seg, rate, period, fn_ld, zeta_ld);
+    let fit_ok =
+        converged && zeta_fit.is_finite() && zeta_fit >= 0.0 && (fn_fit / fn_ld - 1.0).abs() < 0.05;
     if !fit_ok {
         warnings.push(format!(
             "damped-sinusoid fit rejected ({}; f {:.4} Hz, zeta {:.5}); log decrement only",
-            super::mlfit::termination_text(&report.termination),
-            fn_fit,
-            zeta_fit
+            reason, fn_fit, zeta_fit
         ));
     }
     let (freq, zeta) = if fit_ok {

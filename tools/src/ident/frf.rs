@@ -263,66 +263,19 @@ pub fn saturation_warning(name: &str, x: &[f64]) -> Option<String> {
 /// Errors: different lengths, fewer than 16 samples, NaN/inf, a segment longer than the
 /// record or shorter than 8, overlap outside [0, 1), an input with no energy.
 pub fn welch(x: &[f64], y: &[f64], rate_hz: f64, opts: &WelchOptions) -> Result<Frf> {
-    if x.len() != y.len() {
-        bail!("input has {} samples, output {}", x.len(), y.len());
-    }
-    check_signal("input", x, 16)?;
-    check_signal("output", y, 16)?;
-    if !(rate_hz > 0.0 && rate_hz.is_finite()) {
-        bail!("sample rate must be positive (got {rate_hz})");
-    }
-    if !(0.0..1.0).contains(&opts.overlap) {
-        bail!("overlap must be in [0, 1) (got {})", opts.overlap);
-    }
-    let n = x.len();
-    let nseg = opts.nperseg.unwrap_or(n);
-    if nseg > n || nseg < 8 {
-        bail!("segment length {nseg} must be between 8 and the record length {n}");
-    }
-    let step = ((nseg as f64 * (1.0 - opts.overlap)).round() as usize).max(1);
+    let nseg = check_welch(x, y, rate_hz, opts)?;
     let nfft = (nseg * opts.pad.max(1)).next_power_of_two();
+    let nf = nfft / 2 + 1;
     let win = opts.window.samples(nseg);
     let wss: f64 = win.iter().map(|w| w * w).sum();
-    let mut planner = RealFftPlanner::<f64>::new();
-    let fft = planner.plan_fft_forward(nfft);
-    let nf = nfft / 2 + 1;
-    let (mut sxx, mut syy) = (vec![0.0; nf], vec![0.0; nf]);
-    let mut sxy = vec![Complex64::new(0.0, 0.0); nf];
-    let mut count = 0;
-    let mut start = 0;
-    let mut bx = fft.make_input_vec();
-    let mut by = fft.make_input_vec();
-    let mut fx = fft.make_output_vec();
-    let mut fy = fft.make_output_vec();
-    while start + nseg <= n {
-        let mut sx = x[start..start + nseg].to_vec();
-        let mut sy = y[start..start + nseg].to_vec();
-        opts.detrend.apply(&mut sx);
-        opts.detrend.apply(&mut sy);
-        bx.iter_mut().for_each(|v| *v = 0.0);
-        by.iter_mut().for_each(|v| *v = 0.0);
-        for k in 0..nseg {
-            bx[k] = sx[k] * win[k];
-            by[k] = sy[k] * win[k];
-        }
-        fft.process(&mut bx, &mut fx)
-            .map_err(|e| anyhow::anyhow!("FFT: {e}"))?;
-        fft.process(&mut by, &mut fy)
-            .map_err(|e| anyhow::anyhow!("FFT: {e}"))?;
-        for k in 0..nf {
-            sxx[k] += fx[k].norm_sqr();
-            syy[k] += fy[k].norm_sqr();
-            sxy[k] += fx[k].conj() * fy[k];
-        }
-        count += 1;
-        start += step;
-    }
+    let sp = averaged_spectra(x, y, nseg, nfft, &win, opts)?;
     // One-sided PSD scaling (2 / (fs Σw²) per average); the FRF ratios do not depend on it.
-    let scale = 2.0 / (rate_hz * wss * count as f64);
+    let scale = 2.0 / (rate_hz * wss * sp.count as f64);
     let tiny = 1e-300;
     let mut h1 = Vec::with_capacity(nf);
     let mut h2 = Vec::with_capacity(nf);
     let mut coh = Vec::with_capacity(nf);
+    let (sxx, syy, sxy) = (&sp.sxx, &sp.syy, &sp.sxy);
     for k in 0..nf {
         h1.push(sxy[k] / sxx[k].max(tiny));
         h2.push(if sxy[k].norm() > tiny {
@@ -348,13 +301,91 @@ pub fn welch(x: &[f64], y: &[f64], rate_hz: f64, opts: &WelchOptions) -> Result<
         coherence: coh,
         sxx: sxx.iter().map(|v| v * scale).collect(),
         syy: syy.iter().map(|v| v * scale).collect(),
-        n_averages: count,
+        n_averages: sp.count,
         sample_rate_hz: rate_hz,
         nperseg: nseg,
         window_decay_s,
         input: "input".into(),
         output: "output".into(),
     })
+}
+
+/// Checks the signals and options of [`welch`]; returns the segment length.
+fn check_welch(x: &[f64], y: &[f64], rate_hz: f64, opts: &WelchOptions) -> Result<usize> {
+    if x.len() != y.len() {
+        bail!("input has {} samples, output {}", x.len(), y.len());
+    }
+    check_signal("input", x, 16)?;
+    check_signal("output", y, 16)?;
+    if !(rate_hz > 0.0 && rate_hz.is_finite()) {
+        bail!("sample rate must be positive (got {rate_hz})");
+    }
+    if !(0.0..1.0).contains(&opts.overlap) {
+        bail!("overlap must be in [0, 1) (got {})", opts.overlap);
+    }
+    let n = x.len();
+    let nseg = opts.nperseg.unwrap_or(n);
+    if nseg > n || nseg < 8 {
+        bail!("segment length {nseg} must be between 8 and the record length {n}");
+    }
+    Ok(nseg)
+}
+
+/// Unscaled sums over the segments of |X|², |Y|², X̄Y and their number.
+struct SpectraSums {
+    sxx: Vec<f64>,
+    syy: Vec<f64>,
+    sxy: Vec<Complex64>,
+    count: usize,
+}
+
+/// The sums of [`SpectraSums`] over segments of `nseg` samples stepped by the overlap,
+/// detrended, windowed by `win`, zero-padded to `nfft`.
+fn averaged_spectra(
+    x: &[f64],
+    y: &[f64],
+    nseg: usize,
+    nfft: usize,
+    win: &[f64],
+    opts: &WelchOptions,
+) -> Result<SpectraSums> {
+    let n = x.len();
+    let step = ((nseg as f64 * (1.0 - opts.overlap)).round() as usize).max(1);
+    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(nfft);
+    let nf = nfft / 2 + 1;
+    let mut sums = SpectraSums {
+        sxx: vec![0.0; nf],
+        syy: vec![0.0; nf],
+        sxy: vec![Complex64::new(0.0, 0.0); nf],
+        count: 0,
+    };
+    let (mut bx, mut by) = (fft.make_input_vec(), fft.make_input_vec());
+    let (mut fx, mut fy) = (fft.make_output_vec(), fft.make_output_vec());
+    let mut start = 0;
+    while start + nseg <= n {
+        let mut sx = x[start..start + nseg].to_vec();
+        let mut sy = y[start..start + nseg].to_vec();
+        opts.detrend.apply(&mut sx);
+        opts.detrend.apply(&mut sy);
+        bx.iter_mut().for_each(|v| *v = 0.0);
+        by.iter_mut().for_each(|v| *v = 0.0);
+        for k in 0..nseg {
+            bx[k] = sx[k] * win[k];
+            by[k] = sy[k] * win[k];
+        }
+        fft.process(&mut bx, &mut fx)
+            .map_err(|e| anyhow::anyhow!("FFT: {e}"))?;
+        fft.process(&mut by, &mut fy)
+            .map_err(|e| anyhow::anyhow!("FFT: {e}"))?;
+        for k in 0..nf {
+            sums.sxx[k] += fx[k].norm_sqr();
+            sums.syy[k] += fy[k].norm_sqr();
+            sums.sxy[k] += fx[k].conj() * fy[k];
+        }
+        sums.count += 1;
+        start += step;
+    }
+    Ok(sums)
 }
 
 /// Input channel of an FRF.

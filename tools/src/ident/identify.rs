@@ -7,7 +7,8 @@
 //! Steps:
 //! 1. **Gaps** ([`gap_threshold_s`]): time steps longer than max(5 median steps, a tenth of
 //!    the dominant period) split the recording; the longest clean segment is used, with a
-//!    warning (interpolating across a 500 ms gap biased a 6 Hz decay by −8.6 %).
+//!    warning (interpolating across a gap biases the decay: docs/ident.md, "Numbers behind
+//!    the design choices").
 //! 2. **Base stillness** ([`base_motion`]): the base's noise is measured where it ends
 //!    (1.4826 × MAD of the last 10 % of the recording); the base is still from the last
 //!    sample that leaves ±6 σ of its final position. A servo dithering by ±2 µm is still.
@@ -293,26 +294,9 @@ pub fn identify(
         );
     }
     progress(Stage::Excitation);
-    let base = base_channel(&seg).map(base_motion);
+    let mut base = base_channel(&seg).map(base_motion);
     let (path, reason) = choose_path(&seg, base.as_ref(), opts);
-    let mut base = base;
-    let q = decimation_factor(&seg, path, opts);
-    if q > 1 {
-        let from_s = base
-            .as_ref()
-            .map(|b| seg.time_s[b.still_from.min(seg.len() - 1)]);
-        let d = seg.decimated(q);
-        warnings.push(format!(
-            "long recording ({} samples at {} Hz): decimated by {q} to {} Hz (anti-aliased, FIR) before the {path} path",
-            seg.len(),
-            fmt_sig(seg.sample_rate_hz(), 5),
-            fmt_sig(d.sample_rate_hz(), 5)
-        ));
-        if let (Some(b), Some(t0)) = (base.as_mut(), from_s) {
-            b.still_from = d.time_s.partition_point(|t| *t < t0);
-        }
-        seg = Cow::Owned(d);
-    }
+    decimate_for_path(&mut seg, &mut base, path, opts, &mut warnings);
     let rate = seg.sample_rate_hz();
     let span = (seg.time_s[0], seg.time_s[seg.len() - 1]);
     let mut out = Identification {
@@ -329,42 +313,9 @@ pub fn identify(
         decay_result: None,
     };
     match path {
-        IdentPath::Frf => {
-            progress(Stage::Estimating(path, seg.len()));
-            let mut fo = frf_options(&seg, opts, &mut out);
-            // The ML refinement runs on the screened modes only (faster, and a spurious
-            // estimate cannot pull a physical one).
-            let ml = std::mem::replace(&mut fo.ml_refine, false);
-            let (r, frf) = identify_recording(&seg, &fo)?;
-            progress(Stage::Screening);
-            let (mut kept, rejected) = screen_modes(&r, &frf, &fo);
-            out.warnings.extend(r.warnings.iter().cloned());
-            if ml
-                && matches!(
-                    r.methods.first().map(|m| m.method),
-                    Some(Method::Lscf | Method::Lsce)
-                )
-            {
-                progress(Stage::Refining(kept.len()));
-                refine_estimates(&frf, r.band_hz, &mut kept, "FRF", &mut out.warnings);
-            }
-            out.modes = kept;
-            out.rejected = rejected;
-            out.reason = format!("{}; FRF {} -> {}", out.reason, r.input, r.output);
-            out.frf_result = Some((r, frf));
-        }
+        IdentPath::Frf => frf_path(&seg, opts, &mut out, progress)?,
         IdentPath::FreeDecay | IdentPath::RingDown | IdentPath::Spectrum => {
-            let from = match (path, &out.base) {
-                (IdentPath::RingDown, Some(b)) => b.still_from,
-                _ => 0,
-            };
-            let (t, x) = tip_signal(&seg, from);
-            progress(Stage::Estimating(path, t.len()));
-            let r = identify_free_decay(&t, &x, &opts.decay)?;
-            out.modes = r.modes.clone();
-            out.warnings.extend(r.warnings.iter().cloned());
-            out.span_s = (t[0], t[t.len() - 1]);
-            out.decay_result = Some(r);
+            decay_path(&seg, opts, &mut out, progress)?
         }
     }
     if out.modes.is_empty() {
@@ -372,22 +323,103 @@ pub fn identify(
             "no physical mode found on the {} path ({}){}",
             out.path,
             out.reason,
-            if out.rejected.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    "; rejected: {}",
-                    out.rejected
-                        .iter()
-                        .map(|r| format!("{} Hz ({})", fmt_sig(r.mode.freq_hz, 4), r.reason))
-                        .collect::<Vec<_>>()
-                        .join("; ")
-                )
-            }
+            rejected_text(&out.rejected)
         );
     }
     out.rayleigh = rayleigh(&out.modes, &mut out.warnings);
     Ok(out)
+}
+
+/// `; rejected: f Hz (why); …`, or nothing.
+fn rejected_text(rejected: &[RejectedMode]) -> String {
+    if rejected.is_empty() {
+        return String::new();
+    }
+    let list: Vec<String> = rejected
+        .iter()
+        .map(|r| format!("{} Hz ({})", fmt_sig(r.mode.freq_hz, 4), r.reason))
+        .collect();
+    format!("; rejected: {}", list.join("; "))
+}
+
+/// Anti-aliased decimation of `seg` by [`decimation_factor`] for `path` (with a warning),
+/// keeping `base.still_from` at the same time.
+fn decimate_for_path(
+    seg: &mut Cow<'_, Recording>,
+    base: &mut Option<BaseMotion>,
+    path: IdentPath,
+    opts: &IdentifyOptions,
+    warnings: &mut Vec<String>,
+) {
+    let q = decimation_factor(seg, path, opts);
+    if q <= 1 {
+        return;
+    }
+    let from_s = base
+        .as_ref()
+        .map(|b| seg.time_s[b.still_from.min(seg.len() - 1)]);
+    let d = seg.decimated(q);
+    warnings.push(format!(
+        "long recording ({} samples at {} Hz): decimated by {q} to {} Hz (anti-aliased, FIR) before the {path} path",
+        seg.len(),
+        fmt_sig(seg.sample_rate_hz(), 5),
+        fmt_sig(d.sample_rate_hz(), 5)
+    ));
+    if let (Some(b), Some(t0)) = (base.as_mut(), from_s) {
+        b.still_from = d.time_s.partition_point(|t| *t < t0);
+    }
+    *seg = Cow::Owned(d);
+}
+
+/// The FRF path: [`identify_recording`] without refinement, [`screen_modes`], then the
+/// maximum-likelihood refinement of the kept modes (LSCF, LSCE primary), into `out`.
+fn frf_path(
+    seg: &Recording,
+    opts: &IdentifyOptions,
+    out: &mut Identification,
+    progress: &mut dyn FnMut(Stage),
+) -> Result<()> {
+    progress(Stage::Estimating(out.path, seg.len()));
+    let mut fo = frf_options(seg, opts, out);
+    // The ML refinement runs on the screened modes only (faster, and a spurious
+    // estimate cannot pull a physical one).
+    let ml = std::mem::replace(&mut fo.ml_refine, false);
+    let (r, frf) = identify_recording(seg, &fo)?;
+    progress(Stage::Screening);
+    let (mut kept, rejected) = screen_modes(&r, &frf, &fo);
+    out.warnings.extend(r.warnings.iter().cloned());
+    let primary = r.methods.first().map(|m| m.method);
+    if ml && matches!(primary, Some(Method::Lscf | Method::Lsce)) {
+        progress(Stage::Refining(kept.len()));
+        refine_estimates(&frf, r.band_hz, &mut kept, "FRF", &mut out.warnings);
+    }
+    out.modes = kept;
+    out.rejected = rejected;
+    out.reason = format!("{}; FRF {} -> {}", out.reason, r.input, r.output);
+    out.frf_result = Some((r, frf));
+    Ok(())
+}
+
+/// The free-decay paths: [`identify_free_decay`] of the tip signal (from where the base is
+/// still on the ring-down path), into `out`.
+fn decay_path(
+    seg: &Recording,
+    opts: &IdentifyOptions,
+    out: &mut Identification,
+    progress: &mut dyn FnMut(Stage),
+) -> Result<()> {
+    let from = match (out.path, &out.base) {
+        (IdentPath::RingDown, Some(b)) => b.still_from,
+        _ => 0,
+    };
+    let (t, x) = tip_signal(seg, from);
+    progress(Stage::Estimating(out.path, t.len()));
+    let r = identify_free_decay(&t, &x, &opts.decay)?;
+    out.modes = r.modes.clone();
+    out.warnings.extend(r.warnings.iter().cloned());
+    out.span_s = (t[0], t[t.len() - 1]);
+    out.decay_result = Some(r);
+    Ok(())
 }
 
 /// The free-decay part of `rec` as (time s, signal, description): the longest clean segment
@@ -426,6 +458,18 @@ pub fn free_decay_signal(rec: &Recording) -> Result<(Vec<f64>, Vec<f64>, String)
         what += &format!("; {w}");
     }
     Ok((t, x, what))
+}
+
+/// The free-decay part of a recording file (CSV, `.npy`, [`Recording::read_any`]):
+/// [`free_decay_signal`] (gaps split, base still within its noise band). Returns (time (s),
+/// signal, description naming the file).
+///
+/// Errors: the file cannot be read, or those of [`free_decay_signal`] (prefixed by the path).
+pub fn free_decay_of(path: &std::path::Path) -> Result<(Vec<f64>, Vec<f64>, String)> {
+    let rec = Recording::read_any(path, &mut |_| {})?;
+    let (t, x, what) =
+        free_decay_signal(&rec).map_err(|e| anyhow::anyhow!("{}: {e:#}", path.display()))?;
+    Ok((t, x, format!("{}: {what}", path.display())))
 }
 
 /// Rayleigh α1, α2 (eq. 22) of the first two modes; a negative coefficient is reported as a
@@ -644,6 +688,20 @@ pub fn base_motion(b: &[f64]) -> BaseMotion {
     }
 }
 
+/// The path the user asked for (`None` for `auto`), with its reason: a ring-down when the base
+/// moved (`ring_s` of it), else a free decay.
+fn asked_path(choice: PathChoice, moves: bool, ring_s: f64) -> Option<(IdentPath, String)> {
+    match choice {
+        PathChoice::Frf => Some((IdentPath::Frf, "FRF path asked for".into())),
+        PathChoice::Decay if moves => Some((
+            IdentPath::RingDown,
+            format!("free decay asked for: tip deflection after the base's last move ({} s of ring-down)", fmt_sig(ring_s, 3)),
+        )),
+        PathChoice::Decay => Some((IdentPath::FreeDecay, "free decay asked for".into())),
+        PathChoice::Auto => None,
+    }
+}
+
 /// The path for `rec` and the reason.
 pub fn choose_path(
     rec: &Recording,
@@ -654,16 +712,8 @@ pub fn choose_path(
     let force = rec.force_n.is_some();
     let moves = base.is_some_and(|b| b.still_from > 0);
     let ring_s = base.map_or(0.0, |b| (rec.len() - b.still_from) as f64 / rate);
-    match opts.path {
-        PathChoice::Frf => return (IdentPath::Frf, "FRF path asked for".into()),
-        PathChoice::Decay if moves => {
-            return (
-                IdentPath::RingDown,
-                format!("free decay asked for: tip deflection after the base's last move ({} s of ring-down)", fmt_sig(ring_s, 3)),
-            )
-        }
-        PathChoice::Decay => return (IdentPath::FreeDecay, "free decay asked for".into()),
-        PathChoice::Auto => {}
+    if let Some(asked) = asked_path(opts.path, moves, ring_s) {
+        return asked;
     }
     let Some(b) = base else {
         return if force {

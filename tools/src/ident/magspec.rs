@@ -15,9 +15,9 @@
 //! reported only as the upper bound w·Δf / (2 f_n) from the measured width w (half-power
 //! bandwidth = 2ζf_n, paper eq. 27 with the half-power points).
 
+use crate::numeric::lm::{fd_jacobian, minimize, Difference, LmOptions};
 use anyhow::{bail, Context, Result};
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
-use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use nalgebra::DVector;
 use std::path::Path;
 
 /// Half-power bands narrower than this many lines make ζ an upper bound.
@@ -142,58 +142,27 @@ pub struct MagnitudeMode {
     pub rms_misfit_db: f64,
 }
 
-struct PeakFit<'a> {
-    f: &'a [f64],
-    db: &'a [f64],
-    p: DVector<f64>, // ln a, f_n, ln ζ, ln b
+/// |A(f)| of the module docs in dB, parameters p = (ln a, f_n, ln ζ, ln b).
+fn model_db(p: &DVector<f64>, f: f64) -> f64 {
+    let (a, fnat, z, b) = (p[0].exp(), p[1], p[2].exp(), p[3].exp());
+    let r = f / fnat;
+    let m = a * r * r / ((1.0 - r * r).powi(2) + (2.0 * z * r).powi(2)).sqrt() + b;
+    20.0 * m.log10()
 }
 
-impl PeakFit<'_> {
-    fn model_db(p: &DVector<f64>, f: f64) -> f64 {
-        let (a, fnat, z, b) = (p[0].exp(), p[1], p[2].exp(), p[3].exp());
-        let r = f / fnat;
-        let m = a * r * r / ((1.0 - r * r).powi(2) + (2.0 * z * r).powi(2)).sqrt() + b;
-        20.0 * m.log10()
-    }
-    fn res(&self, p: &DVector<f64>) -> DVector<f64> {
-        DVector::from_iterator(
-            self.f.len(),
-            self.f
-                .iter()
-                .zip(self.db)
-                .map(|(&f, &d)| Self::model_db(p, f) - d),
-        )
-    }
+/// Residuals model − measured (dB) on the lines `f`, `db`; `None` if one is not finite.
+fn peak_residuals(f: &[f64], db: &[f64], p: &DVector<f64>) -> Option<DVector<f64>> {
+    let r = DVector::from_iterator(f.len(), f.iter().zip(db).map(|(&f, &d)| model_db(p, f) - d));
+    r.iter().all(|v| v.is_finite()).then_some(r)
 }
 
-impl LeastSquaresProblem<f64, Dyn, Dyn> for PeakFit<'_> {
-    type ResidualStorage = Owned<f64, Dyn>;
-    type JacobianStorage = Owned<f64, Dyn, Dyn>;
-    type ParameterStorage = Owned<f64, Dyn>;
-    fn set_params(&mut self, p: &DVector<f64>) {
-        self.p = p.clone();
-    }
-    fn params(&self) -> DVector<f64> {
-        self.p.clone()
-    }
-    fn residuals(&self) -> Option<DVector<f64>> {
-        let r = self.res(&self.p);
-        r.iter().all(|v| v.is_finite()).then_some(r)
-    }
-    fn jacobian(&self) -> Option<DMatrix<f64>> {
-        let mut j = DMatrix::zeros(self.f.len(), 4);
-        for i in 0..4 {
-            let h = if i == 1 {
-                1e-7 * self.p[1].abs().max(1e-3)
-            } else {
-                1e-6
-            };
-            let (mut a, mut b) = (self.p.clone(), self.p.clone());
-            a[i] += h;
-            b[i] -= h;
-            j.set_column(i, &((self.res(&a) - self.res(&b)) / (2.0 * h)));
-        }
-        j.iter().all(|v| v.is_finite()).then_some(j)
+/// The adapter's options of a peak fit starting at `f_n0`: central differences, steps 1e-6 in
+/// the logarithms and 1e-7 f_n0 in f_n, patience 300.
+fn lm_options(f_n0: f64) -> LmOptions {
+    LmOptions {
+        difference: Difference::Central,
+        patience: 300,
+        ..LmOptions::new(vec![1e-6, 1e-7 * f_n0.abs().max(1e-3), 1e-6, 1e-6])
     }
 }
 
@@ -250,10 +219,8 @@ pub fn identify_magnitude_spectrum(
     min_prominence_db: f64,
     max_modes: usize,
 ) -> Result<Vec<MagnitudeMode>> {
-    let f = &s.freq_hz;
-    let db = &s.mag_db;
+    let (f, db) = (&s.freq_hz, &s.mag_db);
     let n = f.len();
-    let df = f[1] - f[0];
     let lo = f.iter().position(|&x| x >= f_min_hz).unwrap_or(n).max(1);
     let hi = f
         .iter()
@@ -263,101 +230,123 @@ pub fn identify_magnitude_spectrum(
     if lo > hi {
         bail!("no spectrum line in {f_min_hz}..{f_max_hz} Hz");
     }
-    let median = |a: usize, b: usize| {
-        let mut v: Vec<f64> = db[a..b].to_vec();
-        v.sort_by(|x, y| x.total_cmp(y));
-        v[v.len() / 2]
-    };
-    let nb = 60;
-    let mut cands: Vec<(usize, f64)> = (lo..=hi)
-        .filter(|&k| db[k] > db[k - 1] && db[k] >= db[k + 1])
-        .map(|k| (k, prominence(db, k, 2000)))
-        .filter(|&(_, p)| p >= min_prominence_db)
-        .collect();
-    cands.sort_by(|a, b| b.1.total_cmp(&a.1));
-    let half_window = 8usize;
-    // A weaker maximum inside a stronger one's fit window is its side lobe or noise.
-    let mut kept: Vec<(usize, f64)> = Vec::new();
-    for c in cands {
-        if kept.iter().all(|k| k.0.abs_diff(c.0) > half_window) {
-            kept.push(c);
-        }
-    }
-    kept.truncate(max_modes);
+    let kept = prominent_peaks(db, lo..=hi, min_prominence_db, max_modes);
     if kept.is_empty() {
         bail!(
             "no peak {min_prominence_db} dB above its neighbourhood in {f_min_hz}..{f_max_hz} Hz"
         );
     }
-    let mut out = Vec::new();
-    for (k, prom) in kept {
-        let width = half_power_width_lines(db, k);
-        if width < RESOLVED_LINES {
-            let (y0, y1, y2) = (db[k - 1], db[k], db[k + 1]);
-            let d = y0 - 2.0 * y1 + y2;
-            let shift = if d < 0.0 {
-                (0.5 * (y0 - y2) / d).clamp(-0.5, 0.5)
+    let mut out: Vec<MagnitudeMode> = kept
+        .into_iter()
+        .filter_map(|(k, prom)| {
+            let width = half_power_width_lines(db, k);
+            if width < RESOLVED_LINES {
+                Some(unresolved_mode(f, db, k, prom, width))
             } else {
-                0.0
-            };
-            let fnat = f[k] + shift * df;
-            out.push(MagnitudeMode {
-                freq_hz: fnat,
-                zeta: width.max(1.0) * df / (2.0 * fnat),
-                freq_hz_std: df / 12f64.sqrt(),
-                zeta_std: f64::NAN,
-                prominence_db: prom,
-                half_power_lines: width,
-                resolution_limited: true,
-                rms_misfit_db: f64::NAN,
-            });
-            continue;
-        }
-        let (a, b) = (
-            k.saturating_sub(half_window.max(2 * width as usize)),
-            (k + half_window.max(2 * width as usize) + 1).min(n),
-        );
-        let floor = median(k.saturating_sub(nb), (k + nb + 1).min(n));
-        let lin = |d: f64| 10f64.powf(d / 20.0);
-        let z0 = (0.5 * width * df / f[k]).max(1e-5);
-        let a0 = (lin(db[k]) - lin(floor)).max(1e-30) * 2.0 * z0;
-        let p0 = DVector::from_vec(vec![a0.ln(), f[k], z0.ln(), lin(floor).ln()]);
-        let prob = PeakFit {
-            f: &f[a..b],
-            db: &db[a..b],
-            p: p0,
-        };
-        let (prob, _) = LevenbergMarquardt::new().with_patience(300).minimize(prob);
-        let p = prob.p.clone();
-        let (Some(r), Some(j)) = (prob.residuals(), prob.jacobian()) else {
-            continue;
-        };
-        let (fnat, zeta) = (p[1], p[2].exp());
-        if !(fnat > f[a] && fnat < f[b - 1] && zeta > 0.0 && zeta < 0.5) {
-            continue;
-        }
-        let dof = (r.len() as f64 - 4.0).max(1.0);
-        let s2 = r.norm_squared() / dof;
-        let cov = (j.transpose() * &j).try_inverse().map(|c| c * s2);
-        let (sf, sz) = cov.map_or((f64::NAN, f64::NAN), |c| {
-            (c[(1, 1)].max(0.0).sqrt(), zeta * c[(2, 2)].max(0.0).sqrt())
-        });
-        out.push(MagnitudeMode {
-            freq_hz: fnat,
-            zeta,
-            freq_hz_std: sf,
-            zeta_std: sz,
-            prominence_db: prom,
-            half_power_lines: 2.0 * zeta * fnat / df,
-            resolution_limited: false,
-            rms_misfit_db: (r.norm_squared() / r.len() as f64).sqrt(),
-        });
-    }
+                fit_peak(f, db, k, prom, width)
+            }
+        })
+        .collect();
     if out.is_empty() {
         bail!("no peak could be fitted in {f_min_hz}..{f_max_hz} Hz");
     }
     out.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
     Ok(out)
+}
+
+/// Half-width (lines) of a peak's fit window, and the distance within which a weaker maximum
+/// is a stronger one's side lobe or noise.
+const HALF_WINDOW: usize = 8;
+
+/// Local maxima of `db` in `range` with a prominence ≥ `min_prominence_db` (over ±2000
+/// lines), strongest first, none within [`HALF_WINDOW`] lines of a stronger one, at most
+/// `max_modes`: (line, prominence dB).
+fn prominent_peaks(
+    db: &[f64],
+    range: std::ops::RangeInclusive<usize>,
+    min_prominence_db: f64,
+    max_modes: usize,
+) -> Vec<(usize, f64)> {
+    let mut cands: Vec<(usize, f64)> = range
+        .filter(|&k| db[k] > db[k - 1] && db[k] >= db[k + 1])
+        .map(|k| (k, prominence(db, k, 2000)))
+        .filter(|&(_, p)| p >= min_prominence_db)
+        .collect();
+    cands.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let mut kept: Vec<(usize, f64)> = Vec::new();
+    for c in cands {
+        if kept.iter().all(|k| k.0.abs_diff(c.0) > HALF_WINDOW) {
+            kept.push(c);
+        }
+    }
+    kept.truncate(max_modes);
+    kept
+}
+
+/// A peak narrower than [`RESOLVED_LINES`]: f_n by Gaussian (log-parabolic) interpolation of
+/// the three top lines, ζ the upper bound w·Δf / (2 f_n).
+fn unresolved_mode(f: &[f64], db: &[f64], k: usize, prom: f64, width: f64) -> MagnitudeMode {
+    let df = f[1] - f[0];
+    let (y0, y1, y2) = (db[k - 1], db[k], db[k + 1]);
+    let d = y0 - 2.0 * y1 + y2;
+    let shift = if d < 0.0 {
+        (0.5 * (y0 - y2) / d).clamp(-0.5, 0.5)
+    } else {
+        0.0
+    };
+    let fnat = f[k] + shift * df;
+    MagnitudeMode {
+        freq_hz: fnat,
+        zeta: width.max(1.0) * df / (2.0 * fnat),
+        freq_hz_std: df / 12f64.sqrt(),
+        zeta_std: f64::NAN,
+        prominence_db: prom,
+        half_power_lines: width,
+        resolution_limited: true,
+        rms_misfit_db: f64::NAN,
+    }
+}
+
+/// The single-mode accelerance fit of the module docs on ±max(8, 2w) lines around line `k`,
+/// started from the half-power width `width` and the median floor of ±60 lines; `None` when
+/// the fit fails or leaves the window or 0 < ζ < 0.5.
+fn fit_peak(f: &[f64], db: &[f64], k: usize, prom: f64, width: f64) -> Option<MagnitudeMode> {
+    let (n, df) = (f.len(), f[1] - f[0]);
+    let half = HALF_WINDOW.max(2 * width as usize);
+    let (a, b) = (k.saturating_sub(half), (k + half + 1).min(n));
+    let nb = 60;
+    let mut v: Vec<f64> = db[k.saturating_sub(nb)..(k + nb + 1).min(n)].to_vec();
+    v.sort_by(|x, y| x.total_cmp(y));
+    let floor = v[v.len() / 2];
+    let lin = |d: f64| 10f64.powf(d / 20.0);
+    let z0 = (0.5 * width * df / f[k]).max(1e-5);
+    let a0 = (lin(db[k]) - lin(floor)).max(1e-30) * 2.0 * z0;
+    let p0 = DVector::from_vec(vec![a0.ln(), f[k], z0.ln(), lin(floor).ln()]);
+    let res = |p: &DVector<f64>| peak_residuals(&f[a..b], &db[a..b], p);
+    let opts = lm_options(f[k]);
+    let p = minimize(&res, p0, &opts).x;
+    let r = res(&p)?;
+    let j = fd_jacobian(&res, &p, &r, &opts)?;
+    let (fnat, zeta) = (p[1], p[2].exp());
+    if !(fnat > f[a] && fnat < f[b - 1] && zeta > 0.0 && zeta < 0.5) {
+        return None;
+    }
+    let dof = (r.len() as f64 - 4.0).max(1.0);
+    let s2 = r.norm_squared() / dof;
+    let cov = (j.transpose() * &j).try_inverse().map(|c| c * s2);
+    let (sf, sz) = cov.map_or((f64::NAN, f64::NAN), |c| {
+        (c[(1, 1)].max(0.0).sqrt(), zeta * c[(2, 2)].max(0.0).sqrt())
+    });
+    Some(MagnitudeMode {
+        freq_hz: fnat,
+        zeta,
+        freq_hz_std: sf,
+        zeta_std: sz,
+        prominence_db: prom,
+        half_power_lines: 2.0 * zeta * fnat / df,
+        resolution_limited: false,
+        rms_misfit_db: (r.norm_squared() / r.len() as f64).sqrt(),
+    })
 }
 
 #[cfg(test)]

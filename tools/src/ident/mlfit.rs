@@ -1,8 +1,8 @@
 //! Maximum-likelihood refinement of modal parameters on the FRF (output-error fit).
 //!
 //! LSCF linearises the fit: it minimises |A(ω) H(ω) − B(ω)|², which weights every line by the
-//! denominator's magnitude and biases damping upward when the output is noisy (+23 % on ζ2 of
-//! the reference rig at 5 % noise, docs/ident.md). The refinement minimises the *output
+//! denominator's magnitude and biases damping upward when the output is noisy (measured in
+//! docs/ident.md, "Numbers behind the design choices"). The refinement minimises the *output
 //! error* instead, the maximum-likelihood cost for white output noise (Pintelon & Schoukens,
 //! *System Identification: a Frequency Domain Approach*, 2nd ed., §9; the MLMM step of
 //! commercial PolyMAX):
@@ -18,9 +18,9 @@
 //! θ = (ln ω_r, ln ζ_r) only. The 1-σ uncertainty of each f_r and ζ_r is the Gauss–Newton
 //! covariance s² (JᵀJ)⁻¹ of the projected problem, s² = V / (N − p).
 
+use crate::numeric::lm::{fd_jacobian, minimize, Difference, LmOptions};
 use anyhow::{bail, Result};
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
-use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use nalgebra::{DMatrix, DVector};
 use realfft::num_complex::Complex64;
 use std::f64::consts::PI;
 
@@ -55,7 +55,6 @@ struct Problem<'a> {
     s: Vec<Complex64>,
     h: &'a [Complex64],
     sqrt_w: Vec<f64>,
-    theta: DVector<f64>,
 }
 
 impl Problem<'_> {
@@ -108,48 +107,24 @@ impl Problem<'_> {
     }
 }
 
-impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
-    type ResidualStorage = Owned<f64, Dyn>;
-    type JacobianStorage = Owned<f64, Dyn, Dyn>;
-    type ParameterStorage = Owned<f64, Dyn>;
-
-    fn set_params(&mut self, p: &DVector<f64>) {
-        self.theta = p.clone();
-    }
-    fn params(&self) -> DVector<f64> {
-        self.theta.clone()
-    }
-    fn residuals(&self) -> Option<DVector<f64>> {
-        self.projected(&self.theta)
-    }
-    fn jacobian(&self) -> Option<DMatrix<f64>> {
-        let r0 = self.projected(&self.theta)?;
-        let mut j = DMatrix::<f64>::zeros(r0.len(), self.theta.len());
-        for i in 0..self.theta.len() {
-            let h = 1e-6;
-            let mut tp = self.theta.clone();
-            tp[i] += h;
-            let mut tm = self.theta.clone();
-            tm[i] -= h;
-            let d = (self.projected(&tp)? - self.projected(&tm)?) / (2.0 * h);
-            j.set_column(i, &d);
-        }
-        Some(j)
+/// The adapter's options of the fit: central differences of step 1e-6 in (ln ω, ln ζ),
+/// patience 200, the crate's default tolerances.
+fn lm_options(n_theta: usize) -> LmOptions {
+    LmOptions {
+        difference: Difference::Central,
+        patience: 200,
+        ..LmOptions::new(vec![1e-6; n_theta])
     }
 }
 
-/// Refines `start` (natural frequencies in Hz, damping ratios) on the lines of `frf` with
-/// `band_hz.0 ≤ f ≤ band_hz.1`, by the output-error (maximum-likelihood) fit of the module
-/// docs. Weights: the input auto-spectrum S_xx of each line (white output noise).
-///
-/// Errors: no start mode, fewer than 4 lines per parameter in the band, a fit that does not
-/// converge to finite values or moves a frequency out of the band.
-pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> Result<Refinement> {
-    if start.is_empty() {
-        bail!("no mode to refine");
-    }
-    let band = frf.band(band_hz.0.max(frf.df_hz()), band_hz.1);
-    let n_par = 2 * start.len() + (2 * start.len() + 2);
+/// The lines `band` of `frf` as s = jω and the square roots of their weights S_xx / max S_xx,
+/// and that maximum. Errors: fewer than 4 lines per parameter, no input power.
+fn weighted_lines(
+    frf: &Frf,
+    band: std::ops::Range<usize>,
+    band_hz: (f64, f64),
+    n_par: usize,
+) -> Result<(Vec<Complex64>, Vec<f64>, f64)> {
     if band.len() < 4 * n_par {
         bail!(
             "{} lines in {:.3}..{:.3} Hz for {} parameters",
@@ -173,6 +148,22 @@ pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> R
         );
     }
     let sqrt_w: Vec<f64> = sxx.iter().map(|v| (v / w_max).max(0.0).sqrt()).collect();
+    Ok((s, sqrt_w, w_max))
+}
+
+/// Refines `start` (natural frequencies in Hz, damping ratios) on the lines of `frf` with
+/// `band_hz.0 ≤ f ≤ band_hz.1`, by the output-error (maximum-likelihood) fit of the module
+/// docs. Weights: the input auto-spectrum S_xx of each line (white output noise).
+///
+/// Errors: no start mode, fewer than 4 lines per parameter in the band, a fit that does not
+/// converge to finite values or moves a frequency out of the band.
+pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> Result<Refinement> {
+    if start.is_empty() {
+        bail!("no mode to refine");
+    }
+    let band = frf.band(band_hz.0.max(frf.df_hz()), band_hz.1);
+    let n_par = 2 * start.len() + (2 * start.len() + 2);
+    let (s, sqrt_w, w_max) = weighted_lines(frf, band.clone(), band_hz, n_par)?;
     let theta0 = DVector::from_iterator(
         2 * start.len(),
         start
@@ -183,29 +174,43 @@ pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> R
         s,
         h: &frf.h1[band.clone()],
         sqrt_w,
-        theta: theta0.clone(),
     };
     let Some(r0) = problem.projected(&theta0) else {
         bail!("singular least-squares problem at the starting poles");
     };
     let cost_start = r0.norm_squared() * w_max;
-    let (problem, report) = LevenbergMarquardt::new()
-        .with_patience(200)
-        .minimize(problem);
-    let theta = problem.theta.clone();
-    let (Some(r), Some(j)) = (problem.projected(&theta), problem.jacobian()) else {
+    let f = |theta: &DVector<f64>| problem.projected(theta);
+    let opts = lm_options(theta0.len());
+    let out = minimize(&f, theta0, &opts);
+    if !out.cost.is_finite() {
+        bail!("the fit did not converge ({})", out.termination);
+    }
+    let theta = out.x;
+    let Some(r) = problem.projected(&theta) else {
         bail!("the fit diverged");
     };
-    if !report.termination.was_successful() && report.objective_function.is_nan() {
-        bail!(
-            "the fit did not converge ({})",
-            termination_text(&report.termination)
-        );
-    }
+    let Some(j) = fd_jacobian(&f, &theta, &r, &opts) else {
+        bail!("the fit diverged");
+    };
     let n_obs = r.len() as f64;
     let dof = (n_obs - n_par as f64).max(1.0);
     let s2 = r.norm_squared() / dof;
     let cov = (j.transpose() * &j).try_inverse().map(|c| c * s2);
+    Ok(Refinement {
+        modes: refined_modes(&theta, cov.as_ref(), start, band_hz)?,
+        cost_start,
+        cost_end: r.norm_squared() * w_max,
+    })
+}
+
+/// The modes of θ = (ln ω_r, ln ζ_r) with their 1-σ from `cov` (NaN without); errors when a
+/// mode left the band or moved more than 5 % from its start.
+fn refined_modes(
+    theta: &DVector<f64>,
+    cov: Option<&DMatrix<f64>>,
+    start: &[ModeEstimate],
+    band_hz: (f64, f64),
+) -> Result<Vec<RefinedMode>> {
     let mut modes = Vec::with_capacity(start.len());
     for (i, m0) in start.iter().enumerate() {
         let freq_hz = theta[2 * i].exp() / (2.0 * PI);
@@ -222,7 +227,7 @@ pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> R
                 zeta
             );
         }
-        let (sf, sz) = match &cov {
+        let (sf, sz) = match cov {
             Some(c) => (
                 freq_hz * c[(2 * i, 2 * i)].max(0.0).sqrt(),
                 zeta * c[(2 * i + 1, 2 * i + 1)].max(0.0).sqrt(),
@@ -236,11 +241,7 @@ pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> R
             zeta_std: sz,
         });
     }
-    Ok(Refinement {
-        modes,
-        cost_start,
-        cost_end: r.norm_squared() * w_max,
-    })
+    Ok(modes)
 }
 
 #[cfg(test)]
@@ -335,22 +336,5 @@ mod tests {
             method: String::new(),
         };
         assert!(refine_modes(&frf, (0.5, 1.5), &[m]).is_err());
-    }
-}
-
-/// The Levenberg–Marquardt termination in words (no debug text in messages).
-pub fn termination_text(t: &levenberg_marquardt::TerminationReason) -> String {
-    use levenberg_marquardt::TerminationReason as T;
-    match t {
-        T::Converged { .. } => "converged".into(),
-        T::ResidualsZero => "zero residuals".into(),
-        T::Orthogonal => "residuals orthogonal to the Jacobian".into(),
-        T::LostPatience => "too many evaluations".into(),
-        T::NoImprovementPossible(s) => format!("no improvement possible ({s})"),
-        T::NoParameters => "no parameters".into(),
-        T::NoResiduals => "no residuals".into(),
-        T::WrongDimensions(s) => format!("wrong dimensions ({s})"),
-        T::Numerical(s) => format!("numerical problem ({s})"),
-        T::User(s) => s.to_string(),
     }
 }

@@ -7,7 +7,8 @@
 //! - [`sweep`]: linear/exponential sine sweeps (eqs. 33–34) with stroke, acceleration and
 //!   tip-deflection limits, as command CSV.
 //! - [`frf`]: Welch H1/H2/coherence (Hamming window by default, overlap, detrending).
-//! - [`lscf`], [`lsce`], [`peak`]: the estimators; [`poles`] their common pole algebra.
+//! - [`lscf`], [`lsce`], [`peak`]: the estimators; [`poles`] their common pole algebra;
+//!   [`estimator`]: the one trait they (and the maximum-likelihood refinement) sit behind.
 //! - [`magspec`]: modes of a magnitude-only spectrum (LabVIEW `.lvm` of an impact test).
 //! - [`mlfit`]: maximum-likelihood (output-error) refinement of the modes on the FRF.
 //! - [`stabilisation`]: diagrams over model orders and automatic mode selection.
@@ -19,7 +20,7 @@
 //! # Public API
 //! ```ignore
 //! let (res, frf) = beamtools::ident::identify_recording(&rec, &IdentOptions::default())?;
-//! for m in &res.modes { println!("{} Hz ± {}, ζ = {} ± {}", m.freq_hz, m.freq_hz_std, m.zeta, m.zeta_std); }
+//! let first: Option<(f64, f64)> = res.modes.first().map(|m| (m.freq_hz, m.zeta)); // Hz, ζ; σ in *_std
 //! let res = beamtools::ident::identify_decay(&t, &x, &FreeDecayOptions::default())?;
 //! ```
 //! Uncertainties are 1-σ: for LSCF/LSCE the spread (1.4826 × MAD) of the stable poles across
@@ -27,8 +28,8 @@
 //! [`IdentResult::modes`] widens the primary method's σ by the standard deviation of every
 //! method's estimate of the same mode (within 3 % in frequency).
 
-pub mod cli;
 pub mod denoise;
+pub mod estimator;
 pub mod freedecay;
 pub mod frf;
 pub mod identify;

@@ -2,12 +2,12 @@
 //! stabilisation over model orders, plus free decays found automatically → combined modes with
 //! uncertainty and Rayleigh coefficients (eq. 22).
 
+use super::estimator::{frf_estimators, FrfContext};
 use super::freedecay::{identify_free_decay, FreeDecayOptions};
 use super::frf::{frf_of_recording, Frf, InputChannel, OutputChannel, WelchOptions, Window};
-use super::lsce::{impulse_response, lsce_poles};
-use super::peak::pick_peaks;
-use super::stabilisation::{diagram, Diagram, StabCriteria, StableMode};
+use super::stabilisation::{Diagram, StabCriteria};
 use super::{std_dev, ModeEstimate};
+use crate::progress::{Progress, Silent};
 use crate::recording::Recording;
 use anyhow::{bail, Result};
 use serde::Serialize;
@@ -83,14 +83,12 @@ pub struct IdentOptions {
     /// applied to the force (it also carries the beam's reaction at its resonances).
     pub track_input: bool,
     /// Sanathanan–Koerner iterations of LSCF ([`super::lscf::lscf_poles_sk`]): reduce the
-    /// damping bias of output noise (ζ2 +23 % → −1 % mean over 20 seeds at 5 % noise on base
-    /// and tip, docs/ident.md); 1 by default (more iterations lost poles at low orders).
+    /// damping bias of output noise; 1 by default (more iterations lost poles at low orders;
+    /// docs/ident.md, "Numbers behind the design choices").
     pub sk_iterations: usize,
     /// Refine the primary FRF method's modes by the output-error (maximum-likelihood) fit of
     /// [`super::mlfit`]; its Gauss–Newton σ joins the uncertainty. On by default.
     pub ml_refine: bool,
-    /// Show a progress bar.
-    pub progress: bool,
 }
 
 impl Default for IdentOptions {
@@ -116,7 +114,6 @@ impl Default for IdentOptions {
             track_input: true,
             sk_iterations: 1,
             ml_refine: true,
-            progress: false,
         }
     }
 }
@@ -183,36 +180,6 @@ pub fn auto_band(frf: &Frf) -> (f64, f64) {
         .map_or(0.4 * frf.sample_rate_hz, |&k| frf.freq_hz[k])
         .min(0.4 * frf.sample_rate_hz);
     (lo, hi)
-}
-
-fn to_estimates(modes: &[StableMode], method: &str) -> Vec<ModeEstimate> {
-    modes
-        .iter()
-        .map(|m| ModeEstimate {
-            freq_hz: m.freq_hz,
-            zeta: m.zeta,
-            freq_hz_std: m.freq_hz_std,
-            zeta_std: m.zeta_std,
-            method: method.to_string(),
-        })
-        .collect()
-}
-
-fn keep_best(modes: Vec<StableMode>, n: Option<usize>, band: (f64, f64)) -> Vec<StableMode> {
-    // Poles at an edge model the truncation, not the beam: within 10 % of the lower edge's
-    // frequency (a fraction of the band width would drop a 1.1 Hz mode from a 0.1-40 Hz
-    // band) or 5 % of the band width below the upper edge.
-    let e = 0.05 * (band.1 - band.0);
-    let mut modes: Vec<StableMode> = modes
-        .into_iter()
-        .filter(|m| m.freq_hz > 1.1 * band.0 && m.freq_hz < band.1 - e)
-        .collect();
-    if let Some(n) = n {
-        modes.sort_by(|a, b| b.count.cmp(&a.count));
-        modes.truncate(n);
-        modes.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
-    }
-    modes
 }
 
 /// Free-decay segments of a recording: stretches of at least `min_s` seconds over which the
@@ -299,12 +266,9 @@ pub fn identify_segments(
     }])
 }
 
-/// Runs the FRF estimators on an existing FRF. `warnings` collects resolution warnings.
-pub fn identify_frf(
-    frf: &Frf,
-    opts: &IdentOptions,
-    warnings: &mut Vec<String>,
-) -> Result<(Vec<MethodResult>, (f64, f64))> {
+/// The band of `opts.band_hz` checked against `frf` (0 ≤ lo < hi ≤ Nyquist), or
+/// [`auto_band`]; at least 16 FRF lines in it.
+pub fn frf_band(frf: &Frf, opts: &IdentOptions) -> Result<(f64, f64)> {
     let nyq = 0.5 * frf.sample_rate_hz;
     let (f_lo, f_hi) = match opts.band_hz {
         Some((a, b)) => {
@@ -318,124 +282,33 @@ pub fn identify_frf(
         }
         None => auto_band(frf),
     };
-    let band = frf.band(f_lo, f_hi);
-    if band.len() < 16 {
-        bail!("only {} FRF lines in the band {f_lo:.3}..{f_hi:.3} Hz (line spacing {:.4} Hz): record longer or widen the band", band.len(), frf.df_hz());
+    let n = frf.band(f_lo, f_hi).len();
+    if n < 16 {
+        bail!("only {n} FRF lines in the band {f_lo:.3}..{f_hi:.3} Hz (line spacing {:.4} Hz): record longer or widen the band", frf.df_hz());
     }
-    let sigma_w = frf.window_decay_s;
-    let pb = |n: u64| {
-        if opts.progress {
-            let p = indicatif::ProgressBar::new(n);
-            p.set_style(
-                indicatif::ProgressStyle::with_template("{msg:>6} [{bar:30}] {pos}/{len} orders")
-                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-            );
-            Some(p)
-        } else {
-            None
-        }
+    Ok((f_lo, f_hi))
+}
+
+/// Runs the FRF estimators of `opts` ([`frf_estimators`]: the first refined by maximum
+/// likelihood when `opts.ml_refine`) on `frf` in [`frf_band`]. `warnings` collects resolution
+/// warnings; `progress` is told each stabilisation diagram's orders. Returns the results in
+/// the order of `opts.methods` and the band.
+pub fn identify_frf(
+    frf: &Frf,
+    opts: &IdentOptions,
+    warnings: &mut Vec<String>,
+    progress: &mut dyn Progress,
+) -> Result<(Vec<MethodResult>, (f64, f64))> {
+    let cx = FrfContext {
+        frf,
+        band_hz: frf_band(frf, opts)?,
+        opts,
     };
     let mut out = Vec::new();
-    for &m in &opts.methods {
-        match m {
-            Method::Lscf => {
-                let fq = &frf.freq_hz[band.clone()];
-                let h = &frf.h1[band.clone()];
-                let w = vec![1.0; fq.len()];
-                let orders: Vec<usize> = (2..=opts.max_order.max(4)).collect();
-                let bar = pb(orders.len() as u64);
-                if let Some(b) = &bar {
-                    b.set_message("LSCF");
-                }
-                let d = diagram(
-                    "LSCF",
-                    orders,
-                    &opts.criteria,
-                    |n| {
-                        Ok(
-                            super::lscf::lscf_poles_sk(fq, h, &w, n, 1.0, opts.sk_iterations)?
-                                .into_iter()
-                                .map(|p| p.remove_decay(sigma_w))
-                                .filter(|p| p.zeta > 0.0 && p.zeta < opts.zeta_max)
-                                .collect(),
-                        )
-                    },
-                    bar.as_ref(),
-                )?;
-                if let Some(b) = bar {
-                    b.finish_and_clear();
-                }
-                let modes = keep_best(d.modes.clone(), opts.n_modes, (f_lo, f_hi));
-                out.push(MethodResult {
-                    method: m,
-                    modes: to_estimates(&modes, "lscf"),
-                    diagram: Some(d),
-                });
-            }
-            Method::Lsce => {
-                let edge = (0.5 * f_lo).min(0.1 * (f_hi - f_lo)).max(2.0 * frf.df_hz());
-                let irf = impulse_response(frf, f_lo, f_hi, edge)?;
-                let len_s = (irf.h.len() as f64 * irf.dt_s * 0.5).min(60.0);
-                let skip_s = 2.0 * irf.dt_s;
-                let orders: Vec<usize> = (1..=opts.max_order.max(4) / 2).map(|k| 2 * k).collect();
-                let bar = pb(orders.len() as u64);
-                if let Some(b) = &bar {
-                    b.set_message("LSCE");
-                }
-                let d = diagram(
-                    "LSCE",
-                    orders,
-                    &opts.criteria,
-                    |n| lsce_poles(&irf, n, skip_s, len_s, f_lo, f_hi, opts.zeta_max, sigma_w),
-                    bar.as_ref(),
-                )?;
-                if let Some(b) = bar {
-                    b.finish_and_clear();
-                }
-                let modes = keep_best(d.modes.clone(), opts.n_modes, (f_lo, f_hi));
-                out.push(MethodResult {
-                    method: m,
-                    modes: to_estimates(&modes, "lsce"),
-                    diagram: Some(d),
-                });
-            }
-            Method::Peak => {
-                let pk = pick_peaks(
-                    &frf.freq_hz,
-                    &frf.h1,
-                    f_lo,
-                    f_hi,
-                    opts.n_modes.unwrap_or(4),
-                    0.01,
-                );
-                for p in &pk {
-                    if p.lines_in_band < 3 {
-                        warnings.push(format!("peak picking at {:.3} Hz: only {} lines inside the half-power band; damping is resolution-limited (record longer)", p.pole.freq_hz, p.lines_in_band));
-                    }
-                }
-                let modes = pk
-                    .iter()
-                    .map(|p| {
-                        let q = p.pole.remove_decay(sigma_w);
-                        ModeEstimate {
-                            freq_hz: q.freq_hz,
-                            zeta: q.zeta,
-                            freq_hz_std: 0.0,
-                            zeta_std: 0.0,
-                            method: "peak".into(),
-                        }
-                    })
-                    .collect();
-                out.push(MethodResult {
-                    method: m,
-                    modes,
-                    diagram: None,
-                });
-            }
-            Method::LogDec => {}
-        }
+    for e in frf_estimators(opts) {
+        out.push(e.estimate(&cx, warnings, progress)?);
     }
-    Ok((out, (f_lo, f_hi)))
+    Ok((out, cx.band_hz))
 }
 
 /// Combines: the primary method's modes, uncertainty widened by the other methods' spread.
@@ -486,8 +359,8 @@ pub fn combine(methods: &[MethodResult]) -> Vec<ModeEstimate> {
 /// from the noise-free command `base_cmd_m` by a fitted servo model
 /// ([`super::denoise::base_from_command`]) when the recording has one and the model explains
 /// ≥ 90 % of the base variance, else tracking-filtered ([`super::denoise::track_sweep`]). Filtering only the input left the base sensor's noise in the output, the same
-/// noise twice: an errors-in-variables error that H1 cannot average out in one record (ζ2
-/// scattered by ±33 % at 5 % noise; see docs/ident.md). Force input is never filtered (it also
+/// noise twice: an errors-in-variables error that H1 cannot average out in one record
+/// (docs/ident.md, "Numbers behind the design choices"). Force input is never filtered (it also
 /// carries the beam's reaction at its resonances).
 pub fn frf_with_options(rec: &Recording, opts: &IdentOptions) -> Result<(Frf, Vec<String>)> {
     if !opts.track_input || opts.input == InputChannel::Force {
@@ -582,9 +455,9 @@ fn predict_base(
 const NOISY_COMMAND: &str = "base_cmd_m carries broadband noise (a recorded, not a generated, command?): the base is tracking-filtered instead of predicted from it";
 
 /// A generated command is band-limited: more than 10⁻⁶ of its variance above twice the band's
-/// upper edge is sensor noise (measured at 100 Hz and an 8 Hz band: 2·10⁻¹³–4·10⁻¹⁰ for the
-/// paper's clean sweeps, 7·10⁻⁵ with white noise of 1 % of the RMS, so the limit sits near
-/// 0.1 % noise). Not testable when 2 × the band reaches 0.8 × Nyquist.
+/// upper edge is sensor noise (the limit sits near 0.1 % noise; the measurements behind it are
+/// in docs/ident.md, "Numbers behind the design choices"). Not testable when 2 × the band
+/// reaches 0.8 × Nyquist.
 fn command_is_noisy(c: &[f64], rate_hz: f64, band_hz: (f64, f64)) -> bool {
     let f = 2.0 * band_hz.1;
     f < 0.4 * rate_hz && super::denoise::broadband_fraction(c, rate_hz, f) > 1e-6
@@ -632,6 +505,15 @@ fn track_into(
 /// [`Recording::validate`]), a band beyond Nyquist, too few lines in the band, no method
 /// producing a mode. Clipped signals give warnings.
 pub fn identify_recording(rec: &Recording, opts: &IdentOptions) -> Result<(IdentResult, Frf)> {
+    identify_recording_with(rec, opts, &mut Silent)
+}
+
+/// [`identify_recording`] telling `progress` the estimators' stages.
+pub fn identify_recording_with(
+    rec: &Recording,
+    opts: &IdentOptions,
+    progress: &mut dyn Progress,
+) -> Result<(IdentResult, Frf)> {
     rec.validate()?;
     if rec.len() < 256 {
         bail!(
@@ -642,15 +524,10 @@ pub fn identify_recording(rec: &Recording, opts: &IdentOptions) -> Result<(Ident
     let (frf, mut warnings) = frf_with_options(rec, opts)?;
     let frf_methods = opts.methods.iter().any(|m| *m != Method::LogDec);
     let (mut methods, band) = if frf_methods {
-        identify_frf(&frf, opts, &mut warnings)?
+        identify_frf(&frf, opts, &mut warnings, progress)?
     } else {
         (vec![], auto_band(&frf))
     };
-    if opts.ml_refine {
-        if let Some(primary) = methods.first_mut() {
-            refine_in_place(&frf, band, primary, &mut warnings);
-        }
-    }
     if opts.methods.contains(&Method::LogDec) {
         let fd = FreeDecayOptions {
             f_min_hz: band.0,
@@ -702,17 +579,9 @@ pub fn identify_recording(rec: &Recording, opts: &IdentOptions) -> Result<(Ident
     Ok((res, frf))
 }
 
-/// Replaces `m`'s modes by their maximum-likelihood refinement ([`super::mlfit`]); the σ of
-/// each is the fit's Gauss–Newton σ and the method's own spread in quadrature. On failure the
-/// modes stay and a warning says why.
-fn refine_in_place(frf: &Frf, band: (f64, f64), m: &mut MethodResult, warnings: &mut Vec<String>) {
-    if !matches!(m.method, Method::Lscf | Method::Lsce) || m.modes.is_empty() {
-        return;
-    }
-    refine_estimates(frf, band, &mut m.modes, m.method.name(), warnings);
-}
-
-/// [`refine_in_place`] on a list of estimates (`method` names them in the warning).
+/// Replaces `modes` by their maximum-likelihood refinement ([`super::mlfit`]); the σ of each is
+/// the fit's Gauss–Newton σ and the method's own spread in quadrature. On failure the modes
+/// stay and a warning says why (`method` names them in it).
 pub fn refine_estimates(
     frf: &Frf,
     band: (f64, f64),

@@ -95,7 +95,7 @@ pub fn simulate_sweep(
 ) -> Result<Recording> {
     let s = generate(spec)?;
     let sim = BaseMotionSim::new(model, 1.0 / spec.sample_rate_hz)?;
-    let mut rec = crate::model::cli::decimate(&sim.recording(&s.base_cmd_m, 0.0), rate_out_hz);
+    let mut rec = crate::recording::decimate(&sim.recording(&s.base_cmd_m, 0.0), rate_out_hz);
     if noise_frac > 0.0 {
         add_noise(&mut rec, noise_frac, seed);
     }

@@ -180,24 +180,25 @@ pub fn select(orders: &[OrderPoles], c: &StabCriteria) -> Vec<StableMode> {
 }
 
 /// Runs `estimate(order)` for every order, labels, selects. Errors of single orders are
-/// skipped (an order too high for the data); at least one order must succeed.
+/// skipped (an order too high for the data); at least one order must succeed. `progress`
+/// advances once per order.
 pub fn diagram(
     method: &str,
     orders: impl IntoIterator<Item = usize>,
     c: &StabCriteria,
     mut estimate: impl FnMut(usize) -> Result<Vec<Pole>>,
-    progress: Option<&indicatif::ProgressBar>,
+    progress: &mut dyn crate::progress::Progress,
 ) -> Result<Diagram> {
+    let orders: Vec<usize> = orders.into_iter().collect();
     let mut raw = Vec::new();
     let mut last_err = None;
-    for n in orders {
+    progress.stage(method);
+    for (i, &n) in orders.iter().enumerate() {
         match estimate(n) {
             Ok(p) => raw.push((n, p)),
             Err(e) => last_err = Some(e),
         }
-        if let Some(pb) = progress {
-            pb.inc(1);
-        }
+        progress.advance(i as u64 + 1, orders.len() as u64);
     }
     if raw.is_empty() {
         return Err(last_err.unwrap_or_else(|| anyhow!("{method}: no model orders")));
@@ -253,6 +254,19 @@ impl Diagram {
         s
     }
 
+    /// (frequency Hz, order) of the poles labelled `st` in `f_lo..=f_hi`.
+    fn points(&self, st: Stability, f_lo: f64, f_hi: f64) -> Vec<(f64, f64)> {
+        self.orders
+            .iter()
+            .flat_map(|o| {
+                o.poles
+                    .iter()
+                    .filter(move |p| p.1 == st && p.0.freq_hz >= f_lo && p.0.freq_hz <= f_hi)
+                    .map(move |p| (p.0.freq_hz, o.order as f64))
+            })
+            .collect()
+    }
+
     /// SVG: the poles over (frequency, order), on top of the normalised |H| curve.
     pub fn plot(
         &self,
@@ -281,23 +295,11 @@ impl Diagram {
             .y_desc("model order")
             .draw()
             .map_err(|e| anyhow!("{e}"))?;
-        // |H| in dB scaled onto the order axis.
-        let band: Vec<(f64, f64)> = freq_hz
-            .iter()
-            .zip(mag)
-            .filter(|(f, m)| **f >= f_lo && **f <= f_hi && **m > 0.0)
-            .map(|(&f, &m)| (f, 20.0 * m.log10()))
-            .collect();
-        if !band.is_empty() {
-            let (lo, hi) = band
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
-                    (a.min(p.1), b.max(p.1))
-                });
-            let sc = |v: f64| 0.5 + max_order * (v - lo) / (hi - lo).max(1e-9);
+        let trace = magnitude_trace(freq_hz, mag, (f_lo, f_hi), max_order);
+        if !trace.is_empty() {
             chart
                 .draw_series(LineSeries::new(
-                    band.iter().map(|&(f, v)| (f, sc(v))),
+                    trace,
                     RGBColor(150, 150, 150).stroke_width(1),
                 ))
                 .map_err(|e| anyhow!("{e}"))?
@@ -311,16 +313,7 @@ impl Diagram {
             (Stability::Freq, BLUE, "frequency stable"),
             (Stability::Stable, RED, "stable"),
         ] {
-            let pts: Vec<(f64, f64)> = self
-                .orders
-                .iter()
-                .flat_map(|o| {
-                    o.poles
-                        .iter()
-                        .filter(move |p| p.1 == st && p.0.freq_hz >= f_lo && p.0.freq_hz <= f_hi)
-                        .map(move |p| (p.0.freq_hz, o.order as f64))
-                })
-                .collect();
+            let pts = self.points(st, f_lo, f_hi);
             chart
                 .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
                 .map_err(|e| anyhow!("{e}"))?
@@ -344,6 +337,28 @@ impl Diagram {
         root.present().map_err(|e| anyhow!("{e}"))?;
         Ok(())
     }
+}
+
+/// |H| (`mag`) in dB within `band_hz`, scaled onto the order axis 0.5..0.5 + `max_order`.
+fn magnitude_trace(
+    freq_hz: &[f64],
+    mag: &[f64],
+    band_hz: (f64, f64),
+    max_order: f64,
+) -> Vec<(f64, f64)> {
+    let band: Vec<(f64, f64)> = freq_hz
+        .iter()
+        .zip(mag)
+        .filter(|(f, m)| **f >= band_hz.0 && **f <= band_hz.1 && **m > 0.0)
+        .map(|(&f, &m)| (f, 20.0 * m.log10()))
+        .collect();
+    let (lo, hi) = band
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+            (a.min(p.1), b.max(p.1))
+        });
+    let sc = |v: f64| 0.5 + max_order * (v - lo) / (hi - lo).max(1e-9);
+    band.iter().map(|&(f, v)| (f, sc(v))).collect()
 }
 
 #[cfg(test)]

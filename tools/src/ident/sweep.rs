@@ -318,6 +318,102 @@ pub fn generate(spec: &SweepSpec) -> Result<Sweep> {
     })
 }
 
+/// The clamped-base modes of `model` as [`TipMode`]s (gain Γ_r · tip_r).
+///
+/// Errors: the model's eigen-analysis fails.
+pub fn tip_modes_of_model(model: &crate::model::BeamModel) -> Result<Vec<TipMode>> {
+    let c = model.clamped_modes()?;
+    Ok((0..c.omega_rad_s.len())
+        .map(|i| TipMode {
+            freq_hz: c.omega_rad_s[i] / (2.0 * PI),
+            zeta: c.zeta[i],
+            gain: c.participation[i] * c.tip[i],
+        })
+        .collect())
+}
+
+/// Modes given as (f_hz, ζ) with the uniform cantilever's gains
+/// ([`UNIFORM_CANTILEVER_GAINS`], in order).
+///
+/// Errors: more modes than gains (3).
+pub fn uniform_tip_modes(modes: &[(f64, f64)]) -> Result<Vec<TipMode>> {
+    if modes.len() > UNIFORM_CANTILEVER_GAINS.len() {
+        bail!(
+            "at most {} uniform-cantilever modes",
+            UNIFORM_CANTILEVER_GAINS.len()
+        );
+    }
+    Ok(modes
+        .iter()
+        .zip(UNIFORM_CANTILEVER_GAINS)
+        .map(|(&(freq_hz, zeta), gain)| TipMode {
+            freq_hz,
+            zeta,
+            gain,
+        })
+        .collect())
+}
+
+/// A sweep designed against a rig model ([`design_sweep`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct SweepDesign {
+    /// The specification finally used (its `tip_max_m` possibly tightened).
+    pub spec: SweepSpec,
+    /// The generated sweep.
+    pub sweep: Sweep,
+    /// Peak |tip deflection| (m) of the sweep simulated on the model, when one was given.
+    pub simulated_peak_tip_m: Option<f64>,
+}
+
+/// Peak |tip deflection| (m) of `cmd_m` played at `rate_hz` on `model` (exact simulation).
+fn simulated_peak_tip_m(
+    model: &crate::model::BeamModel,
+    rate_hz: f64,
+    cmd_m: &[f64],
+) -> Result<f64> {
+    let sim = crate::model::sim::BaseMotionSim::new(model, 1.0 / rate_hz)?;
+    Ok(sim.run(cmd_m).0.iter().fold(0.0f64, |p, v| p.max(v.abs())))
+}
+
+/// Generates `spec` ([`generate`]); with a rig `model`, simulates it and, while the simulated
+/// peak tip deflection exceeds `spec.tip_max_m` as given, tightens the envelope's tip limit by
+/// the ratio (× 0.97) and regenerates, at most 8 times: the envelope bounds only the steady
+/// state (module docs).
+///
+/// Errors: those of [`SweepSpec::validate`] and of the model's simulation.
+pub fn design_sweep(
+    spec: &SweepSpec,
+    model: Option<&crate::model::BeamModel>,
+) -> Result<SweepDesign> {
+    let mut spec = spec.clone();
+    let mut s = generate(&spec)?;
+    let (Some(m), Some(limit)) = (model, spec.tip_max_m) else {
+        let simulated_peak_tip_m = match model {
+            Some(m) => Some(simulated_peak_tip_m(m, spec.sample_rate_hz, &s.base_cmd_m)?),
+            None => None,
+        };
+        return Ok(SweepDesign {
+            spec,
+            sweep: s,
+            simulated_peak_tip_m,
+        });
+    };
+    for _ in 0..8 {
+        let peak = simulated_peak_tip_m(m, spec.sample_rate_hz, &s.base_cmd_m)?;
+        if peak <= limit {
+            break;
+        }
+        spec.tip_max_m = spec.tip_max_m.map(|t| t * 0.97 * limit / peak);
+        s = generate(&spec)?;
+    }
+    let peak = simulated_peak_tip_m(m, spec.sample_rate_hz, &s.base_cmd_m)?;
+    Ok(SweepDesign {
+        spec,
+        sweep: s,
+        simulated_peak_tip_m: Some(peak),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -138,6 +138,145 @@ pub fn rayleigh_coefficients(omega1: f64, zeta1: f64, omega2: f64, zeta2: f64) -
     (a1, a2)
 }
 
+/// Checks the options against the beam of length `length_m`.
+fn check_options(opts: &ModelOptions, length_m: f64) -> Result<()> {
+    if !(1..=12).contains(&opts.n_modes) {
+        bail!(
+            "number of basis functions must be 1..12 (got {})",
+            opts.n_modes
+        );
+    }
+    if !(opts.stiffness_scale > 0.0) || !(opts.tip_mass_kg >= 0.0) {
+        bail!("stiffness scale must be > 0 and tip mass >= 0");
+    }
+    let (pm_x, pm_kg) = opts.point_mass.unwrap_or((0.0, 0.0));
+    if !(pm_kg >= 0.0) || !(0.0..=length_m).contains(&pm_x) {
+        bail!(
+            "point mass must be >= 0 kg and on the beam (0..={length_m} m); got {pm_kg} kg at {pm_x} m"
+        );
+    }
+    Ok(())
+}
+
+/// The generalised coordinates' shape at a point: `[0 (y), (x if a root spring), φ_i]` for w,
+/// and their first and second derivatives.
+struct Shapes {
+    /// 1 with a root spring (the rigid rotation x is a coordinate), else 0.
+    r: usize,
+    basis: Vec<BasisFn>,
+    vals: Vec<f64>,
+    d1: Vec<f64>,
+    d2: Vec<f64>,
+}
+
+impl Shapes {
+    fn new(l: f64, n: usize, root_spring: bool) -> Self {
+        let r = usize::from(root_spring);
+        let dim = 1 + r + n;
+        Shapes {
+            r,
+            basis: (1..=n).map(|i| BasisFn::new(i, l)).collect(),
+            vals: vec![0.0; dim],
+            d1: vec![0.0; dim],
+            d2: vec![0.0; dim],
+        }
+    }
+
+    fn dim(&self) -> usize {
+        self.vals.len()
+    }
+
+    /// Evaluates the shapes at `x` into `vals`, `d1`, `d2`.
+    fn at(&mut self, x: f64) {
+        let r = self.r;
+        if r == 1 {
+            self.vals[1] = x;
+            self.d1[1] = 1.0;
+            self.d2[1] = 0.0;
+        }
+        for (i, b) in self.basis.iter().enumerate() {
+            let (p, p1, p2) = b.eval(x);
+            self.vals[1 + r + i] = p;
+            self.d1[1 + r + i] = p1;
+            self.d2[1 + r + i] = p2;
+        }
+    }
+
+    /// Adds a point mass `kg` at the point last evaluated to the upper triangle of `mass`.
+    fn add_point_mass(&self, mass: &mut DMatrix<f64>, kg: f64) {
+        let vals = &self.vals;
+        for i in 1..self.dim() {
+            mass[(0, i)] += kg * vals[i];
+            for j in i..self.dim() {
+                mass[(i, j)] += kg * vals[i] * vals[j];
+            }
+        }
+    }
+}
+
+/// Axial force N(x) (N, positive = tension) of the gravity load `o` at `x`: the weight of the
+/// beam beyond x (quadrature `pts`), the tip mass and a point mass beyond x.
+fn axial_force(
+    o: Orientation,
+    x: f64,
+    pts: &[(f64, f64)],
+    rho: f64,
+    profile: &SectionProfile,
+    opts: &ModelOptions,
+) -> f64 {
+    let (pm_x, pm_kg) = opts.point_mass.unwrap_or((0.0, 0.0));
+    let below: f64 = pts
+        .iter()
+        .filter(|p| p.0 > x)
+        .map(|&(s, w)| w * rho * profile.area(s))
+        .sum();
+    let sign = if o == Orientation::Hanging { 1.0 } else { -1.0 };
+    let point = if pm_x > x { pm_kg } else { 0.0 };
+    sign * G_M_S2 * (below + opts.tip_mass_kg + point)
+}
+
+/// The beam's distributed contributions to the upper triangles of M (h_i eq. 18, m_ij eq. 19)
+/// and K (k_ij eq. 20 plus the geometric stiffness of the axial load) by quadrature `pts`.
+#[allow(clippy::too_many_arguments)]
+fn integrate_beam(
+    shapes: &mut Shapes,
+    pts: &[(f64, f64)],
+    rho: f64,
+    e: f64,
+    profile: &SectionProfile,
+    opts: &ModelOptions,
+    mass: &mut DMatrix<f64>,
+    stiff: &mut DMatrix<f64>,
+) {
+    let dim = shapes.dim();
+    for &(x, w) in pts {
+        shapes.at(x);
+        let (vals, d1, d2) = (&shapes.vals, &shapes.d1, &shapes.d2);
+        let ma = w * rho * profile.area(x);
+        let ei = w * e * profile.inertia(x);
+        let nn = match opts.axial_load {
+            Some(o) => w * axial_force(o, x, pts, rho, profile, opts),
+            None => 0.0,
+        };
+        for i in 1..dim {
+            mass[(0, i)] += ma * vals[i]; // h_i (eq. 18)
+            for j in i..dim {
+                mass[(i, j)] += ma * vals[i] * vals[j]; // m_ij (eq. 19)
+                stiff[(i, j)] += ei * d2[i] * d2[j] + nn * d1[i] * d1[j]; // k_ij (eq. 20) + geometric
+            }
+        }
+    }
+}
+
+/// Copies the upper triangle of `m` into the lower.
+fn symmetrise(m: &mut DMatrix<f64>) {
+    for i in 0..m.nrows() {
+        for j in 0..i {
+            m[(i, j)] = m[(j, i)];
+        }
+    }
+}
+
 impl BeamModel {
     /// Assembles the model of `rig` with `opts`.
     ///
@@ -149,119 +288,46 @@ impl BeamModel {
             .as_ref()
             .context("the rig has no [beam] section: no beam model")?;
         let profile: SectionProfile = rig.profile()?;
-        if !(1..=12).contains(&opts.n_modes) {
-            bail!(
-                "number of basis functions must be 1..12 (got {})",
-                opts.n_modes
-            );
-        }
-        if !(opts.stiffness_scale > 0.0) || !(opts.tip_mass_kg >= 0.0) {
-            bail!("stiffness scale must be > 0 and tip mass >= 0");
-        }
+        check_options(opts, beam.length_m)?;
         let (pm_x, pm_kg) = opts.point_mass.unwrap_or((0.0, 0.0));
-        if !(pm_kg >= 0.0) || !(0.0..=beam.length_m).contains(&pm_x) {
-            bail!(
-                "point mass must be >= 0 kg and on the beam (0..={} m); got {pm_kg} kg at {pm_x} m",
-                beam.length_m
-            );
-        }
-        let l = beam.length_m;
-        let rho = beam.density_kg_m3;
+        let (l, rho) = (beam.length_m, beam.density_kg_m3);
         let e = beam.youngs_modulus_pa * opts.stiffness_scale;
-        let n = opts.n_modes;
-        let r = usize::from(opts.root_stiffness_nm_per_rad.is_some());
-        let dim = 1 + r + n;
-        let basis: Vec<BasisFn> = (1..=n).map(|i| BasisFn::new(i, l)).collect();
-        let pts = quadrature(l, 40 + 20 * n);
+        let mut shapes = Shapes::new(l, opts.n_modes, opts.root_stiffness_nm_per_rad.is_some());
+        let dim = shapes.dim();
+        let pts = quadrature(l, 40 + 20 * opts.n_modes);
         let mut mass = DMatrix::zeros(dim, dim);
         let mut stiff = DMatrix::zeros(dim, dim);
         let beam_mass: f64 = pts.iter().map(|&(x, w)| w * rho * profile.area(x)).sum();
-        // Axial force N(x) (positive = tension) at the quadrature points.
-        let axial = |x: f64| -> f64 {
-            match opts.axial_load {
-                None => 0.0,
-                Some(o) => {
-                    let below: f64 = pts
-                        .iter()
-                        .filter(|p| p.0 > x)
-                        .map(|&(s, w)| w * rho * profile.area(s))
-                        .sum();
-                    let sign = if o == Orientation::Hanging { 1.0 } else { -1.0 };
-                    let point = if pm_x > x { pm_kg } else { 0.0 };
-                    sign * G_M_S2 * (below + opts.tip_mass_kg + point)
-                }
-            }
-        };
-        // Shape vectors at a point: [0 (y), (x), φ_i] for w, and their derivatives.
-        let mut vals = vec![0.0; dim];
-        let mut d1 = vec![0.0; dim];
-        let mut d2 = vec![0.0; dim];
-        let shape = |x: f64, vals: &mut [f64], d1: &mut [f64], d2: &mut [f64]| {
-            if r == 1 {
-                vals[1] = x;
-                d1[1] = 1.0;
-                d2[1] = 0.0;
-            }
-            for (i, b) in basis.iter().enumerate() {
-                let (p, p1, p2) = b.eval(x);
-                vals[1 + r + i] = p;
-                d1[1 + r + i] = p1;
-                d2[1 + r + i] = p2;
-            }
-        };
-        for &(x, w) in &pts {
-            shape(x, &mut vals, &mut d1, &mut d2);
-            let ma = w * rho * profile.area(x);
-            let ei = w * e * profile.inertia(x);
-            let nn = if opts.axial_load.is_some() {
-                w * axial(x)
-            } else {
-                0.0
-            };
-            for i in 1..dim {
-                mass[(0, i)] += ma * vals[i]; // h_i (eq. 18)
-                for j in i..dim {
-                    mass[(i, j)] += ma * vals[i] * vals[j]; // m_ij (eq. 19)
-                    stiff[(i, j)] += ei * d2[i] * d2[j] + nn * d1[i] * d1[j]; // k_ij (eq. 20) + geometric
-                }
-            }
-        }
+        integrate_beam(
+            &mut shapes,
+            &pts,
+            rho,
+            e,
+            &profile,
+            opts,
+            &mut mass,
+            &mut stiff,
+        );
         let base_mass = rig.base.mass_kg + opts.base_mass_delta_kg;
         if !(base_mass > 0.0) {
             bail!("carriage mass must stay > 0 (got {base_mass} kg)");
         }
         mass[(0, 0)] = base_mass + beam_mass + opts.tip_mass_kg + pm_kg; // J (eq. 17)
         if pm_kg > 0.0 {
-            shape(pm_x, &mut vals, &mut d1, &mut d2);
-            for i in 1..dim {
-                mass[(0, i)] += pm_kg * vals[i];
-                for j in i..dim {
-                    mass[(i, j)] += pm_kg * vals[i] * vals[j];
-                }
-            }
+            shapes.at(pm_x);
+            shapes.add_point_mass(&mut mass, pm_kg);
         }
-        // Tip mass.
-        let mut tip = DVector::zeros(dim);
-        shape(l, &mut vals, &mut d1, &mut d2);
-        for i in 1..dim {
-            tip[i] = vals[i];
-            mass[(0, i)] += opts.tip_mass_kg * vals[i];
-            for j in i..dim {
-                mass[(i, j)] += opts.tip_mass_kg * vals[i] * vals[j];
-            }
-        }
+        shapes.at(l);
+        let tip = DVector::from_fn(dim, |i, _| if i == 0 { 0.0 } else { shapes.vals[i] });
+        shapes.add_point_mass(&mut mass, opts.tip_mass_kg);
         if let Some(kr) = opts.root_stiffness_nm_per_rad {
             if !(kr > 0.0) {
                 bail!("root stiffness must be > 0 N·m/rad (got {kr})");
             }
             stiff[(1, 1)] += kr;
         }
-        for i in 0..dim {
-            for j in 0..i {
-                mass[(i, j)] = mass[(j, i)];
-                stiff[(i, j)] = stiff[(j, i)];
-            }
-        }
+        symmetrise(&mut mass);
+        symmetrise(&mut stiff);
         let zetas = opts.damping_ratios.unwrap_or_else(|| rig.damping_ratios());
         let mut model = BeamModel {
             mass,
@@ -274,11 +340,11 @@ impl BeamModel {
             damping_ratios: zetas,
         };
         let w = model.clamped_omegas()?;
-        if w.len() >= 2 {
-            model.rayleigh = rayleigh_coefficients(w[0], zetas.0, w[1], zetas.1);
+        model.rayleigh = if w.len() >= 2 {
+            rayleigh_coefficients(w[0], zetas.0, w[1], zetas.1)
         } else {
-            model.rayleigh = (2.0 * zetas.0 * w[0], 0.0);
-        }
+            (2.0 * zetas.0 * w[0], 0.0)
+        };
         Ok(model)
     }
 

@@ -6,11 +6,8 @@
 //! - [`galerkin`]: M, K (eqs. 12–20), extensions, Rayleigh damping (eqs. 21–22), modes (eq. 24).
 //! - [`sim`]: exact modal time integration, base-motion and base-force driven.
 //! - [`statespace`]: continuous and ZOH-discrete state-space forms (both drives).
-//! - [`cli`]: `simulate`, `modes`, `table2`.
 
 pub mod basis;
-pub mod bench;
-pub mod cli;
 pub mod galerkin;
 pub mod rig;
 pub mod sim;
@@ -24,6 +21,9 @@ use anyhow::{anyhow, Result};
 use beamshaper::engine::{Engine, NumericPath, TapTable};
 use beamshaper::reference::TrapezoidMove;
 use beamshaper::shaper::Shaper;
+
+/// Internal simulation rate (Hz): the firmware's default tick.
+pub const SIM_RATE_HZ: f64 = 1000.0;
 
 /// Reference base positions (m) of a trapezoidal move from `start_m` to `target_m` at
 /// `speed_m_s`, `accel_m_s2`, sampled at `tick_hz` by the firmware core's own generator

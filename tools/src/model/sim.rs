@@ -123,6 +123,43 @@ impl BaseMotionSim {
     }
 }
 
+/// The modal state `[η_r, η̇_r]` of the beam on a position-controlled base, advanced one
+/// sample at a time by [`BaseMotionSim::step`] (e.g. by the virtual rig, whose base follows a
+/// servo tick by tick). Same modes, propagators and velocity-kick scheme as
+/// [`BaseMotionSim::run`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct BaseMotionState {
+    eta: Vec<Vector2<f64>>,
+}
+
+impl BaseMotionSim {
+    /// The beam at rest on the base.
+    pub fn rest(&self) -> BaseMotionState {
+        BaseMotionState {
+            eta: vec![Vector2::zeros(); self.phi.len()],
+        }
+    }
+
+    /// One sample interval: the base velocity changes by `dv_m_s` (m/s) at its start — each
+    /// mode's η̇_r is kicked by −Γ_r Δv — then the free motion over dt (exact propagator).
+    pub fn step(&self, state: &mut BaseMotionState, dv_m_s: f64) {
+        let g = &self.modes.participation;
+        for (r, x) in state.eta.iter_mut().enumerate() {
+            x[1] -= g[r] * dv_m_s;
+            *x = self.phi[r] * *x;
+        }
+    }
+
+    /// Tip position (m) of a state on a base at `base_m` (m): `base_m + Σ_r φ_r(l) η_r`.
+    pub fn tip_m(&self, state: &BaseMotionState, base_m: f64) -> f64 {
+        self.modes
+            .tip
+            .iter()
+            .zip(&state.eta)
+            .fold(base_m, |acc, (t, x)| acc + t * x[0])
+    }
+}
+
 /// The free-base system driven by the motor force (eqs. 12, 23) in modal coordinates.
 #[derive(Clone, Debug)]
 pub struct ForceSim {

@@ -74,6 +74,28 @@ pub struct LmOutcome {
     pub evaluations: usize,
     /// Why the minimiser stopped, in words (`evaluation budget spent` when the budget ended it).
     pub termination: String,
+    /// The crate's termination counts as a success (converged, zero residuals, residuals
+    /// orthogonal to the Jacobian); false when the budget ended it.
+    pub converged: bool,
+    /// Why it stopped in words ([`termination_text`], or `evaluation budget spent`).
+    pub reason: String,
+}
+
+/// The Levenberg–Marquardt termination in words (no debug text in messages).
+pub fn termination_text(t: &levenberg_marquardt::TerminationReason) -> String {
+    use levenberg_marquardt::TerminationReason as T;
+    match t {
+        T::Converged { .. } => "converged".into(),
+        T::ResidualsZero => "zero residuals".into(),
+        T::Orthogonal => "residuals orthogonal to the Jacobian".into(),
+        T::LostPatience => "too many evaluations".into(),
+        T::NoImprovementPossible(s) => format!("no improvement possible ({s})"),
+        T::NoParameters => "no parameters".into(),
+        T::NoResiduals => "no residuals".into(),
+        T::WrongDimensions(s) => format!("wrong dimensions ({s})"),
+        T::Numerical(s) => format!("numerical problem ({s})"),
+        T::User(s) => s.to_string(),
+    }
 }
 
 /// Projects `x` onto the box `bounds`.
@@ -87,8 +109,13 @@ pub fn project(x: &DVector<f64>, bounds: &Option<(Vec<f64>, Vec<f64>)>) -> DVect
     }
 }
 
+/// An analytic Jacobian: x ↦ ∂r/∂x (m × n), `None` where it cannot be evaluated.
+pub type JacobianFn<'f> = &'f dyn Fn(&DVector<f64>) -> Option<DMatrix<f64>>;
+
 struct Adapter<'f, F> {
     f: &'f F,
+    /// Analytic Jacobian; finite differences of `opts` when `None`.
+    jac: Option<JacobianFn<'f>>,
     opts: &'f LmOptions,
     x: DVector<f64>,
     evaluations: Cell<usize>,
@@ -143,6 +170,9 @@ impl<F: Fn(&DVector<f64>) -> Option<DVector<f64>>> LeastSquaresProblem<f64, Dyn,
 
     fn jacobian(&self) -> Option<DMatrix<f64>> {
         let r0 = self.residuals()?;
+        if let Some(jac) = self.jac {
+            return jac(&self.x);
+        }
         let x = self.x.clone();
         fd_jacobian(&|y: &DVector<f64>| self.eval(y), &x, &r0, self.opts)
     }
@@ -186,9 +216,36 @@ pub fn minimize<F>(f: &F, x0: DVector<f64>, opts: &LmOptions) -> LmOutcome
 where
     F: Fn(&DVector<f64>) -> Option<DVector<f64>>,
 {
+    minimize_inner(f, None, x0, opts)
+}
+
+/// [`minimize`] with an analytic Jacobian `jac` instead of finite differences (`opts.steps` and
+/// `opts.difference` are then unused; Jacobian evaluations do not count against the budget).
+pub fn minimize_with_jacobian<F>(
+    f: &F,
+    jac: JacobianFn<'_>,
+    x0: DVector<f64>,
+    opts: &LmOptions,
+) -> LmOutcome
+where
+    F: Fn(&DVector<f64>) -> Option<DVector<f64>>,
+{
+    minimize_inner(f, Some(jac), x0, opts)
+}
+
+fn minimize_inner<F>(
+    f: &F,
+    jac: Option<JacobianFn<'_>>,
+    x0: DVector<f64>,
+    opts: &LmOptions,
+) -> LmOutcome
+where
+    F: Fn(&DVector<f64>) -> Option<DVector<f64>>,
+{
     let x0 = project(&x0, &opts.bounds);
     let adapter = Adapter {
         f,
+        jac,
         opts,
         x: x0.clone(),
         evaluations: Cell::new(0),
@@ -201,10 +258,15 @@ where
         .with_ftol(opts.ftol)
         .with_xtol(opts.xtol)
         .minimize(adapter);
-    let termination = if adapter.spent.get() {
-        "evaluation budget spent".to_string()
+    let spent = "evaluation budget spent".to_string();
+    let (termination, reason, converged) = if adapter.spent.get() {
+        (spent.clone(), spent, false)
     } else {
-        format!("{:?}", report.termination)
+        (
+            format!("{:?}", report.termination),
+            termination_text(&report.termination),
+            report.termination.was_successful(),
+        )
     };
     let (cost, x) = adapter.best.borrow().clone().unwrap_or((f64::INFINITY, x0));
     LmOutcome {
@@ -212,6 +274,8 @@ where
         cost,
         evaluations: adapter.evaluations.get(),
         termination,
+        converged,
+        reason,
     }
 }
 

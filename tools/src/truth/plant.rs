@@ -164,6 +164,52 @@ pub struct FineRun {
 impl Plant {
     /// Runs the command `cmd` = (position m, velocity m/s, acceleration m/s²) per fine step `dt`.
     pub fn run(&self, cmd: &[(f64, f64, f64)], dt: f64) -> FineRun {
+        let dy = self.dynamics();
+        let nm = dy.nm;
+        let total = self.carriage_mass_kg + dy.m_b;
+        let wp = 2.0 * std::f64::consts::PI * self.servo.position_bandwidth_hz;
+        let wv = 2.0 * std::f64::consts::PI * self.servo.velocity_bandwidth_hz;
+        let (kv, kiv) = (total * wv, total * wv * wv / 4.0);
+        // state: y_m, v_m, y_r, v_r, eta.., etad..
+        let ns = 4 + 2 * nm;
+        let mut x = vec![0.0; ns];
+        x[0] = cmd[0].0;
+        x[2] = cmd[0].0;
+        let mut integ = 0.0;
+        let mut out = FineRun {
+            y_motor_m: vec![],
+            tip_m: vec![],
+            force_n: vec![],
+            root_rot_rad: vec![],
+        };
+        let mut rk = Rk4::new(ns);
+        let ff = if self.servo.feedforward { 1.0 } else { 0.0 };
+        for &(r, rv, ra) in cmd {
+            // digital cascaded servo (ZOH over the step)
+            let (ym, vm) = (x[0], x[1]);
+            let v_ref = wp * (r - ym) + ff * rv;
+            let ev = v_ref - vm;
+            integ += ev * dt;
+            let u = ff * self.feedforward_mass_kg * ra + kv * ev + kiv * integ;
+            // record outputs at the step start
+            let mut tip = x[2];
+            if let Some(m) = dy.modes {
+                for rr in 0..nm {
+                    tip += m.node_w[rr][dy.nodes - 1] * x[4 + rr];
+                }
+            }
+            out.y_motor_m.push(ym);
+            out.tip_m.push(tip);
+            out.force_n.push(u);
+            out.root_rot_rad
+                .push((0..nm).map(|rr| dy.root_theta[rr] * x[4 + rr]).sum());
+            rk.step(&mut x, dt, |z, dz| dy.deriv(z, u, dz));
+        }
+        out
+    }
+
+    /// The constants of this plant's equations of motion (module header).
+    fn dynamics(&self) -> Dynamics<'_> {
         let (nm, modes, h) = match &self.beam {
             Some((m, h)) => (m.omega_rad_s.len(), Some(m), *h),
             None => (0, None, 0.0),
@@ -217,144 +263,183 @@ impl Plant {
             }
             (None, None) => (0.0, self.carriage_mass_kg, 0.0, 0.0),
         };
-        let coupled = self.mount.is_some() || self.backlash.is_some();
-        let root_theta: &[f64] = modes.map_or(&[], |m| &m.root_theta);
-        let total = self.carriage_mass_kg + m_b;
-        let wp = 2.0 * std::f64::consts::PI * self.servo.position_bandwidth_hz;
-        let wv = 2.0 * std::f64::consts::PI * self.servo.velocity_bandwidth_hz;
-        let (kv, kiv) = (total * wv, total * wv * wv / 4.0);
-        // state: y_m, v_m, y_r, v_r, eta.., etad..
-        let ns = 4 + 2 * nm;
-        let mut x = vec![0.0; ns];
-        x[0] = cmd[0].0;
-        x[2] = cmd[0].0;
-        let mut integ = 0.0;
-        let mut out = FineRun {
-            y_motor_m: vec![],
-            tip_m: vec![],
-            force_n: vec![],
-            root_rot_rad: vec![],
-        };
-        let fric = |v: f64| {
-            let f = &self.friction;
-            if f.coulomb_n == 0.0 && f.viscous_n_s_per_m == 0.0 {
-                0.0
-            } else {
-                f.coulomb_n * (v / f.stribeck_m_s.max(1e-9)).tanh() + f.viscous_n_s_per_m * v
-            }
-        };
-        let cog = |y: f64| match self.cogging {
+        Dynamics {
+            plant: self,
+            modes,
+            nm,
+            nodes,
+            trib,
+            zetas,
+            root_theta: modes.map_or(&[], |m| &m.root_theta),
+            m_b,
+            sum_g2,
+            m1,
+            m_root,
+            k_m,
+            c_m,
+            coupled: self.mount.is_some() || self.backlash.is_some(),
+        }
+    }
+}
+
+/// The equations of motion of one [`Plant::run`] (module header), state
+/// `[y_m, v_m, y_r, v_r, η…, η̇…]`.
+struct Dynamics<'a> {
+    plant: &'a Plant,
+    modes: Option<&'a FeModes>,
+    nm: usize,
+    nodes: usize,
+    /// Tributary length of each node (m).
+    trib: Vec<f64>,
+    /// Damping ratio of each mode (Rayleigh from ζ1, ζ2).
+    zetas: Vec<f64>,
+    /// Root rotation per modal coordinate.
+    root_theta: &'a [f64],
+    m_b: f64,
+    sum_g2: f64,
+    /// Motor mass (with a mount or play), root mass, mount stiffness and damping.
+    m1: f64,
+    m_root: f64,
+    k_m: f64,
+    c_m: f64,
+    /// Motor and root are separate bodies (mount or play).
+    coupled: bool,
+}
+
+impl Dynamics<'_> {
+    fn friction(&self, v: f64) -> f64 {
+        let f = &self.plant.friction;
+        if f.coulomb_n == 0.0 && f.viscous_n_s_per_m == 0.0 {
+            0.0
+        } else {
+            f.coulomb_n * (v / f.stribeck_m_s.max(1e-9)).tanh() + f.viscous_n_s_per_m * v
+        }
+    }
+
+    fn cogging(&self, y: f64) -> f64 {
+        match self.plant.cogging {
             Some((a, p, ph)) => a * (2.0 * std::f64::consts::PI * y / p + ph).sin(),
             None => 0.0,
-        };
-        let deriv = |x: &[f64], u: f64, dx: &mut [f64]| {
-            let (ym, vm, yr, vr) = (x[0], x[1], x[2], x[3]);
-            let mut modal_f = [0.0f64; 16];
-            let mut drag_total = 0.0;
-            if let Some(m) = modes {
-                if self.drag_kg_per_m2 > 0.0 {
-                    for j in 1..nodes {
-                        let mut v = vr;
-                        for r in 0..nm {
-                            v += m.node_w[r][j] * x[4 + nm + r];
-                        }
-                        let f = -self.drag_kg_per_m2 * trib[j] * v.abs() * v;
-                        drag_total += f;
-                        for r in 0..nm {
-                            modal_f[r] += m.node_w[r][j] * f;
-                        }
+        }
+    }
+
+    /// Modal forces of the drag on the nodes and of the cubic clamp into `modal_f`; returns
+    /// the total drag force (N).
+    fn modal_forces(&self, x: &[f64], modal_f: &mut [f64]) -> f64 {
+        let (nm, vr) = (self.nm, x[3]);
+        let mut drag_total = 0.0;
+        if let Some(m) = self.modes {
+            if self.plant.drag_kg_per_m2 > 0.0 {
+                for j in 1..self.nodes {
+                    let mut v = vr;
+                    for r in 0..nm {
+                        v += m.node_w[r][j] * x[4 + nm + r];
+                    }
+                    let f = -self.plant.drag_kg_per_m2 * self.trib[j] * v.abs() * v;
+                    drag_total += f;
+                    for r in 0..nm {
+                        modal_f[r] += m.node_w[r][j] * f;
                     }
                 }
             }
-            if self.cubic_root_nm_per_rad3 != 0.0 {
-                let theta: f64 = (0..nm).map(|r| root_theta[r] * x[4 + r]).sum();
-                let m3 = self.cubic_root_nm_per_rad3 * theta * theta * theta;
-                for r in 0..nm {
-                    modal_f[r] -= root_theta[r] * m3;
-                }
-            }
-            let dist = fric(vm) + cog(ym);
-            let (f_root, a_m) = if let Some(b) = &self.backlash {
-                let fc = b.contact_force(ym - yr, vm - vr);
-                let guide = b.guide_friction_n * (vr / b.guide_stribeck_m_s.max(1e-9)).tanh();
-                (fc - guide, (u - dist - fc) / m1)
-            } else if self.mount.is_some() {
-                let fs = k_m * (ym - yr) + c_m * (vm - vr);
-                (fs, (u - dist - fs) / m1)
-            } else {
-                (u - dist, f64::NAN)
-            };
-            let mut rhs = f_root + drag_total;
-            if let Some(m) = modes {
-                for r in 0..nm {
-                    let w = m.omega_rad_s[r];
-                    rhs -= m.participation[r]
-                        * (modal_f[r] - 2.0 * zetas[r] * w * x[4 + nm + r] - w * w * x[4 + r]);
-                }
-            }
-            let a_r = rhs / (m_root + m_b - sum_g2);
-            dx[2] = vr;
-            dx[3] = a_r;
-            if coupled {
-                dx[0] = vm;
-                dx[1] = a_m;
-            } else {
-                dx[0] = vr;
-                dx[1] = a_r;
-            }
-            if let Some(m) = modes {
-                for r in 0..nm {
-                    let w = m.omega_rad_s[r];
-                    dx[4 + r] = x[4 + nm + r];
-                    dx[4 + nm + r] = -m.participation[r] * a_r + modal_f[r]
-                        - 2.0 * zetas[r] * w * x[4 + nm + r]
-                        - w * w * x[4 + r];
-                }
-            }
-        };
-        let mut k1 = vec![0.0; ns];
-        let mut k2 = vec![0.0; ns];
-        let mut k3 = vec![0.0; ns];
-        let mut k4 = vec![0.0; ns];
-        let mut tmp = vec![0.0; ns];
-        let ff = if self.servo.feedforward { 1.0 } else { 0.0 };
-        for &(r, rv, ra) in cmd {
-            // digital cascaded servo (ZOH over the step)
-            let (ym, vm) = (x[0], x[1]);
-            let v_ref = wp * (r - ym) + ff * rv;
-            let ev = v_ref - vm;
-            integ += ev * dt;
-            let u = ff * self.feedforward_mass_kg * ra + kv * ev + kiv * integ;
-            // record outputs at the step start
-            let mut tip = x[2];
-            if let Some(m) = modes {
-                for rr in 0..nm {
-                    tip += m.node_w[rr][nodes - 1] * x[4 + rr];
-                }
-            }
-            out.y_motor_m.push(ym);
-            out.tip_m.push(tip);
-            out.force_n.push(u);
-            out.root_rot_rad
-                .push((0..nm).map(|rr| root_theta[rr] * x[4 + rr]).sum());
-            deriv(&x, u, &mut k1);
-            for i in 0..ns {
-                tmp[i] = x[i] + 0.5 * dt * k1[i];
-            }
-            deriv(&tmp, u, &mut k2);
-            for i in 0..ns {
-                tmp[i] = x[i] + 0.5 * dt * k2[i];
-            }
-            deriv(&tmp, u, &mut k3);
-            for i in 0..ns {
-                tmp[i] = x[i] + dt * k3[i];
-            }
-            deriv(&tmp, u, &mut k4);
-            for i in 0..ns {
-                x[i] += dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        }
+        if self.plant.cubic_root_nm_per_rad3 != 0.0 {
+            let theta: f64 = (0..nm).map(|r| self.root_theta[r] * x[4 + r]).sum();
+            let m3 = self.plant.cubic_root_nm_per_rad3 * theta * theta * theta;
+            for r in 0..nm {
+                modal_f[r] -= self.root_theta[r] * m3;
             }
         }
-        out
+        drag_total
+    }
+
+    /// The force on the root (N) and the motor acceleration (m/s², NaN when motor and root
+    /// are one body) for motor force `u`.
+    fn root_force(&self, x: &[f64], u: f64) -> (f64, f64) {
+        let (ym, vm, yr, vr) = (x[0], x[1], x[2], x[3]);
+        let dist = self.friction(vm) + self.cogging(ym);
+        if let Some(b) = &self.plant.backlash {
+            let fc = b.contact_force(ym - yr, vm - vr);
+            let guide = b.guide_friction_n * (vr / b.guide_stribeck_m_s.max(1e-9)).tanh();
+            (fc - guide, (u - dist - fc) / self.m1)
+        } else if self.plant.mount.is_some() {
+            let fs = self.k_m * (ym - yr) + self.c_m * (vm - vr);
+            (fs, (u - dist - fs) / self.m1)
+        } else {
+            (u - dist, f64::NAN)
+        }
+    }
+
+    /// dx/dt for motor force `u`.
+    fn deriv(&self, x: &[f64], u: f64, dx: &mut [f64]) {
+        let nm = self.nm;
+        let mut modal_f = [0.0f64; 16];
+        let drag_total = self.modal_forces(x, &mut modal_f);
+        let (f_root, a_m) = self.root_force(x, u);
+        let mut rhs = f_root + drag_total;
+        if let Some(m) = self.modes {
+            for r in 0..nm {
+                let w = m.omega_rad_s[r];
+                rhs -= m.participation[r]
+                    * (modal_f[r] - 2.0 * self.zetas[r] * w * x[4 + nm + r] - w * w * x[4 + r]);
+            }
+        }
+        let a_r = rhs / (self.m_root + self.m_b - self.sum_g2);
+        dx[2] = x[3];
+        dx[3] = a_r;
+        if self.coupled {
+            dx[0] = x[1];
+            dx[1] = a_m;
+        } else {
+            dx[0] = x[3];
+            dx[1] = a_r;
+        }
+        if let Some(m) = self.modes {
+            for r in 0..nm {
+                let w = m.omega_rad_s[r];
+                dx[4 + r] = x[4 + nm + r];
+                dx[4 + nm + r] = -m.participation[r] * a_r + modal_f[r]
+                    - 2.0 * self.zetas[r] * w * x[4 + nm + r]
+                    - w * w * x[4 + r];
+            }
+        }
+    }
+}
+
+/// Classical fourth-order Runge–Kutta with reused scratch vectors.
+struct Rk4 {
+    k: [Vec<f64>; 4],
+    tmp: Vec<f64>,
+}
+
+impl Rk4 {
+    fn new(n: usize) -> Rk4 {
+        Rk4 {
+            k: std::array::from_fn(|_| vec![0.0; n]),
+            tmp: vec![0.0; n],
+        }
+    }
+
+    /// x ← x + one step of `dt` of dx/dt = f(x).
+    fn step(&mut self, x: &mut [f64], dt: f64, f: impl Fn(&[f64], &mut [f64])) {
+        let n = x.len();
+        let [k1, k2, k3, k4] = &mut self.k;
+        f(x, k1);
+        for i in 0..n {
+            self.tmp[i] = x[i] + 0.5 * dt * k1[i];
+        }
+        f(&self.tmp, k2);
+        for i in 0..n {
+            self.tmp[i] = x[i] + 0.5 * dt * k2[i];
+        }
+        f(&self.tmp, k3);
+        for i in 0..n {
+            self.tmp[i] = x[i] + dt * k3[i];
+        }
+        f(&self.tmp, k4);
+        for i in 0..n {
+            x[i] += dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        }
     }
 }
 

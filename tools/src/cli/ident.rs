@@ -1,15 +1,19 @@
-//! `identify`: modes of a free decay in a NumPy `.npy` ([time; signal]) or a recording CSV.
+//! `identify`, `sweep` and `frf`: arguments, printing and files of the identification commands
+//! over [`crate::ident`].
 
-use super::freedecay::{FreeDecayOptions, FreeDecayResult};
-use super::frf::{frf_of_recording, Detrend, InputChannel, OutputChannel, WelchOptions, Window};
-use super::protocol;
-use super::report;
-use super::sweep::{generate, SweepKind, SweepSpec, TipMode};
-use super::{IdentOptions, IdentifyOptions, Method, PathChoice, Stage};
+use crate::ident::freedecay::FreeDecayOptions;
+use crate::ident::frf::{
+    frf_of_recording, Detrend, InputChannel, OutputChannel, WelchOptions, Window,
+};
+use crate::ident::report;
+use crate::ident::sweep::{
+    design_sweep, tip_modes_of_model, uniform_tip_modes, SweepDesign, SweepKind, SweepSpec,
+};
+use crate::ident::{IdentOptions, IdentifyOptions, Method, PathChoice, Stage};
 use crate::recording::Recording;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// `identify` arguments.
 #[derive(Args, Debug)]
@@ -74,48 +78,6 @@ pub struct IdentifyArgs {
     pub path: String,
 }
 
-/// The free-decay part of a recording file (CSV, `.npy`): [`super::identify::free_decay_signal`]
-/// (gaps split, base still within its noise band). Returns (time, signal, description).
-pub fn free_decay_of(path: &Path) -> Result<(Vec<f64>, Vec<f64>, String)> {
-    let rec = Recording::read_any(path, &mut |_| {})?;
-    let (t, x, what) = super::identify::free_decay_signal(&rec)
-        .map_err(|e| anyhow::anyhow!("{}: {e:#}", path.display()))?;
-    Ok((t, x, format!("{}: {what}", path.display())))
-}
-
-/// Prints a result as a table a controls engineer expects.
-pub fn print_result(what: &str, r: &FreeDecayResult) {
-    println!(
-        "{what}: sample rate {:.1} Hz, decay segment {:.3}..{:.3} s",
-        r.sample_rate_hz, r.segment_s.0, r.segment_s.1
-    );
-    for w in &r.warnings {
-        println!("  warning: {w}");
-    }
-    println!(
-        "  mode 1 log decrement (eqs. 28-29, {} peaks): f = {:.4} Hz, zeta = {:.5}",
-        r.log_decrement.2, r.log_decrement.0, r.log_decrement.1
-    );
-    println!(
-        "  mode 1 damped-sinusoid fit:                f = {:.4} Hz, zeta = {:.5}",
-        r.sinusoid_fit.0, r.sinusoid_fit.1
-    );
-    println!(
-        "  {:>4} {:>12} {:>10} {:>10} {:>10}",
-        "mode", "f (Hz)", "+-1sd", "zeta", "+-1sd"
-    );
-    for (i, m) in r.modes.iter().enumerate() {
-        println!(
-            "  {:>4} {:>12.4} {:>10.4} {:>10.5} {:>10.5}",
-            i + 1,
-            m.freq_hz,
-            m.freq_hz_std,
-            m.zeta,
-            m.zeta_std
-        );
-    }
-}
-
 fn parse_band(s: &str) -> Result<(f64, f64)> {
     let v: Vec<&str> = s.split(',').collect();
     if v.len() != 2 {
@@ -141,7 +103,6 @@ pub fn options_of(a: &IdentifyArgs) -> Result<IdentOptions> {
         track_input: !a.no_track,
         sk_iterations: a.sk,
         ml_refine: !a.no_ml,
-        progress: true,
         ..Default::default()
     };
     o.welch.window = Window::from_name(&a.window)?;
@@ -149,12 +110,12 @@ pub fn options_of(a: &IdentifyArgs) -> Result<IdentOptions> {
     Ok(o)
 }
 
-/// `beamtool identify` on a magnitude spectrum (`.lvm`): [`super::magspec`], at most
+/// `beamtool identify` on a magnitude spectrum (`.lvm`): [`crate::ident::magspec`], at most
 /// `--modes` (default 6) peaks ≥ 10 dB above their neighbourhood in `--f-min-hz..--f-max-hz`.
 fn identify_spectrum(a: &IdentifyArgs) -> Result<()> {
-    let s = super::magspec::read_lvm(&a.recording)?;
+    let s = crate::ident::magspec::read_lvm(&a.recording)?;
     let df = s.freq_hz[1] - s.freq_hz[0];
-    let modes = super::magspec::identify_magnitude_spectrum(
+    let modes = crate::ident::magspec::identify_magnitude_spectrum(
         &s,
         a.f_min_hz,
         a.f_max_hz,
@@ -191,7 +152,7 @@ fn identify_spectrum(a: &IdentifyArgs) -> Result<()> {
         );
     }
     if modes.iter().any(|m| m.resolution_limited) {
-        println!("  <= : the half-power band spans fewer than {} lines; without phase or a time record the damping is an upper bound (record longer)", super::magspec::RESOLVED_LINES);
+        println!("  <= : the half-power band spans fewer than {} lines; without phase or a time record the damping is an upper bound (record longer)", crate::ident::magspec::RESOLVED_LINES);
     }
     if modes.len() >= 2 {
         let f1 = modes[0].freq_hz;
@@ -223,8 +184,7 @@ pub fn identify_options_of(a: &IdentifyArgs) -> Result<IdentifyOptions> {
             a.f_min_hz
         );
     }
-    let mut frf = options_of(a)?;
-    frf.progress = false;
+    let frf = options_of(a)?;
     Ok(IdentifyOptions {
         path: PathChoice::from_name(&a.path)?,
         frf,
@@ -237,12 +197,12 @@ pub fn identify_options_of(a: &IdentifyArgs) -> Result<IdentifyOptions> {
     })
 }
 
-/// Progress of [`super::identify`] as one line per stage on stderr (reading: every 2²⁰ rows).
+/// Progress of [`crate::ident::identify()`] as one line per stage on stderr (reading: every 2²⁰ rows).
 pub fn progress_line(stage: Stage) {
     eprintln!("  .. {stage}");
 }
 
-/// `beamtool identify`: [`super::identify::identify_file`], then the table, the stabilisation
+/// `beamtool identify`: [`crate::ident::identify::identify_file`], then the table, the stabilisation
 /// diagram (FRF path), plots and JSON.
 pub fn identify(a: IdentifyArgs) -> Result<()> {
     let opts = identify_options_of(&a)?;
@@ -252,7 +212,7 @@ pub fn identify(a: IdentifyArgs) -> Result<()> {
     {
         return identify_spectrum(&a);
     }
-    let id = super::identify::identify_file(&a.recording, &opts, &mut progress_line)?;
+    let id = crate::ident::identify::identify_file(&a.recording, &opts, &mut progress_line)?;
     println!("{}:", a.recording.display());
     print!("{}", report::identification_table(&id));
     if let Some((r, frf)) = &id.frf_result {
@@ -334,83 +294,77 @@ pub struct SweepArgs {
     pub out: PathBuf,
 }
 
-/// `beamtool sweep`.
+impl SweepArgs {
+    /// The (f_hz, ζ) of every `--mode f_hz:zeta`.
+    fn modes(&self) -> Result<Vec<(f64, f64)>> {
+        self.mode
+            .iter()
+            .map(|s| {
+                let v: Vec<&str> = s.split(':').collect();
+                let p = |x: &str| {
+                    x.trim()
+                        .parse::<f64>()
+                        .with_context(|| format!("--mode `{s}`: want f_hz:zeta"))
+                };
+                if v.len() != 2 {
+                    bail!("--mode `{s}`: want f_hz:zeta");
+                }
+                Ok((p(v[0])?, p(v[1])?))
+            })
+            .collect()
+    }
+
+    /// The sweep specification of these arguments, without tip modes.
+    ///
+    /// Errors: an unknown `--kind`.
+    pub fn spec(&self) -> Result<SweepSpec> {
+        Ok(SweepSpec {
+            kind: SweepKind::from_name(&self.kind)?,
+            f_a_hz: self.f_a_hz,
+            f_b_hz: self.f_b_hz,
+            rate: self.rate,
+            sample_rate_hz: self.rate_hz,
+            stroke_max_m: self.stroke_mm * 1e-3,
+            accel_max_m_s2: self.accel_max,
+            tip_max_m: self.tip_max_mm.map(|v| v * 1e-3),
+            tip_modes: vec![],
+            fade_s: self.fade_s,
+            lead_s: self.lead_s,
+            tail_s: self.tail_s,
+        })
+    }
+}
+
+/// `beamtool sweep`: [`design_sweep`] with the modes of `--rig` and `--mode`, written as a
+/// command CSV.
 pub fn sweep(a: SweepArgs) -> Result<()> {
-    let mut tip_modes = Vec::new();
-    let mut model = None;
-    if let Some(r) = &a.rig {
-        let rig = crate::model::Rig::from_toml_file(r)?;
-        let m = crate::model::BeamModel::new(&rig, &crate::model::ModelOptions::default())?;
-        let c = m.clamped_modes()?;
-        for i in 0..c.omega_rad_s.len() {
-            tip_modes.push(TipMode {
-                freq_hz: c.omega_rad_s[i] / (2.0 * std::f64::consts::PI),
-                zeta: c.zeta[i],
-                gain: c.participation[i] * c.tip[i],
-            });
+    let mut spec = a.spec()?;
+    let model = match &a.rig {
+        Some(r) => {
+            let rig = crate::model::Rig::from_toml_file(r)?;
+            let opts = crate::model::ModelOptions::default();
+            Some(crate::model::BeamModel::new(&rig, &opts)?)
         }
-        model = Some(m);
-    }
-    for (i, s) in a.mode.iter().enumerate() {
-        let v: Vec<&str> = s.split(':').collect();
-        let p = |x: &str| {
-            x.trim()
-                .parse::<f64>()
-                .with_context(|| format!("--mode `{s}`: want f_hz:zeta"))
-        };
-        if v.len() != 2 {
-            bail!("--mode `{s}`: want f_hz:zeta");
-        }
-        let gain = *super::sweep::UNIFORM_CANTILEVER_GAINS
-            .get(i)
-            .with_context(|| "--mode: at most 3 modes")?;
-        tip_modes.push(TipMode {
-            freq_hz: p(v[0])?,
-            zeta: p(v[1])?,
-            gain,
-        });
-    }
-    let spec = SweepSpec {
-        kind: SweepKind::from_name(&a.kind)?,
-        f_a_hz: a.f_a_hz,
-        f_b_hz: a.f_b_hz,
-        rate: a.rate,
-        sample_rate_hz: a.rate_hz,
-        stroke_max_m: a.stroke_mm * 1e-3,
-        accel_max_m_s2: a.accel_max,
-        tip_max_m: a.tip_max_mm.map(|v| v * 1e-3),
-        tip_modes,
-        fade_s: a.fade_s,
-        lead_s: a.lead_s,
-        tail_s: a.tail_s,
+        None => None,
     };
-    let mut spec = spec;
-    let mut s = generate(&spec)?;
-    // The envelope bounds the steady-state tip deflection; a lightly damped mode still rings
-    // when the envelope grows again past its resonance. With a rig, simulate and tighten the
-    // tip limit until the simulated peak respects it.
-    if let (Some(m), Some(limit)) = (&model, a.tip_max_mm.map(|v| v * 1e-3)) {
-        let sim = crate::model::sim::BaseMotionSim::new(m, 1.0 / spec.sample_rate_hz)?;
-        for _ in 0..8 {
-            let peak = sim
-                .run(&s.base_cmd_m)
-                .0
-                .iter()
-                .fold(0.0f64, |p, v| p.max(v.abs()));
-            if peak <= limit {
-                break;
-            }
-            spec.tip_max_m = spec.tip_max_m.map(|t| t * 0.97 * limit / peak);
-            s = generate(&spec)?;
-        }
+    if let Some(m) = &model {
+        spec.tip_modes = tip_modes_of_model(m)?;
     }
-    let mut rec = Recording {
-        time_s: s.time_s.clone(),
-        base_cmd_m: Some(s.base_cmd_m.clone()),
+    spec.tip_modes
+        .extend(uniform_tip_modes(&a.modes()?).context("--mode")?);
+    let d = design_sweep(&spec, model.as_ref())?;
+    let rec = Recording {
+        time_s: d.sweep.time_s.clone(),
+        base_cmd_m: Some(d.sweep.base_cmd_m.clone()),
         ..Default::default()
     };
-    rec.notes.clear();
     rec.write_csv(&a.out)?;
+    print_sweep(&a, &d);
+    Ok(())
+}
+
+fn print_sweep(a: &SweepArgs, d: &SweepDesign) {
+    let (spec, s) = (&d.spec, &d.sweep);
     println!("{:?} sweep {}..{} Hz, beta = {} ({}), T = {:.2} s (+{} s lead, {} s tail), {} samples at {} Hz -> {}",
         spec.kind, spec.f_a_hz, spec.f_b_hz, spec.rate, if spec.kind == SweepKind::Linear { "Hz/s" } else { "octaves/min" },
         s.duration_s, spec.lead_s, spec.tail_s, s.time_s.len(), spec.sample_rate_hz, a.out.display());
@@ -421,10 +375,7 @@ pub fn sweep(a: SweepArgs) -> Result<()> {
         s.peak_accel_m_s2,
         a.accel_max
     );
-    if let Some(m) = model {
-        let sim = crate::model::sim::BaseMotionSim::new(&m, 1.0 / spec.sample_rate_hz)?;
-        let (w, _) = sim.run(&s.base_cmd_m);
-        let peak = w.iter().fold(0.0f64, |p, v| p.max(v.abs()));
+    if let Some(peak) = d.simulated_peak_tip_m {
         println!(
             "simulated on the rig: peak tip deflection {:.3} mm{}",
             peak * 1e3,
@@ -434,7 +385,6 @@ pub fn sweep(a: SweepArgs) -> Result<()> {
             ))
         );
     }
-    Ok(())
 }
 
 /// `frf` arguments.
@@ -528,74 +478,6 @@ pub fn frf(a: FrfArgs) -> Result<()> {
     }
     if let Some(j) = &a.json {
         std::fs::write(j, serde_json::to_string(&f)?)
-            .with_context(|| format!("cannot write {}", j.display()))?;
-        println!("JSON -> {}", j.display());
-    }
-    Ok(())
-}
-
-/// `table1` arguments.
-#[derive(Args, Debug)]
-pub struct Table1Args {
-    /// Rig file (TOML).
-    #[arg(long, default_value = "../rigs/paper.toml")]
-    pub rig: PathBuf,
-    /// Noise: fraction of each measured channel's RMS.
-    #[arg(long, default_value_t = 0.05)]
-    pub noise: f64,
-    /// FRF input: force (the paper's) or accel.
-    #[arg(long, default_value = "force")]
-    pub input: String,
-    /// Methods (first is primary): lsce (the paper's), lscf, peak.
-    #[arg(long, default_value = "lsce")]
-    pub method: String,
-    /// Ring-down recorded after each sweep (s).
-    #[arg(long, default_value_t = 20.0)]
-    pub tail_s: f64,
-    /// Noise seed.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// JSON of all rows.
-    #[arg(long)]
-    pub json: Option<PathBuf>,
-}
-
-/// `beamtool table1`: the paper's Table 1 protocol in simulation.
-pub fn table1(a: Table1Args) -> Result<()> {
-    let rig = crate::model::Rig::from_toml_file(&a.rig)?;
-    let model = crate::model::BeamModel::new(&rig, &crate::model::ModelOptions::default())?;
-    let tr = protocol::truth(&model)?;
-    let input = InputChannel::from_name(&a.input)?;
-    let opts = IdentOptions {
-        methods: Method::parse_list(&a.method)?,
-        input,
-        band_hz: Some((0.3, 8.0)),
-        n_modes: Some(2),
-        ..Default::default()
-    };
-    let base = SweepSpec {
-        tail_s: a.tail_s,
-        ..SweepSpec::paper(SweepKind::Exponential, 3.0)
-    };
-    let cases = protocol::paper_cases();
-    let pb = indicatif::ProgressBar::new(cases.len() as u64);
-    let mut rows = Vec::new();
-    for (i, c) in cases.iter().enumerate() {
-        rows.extend(protocol::run(
-            &model,
-            std::slice::from_ref(c),
-            &base,
-            a.noise,
-            &opts,
-            a.seed + i as u64,
-        )?);
-        pb.inc(1);
-    }
-    pb.finish_and_clear();
-    println!("Table 1 in simulation: {} rig, 100 Hz, {:.0} % noise, input {:?}, {} (band 0.3-8 Hz), {} s ring-down", a.rig.display(), a.noise * 100.0, input, a.method, a.tail_s);
-    print!("{}", protocol::table(&rows, tr.for_input(input)));
-    if let Some(j) = &a.json {
-        std::fs::write(j, serde_json::to_string_pretty(&rows)?)
             .with_context(|| format!("cannot write {}", j.display()))?;
         println!("JSON -> {}", j.display());
     }
