@@ -920,8 +920,7 @@ mod tests {
             let mut wrong = r.clone();
             wrong.beam.as_mut().unwrap().youngs_modulus_pa *= 1.05;
             let d = diagnose_lengths(&wrong, &data, &LengthOptions::default()).unwrap();
-            eprintln!("{}", words(&d));
-            assert_eq!(d.selected, truth, "{truth:?}");
+            assert_eq!(d.selected, truth, "{truth:?}\n{}", words(&d));
         }
     }
 
@@ -941,6 +940,7 @@ mod tests {
             LengthEffect::GravityUpright,
         ];
         let (mut ok, mut n) = (0, 0);
+        let mut log = String::new();
         for case in 0..30 {
             let truth = effects[case % effects.len()];
             let h = rng.gen_range(0.001..0.004);
@@ -1009,8 +1009,8 @@ mod tests {
                 let t = d.fits.iter().find(|f| f.effect == truth).unwrap();
                 1.0 - t.heldout_rms_pct / d.fits[0].heldout_rms_pct
             };
-            eprintln!(
-                "case {case}: truth {truth:?} named {:?} {} (h {:.1} mm, L {:.2}-{:.2} m, noise {:.2} %, truth's held-out gain {:.0} %, nominal held-out {:.2} %)",
+            log += &format!(
+                "case {case}: truth {truth:?} named {:?} {} (h {:.1} mm, L {:.2}-{:.2} m, noise {:.2} %, truth's held-out gain {:.0} %, nominal held-out {:.2} %)\n",
                 d.selected,
                 if good { "ok" } else { "WRONG" },
                 1e3 * h,
@@ -1021,7 +1021,8 @@ mod tests {
                 d.fits[0].heldout_rms_pct
             );
         }
-        eprintln!("{ok}/{n} correct");
+        // the measured 27/30 of docs/diagnose.md; the per-case log is in the message
+        assert!(10 * ok >= 9 * n, "{log}{ok}/{n} correct");
     }
 
     #[test]
