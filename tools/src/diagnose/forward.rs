@@ -750,8 +750,9 @@ fn implausible(cand: &Candidate, f: &FitResult, off: usize) -> Vec<String> {
 }
 
 /// Parameters that are non-negative by physics: a sensor cannot report before the motion,
-/// friction and damping take energy out.
-const NON_NEGATIVE: [&str; 3] = ["sensor_delay_s", "friction_n", "viscous_n_s_per_m"];
+/// Coulomb friction takes energy out. (The fitted viscous slope may be negative: Stribeck
+/// friction falls with speed at low speed; independent case05 is such a rig.)
+const NON_NEGATIVE: [&str; 2] = ["sensor_delay_s", "friction_n"];
 
 /// Signals of the physics-free correction of channel `c` ([`crate::numeric::arx`]): base —
 /// the predicted base and the command; tip — the predicted tip, the predicted *deflection*
