@@ -214,6 +214,11 @@ fn channel_plots(
         ],
         false,
     )?;
+    spectrum_plot(d, dir, name, r0, r1)
+}
+
+/// The spectra of the validation residual before and after, with the model's modes.
+fn spectrum_plot(d: &Diagnosis, dir: &Path, name: &str, r0: &[f64], r1: &[f64]) -> Result<()> {
     let (f, m0) = amplitude_spectrum(r0, 1.0 / d.validate.dt);
     let (_, m1) = amplitude_spectrum(r1, 1.0 / d.validate.dt);
     lines(

@@ -282,18 +282,13 @@ impl Ctx<'_> {
         ));
         let delta_val = delta_neg2ll_effective(&r.vrss, &base.vrss, &base.vn, &base.tau_val);
         let (best_channel, reduction) = best_reduction(&r, base);
-        let lb = |v: &Option<Vec<f64>>| v.as_ref().map_or(0.0, |r| ljung_box(r, LJUNG_BOX_LAGS));
-        let whiteness = (lb(&base.vres[best_channel]), lb(&r.vres[best_channel]));
+        let whiteness = (q_of(&base.vres[best_channel]), q_of(&r.vres[best_channel]));
         let significance = significance(cand, &f, off);
         let sp = |v: &Option<Vec<f64>>| {
             v.as_ref()
                 .map_or(0.0, |r| structured_power(r, LJUNG_BOX_LAGS))
         };
-        let allowance = base.generic[best_channel]
-            .as_ref()
-            .and_then(|(fit_ne, val_ne)| arx::best_correction(fit_ne, val_ne, k))
-            .map_or(0.0, |c| c.val_reduction())
-            .max(base.split[best_channel]);
+        let allowance = allowance(base, best_channel, k);
         let mut fails = guard(&Evidence {
             delta_bic,
             delta_val,
@@ -677,6 +672,21 @@ fn best_reduction(r: &Reference, base: &Reference) -> (usize, f64) {
     best
 }
 
+/// The model-form allowance of channel `c` for `k` parameters: what the physics-free correction
+/// earns on `base`'s validation residual, or its split-refit spread if larger.
+fn allowance(base: &Reference, c: usize, k: usize) -> f64 {
+    base.generic[c]
+        .as_ref()
+        .and_then(|(fit_ne, val_ne)| arx::best_correction(fit_ne, val_ne, k))
+        .map_or(0.0, |g| g.val_reduction())
+        .max(base.split[c])
+}
+
+/// Ljung–Box Q of a residual (0 when absent).
+fn q_of(v: &Option<Vec<f64>>) -> f64 {
+    v.as_ref().map_or(0.0, |r| ljung_box(r, LJUNG_BOX_LAGS))
+}
+
 /// Largest |value|/σ over the candidate's null-at-zero parameters (∞ if it has none; a NaN σ,
 /// "not identified", counts 0).
 fn significance(cand: &Candidate, f: &FitResult, off: usize) -> f64 {
@@ -740,8 +750,9 @@ fn implausible(cand: &Candidate, f: &FitResult, off: usize) -> Vec<String> {
 }
 
 /// Parameters that are non-negative by physics: a sensor cannot report before the motion,
-/// friction and damping take energy out.
-const NON_NEGATIVE: [&str; 3] = ["sensor_delay_s", "friction_n", "viscous_n_s_per_m"];
+/// Coulomb friction takes energy out. (The fitted viscous slope may be negative: Stribeck
+/// friction falls with speed at low speed; independent case05 is such a rig.)
+const NON_NEGATIVE: [&str; 2] = ["sensor_delay_s", "friction_n"];
 
 /// Signals of the physics-free correction of channel `c` ([`crate::numeric::arx`]): base —
 /// the predicted base and the command; tip — the predicted tip, the predicted *deflection*

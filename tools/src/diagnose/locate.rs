@@ -152,151 +152,172 @@ pub fn velocity(y: &[f64], dt: f64) -> Vec<f64> {
         .collect()
 }
 
-/// Locates the discrepancy of `preds` (calibrated nominal) on `data`.
-pub fn locate(data: &[Prepared], preds: &[Prediction], model_freqs_hz: &[f64]) -> Location {
-    let mut channels = Vec::new();
-    for c in 0..3 {
-        let mut all_r = Vec::new();
-        let mut sig = Vec::new();
-        let (mut mov, mut rev, mut still, mut v_all, mut vs_all, mut dp_all, mut y_all) =
-            (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);
-        let mut amp = Vec::new();
-        let mut spectra: Vec<(f64, f64)> = Vec::new();
-        for (d, p) in data.iter().zip(preds) {
-            let (meas, pr) = match c {
-                0 => (&d.base_m, &p.base_m),
-                1 => (&d.tip_m, &p.tip_m),
-                _ => (&d.force_n, &p.force_n),
-            };
-            let (Some(meas), Some(pr)) = (meas, pr) else {
-                continue;
-            };
-            let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
-            let v = velocity(&d.cmd_m, d.dt);
-            let vd = velocity(drive, d.dt);
-            let n = meas.len();
-            let r: Vec<f64> = meas.iter().zip(pr).map(|(a, b)| a - b).collect();
-            let moving: Vec<bool> = v.iter().map(|x| x.abs() > 1e-4).collect();
-            // reversals: sign of successive moves differs; window ±0.3 s around the start of such a move
-            let mut reversal = vec![false; n];
-            let mut last_sign = 0.0;
-            let w = (0.3 / d.dt) as usize;
-            for k in 1..n {
-                if moving[k] && !moving[k - 1] {
-                    let s = v[k.min(n - 1)].signum();
-                    if last_sign != 0.0 && s != last_sign {
-                        for j in k.saturating_sub(w)..(k + w).min(n) {
-                            reversal[j] = true;
-                        }
-                    }
-                    last_sign = s;
+/// One channel's residual and the signals it is compared with, over every recording.
+#[derive(Default)]
+struct Gathered {
+    r: Vec<f64>,
+    sig: Vec<f64>,
+    amp: Vec<f64>,
+    mov: Vec<bool>,
+    rev: Vec<bool>,
+    still: Vec<bool>,
+    v: Vec<f64>,
+    vs: Vec<f64>,
+    dp: Vec<f64>,
+    y: Vec<f64>,
+    spectra: Vec<(f64, f64)>,
+}
+
+/// Samples within ±0.3 s of the start of a move whose direction differs from the move before.
+fn reversals(v: &[f64], moving: &[bool], dt: f64) -> Vec<bool> {
+    let n = v.len();
+    let mut reversal = vec![false; n];
+    let mut last_sign = 0.0;
+    let w = (0.3 / dt) as usize;
+    for k in 1..n {
+        if moving[k] && !moving[k - 1] {
+            let s = v[k.min(n - 1)].signum();
+            if last_sign != 0.0 && s != last_sign {
+                for j in k.saturating_sub(w)..(k + w).min(n) {
+                    reversal[j] = true;
                 }
             }
-            let still_m: Vec<bool> = moving.iter().map(|m| !m).collect();
-            let signal: Vec<f64> = if c == 1 {
-                meas.iter().zip(drive).map(|(a, b)| a - b).collect()
-            } else {
-                meas.clone()
-            };
-            let mean = signal.iter().sum::<f64>() / n as f64;
-            sig.extend(signal.iter().map(|x| x - mean));
-            if c == 1 {
-                amp.extend(signal.iter().map(|x| (x - mean).abs()));
-            }
-            let dp = velocity(pr, d.dt);
-            let (f, m) = amplitude_spectrum(&r, 1.0 / d.dt);
-            for (fk, mk) in peaks(&f, &m, 0.2, 0.45 / d.dt).into_iter().take(4) {
-                spectra.push((fk, mk));
-            }
-            all_r.extend(r);
-            mov.extend(moving);
-            rev.extend(reversal);
-            still.extend(still_m);
-            v_all.extend(vd.iter().copied());
-            vs_all.extend(
-                vd.iter()
-                    .map(|x| if x.abs() > 1e-4 { x.signum() } else { 0.0 }),
-            );
-            dp_all.extend(dp);
-            y_all.extend(drive.iter().copied());
+            last_sign = s;
         }
-        if all_r.is_empty() {
-            continue;
+    }
+    reversal
+}
+
+impl Gathered {
+    /// Adds recording `d` (prediction `p`) of channel `c`, if recorded.
+    fn add(&mut self, d: &Prepared, p: &Prediction, c: usize) {
+        let (meas, pr) = match c {
+            0 => (&d.base_m, &p.base_m),
+            1 => (&d.tip_m, &p.tip_m),
+            _ => (&d.force_n, &p.force_n),
+        };
+        let (Some(meas), Some(pr)) = (meas, pr) else {
+            return;
+        };
+        let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
+        let v = velocity(&d.cmd_m, d.dt);
+        let vd = velocity(drive, d.dt);
+        let n = meas.len();
+        let r: Vec<f64> = meas.iter().zip(pr).map(|(a, b)| a - b).collect();
+        let moving: Vec<bool> = v.iter().map(|x| x.abs() > 1e-4).collect();
+        let reversal = reversals(&v, &moving, d.dt);
+        let signal: Vec<f64> = if c == 1 {
+            meas.iter().zip(drive).map(|(a, b)| a - b).collect()
+        } else {
+            meas.clone()
+        };
+        let mean = signal.iter().sum::<f64>() / n as f64;
+        self.sig.extend(signal.iter().map(|x| x - mean));
+        if c == 1 {
+            self.amp.extend(signal.iter().map(|x| (x - mean).abs()));
         }
-        let ones = vec![true; all_r.len()];
-        let rms = rms_where(&all_r, &ones);
-        let sig_rms = rms_where(&sig, &ones);
+        let (f, m) = amplitude_spectrum(&r, 1.0 / d.dt);
+        for (fk, mk) in peaks(&f, &m, 0.2, 0.45 / d.dt).into_iter().take(4) {
+            self.spectra.push((fk, mk));
+        }
+        self.r.extend(r);
+        self.still.extend(moving.iter().map(|m| !m));
+        self.mov.extend(moving);
+        self.rev.extend(reversal);
+        self.v.extend(vd.iter().copied());
+        self.vs.extend(
+            vd.iter()
+                .map(|x| if x.abs() > 1e-4 { x.signum() } else { 0.0 }),
+        );
+        self.dp.extend(velocity(pr, d.dt));
+        self.y.extend(drive.iter().copied());
+    }
+
+    /// rms of the residual in free decay above and below the median deflection amplitude.
+    fn amplitude_split(&self) -> (f64, f64) {
+        let mut a: Vec<f64> = self
+            .amp
+            .iter()
+            .zip(&self.still)
+            .filter(|(_, s)| **s)
+            .map(|(a, _)| *a)
+            .collect();
+        a.sort_by(|x, y| x.total_cmp(y));
+        let med = a.get(a.len() / 2).copied().unwrap_or(0.0);
+        let pick = |high: bool| -> Vec<bool> {
+            self.amp
+                .iter()
+                .zip(&self.still)
+                .map(|(a, s)| *s && ((*a > med) == high))
+                .collect()
+        };
+        (
+            rms_where(&self.r, &pick(true)),
+            rms_where(&self.r, &pick(false)),
+        )
+    }
+
+    /// The channel's location summary.
+    fn summary(mut self, c: usize) -> ChannelLocation {
+        let ones = vec![true; self.r.len()];
+        let rms = rms_where(&self.r, &ones);
+        let sig_rms = rms_where(&self.sig, &ones);
         let (hi, lo) = if c == 1 {
-            let mut a: Vec<f64> = amp
-                .iter()
-                .zip(&still)
-                .filter(|(_, s)| **s)
-                .map(|(a, _)| *a)
-                .collect();
-            a.sort_by(|x, y| x.total_cmp(y));
-            let med = a.get(a.len() / 2).copied().unwrap_or(0.0);
-            let hm: Vec<bool> = amp
-                .iter()
-                .zip(&still)
-                .map(|(a, s)| *s && *a > med)
-                .collect();
-            let lm: Vec<bool> = amp
-                .iter()
-                .zip(&still)
-                .map(|(a, s)| *s && *a <= med)
-                .collect();
-            (rms_where(&all_r, &hm), rms_where(&all_r, &lm))
+            self.amplitude_split()
         } else {
             (f64::NAN, f64::NAN)
         };
-        spectra.sort_by(|a, b| b.1.total_cmp(&a.1));
-        spectra.truncate(4);
-        let rip = ripple_scan(&all_r, &y_all, &mov);
-        channels.push(ChannelLocation {
+        self.spectra.sort_by(|a, b| b.1.total_cmp(&a.1));
+        self.spectra.truncate(4);
+        let rip = ripple_scan(&self.r, &self.y, &self.mov);
+        ChannelLocation {
             channel: CHANNEL_NAMES[c].to_string(),
             rms,
             nrmse: rms / sig_rms.max(1e-300),
-            rms_moving: rms_where(&all_r, &mov),
-            rms_reversal: rms_where(&all_r, &rev),
-            rms_still: rms_where(&all_r, &still),
+            rms_moving: rms_where(&self.r, &self.mov),
+            rms_reversal: rms_where(&self.r, &self.rev),
+            rms_still: rms_where(&self.r, &self.still),
             rms_high_amplitude: hi,
             rms_low_amplitude: lo,
-            spectrum_peaks: spectra,
-            corr_velocity_sign: corr(&all_r, &vs_all),
-            corr_velocity: corr(&all_r, &v_all),
-            corr_time_shift: corr(&all_r, &dp_all),
+            spectrum_peaks: self.spectra,
+            corr_velocity_sign: corr(&self.r, &self.vs),
+            corr_velocity: corr(&self.r, &self.v),
+            corr_time_shift: corr(&self.r, &self.dp),
             position_ripple: (rip.0, rip.3),
-        });
-    }
-    let mut words = Vec::new();
-    for ch in &channels {
-        let mut s = format!(
-            "{}: residual rms {:.3e} (NRMSE {:.3}); moving {:.3e}, at reversals {:.3e}, in free decay {:.3e}",
-            ch.channel, ch.rms, ch.nrmse, ch.rms_moving, ch.rms_reversal, ch.rms_still
-        );
-        if ch.rms_high_amplitude.is_finite() {
-            s += &format!(
-                ", free decay high/low amplitude {:.3e}/{:.3e}",
-                ch.rms_high_amplitude, ch.rms_low_amplitude
-            );
         }
-        words.push(s);
-        let pk: Vec<String> = ch
-            .spectrum_peaks
-            .iter()
-            .map(|(f, a)| format!("{f:.2} Hz ({a:.2e})"))
-            .collect();
-        let near: Vec<String> = ch
-            .spectrum_peaks
-            .iter()
-            .filter_map(|(f, _)| {
-                model_freqs_hz
-                    .iter()
-                    .find(|m| (*m / f - 1.0).abs() < 0.08)
-                    .map(|m| format!("{f:.2} Hz ≈ model mode {m:.2} Hz"))
-            })
-            .collect();
-        words.push(format!(
+    }
+}
+
+/// One channel's location in words (three lines).
+fn channel_words(ch: &ChannelLocation, model_freqs_hz: &[f64]) -> Vec<String> {
+    let mut s = format!(
+        "{}: residual rms {:.3e} (NRMSE {:.3}); moving {:.3e}, at reversals {:.3e}, in free decay {:.3e}",
+        ch.channel, ch.rms, ch.nrmse, ch.rms_moving, ch.rms_reversal, ch.rms_still
+    );
+    if ch.rms_high_amplitude.is_finite() {
+        s += &format!(
+            ", free decay high/low amplitude {:.3e}/{:.3e}",
+            ch.rms_high_amplitude, ch.rms_low_amplitude
+        );
+    }
+    let pk: Vec<String> = ch
+        .spectrum_peaks
+        .iter()
+        .map(|(f, a)| format!("{f:.2} Hz ({a:.2e})"))
+        .collect();
+    let near: Vec<String> = ch
+        .spectrum_peaks
+        .iter()
+        .filter_map(|(f, _)| {
+            model_freqs_hz
+                .iter()
+                .find(|m| (*m / f - 1.0).abs() < 0.08)
+                .map(|m| format!("{f:.2} Hz ≈ model mode {m:.2} Hz"))
+        })
+        .collect();
+    vec![
+        s,
+        format!(
             "  spectrum peaks: {}{}",
             pk.join(", "),
             if near.is_empty() {
@@ -304,16 +325,34 @@ pub fn locate(data: &[Prepared], preds: &[Prediction], model_freqs_hz: &[f64]) -
             } else {
                 format!("; {}", near.join(", "))
             }
-        ));
-        words.push(format!(
+        ),
+        format!(
             "  correlation with sign(velocity) {:+.2}, velocity {:+.2}, d/dt of the prediction (time shift) {:+.2}; best position ripple pitch {:.1} mm explains {:.0} % of the moving residual",
             ch.corr_velocity_sign,
             ch.corr_velocity,
             ch.corr_time_shift,
             1e3 * ch.position_ripple.0,
             100.0 * ch.position_ripple.1
-        ));
+        ),
+    ]
+}
+
+/// Locates the discrepancy of `preds` (calibrated nominal) on `data`.
+pub fn locate(data: &[Prepared], preds: &[Prediction], model_freqs_hz: &[f64]) -> Location {
+    let mut channels = Vec::new();
+    for c in 0..3 {
+        let mut g = Gathered::default();
+        for (d, p) in data.iter().zip(preds) {
+            g.add(d, p, c);
+        }
+        if !g.r.is_empty() {
+            channels.push(g.summary(c));
+        }
     }
+    let words = channels
+        .iter()
+        .flat_map(|ch| channel_words(ch, model_freqs_hz))
+        .collect();
     Location {
         channels,
         model_freqs_hz: model_freqs_hz.to_vec(),

@@ -514,6 +514,45 @@ pub fn diagnose(
     ))
 }
 
+/// Long-run 1-σ of the calibration `cal` and the final model `reference` (replacing their
+/// linearised σ), the stability of every effect's parameters between the fit recordings, and
+/// the residual statistics before and after ([`honesty`]).
+fn measure_final(
+    ctx: &Ctx,
+    set: &[&Candidate],
+    cal: &mut FitResult,
+    reference: &mut forward::Reference,
+    earlier: &Earlier,
+    budget: &mut Budget,
+) -> honesty::Honesty {
+    let (rig, fit_data, sigma, calib) = (ctx.rig, ctx.fit_data, ctx.sigma, ctx.calib);
+    budget.spend(honesty::long_run_std(rig, fit_data, sigma, calib, &[], cal));
+    budget.spend(honesty::long_run_std(
+        rig,
+        fit_data,
+        sigma,
+        calib,
+        set,
+        &mut reference.fit,
+    ));
+    let (stability, used) = honesty::stability(
+        rig,
+        fit_data,
+        sigma,
+        calib,
+        set,
+        &reference.fit,
+        budget.share(2),
+    );
+    budget.spend(used);
+    honesty::Honesty {
+        nominal: honesty::residual_stats(&residuals(ctx.validate, &earlier.val_pred_nominal)),
+        after: honesty::residual_stats(&reference.vres),
+        stability,
+        at_bound: honesty::at_bound(set, &reference.fit, calib.len()),
+    }
+}
+
 /// What the steps before selection found, carried into the [`Diagnosis`].
 struct Earlier {
     location: locate::Location,
@@ -534,7 +573,7 @@ fn conclude(
     budget: &mut Budget,
     progress: &mut dyn crate::progress::Progress,
 ) -> Diagnosis {
-    let (rig, fit_data, sigma, calib) = (ctx.rig, ctx.fit_data, ctx.sigma, ctx.calib);
+    let (fit_data, sigma) = (ctx.fit_data, ctx.sigma);
     let forward::Selection {
         chosen,
         outcomes: chosen_outcomes,
@@ -563,38 +602,7 @@ fn conclude(
         "uncertainty and stability of the final model",
     );
     let set: Vec<&Candidate> = final_set.iter().collect();
-    budget.spend(honesty::long_run_std(
-        rig,
-        fit_data,
-        sigma,
-        calib,
-        &[],
-        &mut cal,
-    ));
-    budget.spend(honesty::long_run_std(
-        rig,
-        fit_data,
-        sigma,
-        calib,
-        &set,
-        &mut reference.fit,
-    ));
-    let (stability, used) = honesty::stability(
-        rig,
-        fit_data,
-        sigma,
-        calib,
-        &set,
-        &reference.fit,
-        budget.share(2),
-    );
-    budget.spend(used);
-    let honesty = honesty::Honesty {
-        nominal: honesty::residual_stats(&residuals(ctx.validate, &earlier.val_pred_nominal)),
-        after: honesty::residual_stats(&reference.vres),
-        stability,
-        at_bound: honesty::at_bound(&set, &reference.fit, calib.len()),
-    };
+    let honesty = measure_final(ctx, &set, &mut cal, &mut reference, &earlier, budget);
     let outcomes = rounds.first().cloned().unwrap_or_default();
     let selected = outcomes
         .iter()

@@ -36,7 +36,7 @@
 //!    residual is; the residual is reported unexplained instead of being given its name;
 //! 7. **physically possible** (recordings): no parameter sits on the wrong side of a physical
 //!    limit by more than 2 σ (a negative sensor delay — the sensor reporting before the motion —,
-//!    negative Coulomb friction or viscous damping), and no parameter sits at a search limit of
+//!    or negative Coulomb friction), and no parameter sits at a search limit of
 //!    its range (within 1 % of a bound of a bounded parameter, except a bound at 0, which means
 //!    "absent"): there the fit did not find the effect, it ran out of room.
 //!

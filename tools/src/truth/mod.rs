@@ -595,27 +595,8 @@ impl Draft {
             );
         }
         if self.with_beam {
-            let d = plant.sensors.tip_delay_s / fine_dt;
-            rec.tip_pos_m = Some(
-                (0..n)
-                    .map(|k| {
-                        let pos = k as f64 * FINE_STEPS as f64 - d;
-                        let v = if pos <= 0.0 {
-                            run.tip_m[0]
-                        } else {
-                            let i = pos.floor() as usize;
-                            let a = pos - i as f64;
-                            run.tip_m[i] * (1.0 - a)
-                                + run.tip_m[(i + 1).min(run.tip_m.len() - 1)] * a
-                        };
-                        let drift = extra.drift_m(i_rec, k as f64 / rate, duration_s);
-                        q(
-                            plant.sensors.tip_gain * v + drift + gauss(sensors.tip_noise_m),
-                            sensors.tip_quantum_m,
-                        )
-                    })
-                    .collect(),
-            );
+            rec.tip_pos_m =
+                Some(self.sample_tip(&run.tip_m, n, fine_dt, extra, i_rec, duration_s, &mut gauss));
         }
         if self.has_force {
             // the drive reports the mean force over each sample period
@@ -632,6 +613,41 @@ impl Draft {
             );
         }
         Ok(rec)
+    }
+
+    /// The tip sensor's reading of the fine-step tip position `tip_m` at the output rate: latency
+    /// (linear interpolation), gain, drift, noise and quantisation.
+    #[allow(clippy::too_many_arguments)]
+    fn sample_tip(
+        &self,
+        tip_m: &[f64],
+        n: usize,
+        fine_dt: f64,
+        extra: &unmodelled::Drawn,
+        i_rec: usize,
+        duration_s: f64,
+        gauss: &mut dyn FnMut(f64) -> f64,
+    ) -> Vec<f64> {
+        let sensors = self.sensors;
+        let q = |v: f64, qn: f64| if qn > 0.0 { (v / qn).round() * qn } else { v };
+        let d = self.plant.sensors.tip_delay_s / fine_dt;
+        (0..n)
+            .map(|k| {
+                let pos = k as f64 * FINE_STEPS as f64 - d;
+                let v = if pos <= 0.0 {
+                    tip_m[0]
+                } else {
+                    let i = pos.floor() as usize;
+                    let a = pos - i as f64;
+                    tip_m[i] * (1.0 - a) + tip_m[(i + 1).min(tip_m.len() - 1)] * a
+                };
+                let drift = extra.drift_m(i_rec, k as f64 / self.rate, duration_s);
+                q(
+                    self.plant.sensors.tip_gain * v + drift + gauss(sensors.tip_noise_m),
+                    sensors.tip_quantum_m,
+                )
+            })
+            .collect()
     }
 
     /// The user's rig file, first-order wrong (E ±6 %, carriage ±12 %, ζ ×0.6–1.7), and the
