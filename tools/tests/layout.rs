@@ -254,7 +254,6 @@ fn only_cli_prints_or_imports_cli() {
 }
 
 #[test]
-#[ignore = "9 functions over 80 lines remain after the 07:35 merge (cli/diagnose, diagnose/, truth/: issue 13); run with --ignored to list them"]
 fn no_function_is_over_80_lines() {
     let mut offenders = Vec::new();
     for (rel, src) in sources() {

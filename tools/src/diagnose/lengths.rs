@@ -836,14 +836,29 @@ pub fn words(d: &LengthDiagnosis) -> String {
     for l in &d.location {
         s.push_str(&format!("  - {l}\n"));
     }
-    s.push_str(
+    s.push_str(&hypotheses_table(&d.fits));
+    s.push_str(&named_words(d));
+    s.push_str("Runner-ups:\n");
+    for f in d.fits.iter().skip(1).filter(|f| f.effect != d.selected) {
+        s.push_str(&format!(
+            "  {:<26} {}\n",
+            format!("{:?}", f.effect),
+            f.verdict
+        ));
+    }
+    s
+}
+
+/// One row per hypothesis: stiffness scale, χ², BIC, held-out RMS and parameters ± 1 σ.
+fn hypotheses_table(fits: &[LengthFit]) -> String {
+    let mut s = String::from(
         "\nHypotheses (fitted on all lengths; held-out = each length predicted from the others):\n",
     );
     s.push_str(&format!(
         "  {:<26} {:>8} {:>9} {:>9} {:>14}  parameters\n",
         "effect", "scale", "chi2", "BIC", "held-out RMS %"
     ));
-    for f in &d.fits {
+    for f in fits {
         let params: Vec<String> = f
             .parameters
             .iter()
@@ -870,47 +885,42 @@ pub fn words(d: &LengthDiagnosis) -> String {
             params.join(", ")
         ));
     }
+    s
+}
+
+/// The named effect with its held-out frequency error against the nominal model, per length.
+fn named_words(d: &LengthDiagnosis) -> String {
     let nominal = &d.fits[0];
-    match d
+    let Some(f) = d
         .fits
         .iter()
         .find(|f| f.effect == d.selected && d.selected != LengthEffect::None)
+    else {
+        return "\nNamed: none — no hypothesis earned its parameters.\n".to_string();
+    };
+    let mut s = format!(
+        "\nNamed: {} — held-out frequency error {:.3} % → {:.3} % ({:.0} % lower).\n",
+        f.effect.id(),
+        nominal.heldout_rms_pct,
+        f.heldout_rms_pct,
+        100.0 * (1.0 - f.heldout_rms_pct / nominal.heldout_rms_pct)
+    );
+    let pct = |e: &Vec<f64>| {
+        e.iter()
+            .map(|v| format!("{v:+.2} %"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    for (l, (e0, e1)) in d
+        .lengths
+        .iter()
+        .zip(nominal.heldout_errors_pct.iter().zip(&f.heldout_errors_pct))
     {
-        Some(f) => {
-            s.push_str(&format!(
-                "\nNamed: {} — held-out frequency error {:.3} % → {:.3} % ({:.0} % lower).\n",
-                f.effect.id(),
-                nominal.heldout_rms_pct,
-                f.heldout_rms_pct,
-                100.0 * (1.0 - f.heldout_rms_pct / nominal.heldout_rms_pct)
-            ));
-            for (l, (e0, e1)) in d
-                .lengths
-                .iter()
-                .zip(nominal.heldout_errors_pct.iter().zip(&f.heldout_errors_pct))
-            {
-                s.push_str(&format!(
-                    "  L = {:.3} m held out: {} → {}\n",
-                    l.length_m,
-                    e0.iter()
-                        .map(|v| format!("{v:+.2} %"))
-                        .collect::<Vec<_>>()
-                        .join(" "),
-                    e1.iter()
-                        .map(|v| format!("{v:+.2} %"))
-                        .collect::<Vec<_>>()
-                        .join(" ")
-                ));
-            }
-        }
-        None => s.push_str("\nNamed: none — no hypothesis earned its parameters.\n"),
-    }
-    s.push_str("Runner-ups:\n");
-    for f in d.fits.iter().skip(1).filter(|f| f.effect != d.selected) {
         s.push_str(&format!(
-            "  {:<26} {}\n",
-            format!("{:?}", f.effect),
-            f.verdict
+            "  L = {:.3} m held out: {} → {}\n",
+            l.length_m,
+            pct(e0),
+            pct(e1)
         ));
     }
     s
@@ -977,6 +987,80 @@ mod tests {
         }
     }
 
+    /// One drawn case of `lengths_proof`: a uniform beam (steel or aluminium, 1–4 mm thick),
+    /// three lengths, its first two clamped frequencies with the hidden effect and noise.
+    struct DrawnSeries {
+        rig: Rig,
+        data: Vec<LengthModes>,
+        h: f64,
+        lengths: [f64; 3],
+        noise: f64,
+    }
+
+    fn draw_series(rng: &mut rand::rngs::StdRng, truth: LengthEffect) -> DrawnSeries {
+        use rand::Rng;
+        let h = rng.gen_range(0.001..0.004);
+        let steel = rng.gen_bool(0.5);
+        let (e, rho) = if steel {
+            (2.0e11, 7850.0)
+        } else {
+            (6.9e10, 2700.0)
+        };
+        let r = Rig::from_toml_str(&format!(
+            "[beam]\nlength_m = 0.5\ndensity_kg_m3 = {rho}\nyoungs_modulus_pa = {e}\n\
+             stations = [ {{ x_m = 0.0, width_m = 0.02, thickness_m = {h} }}, {{ x_m = 0.5, width_m = 0.02, thickness_m = {h} }} ]\n\
+             [base]\nmass_kg = 100.0\n[damping]\nratios = [0.005, 0.005]\n"
+        ))
+        .unwrap();
+        let (ei, rho_a) = section(&r).unwrap();
+        let l0 = rng.gen_range(0.25..0.5);
+        let lengths = [
+            l0,
+            l0 * rng.gen_range(1.15..1.3),
+            l0 * rng.gen_range(1.35..1.7),
+        ];
+        let sensor = rng.gen_range(0.02..0.08);
+        let noise = rng.gen_range(0.0005..0.003);
+        let kr = (truth == LengthEffect::RootCompliance)
+            .then(|| rng.gen_range(5.0..40.0) * ei / lengths[1]);
+        let m = (truth == LengthEffect::TipMass)
+            .then(|| rng.gen_range(0.03..0.15) * rho_a * lengths[1]);
+        let data: Vec<LengthModes> = lengths
+            .iter()
+            .map(|&l| {
+                let o = ModelOptions {
+                    n_modes: 10,
+                    root_stiffness_nm_per_rad: kr,
+                    point_mass: m.map(|m| (l - sensor, m)),
+                    axial_load: match truth {
+                        LengthEffect::GravityHanging => Some(Orientation::Hanging),
+                        LengthEffect::GravityUpright => Some(Orientation::Upright),
+                        _ => None,
+                    },
+                    ..Default::default()
+                };
+                let f = clamped_freqs_hz(&rig_at_length(&r, l).unwrap(), &o).unwrap();
+                let nz = |rng: &mut rand::rngs::StdRng| 1.0 + noise * rng.gen_range(-1.7..1.7);
+                LengthModes {
+                    length_m: l,
+                    sensor_from_tip_m: sensor,
+                    freq_hz: vec![
+                        (f[0] * nz(rng), f[0] * noise),
+                        (f[1] * nz(rng), f[1] * noise),
+                    ],
+                    source: String::new(),
+                }
+            })
+            .collect();
+        DrawnSeries {
+            rig: r,
+            data,
+            h,
+            lengths,
+            noise,
+        }
+    }
+
     /// Series of three lengths drawn at random (geometry, lengths, sensor position, effect
     /// strength, frequency noise 0.05–0.3 %, rig E off by up to ±10 %): the fraction named
     /// correctly. `cargo test --release --lib lengths_proof -- --ignored --nocapture`.
@@ -996,59 +1080,13 @@ mod tests {
         let mut log = String::new();
         for case in 0..30 {
             let truth = effects[case % effects.len()];
-            let h = rng.gen_range(0.001..0.004);
-            let steel = rng.gen_bool(0.5);
-            let (e, rho) = if steel {
-                (2.0e11, 7850.0)
-            } else {
-                (6.9e10, 2700.0)
-            };
-            let r = Rig::from_toml_str(&format!(
-                "[beam]\nlength_m = 0.5\ndensity_kg_m3 = {rho}\nyoungs_modulus_pa = {e}\n\
-                 stations = [ {{ x_m = 0.0, width_m = 0.02, thickness_m = {h} }}, {{ x_m = 0.5, width_m = 0.02, thickness_m = {h} }} ]\n\
-                 [base]\nmass_kg = 100.0\n[damping]\nratios = [0.005, 0.005]\n"
-            ))
-            .unwrap();
-            let (ei, rho_a) = section(&r).unwrap();
-            let l0 = rng.gen_range(0.25..0.5);
-            let lengths = [
-                l0,
-                l0 * rng.gen_range(1.15..1.3),
-                l0 * rng.gen_range(1.35..1.7),
-            ];
-            let sensor = rng.gen_range(0.02..0.08);
-            let noise = rng.gen_range(0.0005..0.003);
-            let kr = (truth == LengthEffect::RootCompliance)
-                .then(|| rng.gen_range(5.0..40.0) * ei / lengths[1]);
-            let m = (truth == LengthEffect::TipMass)
-                .then(|| rng.gen_range(0.03..0.15) * rho_a * lengths[1]);
-            let data: Vec<LengthModes> = lengths
-                .iter()
-                .map(|&l| {
-                    let o = ModelOptions {
-                        n_modes: 10,
-                        root_stiffness_nm_per_rad: kr,
-                        point_mass: m.map(|m| (l - sensor, m)),
-                        axial_load: match truth {
-                            LengthEffect::GravityHanging => Some(Orientation::Hanging),
-                            LengthEffect::GravityUpright => Some(Orientation::Upright),
-                            _ => None,
-                        },
-                        ..Default::default()
-                    };
-                    let f = clamped_freqs_hz(&rig_at_length(&r, l).unwrap(), &o).unwrap();
-                    let nz = |rng: &mut rand::rngs::StdRng| 1.0 + noise * rng.gen_range(-1.7..1.7);
-                    LengthModes {
-                        length_m: l,
-                        sensor_from_tip_m: sensor,
-                        freq_hz: vec![
-                            (f[0] * nz(&mut rng), f[0] * noise),
-                            (f[1] * nz(&mut rng), f[1] * noise),
-                        ],
-                        source: String::new(),
-                    }
-                })
-                .collect();
+            let DrawnSeries {
+                rig: r,
+                data,
+                h,
+                lengths,
+                noise,
+            } = draw_series(&mut rng, truth);
             let mut wrong = r.clone();
             wrong.beam.as_mut().unwrap().youngs_modulus_pa *= rng.gen_range(0.9..1.1);
             let d = diagnose_lengths(&wrong, &data, &LengthOptions::default()).unwrap();

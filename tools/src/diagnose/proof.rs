@@ -978,8 +978,9 @@ mod tests {
         );
     }
 
-    #[test]
-    fn scores_a_hand_made_table() {
+    /// 13 hand-made rows: singles, pairs (exact, missing one, one extra), nulls and
+    /// out-of-catalogue cases, with estimates at z = 0.5, 1.5, 3 (tip mass) and 1, 4 (friction).
+    fn hand_made_rows() -> Vec<ProofRow> {
         let mut rows = vec![
             row("tip_mass", Group::Single, "tip_mass", false, true),
             row("sensor_delay", Group::Single, "servo_lag", false, false),
@@ -1040,6 +1041,12 @@ mod tests {
             est("tip_mass_kg", 1.0, 1.15, Some(0.1)),
             est("tip_mass_kg", 1.0, 0.7, Some(0.1)),
         ];
+        rows
+    }
+
+    #[test]
+    fn scores_a_hand_made_table() {
+        let rows = hand_made_rows();
         let s = score(&rows);
         assert_eq!(s.cases, 13);
         assert_eq!(s.singles, (2, 4));
@@ -1067,6 +1074,11 @@ mod tests {
         assert!((all.z_scale - 1.5 / 0.6745).abs() < 1e-9);
         assert_eq!(s.coverage_cases, 3);
         assert!(s.errors.is_empty());
+    }
+
+    #[test]
+    fn an_error_is_wrong_and_the_confusion_table_counts_pairs() {
+        let rows = hand_made_rows();
         // an error is wrong, never a named effect (not a false alarm on a null)
         let mut e = row("none", Group::Null, "error", false, false);
         e.error = Some("panic: x".into());
