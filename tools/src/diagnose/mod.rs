@@ -75,6 +75,23 @@ pub struct CandidateOutcome {
     pub reason: String,
     /// Validation predictions.
     pub val_pred: Prediction,
+    /// Why a resonance that passes every other guard cannot be placed where the candidate puts
+    /// it (a mount that a loose tip sensor explains as well; [`select`] condition 8), if so.
+    pub unplaced: Option<String>,
+}
+
+impl CandidateOutcome {
+    /// Fails the outcome when [`CandidateOutcome::unplaced`] says so.
+    pub(crate) fn apply_placement(&mut self) {
+        if let Some(why) = &self.unplaced {
+            if self.passed {
+                self.passed = false;
+                self.reason = why.clone();
+            } else if !self.reason.contains(why.as_str()) {
+                self.reason = format!("{}; {why}", self.reason);
+            }
+        }
+    }
 }
 
 /// The diagnosis.
