@@ -552,6 +552,18 @@ fn measure_final(
         set,
         &mut reference.fit,
     ));
+    if !set.is_empty() {
+        let share = budget.share(3);
+        budget.spend(honesty::add_basis_std(
+            rig,
+            fit_data,
+            sigma,
+            calib,
+            set,
+            &mut reference.fit,
+            share,
+        ));
+    }
     let (stability, used) = honesty::stability(
         rig,
         fit_data,
