@@ -909,3 +909,36 @@ fn n_of(data: &[Prepared]) -> [usize; 3] {
     }
     n
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::effects::servo_candidate;
+    use nalgebra::DVector;
+
+    /// A fit of `cand` with effect values `values` (no calibration parameters).
+    fn fitted(cand: &Candidate, values: &[f64]) -> FitResult {
+        FitResult {
+            x: DVector::from_iterator(
+                values.len(),
+                cand.params.iter().zip(values).map(|(d, v)| d.repr(*v)),
+            ),
+            values: values.to_vec(),
+            std: vec![0.01; values.len()],
+            names: cand.params.iter().map(|d| d.name).collect(),
+            cost: 0.0,
+            evaluations: 0,
+            trace: vec![],
+        }
+    }
+
+    #[test]
+    fn a_loop_slower_than_the_recording_is_not_a_position_loop() {
+        // order 1: bandwidth, velocity feed-forward; 30 s recordings resolve 1/30 Hz
+        let c = servo_candidate(1, 100.0);
+        let slow = fitted(&c, &[1e-6, 0.96]);
+        assert_eq!(implausible(&c, &slow, 0, 1.0 / 30.0).len(), 1);
+        let real = fitted(&c, &[5.0, 0.96]);
+        assert!(implausible(&c, &real, 0, 1.0 / 30.0).is_empty());
+    }
+}
