@@ -307,7 +307,7 @@ fn coupled_servo(
     let Some(phi) = root_transition(&mut acc_row, m_eff, c, dt) else {
         return vec![f64::NAN; n];
     };
-    let mut zv = nalgebra::DVector::<f64>::zeros(dim);
+    let (mut zv, mut tmp) = (vec![0.0; dim], vec![0.0; dim]);
     zv[0] = r[0];
     let mut y = Vec::with_capacity(n);
     let mut v_prev = 0.0;
@@ -327,7 +327,7 @@ fn coupled_servo(
         v_prev = v;
         zv[ri] = r[k];
         zv[vi] = v;
-        zv = &phi * &zv;
+        advance(&phi, &mut zv, &mut tmp);
         if !zv[0].is_finite() {
             y.extend(std::iter::repeat(f64::NAN).take(n - y.len()));
             break;
@@ -388,6 +388,22 @@ fn root_generator(
     }
     a[(dim - 2, dim - 1)] = 1.0;
     a
+}
+
+/// One interval of a sampled state-space model: `z ← Φ z` (Φ `dim × dim`, `z` and the scratch
+/// `tmp` of length `dim`), without allocating. The sums run column by column as nalgebra's
+/// matrix–vector product does, so the result is the same to the bit.
+fn advance(phi: &nalgebra::DMatrix<f64>, z: &mut [f64], tmp: &mut [f64]) {
+    let dim = z.len();
+    let a = phi.as_slice();
+    tmp.iter_mut().for_each(|v| *v = 0.0);
+    for (j, &zj) in z.iter().enumerate() {
+        let col = &a[j * dim..(j + 1) * dim];
+        for (t, c) in tmp.iter_mut().zip(col) {
+            *t += c * zj;
+        }
+    }
+    z.copy_from_slice(tmp);
 }
 
 /// exp(A·dt), or `None` for a generator far outside the band (largest element of A dt ≥
@@ -475,7 +491,7 @@ impl ServoLaw {
         let dim = phi.nrows();
         let (fi, ri, vi) = (3 + 2 * nm, dim - 2, dim - 1);
         let gamma: &[f64] = c.map_or(&[], |c| &c.gamma);
-        let mut zv = nalgebra::DVector::<f64>::zeros(dim);
+        let (mut zv, mut tmp) = (vec![0.0; dim], vec![0.0; dim]);
         zv[0] = r[0];
         let mut y = Vec::with_capacity(n);
         let mut v_prev = 0.0;
@@ -500,7 +516,7 @@ impl ServoLaw {
             v_prev = v;
             zv[ri] = r[k];
             zv[vi] = v;
-            zv = &phi * &zv;
+            advance(&phi, &mut zv, &mut tmp);
             if !zv[0].is_finite() {
                 y.extend(std::iter::repeat(f64::NAN).take(n - y.len()));
                 break;
@@ -613,7 +629,7 @@ fn coupled_mount(y: &[f64], dt: f64, omega: f64, zeta: f64, m_m: f64, c: &BeamCa
     let Some(phi) = root_transition(&mut acc_row, m_eff, c, dt) else {
         return vec![f64::NAN; n];
     };
-    let mut zv = nalgebra::DVector::<f64>::zeros(dim);
+    let (mut zv, mut tmp) = (vec![0.0; dim], vec![0.0; dim]);
     zv[0] = y[0];
     let mut out = Vec::with_capacity(n);
     for kk in 0..n {
@@ -625,7 +641,7 @@ fn coupled_mount(y: &[f64], dt: f64, omega: f64, zeta: f64, m_m: f64, c: &BeamCa
         };
         zv[yi] = y[kk];
         zv[vi] = v;
-        zv = &phi * &zv;
+        advance(&phi, &mut zv, &mut tmp);
         if !zv[0].is_finite() {
             out.extend(std::iter::repeat(f64::NAN).take(n - out.len()));
             break;
