@@ -201,8 +201,12 @@ pub struct Prepared {
     pub dt: f64,
     /// Time (s).
     pub time_s: Vec<f64>,
-    /// Base command (m).
+    /// Base command (m), as the model's input (at a working rate below the recording's,
+    /// emphasised against its piecewise-linear interpolation, [`super::rate`]).
     pub cmd_m: Vec<f64>,
+    /// The command as recorded (filtered, not emphasised) when `cmd_m` is emphasised: the
+    /// predicted base of a model without a servo loop; `None` = `cmd_m`.
+    pub cmd_identity_m: Option<Vec<f64>>,
     /// Measured base position (m), if recorded *and* a command exists.
     pub base_m: Option<Vec<f64>>,
     /// Measured base used to drive the beam (= `base_m`, or the base when it is the only one).
@@ -231,6 +235,7 @@ impl Prepared {
             dt: rec.sample_interval_s(),
             time_s: rec.time_s.clone(),
             cmd_m: cmd,
+            cmd_identity_m: None,
             base_m: base,
             drive_m: drive,
             tip_m: rec.tip_pos_m.clone(),
@@ -849,12 +854,16 @@ pub fn predict(
     };
     // 1. servo; without a measured base the carriage is pushed back by the beam it carries,
     // so the loop is simulated coupled to the beam modes
-    let y_servo = match ServoLaw::of(p) {
+    let law = ServoLaw::of(p);
+    let y_servo = match &law {
         Some(law) => law.respond(&d.cmd_m, dt, if d.drive_m.is_none() { c } else { None }),
         None => d.cmd_m.clone(),
     };
     if d.base_m.is_some() {
-        out.base_m = Some(y_servo.clone());
+        out.base_m = Some(match (&law, &d.cmd_identity_m) {
+            (None, Some(cmd)) => cmd.clone(),
+            _ => y_servo.clone(),
+        });
     }
     // 2. drive: the measured base when recorded
     let drive: &[f64] = d.drive_m.as_deref().unwrap_or(&y_servo);
