@@ -629,6 +629,34 @@ pub fn mount_candidate(h: &StartHints, coupled: bool) -> Candidate {
     }
 }
 
+/// The alternative placement of a mount resonance (`mount`, either form): the same frequency
+/// and damping ratio as a resonance between the tip and its sensor (a loose sensor mount,
+/// [`super::sim::Params::tip_filter`]). On `tip_pos_m` it is the same linear filter as a
+/// massless mount (filters in series commute); only the channels that see the beam root move
+/// (`force_n`) tell the two apart. Not a catalogue effect: the yardstick of the mount's
+/// placement test.
+pub fn sensor_side_of(mount: &Candidate) -> Candidate {
+    let mut params: Vec<ParamDef> = mount
+        .params
+        .iter()
+        .filter(|q| q.name != "mount_mass_kg")
+        .cloned()
+        .collect();
+    for q in params.iter_mut() {
+        q.name = match q.name {
+            "mount_frequency_hz" => "sensor_mount_frequency_hz",
+            "mount_damping_ratio" => "sensor_mount_damping_ratio",
+            n => n,
+        };
+    }
+    Candidate {
+        id: Effect::MountResonance,
+        words: "a resonance between the tip and its sensor (a loose sensor mount)",
+        orientation: None,
+        params,
+    }
+}
+
 /// Applies a candidate's effect values (physical units, in `cand.params` order).
 pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
     if cand.orientation.is_some() {
@@ -688,6 +716,14 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
             p.root_stiffness_nm_per_rad = kr;
             p.cubic_root_stiffness_nm_per_rad3 =
                 get("cubic_root_compliance_rad_per_nm3").unwrap_or(0.0) * kr.unwrap_or(0.0).powi(4);
+        }
+        Effect::MountResonance if get("sensor_mount_frequency_hz").is_some() => {
+            p.tip_filter = Some((
+                get("sensor_mount_frequency_hz").unwrap_or(100.0),
+                get("sensor_mount_damping_ratio")
+                    .unwrap_or(0.05)
+                    .clamp(0.005, 2.0),
+            ))
         }
         Effect::MountResonance => {
             p.mount_mass_kg = get("mount_mass_kg").unwrap_or(0.0);

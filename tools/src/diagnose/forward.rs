@@ -254,7 +254,15 @@ impl Ctx<'_> {
             explore,
         );
         let r = self.reference(set, f)?;
-        Some(self.assess(set, ci, r, base))
+        let mut o = self.assess(set, ci, r, base);
+        if o.passed {
+            if let Some(why) = self.placement(set, &o, max_evaluations / 2) {
+                o.fit.evaluations += why.1;
+                o.unplaced = why.0;
+            }
+            o.apply_placement();
+        }
+        Some(o)
     }
 
     /// Applies every guard ([`select::guard`] and the calibration-matter rules) to candidate
@@ -300,7 +308,7 @@ impl Ctx<'_> {
                 base.vres[best_channel].as_deref(),
                 r.vres[best_channel].as_deref(),
             ),
-            implausible: implausible(cand, &f, off),
+            implausible: implausible(cand, &f, off, self.lowest_resolved_hz()),
         });
         if !(whiteness.0 > LJUNG_BOX_CRITICAL) {
             fails.push(format!(
@@ -333,7 +341,88 @@ impl Ctx<'_> {
             val_pred: r.vpred,
             fit: f,
             allowance,
+            unplaced: None,
         }
+    }
+
+    /// The lowest frequency (Hz) every fit recording resolves: 1 / the shortest one's duration.
+    pub(crate) fn lowest_resolved_hz(&self) -> f64 {
+        self.fit_data
+            .iter()
+            .map(|d| 1.0 / (d.cmd_m.len().max(1) as f64 * d.dt))
+            .fold(0.0, f64::max)
+    }
+
+    /// Where a mount resonance sits (condition 8 of [`super::select`]). A massless mount
+    /// filters the root motion; on `tip_pos_m` that is the same linear filter as a resonance
+    /// between the tip and its sensor (a loose sensor mount: filters in series commute), and
+    /// neither changes `base_pos_m` (the measured base drives the model). Only the channels that
+    /// see the beam root move differently from the carriage (`force_n`: the beam's and a mount
+    /// mass's reaction) can tell them apart. The mount candidate `o` (last of `set`) is named
+    /// only if it beats that alternative placement ([`super::effects::sensor_side_of`], fitted
+    /// with the calibration and the effects before it, warm from the mount's optimum) by the
+    /// guard's own margins: Δ(−2 ln L) on the fit recordings (+ ln N per extra parameter of the
+    /// coupled form) < −[`BIC_MARGIN`] and on the validation recording < −[`VALIDATION_MARGIN`].
+    /// Returns the reason it is not placed (`None`: placed) and the model evaluations used;
+    /// `None` for any other candidate.
+    fn placement(
+        &self,
+        set: &[&Candidate],
+        o: &CandidateOutcome,
+        max_evaluations: usize,
+    ) -> Option<(Option<String>, usize)> {
+        let cand = *set.last()?;
+        if cand.id != crate::effect::Effect::MountResonance {
+            return None;
+        }
+        let alt = super::effects::sensor_side_of(cand);
+        let alt_set: Vec<&Candidate> = set[..set.len() - 1]
+            .iter()
+            .copied()
+            .chain(std::iter::once(&alt))
+            .collect();
+        let n = o.param_offset + alt.params.len();
+        let warm = o.fit.x.rows(0, n).into_owned();
+        let g = fit(
+            self.rig,
+            self.fit_data,
+            self.sigma,
+            self.calib,
+            &alt_set,
+            Some(&warm),
+            max_evaluations,
+            false,
+        );
+        let used = g.evaluations;
+        let Some(ra) = self.reference(&alt_set, g) else {
+            return Some((None, used));
+        };
+        let mount = self.reference(set, o.fit.clone())?;
+        let n_fit = n_of(self.fit_data);
+        let n_eff: f64 = (0..3).map(|c| n_fit[c] as f64 / ra.tau_fit[c]).sum();
+        let extra = (cand.params.len() - alt.params.len()) as f64;
+        let fit_gain = delta_neg2ll_effective(&mount.rss, &ra.rss, &n_fit, &ra.tau_fit)
+            + extra * n_eff.max(1.0).ln();
+        let val_gain = delta_neg2ll_effective(&mount.vrss, &ra.vrss, &ra.vn, &ra.tau_val);
+        self.trace(format!(
+            "placement of {}: against the same resonance at the tip sensor Δ(−2lnL) {fit_gain:+.1} fit, {val_gain:+.1} validation",
+            cand.id
+        ));
+        if fit_gain < -BIC_MARGIN && val_gain < -VALIDATION_MARGIN {
+            return Some((None, used));
+        }
+        let fm = ra
+            .fit
+            .values
+            .get(o.param_offset)
+            .copied()
+            .unwrap_or(f64::NAN);
+        Some((
+            Some(format!(
+                "placement: the same resonance between the tip and its sensor (a loose sensor mount, {fm:.2} Hz) explains the recordings as well (mount against it: Δ(−2lnL) {fit_gain:+.1} fit, {val_gain:+.1} validation): they cannot place it between carriage and beam root"
+            )),
+            used,
+        ))
     }
 
     /// The calibration-matter rules: a resonance (mount, or a lightly damped servo loop) at one
@@ -586,7 +675,10 @@ fn backward_check(
                 .chain(std::iter::once(&cands[o.cand_index]))
                 .collect();
             if let Some(r) = ctx.reference(&set, o.fit.clone()) {
+                let unplaced = o.unplaced.take();
                 *o = ctx.assess(&set, o.cand_index, r, reference);
+                o.unplaced = unplaced;
+                o.apply_placement();
             }
         }
         outs.sort_by(|a, b| a.delta_val.total_cmp(&b.delta_val));
@@ -763,9 +855,30 @@ pub(crate) fn structure_explained(before: Option<&[f64]>, after: Option<&[f64]>)
     Some(1.0 - sa / sb)
 }
 
-/// Parameters that sign- or range-limited physics forbids ([`super::select`] condition 7).
-fn implausible(cand: &Candidate, f: &FitResult, off: usize) -> Vec<String> {
+/// Parameters that sign- or range-limited physics forbids ([`super::select`] condition 7);
+/// `lowest_resolved_hz` is the lowest frequency the fit recordings resolve (1 / duration): a
+/// position loop slower than that never brings the carriage to its command within a recording
+/// (as its bandwidth → 0 the loop becomes a constant gain on the command, k_v or k_a): it is
+/// not a position loop.
+fn implausible(
+    cand: &Candidate,
+    f: &FitResult,
+    off: usize,
+    lowest_resolved_hz: f64,
+) -> Vec<String> {
     let mut out = Vec::new();
+    if let Some(i) = cand
+        .params
+        .iter()
+        .position(|p| p.name == "servo_bandwidth_hz")
+    {
+        let fb = f.values[off + i];
+        if !(fb >= lowest_resolved_hz) {
+            out.push(format!(
+                "servo_bandwidth_hz = {fb:.2e} below the lowest frequency the recordings resolve ({lowest_resolved_hz:.3} Hz): the carriage would never reach its command, a gain on the command, not a position loop"
+            ));
+        }
+    }
     for (i, p) in cand.params.iter().enumerate() {
         let (v, sd, x) = (f.values[off + i], f.std[off + i], f.x[off + i]);
         let sd = if sd.is_finite() { sd } else { 0.0 };
@@ -836,4 +949,37 @@ fn n_of(data: &[Prepared]) -> [usize; 3] {
         }
     }
     n
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::effects::servo_candidate;
+    use nalgebra::DVector;
+
+    /// A fit of `cand` with effect values `values` (no calibration parameters).
+    fn fitted(cand: &Candidate, values: &[f64]) -> FitResult {
+        FitResult {
+            x: DVector::from_iterator(
+                values.len(),
+                cand.params.iter().zip(values).map(|(d, v)| d.repr(*v)),
+            ),
+            values: values.to_vec(),
+            std: vec![0.01; values.len()],
+            names: cand.params.iter().map(|d| d.name).collect(),
+            cost: 0.0,
+            evaluations: 0,
+            trace: vec![],
+        }
+    }
+
+    #[test]
+    fn a_loop_slower_than_the_recording_is_not_a_position_loop() {
+        // order 1: bandwidth, velocity feed-forward; 30 s recordings resolve 1/30 Hz
+        let c = servo_candidate(1, 100.0);
+        let slow = fitted(&c, &[1e-6, 0.96]);
+        assert_eq!(implausible(&c, &slow, 0, 1.0 / 30.0).len(), 1);
+        let real = fitted(&c, &[5.0, 0.96]);
+        assert!(implausible(&c, &real, 0, 1.0 / 30.0).is_empty());
+    }
 }

@@ -76,6 +76,23 @@ pub struct CandidateOutcome {
     pub reason: String,
     /// Validation predictions.
     pub val_pred: Prediction,
+    /// Why a resonance that passes every other guard cannot be placed where the candidate puts
+    /// it (a mount that a loose tip sensor explains as well; [`select`] condition 8), if so.
+    pub unplaced: Option<String>,
+}
+
+impl CandidateOutcome {
+    /// Fails the outcome when [`CandidateOutcome::unplaced`] says so.
+    pub(crate) fn apply_placement(&mut self) {
+        if let Some(why) = &self.unplaced {
+            if self.passed {
+                self.passed = false;
+                self.reason = why.clone();
+            } else if !self.reason.contains(why.as_str()) {
+                self.reason = format!("{}; {why}", self.reason);
+            }
+        }
+    }
 }
 
 /// The diagnosis.
@@ -548,6 +565,18 @@ fn measure_final(
         set,
         &mut reference.fit,
     ));
+    if !set.is_empty() {
+        let share = budget.share(3);
+        budget.spend(honesty::add_basis_std(
+            rig,
+            fit_data,
+            sigma,
+            calib,
+            set,
+            &mut reference.fit,
+            share,
+        ));
+    }
     let (stability, used) = honesty::stability(
         rig,
         fit_data,

@@ -38,7 +38,16 @@
 //!    limit by more than 2 σ (a negative sensor delay — the sensor reporting before the motion —,
 //!    or negative Coulomb friction), and no parameter sits at a search limit of
 //!    its range (within 1 % of a bound of a bounded parameter, except a bound at 0, which means
-//!    "absent"): there the fit did not find the effect, it ran out of room.
+//!    "absent"): there the fit did not find the effect, it ran out of room; and no position loop
+//!    is slower than the lowest frequency the fit recordings resolve (1 / duration): as its
+//!    bandwidth → 0 a loop becomes a constant gain on the command, which is not a loop (a
+//!    tip-sensor scale error looked like one);
+//! 8. **placed** (recordings, `mount_resonance`): the mount must beat the same resonance placed
+//!    between the tip and its sensor (fitted likewise) by the margins of conditions 1–2: on
+//!    `tip_pos_m` a massless mount and a loose tip sensor are the same linear filter (filters in
+//!    series commute) and neither changes `base_pos_m`; only `force_n` sees the beam root move.
+//!    Without that evidence the recordings cannot place the resonance and it is reported
+//!    unexplained, not named.
 //!
 //! Among those, the largest validation likelihood gain wins; if none passes, the answer is
 //! `none`. In `diagnose` forward selection applies the guard once per round against the model

@@ -83,6 +83,10 @@ pub struct Params {
     pub mount: Option<(f64, f64)>,
     /// Mount (beam-side) mass (kg), part of the carriage mass; 0 = a massless filter.
     pub mount_mass_kg: f64,
+    /// A resonance between the tip and its sensor (Hz, damping ratio): the reported position s
+    /// follows the absolute tip x as `s̈ + 2ζω ṡ + ω² s = ω² x + 2ζω ẋ` (a loose sensor mount;
+    /// not a catalogue effect: the alternative placement a mount resonance is tested against).
+    pub tip_filter: Option<(f64, f64)>,
     /// Cogging: sine and cosine amplitudes (N) and pitch (m).
     pub cogging: Option<(f64, f64, f64)>,
     /// Latency of the force channel (s, calibration: drives that average or filter the
@@ -118,6 +122,7 @@ impl Default for Params {
             orientation: None,
             mount: None,
             mount_mass_kg: 0.0,
+            tip_filter: None,
             cogging: None,
             force_delay_s: 0.0,
             backlash_m: 0.0,
@@ -1056,6 +1061,10 @@ fn drag_impulses(
 /// by its gain.
 fn tip_sensor(p: &Params, root: &[f64], w: &[f64], dt: f64) -> Vec<f64> {
     let tip: Vec<f64> = root.iter().zip(w).map(|(y, w)| y + w).collect();
+    let tip = match p.tip_filter {
+        Some((f, z)) => second_order(&tip, dt, 2.0 * std::f64::consts::PI * f, z, 0.0, 1.0),
+        None => tip,
+    };
     let tip = if p.sensor_delay_s != 0.0 {
         delayed(&tip, p.sensor_delay_s, dt)
     } else {

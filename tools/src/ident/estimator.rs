@@ -13,7 +13,7 @@ use super::lsce::{impulse_response, lsce_poles};
 use super::lscf::lscf_poles_sk;
 use super::peak::pick_peaks;
 use super::pipeline::{refine_estimates, IdentOptions, Method, MethodResult};
-use super::stabilisation::{diagram, StableMode};
+use super::stabilisation::{diagram, Diagram, StableMode};
 use super::ModeEstimate;
 use crate::progress::Progress;
 use anyhow::Result;
@@ -90,6 +90,16 @@ fn keep_best(modes: Vec<StableMode>, n: Option<usize>, band: (f64, f64)) -> Vec<
     modes
 }
 
+/// A stabilisation-diagram method's result: the diagram's best stable modes in the band.
+fn from_diagram(method: Method, name: &str, d: Diagram, cx: &FrfContext) -> MethodResult {
+    let modes = keep_best(d.modes.clone(), cx.opts.n_modes, cx.band_hz);
+    MethodResult {
+        method,
+        modes: to_estimates(&modes, name),
+        diagram: Some(d),
+    }
+}
+
 /// Least-squares complex frequency domain ([`super::lscf`]), Sanathanan–Koerner iterated,
 /// orders 2..=max(max_order, 4), the window's decay removed from every pole.
 pub struct Lscf;
@@ -117,12 +127,7 @@ impl FrfEstimator for Lscf {
                 .collect())
         };
         let d = diagram("LSCF", orders, &o.criteria, poles, progress)?;
-        let modes = keep_best(d.modes.clone(), o.n_modes, cx.band_hz);
-        Ok(MethodResult {
-            method: Method::Lscf,
-            modes: to_estimates(&modes, "lscf"),
-            diagram: Some(d),
-        })
+        Ok(from_diagram(Method::Lscf, "lscf", d, cx))
     }
 }
 
@@ -150,12 +155,7 @@ impl FrfEstimator for Lsce {
         let sigma_w = frf.window_decay_s;
         let poles = |n| lsce_poles(&irf, n, skip_s, len_s, f_lo, f_hi, o.zeta_max, sigma_w);
         let d = diagram("LSCE", orders, &o.criteria, poles, progress)?;
-        let modes = keep_best(d.modes.clone(), o.n_modes, cx.band_hz);
-        Ok(MethodResult {
-            method: Method::Lsce,
-            modes: to_estimates(&modes, "lsce"),
-            diagram: Some(d),
-        })
+        Ok(from_diagram(Method::Lsce, "lsce", d, cx))
     }
 }
 

@@ -1,0 +1,134 @@
+//! Where a found filter sits on the command → tip path, and what is not a position loop:
+//! - a massless mount (a filter of the root motion) and a loose tip sensor (the same filter on
+//!   the reported tip) give the same `tip_pos_m` and differ only in `force_n`, so a loose tip
+//!   sensor is not named `mount_resonance` (the placement test of `diagnose::forward`);
+//! - a "position loop" slower than the recordings resolve is a constant gain on the command:
+//!   a tip-sensor scale error is named `sensor_gain`, not `servo_lag`.
+
+use beamtools::diagnose::diagnose;
+use beamtools::diagnose::report::to_json;
+use beamtools::diagnose::sim::{predict, Params, Prepared};
+use beamtools::model::Rig;
+use beamtools::truth::unmodelled::Unmodelled;
+use beamtools::truth::{generate, TruthOptions};
+
+fn rig() -> Rig {
+    Rig::from_toml_str(
+        "[beam]\nlength_m = 0.9\ndensity_kg_m3 = 8190.0\nyoungs_modulus_pa = 1.9e11\nstations = [ { x_m = 0.0, width_m = 0.025, thickness_m = 0.00115 }, { x_m = 0.9, width_m = 0.025, thickness_m = 0.00115 } ]\n[base]\nmass_kg = 2.5\n",
+    )
+    .unwrap()
+}
+
+fn move_recording(rate: f64) -> Prepared {
+    let (y, _) = beamtools::model::trapezoid_reference(0.0, 0.05, 0.2, 2.0, rate, 5.0).unwrap();
+    let mut r = beamtools::recording::Recording::with_uniform_time(y.len(), rate);
+    r.base_cmd_m = Some(y.clone());
+    r.tip_pos_m = Some(y.clone());
+    r.force_n = Some(vec![0.0; y.len()]);
+    Prepared::new("move", &r).unwrap()
+}
+
+#[test]
+fn a_massless_mount_and_a_loose_tip_sensor_differ_only_in_the_force() {
+    let (rig, d) = (rig(), move_recording(200.0));
+    let at_root = Params {
+        mount: Some((9.0, 0.05)),
+        ..Default::default()
+    };
+    let at_sensor = Params {
+        tip_filter: Some((9.0, 0.05)),
+        ..Default::default()
+    };
+    let a = predict(&rig, &at_root, &d, &mut None).unwrap();
+    let b = predict(&rig, &at_sensor, &d, &mut None).unwrap();
+    let nominal = predict(&rig, &Params::default(), &d, &mut None).unwrap();
+    let (ta, tb, tn) = (a.tip_m.unwrap(), b.tip_m.unwrap(), nominal.tip_m.unwrap());
+    let max_diff = |x: &[f64], y: &[f64]| {
+        x.iter()
+            .zip(y)
+            .map(|(p, q)| (p - q).abs())
+            .fold(0.0, f64::max)
+    };
+    let filtered = max_diff(&ta, &tn);
+    assert!(filtered > 1e-4, "the filter changes the tip ({filtered})");
+    // filters in series commute: the same tip to a part in a million of what the filter does
+    assert!(
+        max_diff(&ta, &tb) < 1e-6 * filtered,
+        "{}",
+        max_diff(&ta, &tb)
+    );
+    // the force channel sees the root move through the mount, not through the sensor
+    let (fa, fb, fnom) = (
+        a.force_n.unwrap(),
+        b.force_n.unwrap(),
+        nominal.force_n.unwrap(),
+    );
+    assert!(
+        max_diff(&fb, &fnom) < 1e-12,
+        "a sensor does not push the carriage"
+    );
+    assert!(max_diff(&fa, &fnom) > 1e-3, "{}", max_diff(&fa, &fnom));
+}
+
+/// Generates `effect` (or physics outside the catalogue) at `seed` with 30 s recordings at
+/// `rate_hz`, the channels forced as given, and diagnoses it: (named effects, unexplained).
+fn diagnose_case(
+    effect: &str,
+    seed: u64,
+    rate_hz: f64,
+    unmodelled: Option<Unmodelled>,
+    base_pos: Option<bool>,
+    force: Option<bool>,
+) -> (Vec<String>, serde_json::Value) {
+    let case = generate(
+        effect,
+        seed,
+        &TruthOptions {
+            duration_s: 30.0,
+            rate_hz,
+            unmodelled,
+            base_pos,
+            force,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let rig = Rig::from_toml_str(&case.rig_toml).unwrap();
+    let fit: Vec<Prepared> = case
+        .fit
+        .iter()
+        .map(|r| Prepared::new("fit", r).unwrap())
+        .collect();
+    let val = Prepared::new("validate", &case.validate).unwrap();
+    let d = diagnose(&rig, &fit, &val, &mut beamtools::progress::Silent).unwrap();
+    let j = to_json(&d);
+    let named = j["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["effect"].as_str().unwrap().to_string())
+        .collect();
+    (named, j["unexplained"].clone())
+}
+
+#[test]
+fn a_loose_tip_sensor_is_not_named_a_mount() {
+    // tip and force recorded, no base_pos_m: the resonance is on the tip alone
+    let (named, unexplained) = diagnose_case(
+        "none",
+        55011,
+        100.0,
+        Some(Unmodelled::LooseSensorMount),
+        Some(false),
+        None,
+    );
+    assert!(!named.contains(&"mount_resonance".to_string()), "{named:?}");
+    assert_eq!(unexplained["channel"], "tip_pos_m", "{unexplained}");
+}
+
+#[test]
+fn a_tip_sensor_scale_error_is_not_a_frozen_position_loop() {
+    // tip only, 250 Hz: an order-1 "loop" of bandwidth → 0 would report k_v = the gain
+    let (named, _) = diagnose_case("sensor_gain", 52900, 250.0, None, None, Some(false));
+    assert_eq!(named, ["sensor_gain"], "{named:?}");
+}
