@@ -132,3 +132,16 @@ fn a_tip_sensor_scale_error_is_not_a_frozen_position_loop() {
     let (named, _) = diagnose_case("sensor_gain", 52900, 250.0, None, None, Some(false));
     assert_eq!(named, ["sensor_gain"], "{named:?}");
 }
+
+#[test]
+fn an_unresolvably_fast_mode_is_static_and_does_not_hang() {
+    use beamtools::model::sim::mode_zoh;
+    // a fitted frequency overflowed to infinity (or far beyond the sample rate) returns at once
+    for w in [f64::INFINITY, 1e300, f64::NAN] {
+        let (phi, gam) = mode_zoh(w, 0.05, 0.01);
+        assert_eq!((phi.norm(), gam.norm()), (0.0, 0.0));
+    }
+    // a resolvable mode is unchanged: one step of an undamped mode at ω dt = 0.1
+    let (phi, _) = mode_zoh(10.0, 0.0, 0.01);
+    assert!((phi[(0, 0)] - 0.1f64.cos()).abs() < 1e-12);
+}

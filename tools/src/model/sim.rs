@@ -18,6 +18,13 @@ use nalgebra::{DVector, Matrix2, Matrix3, Vector2};
 /// Exact discretisation of `ẍ + 2ζω ẋ + ω² x = f` over `dt`: the free propagator Φ (2×2) and
 /// the zero-order-hold input vector Γ (response to a unit f held for dt).
 pub fn mode_zoh(omega: f64, zeta: f64, dt: f64) -> (Matrix2<f64>, Vector2<f64>) {
+    // a mode too fast (or not finite) to resolve: its state has decayed within the step (the
+    // static limit). Also keeps the matrix exponential finite: its scaling-and-squaring count
+    // grows with log2 of the norm, without end for an infinite one (a fitted frequency in a log
+    // representation can overflow).
+    if !(omega * dt * (1.0 + 2.0 * zeta.abs()) < 1e6) {
+        return (Matrix2::zeros(), Vector2::zeros());
+    }
     let a = Matrix3::new(
         0.0,
         1.0,
