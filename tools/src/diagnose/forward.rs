@@ -445,9 +445,17 @@ impl Ctx<'_> {
             if zs < 0.3 {
                 let tol = 2.0 * sd(i) + zs * fs;
                 if let Some(fr) = self.model_freqs.iter().find(|fr| (fs - **fr).abs() <= tol) {
-                    fails.push(format!(
-                        "a resonant servo loop (ζ {zs:.2}) at {fs:.2} Hz coincides with the model's own mode at {fr:.2} Hz: a calibration matter"
-                    ));
+                    fails.push(if identified(fs, f.std[off + i]) {
+                        format!(
+                            "a resonant servo loop (ζ {zs:.2}) at {fs:.2} Hz coincides with the model's own mode at {fr:.2} Hz: a calibration matter"
+                        )
+                    } else {
+                        format!(
+                            "servo bandwidth not identified (fitted {}, 1 σ {}): a resonant loop (ζ {zs:.2}) the recordings cannot place",
+                            hz_text(fs),
+                            hz_text(f.std[off + i])
+                        )
+                    });
                 }
             }
         }
@@ -457,20 +465,53 @@ impl Ctx<'_> {
             let fm = f.values[off + i];
             let zm = pos("mount_damping_ratio").map_or(0.05, |j| f.values[off + j]);
             let tol = 2.0 * sd(i) + zm.min(0.1) * fm;
-            if let Some(fr) = self.model_freqs.iter().find(|fr| (fm - **fr).abs() <= tol) {
-                fails.push(format!(
-                    "mount frequency {fm:.2} Hz coincides with the model's own mode at {fr:.2} Hz (within {tol:.2} Hz): a calibration matter, not a new resonance"
-                ));
-            }
             // the recording holds no information at the ceiling (0.4 × the sample rate)
             let ceiling = cand.params[i].starts.iter().cloned().fold(0.0, f64::max);
-            if fm >= 0.95 * ceiling {
-                fails.push(format!(
-                    "mount frequency {fm:.1} Hz at the edge of the observable band ({ceiling:.1} Hz): not identified"
-                ));
+            let at_edge = fm >= 0.95 * ceiling;
+            if let Some(fr) = self.model_freqs.iter().find(|fr| (fm - **fr).abs() <= tol) {
+                if !identified(fm, f.std[off + i]) {
+                    fails.push(format!(
+                        "mount frequency not identified (fitted {}, 1 σ {}): the recordings cannot place it",
+                        hz_text(fm),
+                        hz_text(f.std[off + i])
+                    ));
+                } else if !at_edge {
+                    fails.push(format!(
+                        "mount frequency {fm:.2} Hz coincides with the model's own mode at {fr:.2} Hz (within {tol:.2} Hz): a calibration matter, not a new resonance"
+                    ));
+                }
+            }
+            if at_edge {
+                fails.push(if fm <= ceiling {
+                    format!(
+                        "mount frequency {fm:.1} Hz at the edge of the observable band ({ceiling:.1} Hz): not identified"
+                    )
+                } else {
+                    format!(
+                        "mount frequency fitted beyond the observable band (above {ceiling:.1} Hz): not identified"
+                    )
+                });
             }
         }
         fails
+    }
+}
+
+/// Whether a fitted frequency `f` (Hz) with 1 σ `sd` is identified: finite and its 2 σ
+/// interval excludes zero (a relative uncertainty below 50 %).
+fn identified(f: f64, sd: f64) -> bool {
+    f.is_finite() && sd.is_finite() && 2.0 * sd < f
+}
+
+/// A frequency (Hz) for a reason: plain below 100 kHz, "> 100 kHz" beyond (an unbounded fit
+/// ran away; its digits mean nothing), "undetermined" when not finite.
+fn hz_text(f: f64) -> String {
+    if !f.is_finite() {
+        "undetermined".to_string()
+    } else if f.abs() < 1e5 {
+        format!("{f:.2} Hz")
+    } else {
+        "> 100 kHz".to_string()
     }
 }
 

@@ -22,6 +22,7 @@ pub mod honesty;
 pub mod lengths;
 pub mod locate;
 pub mod proof;
+pub mod rate;
 pub mod report;
 pub mod select;
 pub mod sim;
@@ -119,8 +120,10 @@ pub struct Diagnosis {
     pub evaluations: usize,
     /// The Galerkin basis and its convergence for the modes inside the band (with a beam).
     pub basis: Option<sim::BasisChoice>,
-    /// Band edge (Hz) of the recordings (0.45 × the lowest sample rate).
+    /// Band edge (Hz) of the recordings at their working rate (0.45 × the lowest).
     pub band_edge_hz: f64,
+    /// The working rate the recordings were decimated to ([`rate`]).
+    pub working_rate: rate::WorkingRate,
     /// The effects forward selection added, in order, each as evaluated when it was added
     /// (its own validation gain against the model before it).
     pub effects: Vec<CandidateOutcome>,
@@ -489,6 +492,15 @@ pub fn diagnose(
     validate: &Prepared,
     progress: &mut dyn crate::progress::Progress,
 ) -> Result<Diagnosis> {
+    for d in fit_data.iter().chain(std::iter::once(validate)) {
+        check_information(d)?;
+    }
+    let working_rate = rate::choose(fit_data, validate);
+    let (fit_w, val_w) = rate::to_working_rate(&working_rate, fit_data, validate);
+    if let Some(w) = rate::words(&working_rate) {
+        progress.note(&w);
+    }
+    let (fit_data, validate) = (&fit_w[..], &val_w);
     let su = setup(rig, fit_data, validate)?;
     let mut budget = Budget::for_samples(fit_data.iter().map(|d| d.cmd_m.len()).sum());
     let total_steps = 12 + 3;
@@ -519,6 +531,7 @@ pub fn diagnose(
         val_pred_nominal: vpred0,
         basis: su.basis,
         band_edge_hz: su.band_edge_hz,
+        working_rate,
     };
     Ok(conclude(
         &ctx,
@@ -589,6 +602,7 @@ struct Earlier {
     val_pred_nominal: Prediction,
     basis: Option<sim::BasisChoice>,
     band_edge_hz: f64,
+    working_rate: rate::WorkingRate,
 }
 
 /// The diagnosis from a finished selection: long-run 1-σ of the calibration and the final
@@ -659,7 +673,11 @@ fn conclude(
         final_val_nrmse: reference.val_nrmse,
         rounds: rounds.len(),
         unexplained,
-        assumptions: assumptions(fit_data, ctx.validate),
+        assumptions: assumptions(fit_data, ctx.validate)
+            .into_iter()
+            .chain(rate::words(&earlier.working_rate))
+            .collect(),
+        working_rate: earlier.working_rate,
         honesty,
         trace: ctx.trace.take(),
     }

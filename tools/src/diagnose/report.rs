@@ -233,6 +233,9 @@ pub fn to_json(d: &Diagnosis) -> Value {
         "model_evaluations": d.evaluations,
         "model": {
             "band_edge_hz": d.band_edge_hz,
+            "working_rate_hz": d.working_rate.rate_hz,
+            "content_edge_hz": d.working_rate.content_edge_hz,
+            "decimation": d.working_rate.recordings.iter().map(|(name, r, q)| json!({"recording": name, "rate_hz": r, "factor": q})).collect::<Vec<_>>(),
             "basis_functions": d.basis.as_ref().map(|b| b.n_basis),
             "in_band_modes_hz": d.basis.as_ref().map(|b| b.freqs_hz.clone()),
             "convergence_rel": d.basis.as_ref().map(|b| b.convergence_rel),

@@ -206,8 +206,12 @@ pub struct Prepared {
     pub dt: f64,
     /// Time (s).
     pub time_s: Vec<f64>,
-    /// Base command (m).
+    /// Base command (m), as the model's input (at a working rate below the recording's,
+    /// emphasised against its piecewise-linear interpolation, [`super::rate`]).
     pub cmd_m: Vec<f64>,
+    /// The command as recorded (filtered, not emphasised) when `cmd_m` is emphasised: the
+    /// predicted base of a model without a servo loop; `None` = `cmd_m`.
+    pub cmd_identity_m: Option<Vec<f64>>,
     /// Measured base position (m), if recorded *and* a command exists.
     pub base_m: Option<Vec<f64>>,
     /// Measured base used to drive the beam (= `base_m`, or the base when it is the only one).
@@ -236,6 +240,7 @@ impl Prepared {
             dt: rec.sample_interval_s(),
             time_s: rec.time_s.clone(),
             cmd_m: cmd,
+            cmd_identity_m: None,
             base_m: base,
             drive_m: drive,
             tip_m: rec.tip_pos_m.clone(),
@@ -312,7 +317,7 @@ fn coupled_servo(
     let Some(phi) = root_transition(&mut acc_row, m_eff, c, dt) else {
         return vec![f64::NAN; n];
     };
-    let mut zv = nalgebra::DVector::<f64>::zeros(dim);
+    let (mut zv, mut tmp) = (vec![0.0; dim], vec![0.0; dim]);
     zv[0] = r[0];
     let mut y = Vec::with_capacity(n);
     let mut v_prev = 0.0;
@@ -332,7 +337,7 @@ fn coupled_servo(
         v_prev = v;
         zv[ri] = r[k];
         zv[vi] = v;
-        zv = &phi * &zv;
+        advance(&phi, &mut zv, &mut tmp);
         if !zv[0].is_finite() {
             y.extend(std::iter::repeat(f64::NAN).take(n - y.len()));
             break;
@@ -393,6 +398,22 @@ fn root_generator(
     }
     a[(dim - 2, dim - 1)] = 1.0;
     a
+}
+
+/// One interval of a sampled state-space model: `z ← Φ z` (Φ `dim × dim`, `z` and the scratch
+/// `tmp` of length `dim`), without allocating. The sums run column by column as nalgebra's
+/// matrix–vector product does, so the result is the same to the bit.
+fn advance(phi: &nalgebra::DMatrix<f64>, z: &mut [f64], tmp: &mut [f64]) {
+    let dim = z.len();
+    let a = phi.as_slice();
+    tmp.iter_mut().for_each(|v| *v = 0.0);
+    for (j, &zj) in z.iter().enumerate() {
+        let col = &a[j * dim..(j + 1) * dim];
+        for (t, c) in tmp.iter_mut().zip(col) {
+            *t += c * zj;
+        }
+    }
+    z.copy_from_slice(tmp);
 }
 
 /// exp(A·dt), or `None` for a generator far outside the band (largest element of A dt ≥
@@ -480,7 +501,7 @@ impl ServoLaw {
         let dim = phi.nrows();
         let (fi, ri, vi) = (3 + 2 * nm, dim - 2, dim - 1);
         let gamma: &[f64] = c.map_or(&[], |c| &c.gamma);
-        let mut zv = nalgebra::DVector::<f64>::zeros(dim);
+        let (mut zv, mut tmp) = (vec![0.0; dim], vec![0.0; dim]);
         zv[0] = r[0];
         let mut y = Vec::with_capacity(n);
         let mut v_prev = 0.0;
@@ -505,7 +526,7 @@ impl ServoLaw {
             v_prev = v;
             zv[ri] = r[k];
             zv[vi] = v;
-            zv = &phi * &zv;
+            advance(&phi, &mut zv, &mut tmp);
             if !zv[0].is_finite() {
                 y.extend(std::iter::repeat(f64::NAN).take(n - y.len()));
                 break;
@@ -618,7 +639,7 @@ fn coupled_mount(y: &[f64], dt: f64, omega: f64, zeta: f64, m_m: f64, c: &BeamCa
     let Some(phi) = root_transition(&mut acc_row, m_eff, c, dt) else {
         return vec![f64::NAN; n];
     };
-    let mut zv = nalgebra::DVector::<f64>::zeros(dim);
+    let (mut zv, mut tmp) = (vec![0.0; dim], vec![0.0; dim]);
     zv[0] = y[0];
     let mut out = Vec::with_capacity(n);
     for kk in 0..n {
@@ -630,7 +651,7 @@ fn coupled_mount(y: &[f64], dt: f64, omega: f64, zeta: f64, m_m: f64, c: &BeamCa
         };
         zv[yi] = y[kk];
         zv[vi] = v;
-        zv = &phi * &zv;
+        advance(&phi, &mut zv, &mut tmp);
         if !zv[0].is_finite() {
             out.extend(std::iter::repeat(f64::NAN).take(n - out.len()));
             break;
@@ -838,12 +859,16 @@ pub fn predict(
     };
     // 1. servo; without a measured base the carriage is pushed back by the beam it carries,
     // so the loop is simulated coupled to the beam modes
-    let y_servo = match ServoLaw::of(p) {
+    let law = ServoLaw::of(p);
+    let y_servo = match &law {
         Some(law) => law.respond(&d.cmd_m, dt, if d.drive_m.is_none() { c } else { None }),
         None => d.cmd_m.clone(),
     };
     if d.base_m.is_some() {
-        out.base_m = Some(y_servo.clone());
+        out.base_m = Some(match (&law, &d.cmd_identity_m) {
+            (None, Some(cmd)) => cmd.clone(),
+            _ => y_servo.clone(),
+        });
     }
     // 2. drive: the measured base when recorded
     let drive: &[f64] = d.drive_m.as_deref().unwrap_or(&y_servo);

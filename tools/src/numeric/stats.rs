@@ -42,7 +42,9 @@ pub fn autocorrelation_time(r: &[f64], max_lag: usize) -> f64 {
         return 1.0;
     }
     let m = r.iter().sum::<f64>() / n as f64;
-    let c0: f64 = r.iter().map(|x| (x - m).powi(2)).sum();
+    // deviations once (the same values and sums as computing them in every lag's product)
+    let dev: Vec<f64> = r.iter().map(|x| x - m).collect();
+    let c0: f64 = dev.iter().map(|x| x * x).sum();
     if !(c0 > 0.0) {
         return 1.0;
     }
@@ -50,7 +52,7 @@ pub fn autocorrelation_time(r: &[f64], max_lag: usize) -> f64 {
         if k >= n {
             return 0.0;
         }
-        (k..n).map(|i| (r[i] - m) * (r[i - k] - m)).sum::<f64>() / c0
+        dev[k..].iter().zip(&dev).map(|(a, b)| a * b).sum::<f64>() / c0
     };
     let mut tau = -1.0;
     let mut k = 0;
