@@ -17,13 +17,22 @@ use nalgebra::{DVector, Matrix2, Matrix3, Vector2};
 
 /// Exact discretisation of `ẍ + 2ζω ẋ + ω² x = f` over `dt`: the free propagator Φ (2×2) and
 /// the zero-order-hold input vector Γ (response to a unit f held for dt).
+/// Φ = 0, Γ = (1/ω², 0) when ζω dt > 745 (decayed to 0 in f64 within the interval); NaN (both)
+/// when otherwise |ω dt| or |2ζω dt| > 1e6 or either is not finite.
 pub fn mode_zoh(omega: f64, zeta: f64, dt: f64) -> (Matrix2<f64>, Vector2<f64>) {
-    // a mode too fast (or not finite) to resolve: its state has decayed within the step (the
-    // static limit). Also keeps the matrix exponential finite: its scaling-and-squaring count
-    // grows with log2 of the norm, without end for an infinite one (a fitted frequency in a log
-    // representation can overflow).
-    if !(omega * dt * (1.0 + 2.0 * zeta.abs()) < 1e6) {
-        return (Matrix2::zeros(), Vector2::zeros());
+    // A generator far outside any band (a fit that ran away, e.g. a mount at 10¹⁴ Hz) must not
+    // reach nalgebra's `exp`: its power estimate overflows and it squares without end. A mode
+    // that decays by e^(−ζω dt) < e^(−745) (0 in f64) within the interval has Φ = 0 and
+    // Γ = (1/ω², 0) exactly; any other non-finite or |ω dt| > 1e6 generator gets NaN.
+    let (wd, cd) = (omega * dt, 2.0 * zeta * omega * dt);
+    if cd.is_finite() && 0.5 * cd > 745.0 && (omega * omega).is_finite() {
+        return (Matrix2::zeros(), Vector2::new(1.0 / (omega * omega), 0.0));
+    }
+    if !(wd.abs() <= 1e6 && cd.abs() <= 1e6) {
+        return (
+            Matrix2::from_element(f64::NAN),
+            Vector2::from_element(f64::NAN),
+        );
     }
     let a = Matrix3::new(
         0.0,
