@@ -565,6 +565,25 @@ impl Recording {
     }
 }
 
+/// A linear-phase low-pass FIR: `2 half + 1` taps of the ideal low-pass with cut-off `fc_cycles`
+/// (cycles per sample, < 0.5) times `window(i)` (i = 0..=2 half), scaled to unit DC gain.
+pub fn windowed_sinc(half: usize, fc_cycles: f64, window: impl Fn(usize) -> f64) -> Vec<f64> {
+    let mut h: Vec<f64> = (0..=2 * half)
+        .map(|i| {
+            let k = i as f64 - half as f64;
+            let sinc = if k == 0.0 {
+                2.0 * fc_cycles
+            } else {
+                (2.0 * std::f64::consts::PI * fc_cycles * k).sin() / (std::f64::consts::PI * k)
+            };
+            sinc * window(i)
+        })
+        .collect();
+    let s: f64 = h.iter().sum();
+    h.iter_mut().for_each(|v| *v /= s);
+    h
+}
+
 /// Anti-aliased decimation by `q`: a Hamming-windowed sinc low-pass (cut-off 0.4 × the new
 /// sample rate, 16 q + 1 taps, unit DC gain, zero phase) evaluated only at the kept samples,
 /// so the work is N × 16 and the memory the output. `q` ≤ 1 returns a copy.
@@ -574,20 +593,9 @@ pub fn decimate_fir(x: &[f64], q: usize) -> Vec<f64> {
     }
     let half = 8 * q;
     let fc = 0.4 / q as f64; // cycles per input sample
-    let mut h: Vec<f64> = (0..=2 * half)
-        .map(|i| {
-            let k = i as f64 - half as f64;
-            let sinc = if k == 0.0 {
-                2.0 * fc
-            } else {
-                (2.0 * std::f64::consts::PI * fc * k).sin() / (std::f64::consts::PI * k)
-            };
-            let w = 0.54 - 0.46 * (2.0 * std::f64::consts::PI * i as f64 / (2 * half) as f64).cos();
-            sinc * w
-        })
-        .collect();
-    let s: f64 = h.iter().sum();
-    h.iter_mut().for_each(|v| *v /= s);
+    let h = windowed_sinc(half, fc, |i| {
+        0.54 - 0.46 * (2.0 * std::f64::consts::PI * i as f64 / (2 * half) as f64).cos()
+    });
     let n = x.len();
     (0..n)
         .step_by(q)

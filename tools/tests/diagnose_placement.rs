@@ -5,12 +5,12 @@
 //! - a "position loop" slower than the recordings resolve is a constant gain on the command:
 //!   a tip-sensor scale error is named `sensor_gain`, not `servo_lag`.
 
-use beamtools::diagnose::diagnose;
-use beamtools::diagnose::report::to_json;
+mod common;
+
 use beamtools::diagnose::sim::{predict, Params, Prepared};
 use beamtools::model::Rig;
 use beamtools::truth::unmodelled::Unmodelled;
-use beamtools::truth::{generate, TruthOptions};
+use beamtools::truth::TruthOptions;
 
 fn rig() -> Rig {
     Rig::from_toml_str(
@@ -80,28 +80,15 @@ fn diagnose_case(
     base_pos: Option<bool>,
     force: Option<bool>,
 ) -> (Vec<String>, serde_json::Value) {
-    let case = generate(
-        effect,
-        seed,
-        &TruthOptions {
-            duration_s: 30.0,
-            rate_hz,
-            unmodelled,
-            base_pos,
-            force,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let rig = Rig::from_toml_str(&case.rig_toml).unwrap();
-    let fit: Vec<Prepared> = case
-        .fit
-        .iter()
-        .map(|r| Prepared::new("fit", r).unwrap())
-        .collect();
-    let val = Prepared::new("validate", &case.validate).unwrap();
-    let d = diagnose(&rig, &fit, &val, &mut beamtools::progress::Silent).unwrap();
-    let j = to_json(&d);
+    let opts = TruthOptions {
+        duration_s: 30.0,
+        rate_hz,
+        unmodelled,
+        base_pos,
+        force,
+        ..Default::default()
+    };
+    let (j, _) = common::diagnose_generated_with(effect, seed, &opts);
     let named = j["effects"]
         .as_array()
         .unwrap()

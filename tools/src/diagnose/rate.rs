@@ -54,6 +54,7 @@
 //!    Kaiser, "Nonrecursive digital filter design using the I0-sinh window function", 1974.
 
 use super::sim::Prepared;
+use crate::recording::windowed_sinc;
 
 /// Lowest working rate (Hz): see the module header, step 2.
 pub const MIN_WORKING_RATE_HZ: f64 = 400.0;
@@ -461,21 +462,10 @@ fn bessel_i0(x: f64) -> f64 {
 pub fn decimation_taps(q: usize) -> Vec<f64> {
     let half = 25 * q;
     let fc = 0.5 / q as f64; // cycles per input sample: the new Nyquist rate
-    let mut h: Vec<f64> = (0..=2 * half)
-        .map(|i| {
-            let k = i as f64 - half as f64;
-            let sinc = if k == 0.0 {
-                2.0 * fc
-            } else {
-                (2.0 * std::f64::consts::PI * fc * k).sin() / (std::f64::consts::PI * k)
-            };
-            let r = k / half as f64;
-            sinc * bessel_i0(KAISER_BETA * (1.0 - r * r).max(0.0).sqrt()) / bessel_i0(KAISER_BETA)
-        })
-        .collect();
-    let s: f64 = h.iter().sum();
-    h.iter_mut().for_each(|v| *v /= s);
-    h
+    windowed_sinc(half, fc, |i| {
+        let r = (i as f64 - half as f64) / half as f64;
+        bessel_i0(KAISER_BETA * (1.0 - r * r).max(0.0).sqrt()) / bessel_i0(KAISER_BETA)
+    })
 }
 
 /// `x` low-pass filtered by [`decimation_taps`] and kept at every `q`-th sample (from the

@@ -8,8 +8,9 @@ use beamtools::truth::{generate, TruthOptions};
 
 /// Generates `effect` at `seed` with 30 s recordings and diagnoses it (two fit recordings, one
 /// validation); returns the diagnosis JSON and the generator's truth (`truth.json`'s `truth`).
+#[allow(dead_code)] // each test binary uses one of the two entries
 pub fn diagnose_generated(effect: &str, seed: u64) -> (serde_json::Value, serde_json::Value) {
-    let case = generate(
+    diagnose_generated_with(
         effect,
         seed,
         &TruthOptions {
@@ -17,7 +18,16 @@ pub fn diagnose_generated(effect: &str, seed: u64) -> (serde_json::Value, serde_
             ..Default::default()
         },
     )
-    .unwrap();
+}
+
+/// As [`diagnose_generated`], with the generator's options given.
+#[allow(dead_code)]
+pub fn diagnose_generated_with(
+    effect: &str,
+    seed: u64,
+    opts: &TruthOptions,
+) -> (serde_json::Value, serde_json::Value) {
+    let case = generate(effect, seed, opts).unwrap();
     let rig = Rig::from_toml_str(&case.rig_toml).unwrap();
     let fit: Vec<Prepared> = case
         .fit
