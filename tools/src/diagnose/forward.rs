@@ -129,17 +129,18 @@ impl Ctx<'_> {
         let (vrss, vn) = channel_rss(std::slice::from_ref(&vres));
         let val_nrmse = nrmse(self.validate, &vpred);
         let generic = std::array::from_fn(|c| {
-            let m = generic_signal_count(c);
+            let m = generic_column_count(c);
             let (mut fit_ne, mut val_ne) = (arx::Normal::new(m), arx::Normal::new(m));
             for ((d, p), r) in self.fit_data.iter().zip(&preds).zip(&res) {
-                if let (Some(r), Some(s)) = (&r[c], generic_signals(d, p, c)) {
-                    fit_ne.add(r, &s.iter().map(|v| v.as_slice()).collect::<Vec<_>>());
+                if let (Some(r), Some(phi)) = (&r[c], generic_columns(d, p, c)) {
+                    fit_ne.add(r, &phi);
                 }
             }
-            let (Some(r), Some(s)) = (&vres[c], generic_signals(self.validate, &vpred, c)) else {
+            let (Some(r), Some(phi)) = (&vres[c], generic_columns(self.validate, &vpred, c))
+            else {
                 return None;
             };
-            val_ne.add(r, &s.iter().map(|v| v.as_slice()).collect::<Vec<_>>());
+            val_ne.add(r, &phi);
             (fit_ne.rss() > 0.0).then_some((fit_ne, val_ne))
         });
         let tau_fit = std::array::from_fn(|c| {
@@ -705,8 +706,11 @@ pub(crate) fn select_forward(
         step,
     };
     for round in 0..MAX_EFFECTS {
-        let pool = pool_of(cands, &sel.chosen);
-        if pool.is_empty() || (round > 0 && budget.fraction_spent() > 0.8) {
+        let mut pool = pool_of(cands, &sel.chosen);
+        if round > 0 && budget.fraction_spent() > 0.8 {
+            pool.retain(|&i| passed_last_round(&sel, i));
+        }
+        if pool.is_empty() {
             break;
         }
         refresh_reference(
@@ -741,13 +745,15 @@ pub(crate) fn select_forward(
         );
         for o in &outs {
             ctx.trace(format!(
-                "round {} {}: ΔBIC {:.1} Δval {:.1} reduction {:.3} allowance {:.3} {}",
+                "round {} {}: ΔBIC {:.1} Δval {:.1} reduction {:.3} allowance {:.3} val NRMSE {:.4?} → {:.4?} {}",
                 round + 1,
                 o.id,
                 o.delta_bic,
                 o.delta_val,
                 o.reduction,
                 o.allowance,
+                o.nrmse_before,
+                o.val_nrmse,
                 o.reason
             ));
         }
@@ -762,6 +768,16 @@ pub(crate) fn select_forward(
         }
     }
     sel
+}
+
+/// Whether candidate `i` passed every guard in the last round of `sel`. With most of the budget
+/// spent, only such candidates are refitted on the augmented model: each already showed
+/// evidence of its own, and a second effect must not go unexamined for want of budget (the
+/// effects of a pair otherwise compete for one place).
+fn passed_last_round(sel: &Selection, i: usize) -> bool {
+    sel.rounds
+        .last()
+        .is_some_and(|outs| outs.iter().any(|o| o.cand_index == i && o.passed))
 }
 
 /// Adds `outs[s]` to the selection; false when the augmented model cannot be simulated (the
@@ -908,29 +924,40 @@ fn implausible(
 /// friction falls with speed at low speed; independent case05 is such a rig.)
 const NON_NEGATIVE: [&str; 2] = ["sensor_delay_s", "friction_n"];
 
-/// Signals of the physics-free correction of channel `c` ([`crate::numeric::arx`]): base —
-/// the predicted base and the command; tip — the predicted tip, the predicted *deflection*
-/// (tip − drive, what a filter between the base and the beam root changes) and the drive
-/// (measured base, else the command); force — the predicted force and the drive.
-fn generic_signals(d: &Prepared, p: &Prediction, c: usize) -> Option<Vec<Vec<f64>>> {
+/// Columns of the physics-free correction of channel `c` ([`crate::numeric::arx`]): the
+/// signals and their first two differences. Base — the predicted base and the command; tip —
+/// the predicted tip, the predicted *deflection* (tip − drive, what a filter between the base
+/// and the beam root changes) and the drive (measured base, else the command); force — the
+/// predicted force and the drive, **without the drive's velocity** ([`FORCE_WITHOUT`]).
+fn generic_columns(d: &Prepared, p: &Prediction, c: usize) -> Option<Vec<Vec<f64>>> {
     let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
-    match c {
-        0 => Some(vec![p.base_m.clone()?, d.cmd_m.clone()]),
+    Some(match c {
+        0 => arx::dictionary(&[p.base_m.as_ref()?, &d.cmd_m], &[]),
         1 => {
-            let tip = p.tip_m.clone()?;
-            let deflection = tip.iter().zip(drive).map(|(a, b)| a - b).collect();
-            Some(vec![tip, deflection, drive.clone()])
+            let tip = p.tip_m.as_ref()?;
+            let deflection: Vec<f64> = tip.iter().zip(drive).map(|(a, b)| a - b).collect();
+            arx::dictionary(&[tip, &deflection, drive], &[])
         }
-        _ => Some(vec![p.force_n.clone()?, drive.clone()]),
-    }
+        _ => arx::dictionary(&[p.force_n.as_ref()?, drive], &FORCE_WITHOUT),
+    })
 }
 
-/// Number of signals [`generic_signals`] gives for channel `c`.
-fn generic_signal_count(c: usize) -> usize {
-    if c == 1 {
-        3
-    } else {
-        2
+/// The force channel's allowance leaves out the drive's first difference (signal 1, order 1):
+/// a force on the carriage proportional to its velocity. By Newton the measured motor force is
+/// the carriage's inertia plus the forces acting on it; a filter of the modelled force path
+/// (force constant, latency, sensor bandwidth: the predicted force and its differences) or an
+/// inertia error (the drive's second difference) is model-form error of what is modelled, but
+/// a force ∝ carriage velocity is a force path of its own — viscous friction, the catalogue's
+/// `base_friction` (and correlated with its Coulomb part, ∝ sign of the velocity). With it in
+/// the dictionary the yardstick *is* the candidate's physics, and friction could never beat it.
+pub const FORCE_WITHOUT: [(usize, usize); 1] = [(1, 1)];
+
+/// Number of columns [`generic_columns`] gives for channel `c`.
+fn generic_column_count(c: usize) -> usize {
+    match c {
+        0 => arx::dictionary_size(2, 0),
+        1 => arx::dictionary_size(3, 0),
+        _ => arx::dictionary_size(2, FORCE_WITHOUT.len()),
     }
 }
 

@@ -35,17 +35,26 @@ fn diff(v: &[f64]) -> Vec<f64> {
 }
 
 /// Dictionary columns (module docs) of one recording: every signal of `signals` (same length)
-/// and its first and second central differences, signal after signal.
-pub fn dictionary(signals: &[&[f64]]) -> Vec<Vec<f64>> {
+/// and its first and second central differences, signal after signal, except the
+/// `(signal, order)` pairs listed in `without` (a column that is not model-form freedom; see
+/// the diagnosis' use).
+pub fn dictionary(signals: &[&[f64]], without: &[(usize, usize)]) -> Vec<Vec<f64>> {
     let mut out = Vec::with_capacity(ORDERS * signals.len());
-    for s in signals {
+    for (i, s) in signals.iter().enumerate() {
         let d1 = diff(s);
         let d2 = diff(&d1);
-        out.push(s.to_vec());
-        out.push(d1);
-        out.push(d2);
+        for (order, col) in [s.to_vec(), d1, d2].into_iter().enumerate() {
+            if !without.contains(&(i, order)) {
+                out.push(col);
+            }
+        }
     }
     out
+}
+
+/// Number of columns [`dictionary`] gives for `n_signals` signals without `n_without` of them.
+pub fn dictionary_size(n_signals: usize, n_without: usize) -> usize {
+    ORDERS * n_signals - n_without
 }
 
 /// Accumulated normal equations of one data set: G = ΦᵀΦ, b = Φᵀr, rr = rᵀr.
@@ -57,9 +66,8 @@ pub struct Normal {
 }
 
 impl Normal {
-    /// Empty normal equations for a dictionary of `n_signals` signals.
-    pub fn new(n_signals: usize) -> Self {
-        let m = ORDERS * n_signals;
+    /// Empty normal equations for a dictionary of `m` columns ([`dictionary_size`]).
+    pub fn new(m: usize) -> Self {
         Normal {
             g: DMatrix::zeros(m, m),
             b: DVector::zeros(m),
@@ -67,13 +75,13 @@ impl Normal {
         }
     }
 
-    /// Adds one recording: residual `r` and the dictionary's signals (each as long as `r`;
-    /// as many as given to [`Normal::new`]). Recordings shorter than 3 samples are skipped.
-    pub fn add(&mut self, r: &[f64], signals: &[&[f64]]) {
-        if r.len() < 3 || signals.iter().any(|s| s.len() != r.len()) {
+    /// Adds one recording: residual `r` and the dictionary's columns ([`dictionary`]; each as
+    /// long as `r`, as many as given to [`Normal::new`]). Recordings shorter than 3 samples are
+    /// skipped.
+    pub fn add(&mut self, r: &[f64], phi: &[Vec<f64>]) {
+        if r.len() < 3 || phi.iter().any(|s| s.len() != r.len()) {
             return;
         }
-        let phi = dictionary(signals);
         assert_eq!(phi.len(), self.b.len(), "dictionary size");
         for i in 0..phi.len() {
             self.b[i] += phi[i].iter().zip(r).map(|(a, b)| a * b).sum::<f64>();
@@ -177,16 +185,16 @@ mod tests {
         let u_fit: Vec<f64> = (0..n).map(|k| 0.1 * sig(0.2, k)).collect();
         let u_val: Vec<f64> = (0..n).map(|k| 0.1 * sig(0.3, k)).collect();
         let lag = |y: &[f64]| -> Vec<f64> { diff(y).iter().map(|v| -0.2 * v).collect() };
-        let (mut f, mut v) = (Normal::new(2), Normal::new(2));
-        f.add(&lag(&y_fit), &[&y_fit, &u_fit]);
-        v.add(&lag(&y_val), &[&y_val, &u_val]);
+        let (mut f, mut v) = (Normal::new(6), Normal::new(6));
+        f.add(&lag(&y_fit), &dictionary(&[&y_fit, &u_fit], &[]));
+        v.add(&lag(&y_val), &dictionary(&[&y_val, &u_val], &[]));
         let c = best_correction(&f, &v, 1).unwrap();
         assert_eq!(c.columns, vec![1]);
         assert!(c.val_reduction() > 0.999, "{c:?}");
         let tone = |k0: usize| -> Vec<f64> { (0..n).map(|k| 0.01 * sig(17.0, k + k0)).collect() };
-        let (mut f, mut v) = (Normal::new(2), Normal::new(2));
-        f.add(&tone(0), &[&y_fit, &u_fit]);
-        v.add(&tone(3), &[&y_val, &u_val]);
+        let (mut f, mut v) = (Normal::new(6), Normal::new(6));
+        f.add(&tone(0), &dictionary(&[&y_fit, &u_fit], &[]));
+        v.add(&tone(3), &dictionary(&[&y_val, &u_val], &[]));
         let c = best_correction(&f, &v, 2).unwrap();
         assert!(c.val_reduction() < 0.05, "{c:?}");
     }
