@@ -10,7 +10,8 @@
 //!   meaning; [`Effect::shows_in`] the recorded channels an effect is visible in (any of them);
 //!   [`Effect::needs_beam`] whether it lives on the beam;
 //! - [`Effect::conflicts_with`] says which two effects are alternative models of the same part
-//!   (one model may contain at most one of them).
+//!   (one model may contain at most one of them); [`Effect::look_alike`] which effect the
+//!   recorded channels cannot tell a given one from.
 
 use std::fmt;
 use std::str::FromStr;
@@ -213,6 +214,19 @@ impl Effect {
                 (self, other),
                 (RootCompliance, CubicStiffness) | (CubicStiffness, RootCompliance)
             )
+    }
+
+    /// The effect that, with the channels recorded, acts on them as the same filter to first
+    /// order, so that the recordings cannot tell the two apart (`crate::diagnose::lookalike`):
+    /// without `base_pos_m` a position loop's lag (`servo_lag`) and a tip-sensor latency
+    /// (`sensor_delay`) are both a lag between the command and the tip. `None`: no look-alike.
+    pub fn look_alike(self, base_pos_recorded: bool) -> Option<Effect> {
+        use Effect::*;
+        match (self, base_pos_recorded) {
+            (ServoLag, false) => Some(SensorDelay),
+            (SensorDelay, false) => Some(ServoLag),
+            _ => None,
+        }
     }
 }
 

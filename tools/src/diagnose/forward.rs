@@ -136,8 +136,7 @@ impl Ctx<'_> {
                     fit_ne.add(r, &phi);
                 }
             }
-            let (Some(r), Some(phi)) = (&vres[c], generic_columns(self.validate, &vpred, c))
-            else {
+            let (Some(r), Some(phi)) = (&vres[c], generic_columns(self.validate, &vpred, c)) else {
                 return None;
             };
             val_ne.add(r, &phi);
@@ -343,6 +342,7 @@ impl Ctx<'_> {
             fit: f,
             allowance,
             unplaced: None,
+            look_alike: None,
         }
     }
 
@@ -823,7 +823,7 @@ fn best_reduction(r: &Reference, base: &Reference) -> (usize, f64) {
 
 /// The model-form allowance of channel `c` for `k` parameters: what the physics-free correction
 /// earns on `base`'s validation residual, or its split-refit spread if larger.
-fn allowance(base: &Reference, c: usize, k: usize) -> f64 {
+pub(crate) fn allowance(base: &Reference, c: usize, k: usize) -> f64 {
     base.generic[c]
         .as_ref()
         .and_then(|(fit_ne, val_ne)| arx::best_correction(fit_ne, val_ne, k))
@@ -961,7 +961,8 @@ fn generic_column_count(c: usize) -> usize {
     }
 }
 
-fn n_of(data: &[Prepared]) -> [usize; 3] {
+/// Samples per channel of `data` (0 where a channel is not recorded).
+pub(crate) fn n_of(data: &[Prepared]) -> [usize; 3] {
     let mut n = [0; 3];
     for d in data {
         let m = d.cmd_m.len();

@@ -21,6 +21,7 @@ mod forward;
 pub mod honesty;
 pub mod lengths;
 pub mod locate;
+pub mod lookalike;
 pub mod proof;
 pub mod rate;
 pub mod report;
@@ -79,6 +80,8 @@ pub struct CandidateOutcome {
     /// Why a resonance that passes every other guard cannot be placed where the candidate puts
     /// it (a mount that a loose tip sensor explains as well; [`select`] condition 8), if so.
     pub unplaced: Option<String>,
+    /// The effect the recordings cannot tell this one from, if so ([`lookalike`]).
+    pub look_alike: Option<lookalike::LookAlike>,
 }
 
 impl CandidateOutcome {
@@ -524,7 +527,8 @@ pub fn diagnose(
     })?;
     let val_nrmse_nominal = nominal.val_nrmse;
     let vpred0 = nominal.vpred.clone();
-    let sel = forward::select_forward(&ctx, &cands, nominal, &mut budget, progress, 2);
+    let mut sel = forward::select_forward(&ctx, &cands, nominal, &mut budget, progress, 2);
+    lookalike::resolve(&ctx, &cands, &mut sel, &mut budget);
     let earlier = Earlier {
         location,
         val_nrmse_nominal,

@@ -152,6 +152,8 @@ fn effect_json(
             "nrmse_after": o.val_nrmse[c], "reduction": o.reduction, "model_form_allowance": o.allowance,
             "delta_neg2loglik": o.delta_val},
         "delta_bic": o.delta_bic,
+        "indistinguishable_from": o.look_alike.as_ref().filter(|l| l.indistinguishable).map(|l| l.effect),
+        "look_alike": o.look_alike.as_ref().map(|l| l.words.clone()),
     });
     (e, pm, um)
 }
@@ -310,6 +312,9 @@ fn effects_words(d: &Diagnosis) -> String {
             o.whiteness.0,
             o.whiteness.1
         );
+        if let Some(l) = &o.look_alike {
+            s += &format!("  {}\n", l.words);
+        }
     }
     s
 }

@@ -1,0 +1,244 @@
+//! Look-alikes: two catalogue effects that the recorded channels cannot tell apart
+//! ([`crate::effect::Effect::look_alike`]), settled on the final model after forward selection.
+//!
+//! Without `base_pos_m` a slow position loop (`servo_lag`) and a tip-sensor latency
+//! (`sensor_delay`) are both filters between the command and `tip_pos_m`; to first order in the
+//! lag both are the same time shift of the tip. `force_n` could separate them — a loop lag
+//! changes the carriage's acceleration and so the force, a sensor latency does not — but the
+//! calibration fits the force channel's own latency, which absorbs the loop's lag there to the
+//! same order. What is left to tell them apart is the *shape* of the filter (a loop's roll-off
+//! against a pure delay), which model-form error mimics as readily.
+//!
+//! So when an effect is chosen and its look-alike passed every guard in the same round (it
+//! explains the recordings on its own as well), the final model is refitted with the look-alike
+//! in its place (warm from both optima, the same calibration and the other effects) and the two
+//! are compared with the guard's own margins, on all channels at once (so `force_n` speaks
+//! wherever it can, after every other effect — friction — is in the model):
+//! - the look-alike better by ΔBIC < −[`BIC_MARGIN`] on the fit recordings *and* Δ(−2 ln L) <
+//!   −[`VALIDATION_MARGIN`] on the validation recording: it replaces the chosen effect;
+//! - the chosen effect better by both margins, and in the round it was chosen better than its
+//!   look-alike by more than the model-form allowance (a gap a physics-free correction with as
+//!   many parameters cannot close): it stays, distinguished;
+//! - otherwise the chosen effect stays and is reported **indistinguishable** from its look-alike
+//!   with these channels (JSON `indistinguishable_from`), rather than named with a confidence
+//!   the recordings do not give.
+
+use super::effects::Candidate;
+use super::fit::fit;
+use super::fit::CHANNEL_NAMES;
+use super::forward::{allowance, n_of, Budget, Ctx, Reference, Selection};
+use super::select::{delta_neg2ll_effective, BIC_MARGIN, VALIDATION_MARGIN};
+use super::CandidateOutcome;
+use crate::effect::Effect;
+use nalgebra::DVector;
+
+/// A chosen effect the recordings cannot tell from another one (module docs).
+#[derive(Clone, Debug)]
+pub struct LookAlike {
+    /// The other effect.
+    pub effect: Effect,
+    /// True: the recordings cannot tell the two apart; false: this one replaced the other by
+    /// the guard's margins.
+    pub indistinguishable: bool,
+    /// Why, with the comparison's numbers.
+    pub words: String,
+}
+
+/// Settles every chosen effect of `sel` that has a look-alike (module docs): swaps it, keeps
+/// it, or marks it indistinguishable. Draws on `budget`.
+pub(crate) fn resolve(ctx: &Ctx, cands: &[Candidate], sel: &mut Selection, budget: &mut Budget) {
+    let base_measured = ctx.fit_data.iter().any(|d| d.base_m.is_some());
+    let mut refined = false;
+    for p in 0..sel.chosen.len() {
+        let a = cands[sel.chosen[p]].id;
+        let Some(b) = a.look_alike(base_measured) else {
+            continue;
+        };
+        if sel.chosen.iter().any(|&k| cands[k].id == b) {
+            continue;
+        }
+        let Some(alt) = sel
+            .rounds
+            .get(p)
+            .and_then(|outs| outs.iter().find(|o| o.passed && o.id == b))
+            .cloned()
+        else {
+            continue;
+        };
+        refine_once(ctx, cands, sel, budget, &mut refined);
+        let Some((r, db, dv)) = refit_with(ctx, cands, sel, p, &alt, budget) else {
+            continue;
+        };
+        let numbers = format!(
+            "{b} in its place: ΔBIC {db:+.1} on the fit recordings, validation Δ(−2lnL) {dv:+.1}"
+        );
+        ctx.trace(format!("look-alike check of {a}: {numbers}"));
+        if db < -BIC_MARGIN && dv < -VALIDATION_MARGIN {
+            let mut o = alt;
+            o.look_alike = Some(LookAlike {
+                effect: a,
+                indistinguishable: false,
+                words: format!(
+                    "chosen over {a}, which passed too: {numbers} (both margins beaten)"
+                ),
+            });
+            sel.chosen[p] = o.cand_index;
+            sel.outcomes[p] = o;
+            sel.reference = r;
+        } else {
+            let (beyond, gap) = beyond_model_form(sel, p, &alt);
+            ctx.trace(format!("look-alike check of {a}: {gap}"));
+            if !(db > BIC_MARGIN && dv > VALIDATION_MARGIN && beyond) {
+                sel.outcomes[p].look_alike = Some(LookAlike {
+                    effect: b,
+                    indistinguishable: true,
+                    words: words(b, &numbers, &gap),
+                });
+            }
+        }
+    }
+}
+
+/// Before the first comparison, the final model itself is refitted from its optimum with the
+/// same share of the budget as its look-alike gets, so that extra iterations are never credited
+/// to the look-alike.
+fn refine_once(
+    ctx: &Ctx,
+    cands: &[Candidate],
+    sel: &mut Selection,
+    budget: &mut Budget,
+    refined: &mut bool,
+) {
+    if std::mem::replace(refined, true) {
+        return;
+    }
+    let set: Vec<&Candidate> = sel.chosen.iter().map(|&k| &cands[k]).collect();
+    let f = fit(
+        ctx.rig,
+        ctx.fit_data,
+        ctx.sigma,
+        ctx.calib,
+        &set,
+        Some(&sel.reference.fit.x),
+        check_share(budget),
+        false,
+    );
+    budget.spend(f.evaluations);
+    if f.cost < sel.reference.fit.cost {
+        if let Some(r) = ctx.reference(&set, f) {
+            sel.reference = r;
+        }
+    }
+}
+
+/// The final model refitted with `alt` in place of chosen effect `p`: its reference, and the
+/// ΔBIC (fit) and Δ(−2 ln L) (validation) against `sel.reference`.
+fn refit_with(
+    ctx: &Ctx,
+    cands: &[Candidate],
+    sel: &Selection,
+    p: usize,
+    alt: &CandidateOutcome,
+    budget: &mut Budget,
+) -> Option<(Reference, f64, f64)> {
+    let alt_cand = &cands[alt.cand_index];
+    let set: Vec<&Candidate> = sel
+        .chosen
+        .iter()
+        .enumerate()
+        .map(|(q, &k)| if q == p { alt_cand } else { &cands[k] })
+        .collect();
+    // two warm starts, the better fit kept: the calibration and the effects before `p` from
+    // the look-alike's own round optimum (refitted with it) or from the final model; the
+    // look-alike's parameters from its round, the effects after `p` from the final model
+    let (x, ax) = (&sel.reference.fit.x, &alt.fit.x);
+    let before = ctx.calib.len()
+        + sel.chosen[..p]
+            .iter()
+            .map(|&k| cands[k].params.len())
+            .sum::<usize>();
+    let after = before + cands[sel.chosen[p]].params.len();
+    let own = alt_cand.params.len();
+    let tail: Vec<f64> = x.rows(after, x.len() - after).iter().copied().collect();
+    let from_alt: Vec<f64> = ax.iter().chain(&tail).copied().collect();
+    let from_final: Vec<f64> = (x.rows(0, before).iter())
+        .chain(ax.rows(ax.len() - own, own).iter())
+        .chain(&tail)
+        .copied()
+        .collect();
+    let share = check_share(budget) / 2;
+    let mut best: Option<super::fit::FitResult> = None;
+    for warm in [from_alt, from_final] {
+        let warm = DVector::from_vec(warm);
+        let f = fit(
+            ctx.rig,
+            ctx.fit_data,
+            ctx.sigma,
+            ctx.calib,
+            &set,
+            Some(&warm),
+            share,
+            false,
+        );
+        budget.spend(f.evaluations);
+        ctx.trace(format!(
+            "look-alike refit with {}: cost {:.6e} after {} evaluations (final model {:.6e})",
+            alt.id, f.cost, f.evaluations, sel.reference.fit.cost
+        ));
+        for t in &f.trace {
+            ctx.trace(format!("  {t}"));
+        }
+        if best.as_ref().map_or(true, |b| f.cost < b.cost) {
+            best = Some(f);
+        }
+    }
+    let f = best?;
+    let r = ctx.reference(&set, f)?;
+    let base = &sel.reference;
+    let n_fit = n_of(ctx.fit_data);
+    let n_eff: f64 = (0..3).map(|c| n_fit[c] as f64 / base.tau_fit[c]).sum();
+    let dk = alt_cand.params.len() as f64 - cands[sel.chosen[p]].params.len() as f64;
+    let db =
+        delta_neg2ll_effective(&r.rss, &base.rss, &n_fit, &base.tau_fit) + dk * n_eff.max(1.0).ln();
+    let dv = delta_neg2ll_effective(&r.vrss, &base.vrss, &base.vn, &base.tau_val);
+    Some((r, db, dv))
+}
+
+/// Whether chosen effect `p` beats its look-alike `alt` (both as fitted in the round it was
+/// chosen) by more than model-form freedom: on the channel it helps most, its validation rms
+/// reduction exceeds the look-alike's by more than the physics-free correction with as many
+/// parameters earns on the final model's residual there ([`super::select`] condition 3). Two
+/// lags of different shape that differ by less than a generic filter correction are told apart
+/// by model form, not by physics.
+fn beyond_model_form(sel: &Selection, p: usize, alt: &CandidateOutcome) -> (bool, String) {
+    let o = &sel.outcomes[p];
+    let c = o.best_channel;
+    let alt_reduction = 1.0 - alt.val_nrmse[c] / alt.nrmse_before[c];
+    let gap = o.reduction - alt_reduction;
+    let allow = allowance(&sel.reference, c, o.k.max(alt.k));
+    let words = format!(
+        "in the round it was chosen {} reduced the validation residual of {} by {:.1} %, {} by {:.1} %: a gap of {:.1} % against the model-form allowance {:.1} %",
+        o.id,
+        CHANNEL_NAMES[c],
+        100.0 * o.reduction,
+        alt.id,
+        100.0 * alt_reduction,
+        100.0 * gap,
+        100.0 * allow
+    );
+    (gap > allow, words)
+}
+
+/// Why the chosen effect cannot be told apart from `b`, in words.
+fn words(b: Effect, numbers: &str, gap: &str) -> String {
+    format!(
+        "indistinguishable from {b} with these channels: {b} passed every guard too; {gap}; in the final model {numbers}. Without base_pos_m a position loop's lag and a tip-sensor latency are both filters between the command and the tip, and the calibrated force-channel latency absorbs the loop's lag on force_n. Record base_pos_m to tell them apart"
+    )
+}
+
+/// Model evaluations for the refits of one check: an equal share of what is left, and at least
+/// 1/20 of the diagnosis' budget (selection may have spent it all; a refit from a warm start
+/// that is not the optimum needs a few dozen Levenberg–Marquardt steps).
+fn check_share(budget: &Budget) -> usize {
+    budget.share(2).max(budget.total / 20)
+}
