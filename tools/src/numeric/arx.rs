@@ -173,6 +173,27 @@ pub fn best_correction(fit: &Normal, val: &Normal, k: usize) -> Option<Correctio
 mod tests {
     use super::*;
 
+    /// A column left out of the dictionary is not available to the correction: a residual that
+    /// is exactly the second signal's first difference is removed with it and not without it.
+    #[test]
+    fn a_column_left_out_is_not_used() {
+        let n = 1500;
+        let sig = |f: f64, k: usize| (2.0 * std::f64::consts::PI * f * k as f64 / 100.0).sin();
+        let y: Vec<f64> = (0..n).map(|k| sig(1.1, k)).collect();
+        let u: Vec<f64> = (0..n).map(|k| sig(0.37, k) + 0.2 * sig(2.9, k)).collect();
+        let r = diff(&u);
+        let reduction = |without: &[(usize, usize)]| {
+            let phi = dictionary(&[&y, &u], without);
+            assert_eq!(phi.len(), dictionary_size(2, without.len()));
+            let (mut f, mut v) = (Normal::new(phi.len()), Normal::new(phi.len()));
+            f.add(&r, &phi);
+            v.add(&r, &phi);
+            best_correction(&f, &v, 1).unwrap().val_reduction()
+        };
+        assert!(reduction(&[]) > 0.999);
+        assert!(reduction(&[(1, 1)]) < 0.9, "{}", reduction(&[(1, 1)]));
+    }
+
     /// A residual that is a small lag of the prediction (r = −τ ẏ) is found on the fit data
     /// and removed on a different validation signal; a residual unrelated to the dictionary
     /// (a tone at another frequency) gains nothing on validation.
