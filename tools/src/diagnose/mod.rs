@@ -104,6 +104,10 @@ pub struct Diagnosis {
     pub selected: Option<usize>,
     /// Calibration of the nominal model (names, values, σ).
     pub calibration: FitResult,
+    /// Per calibration parameter, why the recordings do not identify it
+    /// ([`effects::calibration_unidentified`]; `None`: identified). Reported in place of its
+    /// value.
+    pub calibration_unidentified: Vec<Option<String>>,
     /// Channel noise scales σ used for whitening.
     pub sigma: [f64; 3],
     /// Location of the discrepancy.
@@ -651,7 +655,15 @@ fn conclude(
         .iter()
         .position(|o| o.passed && chosen.first() == Some(&o.cand_index));
     stage(progress, total_steps, total_steps, "done");
+    let calibration_unidentified = ctx
+        .calib
+        .defs
+        .iter()
+        .zip(cal.values.iter().zip(&cal.std))
+        .map(|(def, (&v, &s))| effects::calibration_unidentified(def, v, s))
+        .collect();
     Diagnosis {
+        calibration_unidentified,
         effect: chosen
             .first()
             .map_or_else(|| "none".to_string(), |&k| cands[k].id.to_string()),
