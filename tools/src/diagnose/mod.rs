@@ -609,6 +609,17 @@ struct Earlier {
     working_rate: rate::WorkingRate,
 }
 
+/// Per calibration parameter of `cal`, why the recordings do not identify it (`None`:
+/// identified; [`effects::calibration_unidentified`]).
+fn unidentified_calibration(calib: &effects::Calib, cal: &FitResult) -> Vec<Option<String>> {
+    calib
+        .defs
+        .iter()
+        .zip(cal.values.iter().zip(&cal.std))
+        .map(|(def, (&v, &s))| effects::calibration_unidentified(def, v, s))
+        .collect()
+}
+
 /// The diagnosis from a finished selection: long-run 1-σ of the calibration and the final
 /// model, parameter stability, what stays unexplained.
 fn conclude(
@@ -655,15 +666,8 @@ fn conclude(
         .iter()
         .position(|o| o.passed && chosen.first() == Some(&o.cand_index));
     stage(progress, total_steps, total_steps, "done");
-    let calibration_unidentified = ctx
-        .calib
-        .defs
-        .iter()
-        .zip(cal.values.iter().zip(&cal.std))
-        .map(|(def, (&v, &s))| effects::calibration_unidentified(def, v, s))
-        .collect();
     Diagnosis {
-        calibration_unidentified,
+        calibration_unidentified: unidentified_calibration(ctx.calib, &cal),
         effect: chosen
             .first()
             .map_or_else(|| "none".to_string(), |&k| cands[k].id.to_string()),
