@@ -229,6 +229,41 @@ pub fn calibration_defs(rig: &Rig, ch: &Channels, in_band_modes: usize, n_basis:
     Calib { defs: v, n_basis }
 }
 
+/// Damping ratios the model applies ([`apply_calibration`] clamps a fitted ratio into this
+/// range): beyond it the prediction no longer changes with the fitted value.
+pub const ZETA_APPLIED_RANGE: (f64, f64) = (1e-5, 0.5);
+
+/// Why the recordings do not identify calibration parameter `def` fitted at `value` with 1 σ
+/// `std` (physical units), in words; `None` when they do. Not identified are:
+/// 1. a value or 1 σ that is not a finite number, or a 1 σ of 0 (the fit's Jacobian has no
+///    column for it: a mode the recordings do not excite);
+/// 2. a damping ratio outside [`ZETA_APPLIED_RANGE`] (the cost is flat there: any such value
+///    predicts the same);
+/// 3. a positive parameter (log representation: stiffness scale, damping ratios) whose 2 σ
+///    interval reaches zero (2σ ≥ value, a relative uncertainty of 50 % or more).
+///
+/// A signed parameter whose zero means "as nominal" (carriage-mass correction, force latency)
+/// is identified whenever its 1 σ is finite: a value within 2 σ of 0 says the rig file is right.
+pub fn calibration_unidentified(def: &ParamDef, value: f64, std: f64) -> Option<String> {
+    if !value.is_finite() || !std.is_finite() || std <= 0.0 {
+        return Some(format!(
+            "1 σ undefined (fitted {value:.3e}, 1 σ {std:.2e}): the recordings carry no information on it (e.g. a mode they do not excite)"
+        ));
+    }
+    let (lo, hi) = ZETA_APPLIED_RANGE;
+    if def.name.starts_with("zeta_mode") && !(lo..=hi).contains(&value) {
+        return Some(format!(
+            "fitted {value:.3e}, outside the damping ratios the model applies ({lo:.0e}–{hi}): the recordings do not constrain it"
+        ));
+    }
+    if matches!(def.transform, Transform::Log) && 2.0 * std >= value {
+        return Some(format!(
+            "fitted {value:.3e} with 1 σ {std:.2e}: its 2 σ interval reaches zero"
+        ));
+    }
+    None
+}
+
 /// Applies the calibration vector (physical values, in [`calibration_defs`] order).
 pub fn apply_calibration(calib: &Calib, values: &[f64], p: &mut Params) {
     p.n_basis = calib.n_basis;
@@ -238,7 +273,9 @@ pub fn apply_calibration(calib: &Calib, values: &[f64], p: &mut Params) {
             "stiffness_scale" => p.stiffness_scale = v,
             "base_mass_delta_kg" => p.base_mass_delta_kg = v,
             "force_delay_s" => p.force_delay_s = v,
-            n if n.starts_with("zeta_mode") => zm.push(v.clamp(1e-5, 0.5)),
+            n if n.starts_with("zeta_mode") => {
+                zm.push(v.clamp(ZETA_APPLIED_RANGE.0, ZETA_APPLIED_RANGE.1))
+            }
             _ => {}
         }
     }

@@ -462,10 +462,13 @@ impl Ctx<'_> {
         }
         if let Some(i) = pos("mount_frequency_hz") {
             // separated from every in-band model mode by more than its own 2 σ and the mount's
-            // half-power half-width ζ_m f_m (ζ_m capped at 0.1)
+            // half-power half-width ζ_m f_m: a model mode inside the resonance's half-power band
+            // [f_m(1 − ζ_m), f_m(1 + ζ_m)] is what a broad resonance changes most, and a mode's
+            // frequency and damping are calibration (no cap on ζ_m: a heavily damped "mount"
+            // next to a mode is that mode moved, e.g. by a crack changing the frequency ratios)
             let fm = f.values[off + i];
             let zm = pos("mount_damping_ratio").map_or(0.05, |j| f.values[off + j]);
-            let tol = 2.0 * sd(i) + zm.min(0.1) * fm;
+            let tol = 2.0 * sd(i) + zm * fm;
             // the recording holds no information at the ceiling (0.4 × the sample rate)
             let ceiling = cand.params[i].starts.iter().cloned().fold(0.0, f64::max);
             let at_edge = fm >= 0.95 * ceiling;

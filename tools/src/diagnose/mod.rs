@@ -107,6 +107,10 @@ pub struct Diagnosis {
     pub selected: Option<usize>,
     /// Calibration of the nominal model (names, values, σ).
     pub calibration: FitResult,
+    /// Per calibration parameter, why the recordings do not identify it
+    /// ([`effects::calibration_unidentified`]; `None`: identified). Reported in place of its
+    /// value.
+    pub calibration_unidentified: Vec<Option<String>>,
     /// Channel noise scales σ used for whitening.
     pub sigma: [f64; 3],
     /// Location of the discrepancy.
@@ -609,6 +613,17 @@ struct Earlier {
     working_rate: rate::WorkingRate,
 }
 
+/// Per calibration parameter of `cal`, why the recordings do not identify it (`None`:
+/// identified; [`effects::calibration_unidentified`]).
+fn unidentified_calibration(calib: &effects::Calib, cal: &FitResult) -> Vec<Option<String>> {
+    calib
+        .defs
+        .iter()
+        .zip(cal.values.iter().zip(&cal.std))
+        .map(|(def, (&v, &s))| effects::calibration_unidentified(def, v, s))
+        .collect()
+}
+
 /// The diagnosis from a finished selection: long-run 1-σ of the calibration and the final
 /// model, parameter stability, what stays unexplained.
 fn conclude(
@@ -656,6 +671,7 @@ fn conclude(
         .position(|o| o.passed && chosen.first() == Some(&o.cand_index));
     stage(progress, total_steps, total_steps, "done");
     Diagnosis {
+        calibration_unidentified: unidentified_calibration(ctx.calib, &cal),
         effect: chosen
             .first()
             .map_or_else(|| "none".to_string(), |&k| cands[k].id.to_string()),

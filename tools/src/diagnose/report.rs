@@ -213,10 +213,15 @@ pub fn to_json(d: &Diagnosis) -> Value {
     let (c, before, after) = validation_summary(d);
     let mut cal = Map::new();
     for i in 0..d.calibration.names.len() {
-        cal.insert(
-            d.calibration.names[i].into(),
-            json!({"value": d.calibration.values[i], "std": d.calibration.std[i]}),
-        );
+        let entry = match d.calibration_unidentified.get(i).cloned().flatten() {
+            Some(reason) => {
+                json!({"value": Value::Null, "std": Value::Null, "identified": false, "reason": reason})
+            }
+            None => {
+                json!({"value": d.calibration.values[i], "std": d.calibration.std[i], "identified": true})
+            }
+        };
+        cal.insert(d.calibration.names[i].into(), entry);
     }
     json!({
         "effect": d.effect,
@@ -250,10 +255,13 @@ fn calibration_words(d: &Diagnosis) -> String {
     let mut s = String::new();
     s += "Calibration of the nominal model (fit recordings):\n";
     for i in 0..d.calibration.names.len() {
-        s += &format!(
-            "  {} = {:.5} ± {:.2e}\n",
-            d.calibration.names[i], d.calibration.values[i], d.calibration.std[i]
-        );
+        s += &match d.calibration_unidentified.get(i).cloned().flatten() {
+            Some(reason) => format!("  {} = not identified ({reason})\n", d.calibration.names[i]),
+            None => format!(
+                "  {} = {:.5} ± {:.2e}\n",
+                d.calibration.names[i], d.calibration.values[i], d.calibration.std[i]
+            ),
+        };
     }
     s += "Where the residual of the calibrated nominal model lies:\n";
     for w in &d.location.words {

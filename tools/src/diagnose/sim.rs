@@ -920,13 +920,16 @@ fn fresh_cache<'c>(
 }
 
 /// Acceleration (m/s²) at sample k of a piecewise-linear path: the velocity step there / dt.
-fn accel_at(y: &[f64], k: usize, dt: f64) -> f64 {
+/// The path starts from rest and keeps its last velocity after the last sample (a recording
+/// that ends mid-move says nothing of a stop; assuming one put a −v/dt spike of tens of N into
+/// the last force sample, which the force calibration then bent its mass and latency to).
+pub fn accel_at(y: &[f64], k: usize, dt: f64) -> f64 {
     let n = y.len();
     let vb = if k == 0 { 0.0 } else { (y[k] - y[k - 1]) / dt };
     let va = if k + 1 < n {
         (y[k + 1] - y[k]) / dt
     } else {
-        0.0
+        vb
     };
     (va - vb) / dt
 }
@@ -995,10 +998,12 @@ fn beam_response(
         } else {
             (root[k] - root[k - 1]) / dt
         };
+        // after the last sample the root keeps its last velocity (a recording ends, the motion
+        // need not: a stop there would put a spurious −v/dt kick into the last force sample)
         let va = if k + 1 < n {
             (root[k + 1] - root[k]) / dt
         } else {
-            0.0
+            vb
         };
         let dv = va - vb;
         let acc = dv / dt;

@@ -1,0 +1,75 @@
+//! Calibration parameters the recordings do not identify (the damping of a mode they do not
+//! excite) are reported as "not identified" with a reason, never as a number.
+
+mod common;
+
+use beamtools::diagnose::effects::{calibration_unidentified, ParamDef, Transform};
+use beamtools::truth::TruthOptions;
+
+fn def(name: &'static str, transform: Transform) -> ParamDef {
+    ParamDef {
+        name,
+        transform,
+        starts: vec![1.0],
+        scale: 1.0,
+        zero_is_null: false,
+        scan: Vec::new(),
+    }
+}
+
+#[test]
+fn unidentified_calibration_values_are_recognised() {
+    let zeta = def("zeta_mode8", Transform::Log);
+    // what a 1000 Hz recording printed for a mode it does not excite
+    assert!(calibration_unidentified(&zeta, 300.0, f64::NAN).is_some());
+    assert!(calibration_unidentified(&zeta, 1.37, 0.01).is_some());
+    assert!(calibration_unidentified(&zeta, 1e-9, 1e-10).is_some());
+    assert!(calibration_unidentified(&zeta, 0.21, 0.31).is_some());
+    assert!(calibration_unidentified(&zeta, 0.02, 0.0).is_some());
+    assert!(calibration_unidentified(&zeta, 0.0166, 1.5e-5).is_none());
+    let scale = def("stiffness_scale", Transform::Log);
+    assert!(calibration_unidentified(&scale, 0.95, 5e-5).is_none());
+    // a signed correction within 2 σ of zero is "as nominal", identified
+    let mass = def("base_mass_delta_kg", Transform::Linear);
+    assert!(calibration_unidentified(&mass, -0.42, 0.26).is_none());
+    assert!(calibration_unidentified(&mass, -0.42, f64::NAN).is_some());
+}
+
+#[test]
+fn a_mode_the_recordings_do_not_excite_has_no_reported_damping() {
+    // 1000 Hz, 10 s, tip only: modes up to the band edge are in the model, the highest are not
+    // excited by the moves
+    let (json, _) = common::diagnose_generated_with(
+        "none",
+        81_003,
+        &TruthOptions {
+            duration_s: 10.0,
+            rate_hz: 1000.0,
+            base_pos: Some(false),
+            force: Some(false),
+            ..Default::default()
+        },
+    );
+    let cal = json["calibration"].as_object().expect("calibration object");
+    let mut unidentified = 0;
+    for (name, e) in cal {
+        if e["identified"] == serde_json::Value::Bool(false) {
+            assert!(e["value"].is_null() && e["std"].is_null(), "{name}: {e}");
+            assert!(e["reason"].as_str().is_some_and(|r| !r.is_empty()), "{e}");
+            unidentified += 1;
+            continue;
+        }
+        let (v, s) = (e["value"].as_f64(), e["std"].as_f64());
+        let (Some(v), Some(s)) = (v, s) else {
+            panic!("{name}: a number without a finite value and 1 σ: {e}");
+        };
+        assert!(s > 0.0, "{name}: {e}");
+        if name.starts_with("zeta_mode") {
+            assert!((1e-5..=0.5).contains(&v) && 2.0 * s < v, "{name}: {e}");
+        }
+    }
+    assert!(
+        unidentified > 0,
+        "every mode identified at 1000 Hz? {cal:?}"
+    );
+}
