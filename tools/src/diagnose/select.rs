@@ -15,7 +15,10 @@
 //!    validation residual on the channel it helps most must exceed what a *physics-free*
 //!    correction with the same number k of free coefficients, fitted on the fit data only,
 //!    earns on the same validation residual ([`crate::numeric::arx`] for recordings: the best
-//!    k-term linear filter of the model's prediction and the base motion; for a length series
+//!    k-term linear filter of the model's prediction and the base motion — on `force_n` without
+//!    the carriage velocity, which is not model-form freedom but viscous friction, a catalogue
+//!    effect: a yardstick made of the candidate's own physics can never be beaten by it, see
+//!    `forward::FORCE_WITHOUT`; for a length series
 //!    the best k-term smooth trend of the relative frequency error in the length); for
 //!    recordings also at least the *split-refit spread*: how much the validation rms residual
 //!    changes when the model so far is refitted to one fit recording alone (the smallest such
@@ -51,7 +54,9 @@
 //!
 //! Among those, the largest validation likelihood gain wins; if none passes, the answer is
 //! `none`. In `diagnose` forward selection applies the guard once per round against the model
-//! chosen so far.
+//! chosen so far; an effect whose look-alike (an effect the recorded channels see as the same
+//! filter) passed in the same round is settled on the final model by the margins of conditions
+//! 1–3, or reported indistinguishable from it ([`super::lookalike`]).
 
 pub use crate::numeric::stats::{
     autocorrelation_time, delta_bic, delta_neg2ll, delta_neg2ll_effective, ljung_box, neg2ll,

@@ -6,7 +6,10 @@
 //! r̂ = Σ_{j∈S} c_j φ_j with the dictionary φ = (s_i, Ds_i, D²s_i), D the central difference:
 //! to first order, any small linear filter on the model's input path, inside it or on its
 //! output (gain, lag, lead, a slightly different low-pass) is a combination of these (a linear
-//! model's response to D^j u is D^j of its response to u). For a
+//! model's response to D^j u is D^j of its response to u). A caller leaves out a column that
+//! is not model-form freedom of what is modelled but a physical path of its own (for the
+//! diagnosis' force channel the carriage velocity, i.e. viscous friction): a yardstick that
+//! contains a candidate's physics cannot measure whether that physics is needed. For a
 //! given number k of free coefficients and every subset S (|S| = k), the coefficients c are
 //! those of least squares on the **fit** recordings' residual; the correction is then applied,
 //! never refitted, to the **validation** recording's residual, and the subset that gains most
