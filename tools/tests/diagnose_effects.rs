@@ -9,13 +9,7 @@ mod common;
 /// fitted value of `param`, true value).
 fn round_trip(effect: &str, seed: u64, param: &str) -> (Vec<String>, f64, f64) {
     let (j, truth) = common::diagnose_generated(effect, seed);
-    let named: Vec<String> = j["effects"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e["effect"].as_str().unwrap().to_string())
-        .filter(|e| e != "servo_lag")
-        .collect();
+    let named = common::named_effects(&j);
     let fitted = j["effects"]
         .as_array()
         .unwrap()

@@ -8,20 +8,6 @@ mod common;
 
 use beamtools::truth::TruthOptions;
 
-/// Named catalogue effects of a diagnosis JSON (`servo_lag` dropped: every generated rig has a
-/// finite loop, the proof's convention).
-fn named(j: &serde_json::Value) -> Vec<String> {
-    let mut v: Vec<String> = j["effects"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e["effect"].as_str().unwrap().to_string())
-        .filter(|e| e != "servo_lag")
-        .collect();
-    v.sort();
-    v
-}
-
 /// 150 Hz (a rate the proof does not use), seed outside the tuning sets: both effects named,
 /// each with its parameter of the right size.
 #[test]
@@ -34,7 +20,12 @@ fn friction_beside_a_tip_mass_is_named_too() {
     let (j, truth) = common::diagnose_generated_with("base_friction+tip_mass", 81001, &opts);
     let channels = truth["channels"].to_string();
     assert!(channels.contains("force_n"), "{channels}");
-    assert_eq!(named(&j), ["base_friction", "tip_mass"], "{}", j["effects"]);
+    assert_eq!(
+        common::named_effects(&j),
+        ["base_friction", "tip_mass"],
+        "{}",
+        j["effects"]
+    );
     let param = |name: &str| {
         j["effects"]
             .as_array()

@@ -7,7 +7,7 @@
 //! recordings give the same answer on any machine.
 
 use super::effects::{Calib, Candidate, Transform};
-use super::fit::{self, channel_rss, fit, residuals, FitResult};
+use super::fit::{self, channel_rss, residuals, FitResult};
 use super::select::*;
 use super::sim::{Prediction, Prepared};
 use super::unexplained::LJUNG_BOX_CRITICAL;
@@ -105,6 +105,27 @@ impl Ctx<'_> {
         self.trace.borrow_mut().push(line);
     }
 
+    /// The calibration and the effects `set` fitted to the fit recordings from `warm` (or the
+    /// defaults), at most `max_evaluations` model evaluations, no exploratory starts
+    /// ([`fit::fit`]).
+    pub(crate) fn fit(
+        &self,
+        set: &[&Candidate],
+        warm: Option<&nalgebra::DVector<f64>>,
+        max_evaluations: usize,
+    ) -> FitResult {
+        fit::fit(
+            self.rig,
+            self.fit_data,
+            self.sigma,
+            self.calib,
+            set,
+            warm,
+            max_evaluations,
+            false,
+        )
+    }
+
     pub(crate) fn reference(&self, set: &[&Candidate], f: FitResult) -> Option<Reference> {
         let prob = fit::Problem::new(
             self.rig,
@@ -195,7 +216,7 @@ impl Ctx<'_> {
         let share = max_evaluations / self.fit_data.len();
         for i in 0..self.fit_data.len() {
             let one = std::slice::from_ref(&self.fit_data[i]);
-            let f = fit(
+            let f = fit::fit(
                 self.rig,
                 one,
                 self.sigma,
@@ -243,7 +264,7 @@ impl Ctx<'_> {
         explore: bool,
     ) -> Option<CandidateOutcome> {
         set.last()?;
-        let f = fit(
+        let f = fit::fit(
             self.rig,
             self.fit_data,
             self.sigma,
@@ -384,16 +405,7 @@ impl Ctx<'_> {
             .collect();
         let n = o.param_offset + alt.params.len();
         let warm = o.fit.x.rows(0, n).into_owned();
-        let g = fit(
-            self.rig,
-            self.fit_data,
-            self.sigma,
-            self.calib,
-            &alt_set,
-            Some(&warm),
-            max_evaluations,
-            false,
-        );
+        let g = self.fit(&alt_set, Some(&warm), max_evaluations);
         let used = g.evaluations;
         let Some(ra) = self.reference(&alt_set, g) else {
             return Some((None, used));
@@ -562,16 +574,7 @@ fn refresh_reference(
 ) {
     let set = set_of(cands, chosen);
     if round > 0 {
-        let f = fit(
-            ctx.rig,
-            ctx.fit_data,
-            ctx.sigma,
-            ctx.calib,
-            &set,
-            Some(&reference.fit.x),
-            budget.share(pool_len + 2),
-            false,
-        );
+        let f = ctx.fit(&set, Some(&reference.fit.x), budget.share(pool_len + 2));
         budget.spend(f.evaluations);
         if f.cost < reference.fit.cost {
             if let Some(r) = ctx.reference(&set, f) {
@@ -648,16 +651,7 @@ fn backward_check(
         checked.push(outs[s].cand_index);
         let prev = set_of(cands, chosen);
         let warm = outs[s].fit.x.rows(0, reference.fit.x.len()).into_owned();
-        let f = fit(
-            ctx.rig,
-            ctx.fit_data,
-            ctx.sigma,
-            ctx.calib,
-            &prev,
-            Some(&warm),
-            budget.share(pool_len + 1),
-            false,
-        );
+        let f = ctx.fit(&prev, Some(&warm), budget.share(pool_len + 1));
         budget.spend(f.evaluations);
         ctx.trace(format!(
             "backward check of {}: chosen effects alone from the joint optimum cost {:.6e} (reference {:.6e}, with it {:.6e})\n  reference {:?}\n  joint     {:?}\n  refit     {:?}",

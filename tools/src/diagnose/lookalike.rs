@@ -24,7 +24,6 @@
 //!   the recordings do not give.
 
 use super::effects::Candidate;
-use super::fit::fit;
 use super::fit::CHANNEL_NAMES;
 use super::forward::{allowance, n_of, Budget, Ctx, Reference, Selection};
 use super::select::{delta_neg2ll_effective, BIC_MARGIN, VALIDATION_MARGIN};
@@ -113,16 +112,7 @@ fn refine_once(
         return;
     }
     let set: Vec<&Candidate> = sel.chosen.iter().map(|&k| &cands[k]).collect();
-    let f = fit(
-        ctx.rig,
-        ctx.fit_data,
-        ctx.sigma,
-        ctx.calib,
-        &set,
-        Some(&sel.reference.fit.x),
-        check_share(budget),
-        false,
-    );
+    let f = ctx.fit(&set, Some(&sel.reference.fit.x), check_share(budget));
     budget.spend(f.evaluations);
     if f.cost < sel.reference.fit.cost {
         if let Some(r) = ctx.reference(&set, f) {
@@ -170,16 +160,7 @@ fn refit_with(
     let mut best: Option<super::fit::FitResult> = None;
     for warm in [from_alt, from_final] {
         let warm = DVector::from_vec(warm);
-        let f = fit(
-            ctx.rig,
-            ctx.fit_data,
-            ctx.sigma,
-            ctx.calib,
-            &set,
-            Some(&warm),
-            share,
-            false,
-        );
+        let f = ctx.fit(&set, Some(&warm), share);
         budget.spend(f.evaluations);
         ctx.trace(format!(
             "look-alike refit with {}: cost {:.6e} after {} evaluations (final model {:.6e})",

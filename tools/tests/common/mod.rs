@@ -38,3 +38,18 @@ pub fn diagnose_generated_with(
     let d = diagnose(&rig, &fit, &val, &mut beamtools::progress::Silent).unwrap();
     (to_json(&d), serde_json::to_value(&case.truth).unwrap())
 }
+
+/// Catalogue effects named in a diagnosis JSON, sorted; `servo_lag` left out (every generated
+/// rig has a finite position loop, the proof's convention).
+#[allow(dead_code)]
+pub fn named_effects(j: &serde_json::Value) -> Vec<String> {
+    let mut v: Vec<String> = j["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["effect"].as_str().unwrap().to_string())
+        .filter(|e| e != "servo_lag")
+        .collect();
+    v.sort();
+    v
+}
