@@ -626,11 +626,11 @@ fn fit_round(
     outs
 }
 
-/// Backward check: the effects already chosen, refitted from the joint optimum without the
-/// newcomer. If they alone do better there than the reference, part of the newcomer's gain was
-/// only a better optimum of what was already chosen: every passing candidate is judged again
-/// against that better reference. Returns the index of the pick in `outs`.
-#[allow(clippy::too_many_arguments)]
+/// Backward check: the effects already chosen (in the first round: the calibration alone),
+/// refitted from the joint optimum without the newcomer. If they alone do better there than the
+/// reference, part of the newcomer's gain was only a better optimum of what was already chosen:
+/// every passing candidate is judged again against that better reference. Returns the index of
+/// the pick in `outs`.
 fn backward_check(
     ctx: &Ctx,
     cands: &[Candidate],
@@ -639,11 +639,10 @@ fn backward_check(
     reference: &mut Reference,
     budget: &mut Budget,
     pool_len: usize,
-    round: usize,
 ) -> Option<usize> {
     let mut pick = outs.iter().position(|o| o.passed);
     let mut checked: Vec<usize> = Vec::new();
-    while round > 0 && checked.len() < 3 {
+    while checked.len() < 3 {
         let Some(s) = pick else { break };
         if checked.contains(&outs[s].cand_index) {
             break;
@@ -738,7 +737,6 @@ pub(crate) fn select_forward(
             &mut sel.reference,
             budget,
             pool.len(),
-            round,
         );
         for o in &outs {
             ctx.trace(format!(
