@@ -1116,6 +1116,19 @@ fn carriage_forces(p: &Params, drive: &[f64], mut force: Vec<f64>, dt: f64) -> V
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_first_order_loop_with_full_velocity_feed_forward_is_the_command() {
+        // the identity start of the base-motion alternative (honesty::identity_servo)
+        let dt = 0.01;
+        let r: Vec<f64> = (0..500).map(|k| (k as f64 * dt).sin() * 0.1).collect();
+        for omega in [1.0, 50.0, 400.0] {
+            let y = first_order(&r, dt, omega, 1.0);
+            assert!(y.iter().zip(&r).all(|(a, b)| (a - b).abs() < 1e-12));
+        }
+        let lag = first_order(&r, dt, 5.0, 0.0);
+        assert!(lag.iter().zip(&r).any(|(a, b)| (a - b).abs() > 1e-3));
+    }
     use crate::model::sim::BaseMotionSim;
 
     fn rig() -> Rig {
