@@ -666,32 +666,39 @@ pub fn mount_candidate(h: &StartHints, coupled: bool) -> Candidate {
     }
 }
 
-/// The alternative placement of a mount resonance (`mount`, either form): the same frequency
-/// and damping ratio as a resonance between the tip and its sensor (a loose sensor mount,
+/// The alternative placement of a resonance on the command → tip path (`cand`: a mount of either
+/// form, or a position loop with a damping ratio): the same frequency and damping ratio as a
+/// resonance between the tip and its sensor (a loose sensor mount,
 /// [`super::sim::Params::tip_filter`]). On `tip_pos_m` it is the same linear filter as a
-/// massless mount (filters in series commute); only the channels that see the beam root move
-/// (`force_n`) tell the two apart. Not a catalogue effect: the yardstick of the mount's
-/// placement test.
-pub fn sensor_side_of(mount: &Candidate) -> Candidate {
-    let mut params: Vec<ParamDef> = mount
-        .params
-        .iter()
-        .filter(|q| q.name != "mount_mass_kg")
-        .cloned()
-        .collect();
-    for q in params.iter_mut() {
-        q.name = match q.name {
-            "mount_frequency_hz" => "sensor_mount_frequency_hz",
-            "mount_damping_ratio" => "sensor_mount_damping_ratio",
-            n => n,
-        };
+/// massless mount or a resonant loop with full velocity feed-forward (filters in series
+/// commute); only the channels that see the beam root or the carriage move (`force_n`, and
+/// `base_pos_m` for a loop) tell them apart. Not a catalogue effect: the yardstick of the
+/// placement test. Returns it and, per parameter of it, the index of the parameter of `cand` it
+/// stands for; `None` for a candidate without a resonance frequency and damping ratio.
+pub fn sensor_side_of(cand: &Candidate) -> Option<(Candidate, Vec<usize>)> {
+    let renamed = |n: &str| match n {
+        "mount_frequency_hz" | "servo_bandwidth_hz" => Some("sensor_mount_frequency_hz"),
+        "mount_damping_ratio" | "servo_damping_ratio" => Some("sensor_mount_damping_ratio"),
+        _ => None,
+    };
+    let (mut params, mut index) = (Vec::new(), Vec::new());
+    for (i, q) in cand.params.iter().enumerate() {
+        if let Some(name) = renamed(q.name) {
+            let mut q = q.clone();
+            q.name = name;
+            params.push(q);
+            index.push(i);
+        }
     }
-    Candidate {
-        id: Effect::MountResonance,
-        words: "a resonance between the tip and its sensor (a loose sensor mount)",
-        orientation: None,
-        params,
-    }
+    (params.len() == 2).then_some((
+        Candidate {
+            id: Effect::MountResonance,
+            words: "a resonance between the tip and its sensor (a loose sensor mount)",
+            orientation: None,
+            params,
+        },
+        index,
+    ))
 }
 
 /// Applies a candidate's effect values (physical units, in `cand.params` order).

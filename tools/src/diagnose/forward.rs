@@ -275,15 +275,7 @@ impl Ctx<'_> {
             explore,
         );
         let r = self.reference(set, f)?;
-        let mut o = self.assess(set, ci, r, base);
-        if o.passed {
-            if let Some(why) = self.placement(set, &o, max_evaluations / 2) {
-                o.fit.evaluations += why.1;
-                o.unplaced = why.0;
-            }
-            o.apply_placement();
-        }
-        Some(o)
+        Some(self.assess(set, ci, r, base))
     }
 
     /// Applies every guard ([`select::guard`] and the calibration-matter rules) to candidate
@@ -375,53 +367,60 @@ impl Ctx<'_> {
             .fold(0.0, f64::max)
     }
 
-    /// Where a mount resonance sits (condition 8 of [`super::select`]). A massless mount
+    /// Where a resonance on the command → tip path sits (condition 8 of [`super::select`]): a
+    /// mount, or a lightly damped position loop ([`resonance_to_place`]). A massless mount
     /// filters the root motion; on `tip_pos_m` that is the same linear filter as a resonance
     /// between the tip and its sensor (a loose sensor mount: filters in series commute), and
-    /// neither changes `base_pos_m` (the measured base drives the model). Only the channels that
-    /// see the beam root move differently from the carriage (`force_n`: the beam's and a mount
-    /// mass's reaction) can tell them apart. The mount candidate `o` (last of `set`) is named
-    /// only if it beats that alternative placement ([`super::effects::sensor_side_of`], fitted
-    /// with the calibration and the effects before it, warm from the mount's optimum) by the
-    /// guard's own margins: Δ(−2 ln L) on the fit recordings (+ ln N per extra parameter of the
-    /// coupled form) < −[`BIC_MARGIN`] and on the validation recording < −[`VALIDATION_MARGIN`].
-    /// Returns the reason it is not placed (`None`: placed) and the model evaluations used;
-    /// `None` for any other candidate.
+    /// neither changes `base_pos_m` (the measured base drives the model). A resonant loop
+    /// filters the carriage motion: without `base_pos_m` that too is the same filter on
+    /// `tip_pos_m`. Only the channels that see the root or the carriage move (`force_n`; for a
+    /// loop `base_pos_m`) can tell them apart. The candidate `o` (last of `set`) is named only
+    /// if it beats that alternative placement ([`super::effects::sensor_side_of`], fitted with
+    /// the calibration and the effects before it from `starts`: the candidate's optimum and
+    /// every other resonance form's of the round) as a new effect must beat the model it
+    /// extends ([`placement_guard`]). Returns the reason it is not placed (`None`: placed) and
+    /// the model evaluations used; `None` for a candidate that puts no resonance there.
     fn placement(
         &self,
         set: &[&Candidate],
         o: &CandidateOutcome,
+        starts: &[nalgebra::DVector<f64>],
         max_evaluations: usize,
     ) -> Option<(Option<String>, usize)> {
         let cand = *set.last()?;
-        if cand.id != crate::effect::Effect::MountResonance {
-            return None;
-        }
-        let alt = super::effects::sensor_side_of(cand);
+        let (alt, _) = super::effects::sensor_side_of(cand)?;
         let alt_set: Vec<&Candidate> = set[..set.len() - 1]
             .iter()
             .copied()
             .chain(std::iter::once(&alt))
             .collect();
         let n = o.param_offset + alt.params.len();
-        let warm = o.fit.x.rows(0, n).into_owned();
-        let g = self.fit(&alt_set, Some(&warm), max_evaluations);
-        let used = g.evaluations;
-        let Some(ra) = self.reference(&alt_set, g) else {
+        let mut used = 0;
+        let mut best: Option<FitResult> = None;
+        for warm in starts.iter().filter(|x| x.len() == n) {
+            let g = self.fit(&alt_set, Some(warm), max_evaluations / starts.len().max(1));
+            used += g.evaluations;
+            if best.as_ref().map_or(true, |b| g.cost < b.cost) {
+                best = Some(g);
+            }
+        }
+        let Some(ra) = best.and_then(|g| self.reference(&alt_set, g)) else {
             return Some((None, used));
         };
-        let mount = self.reference(set, o.fit.clone())?;
+        let placed = self.reference(set, o.fit.clone())?;
         let n_fit = n_of(self.fit_data);
         let n_eff: f64 = (0..3).map(|c| n_fit[c] as f64 / ra.tau_fit[c]).sum();
-        let extra = (cand.params.len() - alt.params.len()) as f64;
-        let fit_gain = delta_neg2ll_effective(&mount.rss, &ra.rss, &n_fit, &ra.tau_fit)
-            + extra * n_eff.max(1.0).ln();
-        let val_gain = delta_neg2ll_effective(&mount.vrss, &ra.vrss, &ra.vn, &ra.tau_val);
+        let extra = cand.params.len() - alt.params.len();
+        let fit_gain = delta_neg2ll_effective(&placed.rss, &ra.rss, &n_fit, &ra.tau_fit)
+            + extra as f64 * n_eff.max(1.0).ln();
+        let val_gain = delta_neg2ll_effective(&placed.vrss, &ra.vrss, &ra.vn, &ra.tau_val);
+        let fails = placement_guard(&placed, &ra, fit_gain, val_gain, extra);
         self.trace(format!(
-            "placement of {}: against the same resonance at the tip sensor Δ(−2lnL) {fit_gain:+.1} fit, {val_gain:+.1} validation",
-            cand.id
+            "placement of {}: against the same resonance at the tip sensor Δ(−2lnL) {fit_gain:+.1} fit, {val_gain:+.1} validation; {}",
+            cand.id,
+            if fails.is_empty() { "placed".to_string() } else { fails.join("; ") }
         ));
-        if fit_gain < -BIC_MARGIN && val_gain < -VALIDATION_MARGIN {
+        if fails.is_empty() {
             return Some((None, used));
         }
         let fm = ra
@@ -430,9 +429,16 @@ impl Ctx<'_> {
             .get(o.param_offset)
             .copied()
             .unwrap_or(f64::NAN);
+        let place = if cand.id == crate::effect::Effect::ServoLag {
+            "in the position loop (the carriage following its command)"
+        } else {
+            "between carriage and beam root"
+        };
         Some((
             Some(format!(
-                "placement: the same resonance between the tip and its sensor (a loose sensor mount, {fm:.2} Hz) explains the recordings as well (mount against it: Δ(−2lnL) {fit_gain:+.1} fit, {val_gain:+.1} validation): they cannot place it between carriage and beam root"
+                "placement: the same resonance between the tip and its sensor (a loose sensor mount, {fm:.2} Hz) explains the recordings as well ({} against it: Δ(−2lnL) {fit_gain:+.1} fit, {val_gain:+.1} validation; {}): they cannot place it {place}",
+                cand.id,
+                fails.join("; ")
             )),
             used,
         ))
@@ -455,7 +461,7 @@ impl Ctx<'_> {
         // a lightly damped servo loop is a resonance of the base motion: the same rule as a mount
         if let (Some(i), Some(j)) = (pos("servo_bandwidth_hz"), pos("servo_damping_ratio")) {
             let (fs, zs) = (f.values[off + i], f.values[off + j]);
-            if zs < 0.3 {
+            if zs < RESONANT_LOOP_ZETA {
                 let tol = 2.0 * sd(i) + zs * fs;
                 if let Some(fr) = self.model_freqs.iter().find(|fr| (fs - **fr).abs() <= tol) {
                     fails.push(if identified(fs, f.std[off + i]) {
@@ -511,6 +517,44 @@ impl Ctx<'_> {
         }
         fails
     }
+}
+
+/// The guard ([`guard`], conditions 1–4 and 6) applied to the mount (fitted as `mount`) as an
+/// extension of the same resonance placed at the tip sensor (`at_sensor`): the mount's
+/// placement — and, for the coupled form, its `extra` parameters (the mount mass) — must earn
+/// their place as any new effect must. Besides the likelihood margins (`fit_gain` with the
+/// extra parameters' ln N, `val_gain`), the reduction of the sensor-placed model's validation
+/// residual must beat that residual's model-form allowance for `extra` coefficients (at least
+/// one) and remove most of its structure: a coupled mount whose mass only bends the beam's
+/// frequency ratios a little on `tip_pos_m` fits a sliver of any model-form residual, which is
+/// not evidence that the resonance sits between carriage and beam root (on `force_n` a real
+/// mount's reaction is the largest part of what the sensor placement leaves). Returns the
+/// failed conditions (empty: placed).
+fn placement_guard(
+    mount: &Reference,
+    at_sensor: &Reference,
+    fit_gain: f64,
+    val_gain: f64,
+    extra: usize,
+) -> Vec<String> {
+    let (c, reduction) = best_reduction(mount, at_sensor);
+    let sp = |v: &Option<Vec<f64>>| {
+        v.as_ref()
+            .map_or(0.0, |r| structured_power(r, LJUNG_BOX_LAGS))
+    };
+    guard(&Evidence {
+        delta_bic: fit_gain,
+        delta_val: val_gain,
+        reduction,
+        allowance: allowance(at_sensor, c, extra.max(1)),
+        structured: Some((sp(&at_sensor.vres[c]), sp(&mount.vres[c]))),
+        significance: f64::INFINITY,
+        structure_explained: structure_explained(
+            at_sensor.vres[c].as_deref(),
+            mount.vres[c].as_deref(),
+        ),
+        implausible: Vec::new(),
+    })
 }
 
 /// Whether a fitted frequency `f` (Hz) with 1 σ `sd` is identified: finite and its 2 σ
@@ -623,7 +667,83 @@ fn fit_round(
     }
     outs.sort_by(|a, b| a.delta_val.total_cmp(&b.delta_val));
     super::keep_lowest_bic_form(&mut outs);
+    place_resonances(ctx, cands, chosen, &mut outs, budget);
     outs
+}
+
+/// Damping ratio below which a fitted position loop is a resonance of the carriage motion (the
+/// calibration-matter rule treats it as a mount; a tuned drive's loop is damped at ζ ≳ 0.5).
+pub const RESONANT_LOOP_ZETA: f64 = 0.3;
+
+/// Whether outcome `o` of candidate `cand` puts a resonance on the command → tip path that the
+/// placement test must place: a mount of either form, or a position loop fitted with a damping
+/// ratio below [`RESONANT_LOOP_ZETA`].
+fn resonance_to_place(cand: &Candidate, o: &CandidateOutcome) -> bool {
+    match cand.id {
+        crate::effect::Effect::MountResonance => true,
+        crate::effect::Effect::ServoLag => cand
+            .params
+            .iter()
+            .position(|q| q.name == "servo_damping_ratio")
+            .is_some_and(|j| o.fit.values[o.param_offset + j] < RESONANT_LOOP_ZETA),
+        _ => false,
+    }
+}
+
+/// The start of the sensor placement's fit taken from outcome `o` of candidate `cand`: the
+/// calibration and earlier effects, then its resonance frequency and damping ratio.
+fn sensor_start(cand: &Candidate, o: &CandidateOutcome) -> Option<nalgebra::DVector<f64>> {
+    let (_, index) = super::effects::sensor_side_of(cand)?;
+    let off = o.param_offset;
+    Some(nalgebra::DVector::from_iterator(
+        off + index.len(),
+        o.fit
+            .x
+            .iter()
+            .take(off)
+            .copied()
+            .chain(index.iter().map(|&i| o.fit.x[off + i])),
+    ))
+}
+
+/// The placement test ([`Ctx::placement`], condition 8) of every resonance in `outs` that still
+/// passes (after [`super::keep_lowest_bic_form`]), the alternative fitted from each resonance
+/// form's optimum of the round.
+fn place_resonances(
+    ctx: &Ctx,
+    cands: &[Candidate],
+    chosen: &[usize],
+    outs: &mut [CandidateOutcome],
+    budget: &mut Budget,
+) {
+    let starts: Vec<nalgebra::DVector<f64>> = outs
+        .iter()
+        .filter(|o| resonance_to_place(&cands[o.cand_index], o))
+        .filter_map(|o| sensor_start(&cands[o.cand_index], o))
+        .collect();
+    for i in 0..outs.len() {
+        let cand = &cands[outs[i].cand_index];
+        if !outs[i].passed || !resonance_to_place(cand, &outs[i]) {
+            continue;
+        }
+        let set: Vec<&Candidate> = set_of(cands, chosen)
+            .into_iter()
+            .chain(std::iter::once(cand))
+            .collect();
+        // its own optimum first
+        let own = sensor_start(cand, &outs[i]);
+        let all: Vec<_> = own
+            .iter()
+            .chain(starts.iter().filter(|x| Some(*x) != own.as_ref()))
+            .cloned()
+            .collect();
+        let share = budget.share(outs.len() - i + 1);
+        if let Some((why, used)) = ctx.placement(&set, &outs[i], &all, share) {
+            budget.spend(used);
+            outs[i].unplaced = why;
+        }
+        outs[i].apply_placement();
+    }
 }
 
 /// Backward check: the effects already chosen (in the first round: the calibration alone),

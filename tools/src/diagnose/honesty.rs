@@ -24,7 +24,7 @@ use super::sim::Prepared;
 use crate::model::Rig;
 use crate::numeric::{
     lm,
-    stats::{autocorrelation_time, innovation_variance},
+    stats::{autocorrelation_time, noise_variance},
 };
 use nalgebra::DVector;
 use serde::Serialize;
@@ -137,7 +137,8 @@ pub struct ResidualStats {
     pub channel: String,
     /// rms of the centred residual.
     pub rms: f64,
-    /// Noise estimate σ̂ (one-step prediction error, [`innovation_variance`]).
+    /// Noise estimate σ̂ ([`noise_variance`]: the smaller of the one-step prediction error and
+    /// the spectral floor).
     pub noise: f64,
     /// √max(rms² − σ̂², 0) / σ̂: the structured rms in noise units.
     pub structured_over_noise: f64,
@@ -158,7 +159,7 @@ pub fn residual_stats(res: &[Option<Vec<f64>>; 3]) -> Vec<ResidualStats> {
         let m = r.iter().sum::<f64>() / r.len() as f64;
         let centred: Vec<f64> = r.iter().map(|x| x - m).collect();
         let rms = (centred.iter().map(|x| x * x).sum::<f64>() / r.len() as f64).sqrt();
-        let noise = innovation_variance(r, LJUNG_BOX_LAGS).sqrt();
+        let noise = noise_variance(r, LJUNG_BOX_LAGS).sqrt();
         let excess = (rms * rms - noise * noise).max(0.0).sqrt();
         out.push(ResidualStats {
             channel: CHANNEL_NAMES[c].to_string(),

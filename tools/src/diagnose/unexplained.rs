@@ -4,9 +4,15 @@
 //! 1. **structured**: the Ljung–Box statistic over [`LJUNG_BOX_LAGS`] lags exceeds the χ²(20)
 //!    0.1 % critical value 45.3 (white noise would exceed it once in a thousand recordings), and
 //! 2. **well above the noise**: its structured rms √(rms² − σ̂²) is at least
-//!    [`STRUCTURE_OVER_NOISE`] × the noise rms σ̂, σ̂² the residual's one-step prediction-error
-//!    variance from its own 20 previous samples ([`innovation_variance`]): what its past cannot
-//!    predict. (The first-difference estimator σ̂² = mean((r_{k+1} − r_k)²)/2, von Neumann 1941,
+//!    [`STRUCTURE_OVER_NOISE`] × the noise rms σ̂, σ̂² the smaller of the residual's one-step
+//!    prediction-error variance from its own 20 previous samples
+//!    ([`innovation_variance`](crate::numeric::stats::innovation_variance): what its past
+//!    cannot predict) and its spectral floor
+//!    ([`spectral_floor_variance`](crate::numeric::stats::spectral_floor_variance): the median
+//!    periodogram ordinate / ln 2). A lightly damped mode ringing in the residual is not fully
+//!    predictable from its own noisy past, so the first alone counts part of it as noise; the
+//!    median of the spectrum does not see a structure confined to under half of the band. (The
+//!    first-difference estimator σ̂² = mean((r_{k+1} − r_k)²)/2, von Neumann 1941,
 //!    [`difference_noise`], counts structure near the Nyquist rate as noise.)
 //!
 //! It is located, never named: the channel, the band holding half its spectral power around
@@ -18,7 +24,7 @@ use super::fit::CHANNEL_NAMES;
 use super::select::{ljung_box, LJUNG_BOX_LAGS};
 use super::sim::{Prediction, Prepared};
 use crate::ident::spectrum::amplitude_spectrum;
-use crate::numeric::stats::innovation_variance;
+use crate::numeric::stats::noise_variance;
 use serde::Serialize;
 
 /// χ²(20) upper 0.1 % point.
@@ -157,7 +163,7 @@ fn locate_channel(d: &Prepared, c: usize, r: &[f64], model_freqs: &[f64]) -> Opt
         return None;
     }
     let rate = 1.0 / d.dt;
-    let noise = innovation_variance(r, LJUNG_BOX_LAGS).sqrt();
+    let noise = noise_variance(r, LJUNG_BOX_LAGS).sqrt();
     let m = r.iter().sum::<f64>() / r.len() as f64;
     let centred: Vec<f64> = r.iter().map(|x| x - m).collect();
     let e = rms(&centred);
