@@ -615,21 +615,27 @@ fn first_order(r: &[f64], dt: f64, omega: f64, kv: f64) -> Vec<f64> {
     y
 }
 
-/// What [`coupled_mount`] returns, per sample: the root position (m) and the tip deflection
-/// Σ tip_j η_j (m), both from the exact state.
+/// What [`coupled_mount`] returns, per sample: the root position (m), the tip deflection
+/// Σ tip_j η_j (m) and the force the carriage's mount spring and damper pass to the mount mass
+/// and the beam (N, the mean over the interval centred on the sample), all from the exact
+/// state.
 struct MountResponse {
     root: Vec<f64>,
     tip_w: Vec<f64>,
+    force: Vec<f64>,
 }
 
 /// Beam-root position behind a mount: a mass m_m on a spring–damper from the carriage y, loaded
 /// by the beam (as the truth plant, `tools/src/truth/plant.rs`):
 /// `(m_m + m_b − ΣΓ²) ÿ_r = k (y − y_r) + c (ẏ − ẏ_r) + Σ Γ_j (2ζ_jω_j η̇_j + ω_j² η_j)`,
 /// `η̈_j + 2ζ_jω_j η̇_j + ω_j² η_j = −Γ_j ÿ_r`, k = ω_m² (m_m + m_b), c = 2ζ_m ω_m (m_m + m_b).
-/// Exact for a piecewise-linear y (one matrix exponential). The tip comes from the same exact
-/// state: the root rings at the mount frequency, which a piecewise-linear resampling of it (the
-/// beam re-driven from the sampled root) misrepresents when that frequency is a sizeable
-/// fraction of the sample rate.
+/// Exact for a piecewise-linear y (a matrix exponential over half a sample, applied twice per
+/// sample). The tip and the force come from the same exact state: the root rings at the mount
+/// frequency, which a piecewise-linear resampling of it (the beam re-driven from the sampled
+/// root) misrepresents when that frequency is a sizeable fraction of the sample rate. The
+/// force is the momentum change of mount and beam over the interval centred on the sample,
+/// `[(m_m + m_b) ẏ_r + Σ Γ_j η̇_j]` between the half-sample instants, over dt (the convention
+/// of the rigid carriage's velocity kick in [`accel_at`]).
 fn coupled_mount(
     y: &[f64],
     dt: f64,
@@ -656,27 +662,37 @@ fn coupled_mount(
     let nan = || MountResponse {
         root: vec![f64::NAN; n],
         tip_w: vec![f64::NAN; n],
+        force: vec![f64::NAN; n],
     };
-    let Some(phi) = root_transition(&mut acc_row, m_eff, c, dt) else {
+    let Some(phi) = root_transition(&mut acc_row, m_eff, c, 0.5 * dt) else {
         return nan();
     };
+    let momentum =
+        |z: &[f64]| (m_m + m_b) * z[1] + (0..nm).map(|j| c.gamma[j] * z[3 + 2 * j]).sum::<f64>();
     let (mut zv, mut tmp) = (vec![0.0; dim], vec![0.0; dim]);
     zv[0] = y[0];
     let mut out = MountResponse {
         root: Vec::with_capacity(n),
         tip_w: Vec::with_capacity(n),
+        force: Vec::with_capacity(n),
     };
+    // momentum at the half-sample instant before the sample (at rest before the first)
+    let mut p_before = 0.0;
+    let mut v = 0.0;
     for kk in 0..n {
         out.root.push(zv[0]);
         out.tip_w
             .push((0..nm).map(|j| c.tip[j] * zv[2 + 2 * j]).sum::<f64>());
-        let v = if kk + 1 < n {
-            (y[kk + 1] - y[kk]) / dt
-        } else {
-            0.0
-        };
+        // after the last sample the drive keeps its last velocity (as [`accel_at`])
+        if kk + 1 < n {
+            v = (y[kk + 1] - y[kk]) / dt;
+        }
         zv[yi] = y[kk];
         zv[vi] = v;
+        advance(&phi, &mut zv, &mut tmp);
+        let p_after = momentum(&zv);
+        out.force.push((p_after - p_before) / dt);
+        p_before = p_after;
         advance(&phi, &mut zv, &mut tmp);
         if !zv[0].is_finite() {
             return nan();
@@ -899,16 +915,19 @@ pub fn predict(
     let drive: &[f64] = d.drive_m.as_deref().unwrap_or(&y_servo);
     // 3. backlash and mount between the drive and the beam root
     let (root, exact) = root_motion(p, drive, dt, c);
-    // 4. beam, tip sensor and motor force (the tip of a coupled mount from its exact state
-    // unless drag or a cubic clamp act on the modes; the force from the re-driven beam, see
-    // docs/diagnose.md, session 8)
+    // 4. beam, tip sensor and motor force (those of a coupled mount from its exact state
+    // unless drag or a cubic clamp act on the modes)
     let force = match c {
         Some(c) => {
-            let (mut w, force) = beam_response(p, &root, drive, dt, c);
+            let (mut w, mut force) = beam_response(p, &root, drive, dt, c);
             let linear = p.drag_kg_per_m2 == 0.0
                 && (p.root_stiffness_nm_per_rad.is_none()
                     || p.cubic_root_stiffness_nm_per_rad3 == 0.0);
             if let Some(m) = exact.filter(|_| linear) {
+                let carriage = c.base_mass - p.mount_mass_kg;
+                force = (0..drive.len())
+                    .map(|k| carriage * accel_at(drive, k, dt) + m.force[k])
+                    .collect();
                 w = m.tip_w;
             }
             if d.tip_m.is_some() {
@@ -1251,6 +1270,30 @@ mod tests {
             worst_redriven > 0.1 * mount_effect,
             "{worst_redriven} {mount_effect}"
         );
+    }
+
+    #[test]
+    fn a_stiff_coupled_mount_pushes_as_the_rigid_carriage() {
+        // a 400 Hz mount under 20 Hz beam modes: the motor force of the exact mount state
+        // (half-sample momentum changes) is the rigid carriage's, sample by sample
+        let rig = rig();
+        let rec = move_rec_at(1000.0);
+        let d = Prepared::new("t", &rec).unwrap();
+        let rigid = predict(&rig, &Params::default(), &d, &mut None).unwrap();
+        let p = Params {
+            mount: Some((400.0, 0.3)),
+            mount_mass_kg: 0.5,
+            ..Params::default()
+        };
+        let mounted = predict(&rig, &p, &d, &mut None).unwrap();
+        let (a, b) = (rigid.force_n.unwrap(), mounted.force_n.unwrap());
+        let peak = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let worst = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 0.05 * peak, "{worst} of {peak}");
     }
 
     #[test]
