@@ -785,24 +785,53 @@ fn backward_check(
         };
         better.split = reference.split;
         *reference = better;
-        for o in outs.iter_mut().filter(|o| o.passed) {
+        rejudge(outs, |o| {
             let set: Vec<&Candidate> = prev
                 .iter()
                 .copied()
                 .chain(std::iter::once(&cands[o.cand_index]))
                 .collect();
-            if let Some(r) = ctx.reference(&set, o.fit.clone()) {
-                let unplaced = o.unplaced.take();
-                *o = ctx.assess(&set, o.cand_index, r, reference);
-                o.unplaced = unplaced;
-                o.apply_placement();
-            }
-        }
+            let r = ctx.reference(&set, o.fit.clone())?;
+            Some(ctx.assess(&set, o.cand_index, r, reference))
+        });
         outs.sort_by(|a, b| a.delta_val.total_cmp(&b.delta_val));
         super::keep_lowest_bic_form(outs);
         pick = outs.iter().position(|o| o.passed);
     }
     pick
+}
+
+/// Judges every outcome of `outs` again (`judge`: its own fit against the new, better
+/// reference; `None` when it cannot be simulated), so that every number of the round's table
+/// is relative to the reference it is judged against (one that cannot be simulated keeps its
+/// first judgement, marked). A placement found before is kept. A
+/// candidate that failed keeps failing, with its first reason marked as such: every guard is
+/// harder against a better reference, and a candidate is named only after the full test
+/// (placement included) of the passing ones.
+fn rejudge(
+    outs: &mut [CandidateOutcome],
+    mut judge: impl FnMut(&CandidateOutcome) -> Option<CandidateOutcome>,
+) {
+    for o in outs.iter_mut() {
+        let Some(mut n) = judge(o) else {
+            o.reason = format!(
+                "{} (judged against the reference before the backward check: not re-simulated)",
+                o.reason
+            );
+            continue;
+        };
+        n.unplaced = o.unplaced.take();
+        n.look_alike = o.look_alike.take();
+        n.apply_placement();
+        if !o.passed && n.passed {
+            n.passed = false;
+            n.reason = format!(
+                "{} (judged against the reference before the backward check)",
+                o.reason
+            );
+        }
+        *o = n;
+    }
 }
 
 /// Forward selection from `nominal` (module docs). `step` is the first progress step.
@@ -1114,6 +1143,68 @@ mod tests {
             evaluations: 0,
             trace: vec![],
         }
+    }
+
+    fn outcome(delta_bic: f64, passed: bool, reason: &str) -> CandidateOutcome {
+        let c = servo_candidate(1, 100.0);
+        CandidateOutcome {
+            id: c.id,
+            cand_index: 0,
+            param_offset: 0,
+            nrmse_before: [f64::NAN; 3],
+            words: String::new(),
+            fit: fitted(&c, &[5.0, 0.9]),
+            k: 2,
+            delta_bic,
+            delta_val: delta_bic,
+            val_nrmse: [f64::NAN; 3],
+            best_channel: 1,
+            reduction: 0.5,
+            allowance: 0.1,
+            whiteness: (100.0, 10.0),
+            significance: 10.0,
+            passed,
+            reason: reason.into(),
+            val_pred: Prediction {
+                base_m: None,
+                tip_m: None,
+                force_n: None,
+            },
+            unplaced: None,
+            look_alike: None,
+        }
+    }
+
+    #[test]
+    fn after_a_backward_check_failing_candidates_are_shown_against_the_new_reference() {
+        // null 79015: a failing mount kept ΔBIC −17426 against the first reference while the
+        // passing candidates were judged again; now every row is (and a failure stays one)
+        let mut outs = vec![
+            outcome(
+                -17426.0,
+                false,
+                "removes only 10 % of the structured residual",
+            ),
+            outcome(-17000.0, true, "passes every guard"),
+            outcome(-900.0, false, "validation Δ(−2lnL) -3 not < −10"),
+        ];
+        rejudge(&mut outs, |o| {
+            // against the better reference: 17000 less, and a failure could seem a pass
+            let dbic = o.delta_bic + 17000.0;
+            Some(outcome(dbic, dbic < -10.0, "judged again"))
+        });
+        assert_eq!(outs[0].delta_bic, -426.0);
+        assert!(!outs[0].passed);
+        assert!(outs[0].reason.contains("removes only 10 %"));
+        assert!(outs[0].reason.contains("before the backward check"));
+        assert_eq!(outs[1].delta_bic, 0.0);
+        assert!(!outs[1].passed);
+        assert_eq!(outs[2].delta_bic, 16100.0);
+        // one that cannot be simulated keeps its judgement, marked
+        let mut kept = vec![outcome(-50.0, true, "passes every guard")];
+        rejudge(&mut kept, |_| None);
+        assert!(kept[0].passed && kept[0].delta_bic == -50.0);
+        assert!(kept[0].reason.contains("not re-simulated"));
     }
 
     #[test]

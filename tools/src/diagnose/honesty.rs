@@ -185,6 +185,15 @@ pub struct Stability {
     pub max_abs_z: f64,
 }
 
+/// What [`stability`] measured: per effect, and the physical values of every parameter
+/// (calibration, then `set`) of each per-recording refit.
+pub struct Refits {
+    /// Stability of every effect of the set.
+    pub stability: Vec<Stability>,
+    /// `values[r][i]`: parameter i refitted to fit recording r alone (physical units).
+    pub values: Vec<Vec<f64>>,
+}
+
 /// Refits the final model (`set`, joint optimum `f`) to each fit recording alone with
 /// `max_evaluations` shared, and measures every effect parameter's stability. Empty with one
 /// fit recording. Returns it and the model evaluations used.
@@ -196,9 +205,13 @@ pub fn stability(
     set: &[&Candidate],
     f: &FitResult,
     max_evaluations: usize,
-) -> (Vec<Stability>, usize) {
-    if fit_data.len() < 2 || set.is_empty() {
-        return (vec![], 0);
+) -> (Refits, usize) {
+    let none = Refits {
+        stability: vec![],
+        values: vec![],
+    };
+    if fit_data.len() < 2 {
+        return (none, 0);
     }
     let share = max_evaluations / fit_data.len();
     let mut used = 0;
@@ -243,7 +256,121 @@ pub fn stability(
         });
         off += c.params.len();
     }
-    (out, used)
+    let values = refits.into_iter().map(|(g, _)| g.values).collect();
+    (
+        Refits {
+            stability: out,
+            values,
+        },
+        used,
+    )
+}
+
+/// Per parameter, the standard error of the mean of the per-recording refits `values[r][i]`
+/// (physical units): s/√n with s the sample standard deviation over the n ≥ 2 recordings
+/// (|θ₁ − θ₂|/2 for two). A parameter of the rig is the same in every recording; its
+/// expected square is the statistical variance of the joint estimate plus what the
+/// recordings disagree on beyond noise — model-form error that depends on the excitation.
+/// Empty with fewer than two refits; NaN where a refit is not finite.
+pub fn spread_std(values: &[Vec<f64>]) -> Vec<f64> {
+    let n = values.len();
+    if n < 2 {
+        return vec![];
+    }
+    let len = values.iter().map(Vec::len).min().unwrap_or(0);
+    (0..len)
+        .map(|i| {
+            let mean = values.iter().map(|v| v[i]).sum::<f64>() / n as f64;
+            let var = values.iter().map(|v| (v[i] - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+            (var / n as f64).sqrt()
+        })
+        .collect()
+}
+
+/// Raises each 1-σ of `f` to at least the recordings' disagreement `spread` ([`spread_std`]):
+/// the joint estimate cannot be more certain than the per-recording estimates agree.
+pub fn add_spread_std(f: &mut FitResult, spread: &[f64]) {
+    for (s, d) in f.std.iter_mut().zip(spread) {
+        if d.is_finite() && s.is_finite() {
+            *s = s.max(*d);
+        }
+    }
+}
+
+/// Adds the uncertainty of the base-motion assumption to the 1-σ of `f` (calibration + `set`,
+/// fitted to `data`): when `base_pos_m` is not recorded the carriage is assumed to follow its
+/// command exactly; `servo` (a loop of the catalogue, started at the identity: velocity
+/// feed-forward 1, where it is the command) is appended to the set and the model refitted warm
+/// (at most `max_evaluations`); each parameter's change is added in quadrature. A parameter the
+/// recordings fix only together with the drive's motion (a mount seen on the tip alone, which
+/// a lag of the carriage also explains) moves; one independent of it does not. Returns the
+/// model evaluations used.
+#[allow(clippy::too_many_arguments)]
+pub fn add_base_assumption_std(
+    rig: &Rig,
+    data: &[Prepared],
+    sigma: [f64; 3],
+    calib: &Calib,
+    set: &[&Candidate],
+    servo: &Candidate,
+    f: &mut FitResult,
+    max_evaluations: usize,
+) -> usize {
+    let mut with: Vec<&Candidate> = set.to_vec();
+    with.push(servo);
+    let g = fit::fit(
+        rig,
+        data,
+        sigma,
+        calib,
+        &with,
+        Some(&f.x),
+        max_evaluations,
+        false,
+    );
+    // a refit that ended worse than the identity start did not converge: no information
+    if !(g.cost <= f.cost * (1.0 + 1e-9)) {
+        return g.evaluations;
+    }
+    for i in 0..f.std.len().min(g.values.len()) {
+        let d = g.values[i] - f.values[i];
+        if d.is_finite() && f.std[i].is_finite() {
+            f.std[i] = f.std[i].hypot(d);
+        }
+    }
+    g.evaluations
+}
+
+/// The catalogue's first-order `servo_lag` (`cands`) started at the identity (velocity
+/// feed-forward 1), for [`add_base_assumption_std`]: `None` when the catalogue has no loop (the
+/// command does not drive the beam) or a fit recording records `base_pos_m`, or `set` already
+/// holds a loop.
+pub fn identity_servo(
+    cands: &[Candidate],
+    set: &[&Candidate],
+    data: &[Prepared],
+) -> Option<Candidate> {
+    if data.iter().all(|d| d.base_m.is_some())
+        || set.iter().any(|c| c.id == crate::effect::Effect::ServoLag)
+    {
+        return None;
+    }
+    let mut servo = cands
+        .iter()
+        .find(|c| {
+            c.id == crate::effect::Effect::ServoLag
+                && c.params.len() == 2
+                && c.params.iter().any(|q| q.name == "servo_velocity_ff")
+        })?
+        .clone();
+    for q in servo.params.iter_mut() {
+        q.starts = match q.name {
+            "servo_velocity_ff" => vec![1.0],
+            _ => vec![*q.starts.last()?],
+        };
+        q.scan.clear();
+    }
+    Some(servo)
 }
 
 /// What [`super::diagnose`] measured about the final model (module docs).
@@ -276,4 +403,37 @@ pub fn at_bound(set: &[&Candidate], f: &FitResult, nc: usize) -> Vec<(String, St
         off += c.params.len();
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spread_is_the_standard_error_of_the_per_recording_mean() {
+        // two recordings: |θ₁ − θ₂|/2; three: s/√3; a parameter they agree on: 0
+        let two = spread_std(&[vec![1.0, 5.0], vec![3.0, 5.0]]);
+        assert_eq!(two, vec![1.0, 0.0]);
+        let three = spread_std(&[vec![1.0], vec![2.0], vec![3.0]]);
+        assert!((three[0] - (1.0f64 / 3.0).sqrt()).abs() < 1e-12);
+        assert!(spread_std(&[vec![1.0]]).is_empty());
+    }
+
+    #[test]
+    fn the_recordings_disagreement_raises_a_smaller_sigma_only() {
+        let mut f = FitResult {
+            x: DVector::zeros(2),
+            values: vec![0.3, 1.0],
+            std: vec![0.005, 0.5],
+            names: vec!["friction_n", "viscous_n_s_per_m"],
+            cost: 1.0,
+            evaluations: 0,
+            trace: vec![],
+        };
+        // friction 0.320 and 0.285 from the two recordings (seed 74000): σ 0.005 → 0.0175
+        let spread = spread_std(&[vec![0.320, 1.1], vec![0.285, 1.2]]);
+        add_spread_std(&mut f, &spread);
+        assert!((f.std[0] - 0.0175).abs() < 1e-12);
+        assert_eq!(f.std[1], 0.5);
+    }
 }

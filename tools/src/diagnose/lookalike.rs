@@ -65,14 +65,22 @@ pub(crate) fn resolve(ctx: &Ctx, cands: &[Candidate], sel: &mut Selection, budge
             continue;
         };
         refine_once(ctx, cands, sel, budget, &mut refined);
-        let Some((r, db, dv)) = refit_with(ctx, cands, sel, p, &alt, budget) else {
+        let Some(refit) = refit_with(ctx, cands, sel, p, &alt, budget) else {
             continue;
         };
-        let numbers = format!(
-            "{b} in its place: ΔBIC {db:+.1} on the fit recordings, validation Δ(−2lnL) {dv:+.1}"
-        );
+        let (r, db, dv) = (refit.reference, refit.delta_bic, refit.delta_val);
+        let numbers = match &refit.not_converged {
+            None => format!(
+                "{b} in its place: ΔBIC {db:+.1} on the fit recordings, validation Δ(−2lnL) {dv:+.1}"
+            ),
+            Some(why) => format!(
+                "{b} in its place: the refit did not converge ({why}), so no numbers are given"
+            ),
+        };
         ctx.trace(format!("look-alike check of {a}: {numbers}"));
-        if db < -BIC_MARGIN && dv < -VALIDATION_MARGIN {
+        let (beyond, gap) = beyond_model_form(sel, p, &alt);
+        let v = verdict(refit.not_converged.is_none(), db, dv, beyond);
+        if v == Verdict::Swap {
             let mut o = alt;
             o.look_alike = Some(LookAlike {
                 effect: a,
@@ -85,9 +93,8 @@ pub(crate) fn resolve(ctx: &Ctx, cands: &[Candidate], sel: &mut Selection, budge
             sel.outcomes[p] = o;
             sel.reference = r;
         } else {
-            let (beyond, gap) = beyond_model_form(sel, p, &alt);
             ctx.trace(format!("look-alike check of {a}: {gap}"));
-            if !(db > BIC_MARGIN && dv > VALIDATION_MARGIN && beyond) {
+            if v == Verdict::Indistinguishable {
                 sel.outcomes[p].look_alike = Some(LookAlike {
                     effect: b,
                     indistinguishable: true,
@@ -96,6 +103,44 @@ pub(crate) fn resolve(ctx: &Ctx, cands: &[Candidate], sel: &mut Selection, budge
             }
         }
     }
+}
+
+/// What a look-alike check concludes (module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Verdict {
+    /// The look-alike replaces the chosen effect.
+    Swap,
+    /// The chosen effect stays, distinguished.
+    Keep,
+    /// The chosen effect stays, reported indistinguishable from its look-alike.
+    Indistinguishable,
+}
+
+/// The verdict from the final model refitted with the look-alike in place (`converged`, ΔBIC
+/// `db` on the fit recordings and validation Δ(−2 ln L) `dv` against the final model) and
+/// whether the chosen effect beat it beyond model form in its round (`beyond`). A refit that
+/// did not converge says nothing: the look-alike is neither swapped in nor ruled out.
+fn verdict(converged: bool, db: f64, dv: f64, beyond: bool) -> Verdict {
+    if !converged {
+        Verdict::Indistinguishable
+    } else if db < -BIC_MARGIN && dv < -VALIDATION_MARGIN {
+        Verdict::Swap
+    } else if db > BIC_MARGIN && dv > VALIDATION_MARGIN && beyond {
+        Verdict::Keep
+    } else {
+        Verdict::Indistinguishable
+    }
+}
+
+/// The final model refitted with a look-alike in place ([`refit_with`]).
+struct Refit {
+    reference: Reference,
+    delta_bic: f64,
+    delta_val: f64,
+    /// Why the refit cannot be trusted, if so: the model refused parameter sets next to its
+    /// best point (the Jacobian there crosses a non-finite prediction), or it never left the
+    /// refusal level.
+    not_converged: Option<String>,
 }
 
 /// Before the first comparison, the final model itself is refitted from its optimum with the
@@ -121,8 +166,8 @@ fn refine_once(
     }
 }
 
-/// The final model refitted with `alt` in place of chosen effect `p`: its reference, and the
-/// ΔBIC (fit) and Δ(−2 ln L) (validation) against `sel.reference`.
+/// The final model refitted with `alt` in place of chosen effect `p`: its reference, the ΔBIC
+/// (fit) and Δ(−2 ln L) (validation) against `sel.reference`, and whether it converged.
 fn refit_with(
     ctx: &Ctx,
     cands: &[Candidate],
@@ -130,7 +175,7 @@ fn refit_with(
     p: usize,
     alt: &CandidateOutcome,
     budget: &mut Budget,
-) -> Option<(Reference, f64, f64)> {
+) -> Option<Refit> {
     let alt_cand = &cands[alt.cand_index];
     let set: Vec<&Candidate> = sel
         .chosen
@@ -174,6 +219,7 @@ fn refit_with(
         }
     }
     let f = best?;
+    let not_converged = convergence(ctx, &set, &f, budget);
     let r = ctx.reference(&set, f)?;
     let base = &sel.reference;
     let n_fit = n_of(ctx.fit_data);
@@ -182,7 +228,40 @@ fn refit_with(
     let db =
         delta_neg2ll_effective(&r.rss, &base.rss, &n_fit, &base.tau_fit) + dk * n_eff.max(1.0).ln();
     let dv = delta_neg2ll_effective(&r.vrss, &base.vrss, &base.vn, &base.tau_val);
-    Some((r, db, dv))
+    Some(Refit {
+        reference: r,
+        delta_bic: db,
+        delta_val: dv,
+        not_converged,
+    })
+}
+
+/// Why the fit `f` of `set` did not converge, if so ([`Refit::not_converged`]): the Jacobian
+/// at its best point is evaluated and any refused or non-finite neighbour disqualifies it.
+fn convergence(
+    ctx: &Ctx,
+    set: &[&Candidate],
+    f: &super::fit::FitResult,
+    budget: &mut Budget,
+) -> Option<String> {
+    let problem = super::fit::Problem::new(
+        ctx.rig,
+        ctx.fit_data,
+        ctx.sigma,
+        ctx.calib,
+        set,
+        f.x.clone(),
+    );
+    let j = problem.jacobian_at(&f.x);
+    budget.spend(*problem.evaluations.borrow());
+    let refused = problem.refusals.borrow().first().cloned();
+    match refused {
+        Some(why) => Some(format!("next to its best point the model refuses: {why}")),
+        None if !j.iter().all(|v| v.is_finite()) => {
+            Some("its Jacobian at the best point is not finite".into())
+        }
+        None => None,
+    }
 }
 
 /// Whether chosen effect `p` beats its look-alike `alt` (both as fitted in the round it was
@@ -222,4 +301,30 @@ fn words(b: Effect, numbers: &str, gap: &str) -> String {
 /// that is not the optimum needs a few dozen Levenberg–Marquardt steps).
 fn check_share(budget: &Budget) -> usize {
     budget.share(2).max(budget.total / 20)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_refit_that_did_not_converge_neither_swaps_nor_rules_out() {
+        // seed 54000: the refit with servo_lag in place stuck next to non-finite predictions
+        // at ΔBIC +1043.6, validation +844.2; with the chosen effect beyond model form in its
+        // round that would have read as "distinguished"
+        assert_eq!(
+            verdict(false, 1043.6, 844.2, true),
+            Verdict::Indistinguishable
+        );
+        assert_eq!(
+            verdict(false, -500.0, -500.0, false),
+            Verdict::Indistinguishable
+        );
+        assert_eq!(verdict(true, 1043.6, 844.2, true), Verdict::Keep);
+        assert_eq!(
+            verdict(true, 1043.6, 844.2, false),
+            Verdict::Indistinguishable
+        );
+        assert_eq!(verdict(true, -50.0, -50.0, false), Verdict::Swap);
+    }
 }

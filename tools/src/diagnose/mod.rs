@@ -553,10 +553,13 @@ pub fn diagnose(
 }
 
 /// Long-run 1-σ of the calibration `cal` and the final model `reference` (replacing their
-/// linearised σ), the stability of every effect's parameters between the fit recordings, and
-/// the residual statistics before and after ([`honesty`]).
+/// linearised σ), raised to the recordings' disagreement and widened by the discretisation
+/// and, without `base_pos_m`, the base-motion assumption ([`honesty`]); the stability of every
+/// effect's parameters between the fit recordings, and the residual statistics before and
+/// after.
 fn measure_final(
     ctx: &Ctx,
+    cands: &[Candidate],
     set: &[&Candidate],
     cal: &mut FitResult,
     reference: &mut forward::Reference,
@@ -573,6 +576,17 @@ fn measure_final(
         set,
         &mut reference.fit,
     ));
+    let (refits, used) = honesty::stability(
+        rig,
+        fit_data,
+        sigma,
+        calib,
+        set,
+        &reference.fit,
+        budget.share(3),
+    );
+    budget.spend(used);
+    honesty::add_spread_std(&mut reference.fit, &honesty::spread_std(&refits.values));
     if !set.is_empty() {
         let share = budget.share(3);
         budget.spend(honesty::add_basis_std(
@@ -585,20 +599,23 @@ fn measure_final(
             share,
         ));
     }
-    let (stability, used) = honesty::stability(
-        rig,
-        fit_data,
-        sigma,
-        calib,
-        set,
-        &reference.fit,
-        budget.share(2),
-    );
-    budget.spend(used);
+    if let Some(servo) = honesty::identity_servo(cands, set, fit_data) {
+        let share = budget.share(2);
+        budget.spend(honesty::add_base_assumption_std(
+            rig,
+            fit_data,
+            sigma,
+            calib,
+            set,
+            &servo,
+            &mut reference.fit,
+            share,
+        ));
+    }
     honesty::Honesty {
         nominal: honesty::residual_stats(&residuals(ctx.validate, &earlier.val_pred_nominal)),
         after: honesty::residual_stats(&reference.vres),
-        stability,
+        stability: refits.stability,
         at_bound: honesty::at_bound(set, &reference.fit, calib.len()),
     }
 }
@@ -664,7 +681,7 @@ fn conclude(
         "uncertainty and stability of the final model",
     );
     let set: Vec<&Candidate> = final_set.iter().collect();
-    let honesty = measure_final(ctx, &set, &mut cal, &mut reference, &earlier, budget);
+    let honesty = measure_final(ctx, cands, &set, &mut cal, &mut reference, &earlier, budget);
     let outcomes = rounds.first().cloned().unwrap_or_default();
     let selected = outcomes
         .iter()

@@ -363,7 +363,8 @@ pub fn conventional_names(named: &[String], hidden: &[&str]) -> String {
 }
 
 /// Parameters of the correctly named effects in `j` that `truth` knows, plus the calibrated
-/// carriage-mass correction against the truth (when the diagnosis gives it a σ).
+/// carriage-mass correction of the final model (`final_calibration`, else the nominal
+/// `calibration`) against the truth (when the diagnosis gives it a σ).
 fn estimates(
     j: &Value,
     hidden: &[&str],
@@ -388,7 +389,11 @@ fn estimates(
             }
         }
     }
-    let cal = &j["calibration"]["base_mass_delta_kg"];
+    // the calibration of the final model (refitted with the named effects), when reported
+    let cal = match &j["final_calibration"]["base_mass_delta_kg"] {
+        c if c["value"].is_f64() => c,
+        _ => &j["calibration"]["base_mass_delta_kg"],
+    };
     if let (Some(x), Some(s), Some(m)) = (
         cal["value"].as_f64(),
         cal["std"].as_f64(),
@@ -950,6 +955,27 @@ mod tests {
             seconds: 0.0,
             error: None,
         }
+    }
+
+    #[test]
+    fn the_carriage_mass_is_scored_on_the_final_calibration() {
+        // the nominal calibration absorbed the effect (0.50 kg); the final model's is 0.11 kg
+        let j = serde_json::json!({
+            "effects": [{"effect": "tip_mass", "parameters": {"tip_mass_kg": 0.011},
+                         "uncertainty": {"tip_mass_kg": 0.001}}],
+            "calibration": {"base_mass_delta_kg": {"value": 0.5, "std": 0.01}},
+            "final_calibration": {"base_mass_delta_kg": {"value": 0.11, "std": 0.02}},
+        });
+        let truth: BTreeMap<String, Value> = [
+            ("tip_mass_kg".to_string(), Value::from(0.01)),
+            ("true_carriage_mass_kg".to_string(), Value::from(2.1)),
+        ]
+        .into_iter()
+        .collect();
+        let e = estimates(&j, &["tip_mass"], &truth, 2.0);
+        let cal = e.iter().find(|e| e.kind.contains("calibration")).unwrap();
+        assert_eq!((cal.value, cal.sigma), (0.11, Some(0.02)));
+        assert!((cal.truth - 0.1).abs() < 1e-12);
     }
 
     fn est(kind: &str, truth: f64, value: f64, sigma: Option<f64>) -> Estimate {

@@ -196,6 +196,30 @@ fn per_channel_json(d: &Diagnosis) -> Map<String, Value> {
     per
 }
 
+/// The calibration refitted jointly with the named effects (the final model's first
+/// parameters), with its 1-σ (long-run, the recordings' disagreement, discretisation, the
+/// base-motion assumption): what the rig is once the named physics is in the model. The
+/// `calibration` entry is that of the nominal model, which may have absorbed the effects.
+/// Parameters the nominal calibration does not identify are `null`.
+fn final_calibration_json(d: &Diagnosis) -> Map<String, Value> {
+    let mut out = Map::new();
+    for (i, name) in d.calibration.names.iter().enumerate() {
+        let identified = d
+            .calibration_unidentified
+            .get(i)
+            .cloned()
+            .flatten()
+            .is_none();
+        let (v, s) = (d.final_fit.values.get(i), d.final_fit.std.get(i));
+        let entry = match (identified, v, s) {
+            (true, Some(v), Some(s)) => json!({"value": v, "std": s}),
+            _ => json!({"value": Value::Null, "std": Value::Null}),
+        };
+        out.insert((*name).into(), entry);
+    }
+    out
+}
+
 /// The JSON report (`effect`, `parameters`, `validation`, `candidates` as the issue specifies,
 /// plus `effects`, `unexplained`, uncertainties, calibration, location and the honesty
 /// measurements).
@@ -236,6 +260,7 @@ pub fn to_json(d: &Diagnosis) -> Value {
         "validation": {"nrmse_before": before, "nrmse_after": after, "channel": CHANNEL_NAMES[c], "per_channel": per_channel_json(d)},
         "candidates": candidates_json(d),
         "calibration": cal,
+        "final_calibration": final_calibration_json(d),
         "location": serde_json::to_value(&d.location).unwrap_or(Value::Null),
         "model_evaluations": d.evaluations,
         "model": {

@@ -446,8 +446,10 @@ impl Draft {
                     self.beam_mass,
                     self.rate,
                 ));
-                let b = self.plant.backlash.as_ref().map_or(0.0, |b| b.gap_m);
-                self.put("backlash_m", b);
+                if let Some(b) = self.plant.backlash {
+                    self.put("backlash_m", b.lost_motion_m());
+                    self.put("backlash_gap_m", b.gap_m);
+                }
             }
             Effect::SensorDelay => {
                 let tau = (rng.gen_range(2.0..6.0) * sensors.tip_noise_m / self.spec.speed_m_s.1)
@@ -466,12 +468,15 @@ impl Draft {
                 let pi2 = 2.0 * std::f64::consts::PI;
                 let f2 = self.beam.modes(2)?.omega_rad_s[1] / pi2;
                 let fm = (rng.gen_range(1.3..3.0) * f2).clamp(8.0, 0.4 * self.rate);
-                self.plant.mount = Some(Mount {
+                let mount = Mount {
                     mass_kg: rng.gen_range(0.15..0.4) * self.carriage,
                     freq_hz: fm,
                     zeta: rng.gen_range(0.02..0.1),
-                });
+                };
+                self.plant.mount = Some(mount);
                 self.put("mount_frequency_hz", fm);
+                self.put("mount_damping_ratio", mount.zeta);
+                self.put("mount_mass_kg", mount.mass_kg);
             }
         }
         Ok(())

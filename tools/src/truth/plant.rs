@@ -67,6 +67,14 @@ pub struct Backlash {
 }
 
 impl Backlash {
+    /// Lost motion (m): the carriage travel between dragging the block one way and the other
+    /// while the guide friction loads the contact, `gap + 2 F_g / k_c`. The contact deflects by
+    /// F_g / k_c on each side, so this — not the geometric gap — is the width of the dead band
+    /// the recordings show (the `backlash_m` of the diagnosis' play operator).
+    pub fn lost_motion_m(&self) -> f64 {
+        self.gap_m + 2.0 * self.guide_friction_n / self.contact_n_per_m
+    }
+
     /// Contact force on the block (N) for motor − block displacement `d` and velocity `dv`.
     pub fn contact_force(&self, d: f64, dv: f64) -> f64 {
         let h = 0.5 * self.gap_m;
@@ -504,6 +512,28 @@ mod tests {
                 force_quantum_n: 0.0,
             },
         }
+    }
+
+    #[test]
+    fn a_dragged_block_trails_by_half_the_lost_motion_not_half_the_gap() {
+        // at constant speed the contact carries the guide friction and deflects by F_g / k_c:
+        // the dead band the recordings show is the lost motion gap + 2 F_g / k_c (2.3 % more
+        // than this gap), which is what the truth reports as `backlash_m`
+        let gap = 1e-3;
+        let dt = 1.0 / 4000.0;
+        let v = 0.05;
+        let cmd: Vec<(f64, f64, f64)> = (0..8000).map(|k| (v * k as f64 * dt, v, 0.0)).collect();
+        let plant = carriage_with_play(gap);
+        let b = plant.backlash.unwrap();
+        let run = plant.run(&cmd, dt);
+        let k = 7900;
+        let offset = run.y_motor_m[k] - run.tip_m[k];
+        assert!(
+            (offset - 0.5 * b.lost_motion_m()).abs() < 2e-3 * gap,
+            "offset {offset}, half lost motion {}",
+            0.5 * b.lost_motion_m()
+        );
+        assert!((offset - 0.5 * gap).abs() > 1e-2 * gap);
     }
 
     #[test]
