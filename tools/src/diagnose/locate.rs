@@ -377,3 +377,35 @@ pub fn locate(data: &[Prepared], preds: &[Prediction], model_freqs_hz: &[f64]) -
         words,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_weaker_ripple_is_among_the_best_pitches_of_the_scan() {
+        // a carriage sweeping 0.2 m back and forth; a ripple of 17.5 mm pitch under a stronger
+        // one of 7.3 mm (model-form error that happens to project on a pitch)
+        let y: Vec<f64> = (0..4000)
+            .map(|k| 0.1 * (1.0 - (2.0 * std::f64::consts::PI * k as f64 / 2000.0).cos()))
+            .collect();
+        let ripple = |p: f64, a: f64| {
+            y.iter()
+                .map(move |x| a * (2.0 * std::f64::consts::PI * x / p).sin())
+                .collect::<Vec<f64>>()
+        };
+        let r: Vec<f64> = ripple(0.0073, 1.0)
+            .iter()
+            .zip(ripple(0.0175, 0.6))
+            .map(|(a, b)| a + b)
+            .collect();
+        let moving = vec![true; y.len()];
+        let best = ripple_scan(&r, &y, &moving);
+        assert!((best.0 - 0.0073).abs() < 0.0002, "{best:?}");
+        let peaks = ripple_peaks(&r, &y, &moving, 3);
+        assert!(
+            peaks.iter().any(|p| (p.0 - 0.0175).abs() < 0.0004),
+            "{peaks:?}"
+        );
+    }
+}
