@@ -116,6 +116,9 @@ pub struct StartHints {
     pub friction: (f64, f64),
     /// Initial cogging estimate (sin, cos amplitude N, pitch m) from a pitch scan.
     pub cogging: (f64, f64, f64),
+    /// The pitches (m) of the scan's best local maxima, best first (the cogging fit starts
+    /// from each; empty: `cogging`'s pitch alone).
+    pub cogging_pitches_m: Vec<f64>,
     /// Typical base speed (m/s).
     pub speed_m_s: f64,
     /// Damping ratio of mode 1 in the rig.
@@ -417,7 +420,11 @@ fn carriage_force_candidates(h: &StartHints) -> Vec<Candidate> {
             def(
                 "cogging_pitch_m",
                 Transform::Log,
-                vec![h.cogging.2],
+                if h.cogging_pitches_m.is_empty() {
+                    vec![h.cogging.2]
+                } else {
+                    h.cogging_pitches_m.clone()
+                },
                 1.0,
                 false,
             ),

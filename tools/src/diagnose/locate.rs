@@ -86,13 +86,24 @@ fn rms_where(r: &[f64], m: &[bool]) -> f64 {
 /// Best pitch p (m) for `r ≈ a sin(2πy/p) + b cos(2πy/p)` over moving samples, scanning
 /// 2 mm…200 mm; returns (pitch, sin amplitude, cos amplitude, explained variance fraction).
 pub fn ripple_scan(r: &[f64], y: &[f64], moving: &[bool]) -> (f64, f64, f64, f64) {
+    ripple_peaks(r, y, moving, 1)
+        .first()
+        .copied()
+        .unwrap_or((0.01, 0.0, 0.0, 0.0))
+}
+
+/// The `k` best local maxima of the explained variance over the pitch scan of [`ripple_scan`],
+/// best first, each (pitch m, sin amplitude, cos amplitude, explained fraction). The scan of a
+/// residual that holds model-form error besides a ripple is multimodal: the true pitch need not
+/// be the best point, only among the best few.
+pub fn ripple_peaks(r: &[f64], y: &[f64], moving: &[bool], k: usize) -> Vec<(f64, f64, f64, f64)> {
     let idx: Vec<usize> = (0..r.len()).filter(|&k| moving[k]).collect();
     let total: f64 = idx.iter().map(|&k| r[k] * r[k]).sum();
-    let mut best = (0.01, 0.0, 0.0, 0.0);
     if idx.len() < 20 || total <= 0.0 {
-        return best;
+        return Vec::new();
     }
     let n = 400;
+    let mut scan = Vec::with_capacity(n);
     for i in 0..n {
         let p = 0.002 * (100.0f64).powf(i as f64 / (n - 1) as f64);
         let kw = 2.0 * std::f64::consts::PI / p;
@@ -107,16 +118,23 @@ pub fn ripple_scan(r: &[f64], y: &[f64], moving: &[bool]) -> (f64, f64, f64, f64
         }
         let det = ss * cc - sc * sc;
         if det.abs() < 1e-12 {
+            scan.push((p, 0.0, 0.0, 0.0));
             continue;
         }
         let a = (rs * cc - rc * sc) / det;
         let b = (rc * ss - rs * sc) / det;
-        let explained = (a * rs + b * rc) / total;
-        if explained > best.3 {
-            best = (p, a, b, explained);
-        }
+        scan.push((p, a, b, (a * rs + b * rc) / total));
     }
-    best
+    let mut peaks: Vec<(f64, f64, f64, f64)> = (0..n)
+        .filter(|&i| {
+            let e = scan[i].3;
+            e > 0.0 && (i == 0 || e > scan[i - 1].3) && (i + 1 == n || e >= scan[i + 1].3)
+        })
+        .map(|i| scan[i])
+        .collect();
+    peaks.sort_by(|x, y| y.3.total_cmp(&x.3));
+    peaks.truncate(k);
+    peaks
 }
 
 /// Linear least squares of the force residual on [tanh(v/1 mm/s), v] over all samples.
@@ -357,5 +375,37 @@ pub fn locate(data: &[Prepared], preds: &[Prediction], model_freqs_hz: &[f64]) -
         channels,
         model_freqs_hz: model_freqs_hz.to_vec(),
         words,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_weaker_ripple_is_among_the_best_pitches_of_the_scan() {
+        // a carriage sweeping 0.2 m back and forth; a ripple of 17.5 mm pitch under a stronger
+        // one of 7.3 mm (model-form error that happens to project on a pitch)
+        let y: Vec<f64> = (0..4000)
+            .map(|k| 0.1 * (1.0 - (2.0 * std::f64::consts::PI * k as f64 / 2000.0).cos()))
+            .collect();
+        let ripple = |p: f64, a: f64| {
+            y.iter()
+                .map(move |x| a * (2.0 * std::f64::consts::PI * x / p).sin())
+                .collect::<Vec<f64>>()
+        };
+        let r: Vec<f64> = ripple(0.0073, 1.0)
+            .iter()
+            .zip(ripple(0.0175, 0.6))
+            .map(|(a, b)| a + b)
+            .collect();
+        let moving = vec![true; y.len()];
+        let best = ripple_scan(&r, &y, &moving);
+        assert!((best.0 - 0.0073).abs() < 0.0002, "{best:?}");
+        let peaks = ripple_peaks(&r, &y, &moving, 3);
+        assert!(
+            peaks.iter().any(|p| (p.0 - 0.0175).abs() < 0.0004),
+            "{peaks:?}"
+        );
     }
 }

@@ -440,6 +440,10 @@ fn model_facts(rig: &Rig, p: &sim::Params) -> Result<ModelFacts> {
     })
 }
 
+/// Pitches of the force residual's ripple scan the cogging fit starts from (the best local
+/// maxima, [`locate::ripple_peaks`]).
+pub const COGGING_PITCH_STARTS: usize = 3;
+
 /// Starting values of the candidates: friction and cogging from the force residual, the peak
 /// deflection and speed, the calibrated model's facts.
 fn start_hints(rig: &Rig, fit_data: &[Prepared], cal: &Calibrated, m: &ModelFacts) -> StartHints {
@@ -466,7 +470,8 @@ fn start_hints(rig: &Rig, fit_data: &[Prepared], cal: &Calibrated, m: &ModelFact
         }
     }
     let friction = locate::friction_ls(&fr_r, &fr_v);
-    let rip = locate::ripple_scan(&fr_r, &fr_y, &fr_m);
+    let rips = locate::ripple_peaks(&fr_r, &fr_y, &fr_m, COGGING_PITCH_STARTS);
+    let rip = rips.first().copied().unwrap_or((0.01, 0.0, 0.0, 0.0));
     StartHints {
         beam_mass_kg: m.beam_mass_kg,
         ei_over_l: m.ei_over_l,
@@ -475,6 +480,7 @@ fn start_hints(rig: &Rig, fit_data: &[Prepared], cal: &Calibrated, m: &ModelFact
         peak_deflection_m: peak_def,
         friction,
         cogging: (rip.1, rip.2, rip.0),
+        cogging_pitches_m: rips.iter().map(|p| p.0).collect(),
         mode_freqs_hz: m.freqs_hz.clone(),
         speed_m_s: speed,
         zeta1: cal.params.zeta.map_or(rig.damping_ratios().0, |z| z.0),

@@ -228,7 +228,7 @@ impl Prepared {
     pub fn new(name: &str, rec: &crate::recording::Recording) -> Result<Prepared> {
         rec.validate()?;
         let (cmd, base, drive) = match (&rec.base_cmd_m, &rec.base_pos_m) {
-            (Some(c), b) => (c.clone(), b.clone(), b.clone()),
+            (Some(c), b) => (c.clone(), b.clone(), b.as_ref().map(|b| drive_of(c, b))),
             (None, Some(b)) => (b.clone(), None, Some(b.clone())),
             (None, None) => bail!("{name}: needs `base_cmd_m` or `base_pos_m` (the base motion that drives the model)"),
         };
@@ -247,6 +247,23 @@ impl Prepared {
             force_n: rec.force_n.clone(),
         })
     }
+}
+
+/// The base motion that drives the model when `base_pos_m` (`base`) is recorded with its
+/// command `cmd`: the command plus the measured following error (base − command) with its white
+/// measurement noise removed ([`wiener_denoise`](crate::numeric::stats::wiener_denoise)). The
+/// model differentiates its drive twice (the carriage's inertia on `force_n`, the beam root's
+/// acceleration); a position sensor's noise σ becomes an acceleration noise of about
+/// √6 σ / dt², which at high sample rates outweighs the motion's own acceleration — the force
+/// calibration then fits a carriage without mass (errors in the input variable). The
+/// following error's own content above the noise floor (the loop's lag and ripple) is kept.
+pub fn drive_of(cmd: &[f64], base: &[f64]) -> Vec<f64> {
+    let e: Vec<f64> = base.iter().zip(cmd).map(|(b, c)| b - c).collect();
+    crate::numeric::stats::wiener_denoise(&e)
+        .iter()
+        .zip(cmd)
+        .map(|(e, c)| c + e)
+        .collect()
 }
 
 /// Predicted channels (present where the recording has them).
