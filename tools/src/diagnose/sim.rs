@@ -936,17 +936,19 @@ pub fn predict(
     // unless drag or a cubic clamp act on the modes)
     let force = match c {
         Some(c) => {
-            let (mut w, mut force) = beam_response(p, &root, drive, dt, c);
             let linear = p.drag_kg_per_m2 == 0.0
                 && (p.root_stiffness_nm_per_rad.is_none()
                     || p.cubic_root_stiffness_nm_per_rad3 == 0.0);
-            if let Some(m) = exact.filter(|_| linear) {
-                let carriage = c.base_mass - p.mount_mass_kg;
-                force = (0..drive.len())
-                    .map(|k| carriage * accel_at(drive, k, dt) + m.force[k])
-                    .collect();
-                w = m.tip_w;
-            }
+            let (w, force) = match exact.filter(|_| linear) {
+                Some(m) => {
+                    let carriage = c.base_mass - p.mount_mass_kg;
+                    let force = (0..drive.len())
+                        .map(|k| carriage * accel_at(drive, k, dt) + m.force[k])
+                        .collect();
+                    (m.tip_w, force)
+                }
+                None => beam_response(p, &root, drive, dt, c),
+            };
             if d.tip_m.is_some() {
                 out.tip_m = Some(tip_sensor(p, &root, &w, dt));
             }
@@ -1022,7 +1024,7 @@ fn root_motion(
     };
     match (p.mount, c) {
         (Some((f, z)), Some(c)) if p.mount_mass_kg > 0.0 => {
-            let m = coupled_mount(
+            let mut m = coupled_mount(
                 root_drive,
                 dt,
                 2.0 * std::f64::consts::PI * f,
@@ -1030,7 +1032,7 @@ fn root_motion(
                 p.mount_mass_kg,
                 c,
             );
-            (m.root.clone(), Some(m))
+            (std::mem::take(&mut m.root), Some(m))
         }
         (Some((f, z)), _) => (
             second_order(root_drive, dt, 2.0 * std::f64::consts::PI * f, z, 0.0, 1.0),
