@@ -291,6 +291,24 @@ impl Prepared {
     }
 }
 
+impl Prepared {
+    /// The command as recorded (at the working rate, not [emphasised](super::rate::emphasise)).
+    pub fn cmd_as_sampled(&self) -> &[f64] {
+        self.cmd_identity_m.as_deref().unwrap_or(&self.cmd_m)
+    }
+
+    /// The measured drive, else the command, as sampled (not emphasised): what a yardstick
+    /// built from the recordings (the physics-free correction) may use. The emphasised inputs
+    /// differ from these by ≈ (π²/3) dt² × their second derivative, a derivative of the motion
+    /// that the model's own physics (a servo loop, an inertia) should have to earn.
+    pub fn drive_as_sampled(&self) -> &[f64] {
+        match &self.drive_m {
+            Some(m) => self.drive_identity_m.as_deref().unwrap_or(m),
+            None => self.cmd_as_sampled(),
+        }
+    }
+}
+
 /// The base motion that drives the model when `base_pos_m` (`base`) is recorded with its
 /// command `cmd`: the command plus the measured following error (base − command) with its white
 /// measurement noise removed ([`wiener_denoise`](crate::numeric::stats::wiener_denoise)). The
