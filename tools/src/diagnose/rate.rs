@@ -263,7 +263,7 @@ impl Spectrum {
                 e
             } else {
                 e * (emphasised_error_of(&taps, f / rate_w_hz).powi(2)
-                    - interpolation_error(f, rate_hz).powi(2))
+                    - emphasised_error_of(&taps, f / rate_hz).powi(2))
                 .max(0.0)
             };
         }
@@ -444,7 +444,7 @@ pub fn choose(fit_data: &[Prepared], validate: &Prepared) -> WorkingRate {
 }
 
 /// Zeroth-order modified Bessel function of the first kind (power series; |x| ≲ 20).
-fn bessel_i0(x: f64) -> f64 {
+pub(crate) fn bessel_i0(x: f64) -> f64 {
     let (mut sum, mut term) = (1.0, 1.0);
     let y = 0.25 * x * x;
     for k in 1..60 {
@@ -501,9 +501,7 @@ pub fn decimate_zero_phase(x: &[f64], q: usize) -> Vec<f64> {
 /// [emphasised](emphasise) so its piecewise-linear treatment of them costs no accuracy, the
 /// command as recorded kept in `cmd_identity_m` (the base of a model without a servo loop).
 pub fn decimate_prepared(d: &Prepared, q: usize) -> Prepared {
-    if q <= 1 {
-        return d.clone();
-    }
+    let q = q.max(1);
     let dec = |c: &Option<Vec<f64>>| c.as_ref().map(|v| decimate_zero_phase(v, q));
     let cmd = decimate_zero_phase(&d.cmd_m, q);
     Prepared {
@@ -514,6 +512,7 @@ pub fn decimate_prepared(d: &Prepared, q: usize) -> Prepared {
         cmd_identity_m: Some(cmd),
         base_m: dec(&d.base_m),
         drive_m: dec(&d.drive_m).map(|v| emphasise(&v)),
+        drive_identity_m: dec(&d.drive_m),
         tip_m: dec(&d.tip_m),
         force_n: dec(&d.force_n),
     }
@@ -632,6 +631,7 @@ mod tests {
             cmd_identity_m: None,
             base_m: None,
             drive_m: None,
+            drive_identity_m: None,
             tip_m: Some(tip),
             force_n: None,
         }
