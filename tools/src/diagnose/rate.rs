@@ -514,8 +514,12 @@ pub fn decimate_prepared(d: &Prepared, q: usize) -> Prepared {
         cmd_m: emphasise(&cmd),
         cmd_identity_m: Some(cmd),
         base_m: dec(&d.base_m),
-        drive_m: dec(&d.drive_m).map(|v| emphasise(&v)),
-        drive_identity_m: dec(&d.drive_m),
+        drive_m: if q > 1 {
+            dec(&d.drive_m).map(|v| emphasise(&v))
+        } else {
+            d.drive_m.clone()
+        },
+        drive_identity_m: if q > 1 { dec(&d.drive_m) } else { None },
         tip_m: dec(&d.tip_m),
         force_n: dec(&d.force_n),
     }
