@@ -594,3 +594,58 @@ fn run_starts<'a>(
         trace,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::effects::{calibration_defs, Channels};
+    use crate::diagnose::sim::{predict, Params};
+
+    #[test]
+    fn the_nominal_calibration_finds_a_stiffness_scale_far_from_the_rig_file() {
+        // a beam 0.3 × as stiff as the rig file says (f1 45 % low: a heavy tip marker, a soft
+        // clamp): outside a ±0.5 scan in ln E (which ends at 0.228 from its edge at 0.61), inside
+        // the range the calibration accepts
+        let rig = Rig::from_toml_str(
+            "[beam]\nlength_m = 0.9\ndensity_kg_m3 = 8190.0\nyoungs_modulus_pa = 1.9e11\nstations = [ { x_m = 0.0, width_m = 0.025, thickness_m = 0.00115 }, { x_m = 0.9, width_m = 0.025, thickness_m = 0.00115 } ]\n[base]\nmass_kg = 2.5\n",
+        )
+        .unwrap();
+        let rate = 100.0;
+        let mut y = vec![0.0; 50];
+        for (a, b) in [(0.0, 0.1), (0.1, 0.0), (0.0, 0.06), (0.06, 0.0)] {
+            let (leg, _) = crate::model::trapezoid_reference(a, b, 0.3, 3.0, rate, 3.0).unwrap();
+            y.extend(leg);
+        }
+        let mut rec = crate::recording::Recording::with_uniform_time(y.len(), rate);
+        rec.base_cmd_m = Some(y.clone());
+        rec.tip_pos_m = Some(y);
+        let d = Prepared::new("t", &rec).unwrap();
+        let truth = Params {
+            stiffness_scale: 0.3,
+            n_basis: 6,
+            ..Default::default()
+        };
+        let mut d = d;
+        d.tip_m = predict(&rig, &truth, &d, &mut None).unwrap().tip_m;
+        let ch = Channels {
+            base: false,
+            tip: true,
+            force: false,
+            cmd_drives_beam: true,
+        };
+        let calib = calibration_defs(&rig, &ch, 2, 6);
+        let data = [d];
+        let f = fit(
+            &rig,
+            &data,
+            [1e-6, 1e-4, 0.1],
+            &calib,
+            &[],
+            None,
+            4000,
+            true,
+        );
+        let scale = f.values[0];
+        assert!((scale - 0.3).abs() < 0.01, "stiffness scale {scale}");
+    }
+}

@@ -1144,6 +1144,15 @@ mod tests {
     use crate::diagnose::effects::servo_candidate;
     use nalgebra::DVector;
 
+    #[test]
+    fn a_split_refit_that_worsens_moves_the_allowance_as_much_as_one_that_improves() {
+        // a refit predicting the validation 2.3× worse must not ask for more than a 100 %
+        // reduction: it moves the residual by as much (in ln ρ) as a 57 % improvement
+        assert!((split_change(2.3) - (1.0 - 1.0 / 2.3)).abs() < 1e-12);
+        assert!((split_change(2.3) - split_change(1.0 / 2.3)).abs() < 1e-12);
+        assert!(split_change(1e6) < 1.0 && split_change(0.9) > 0.099 && split_change(1.0) == 0.0);
+    }
+
     /// A fit of `cand` with effect values `values` (no calibration parameters).
     fn fitted(cand: &Candidate, values: &[f64]) -> FitResult {
         FitResult {
