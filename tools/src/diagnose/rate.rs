@@ -27,8 +27,10 @@
 //!    ([`interpolation_error`]: 7 % low at 0.15 r). The model's inputs (`base_cmd_m`, the
 //!    measured base that drives the beam) are therefore [emphasised](emphasis_taps) by a
 //!    13-tap FIR ≈ 1/sinc², maximally flat at DC ([`emphasised_error`] < 1e-8 to 0.1 r, 1e-3
-//!    to 0.25 r), at the working rate whether decimated or not (at 50 Hz a beam's second mode
-//!    near 0.2 r lost 12 % of its drive); the recorded outputs are not; the command and drive
+//!    to 0.25 r): the command at the working rate whether decimated or not (at 50 Hz a beam's
+//!    second mode near 0.2 r lost 12 % of its drive), a measured base only when decimated (at
+//!    its own rate it drives the model as recorded: emphasised, a `backlash` fitted the boost
+//!    on null recordings, docs/diagnose.md); the recorded outputs are not; the command and drive
 //!    as recorded stay the base positions (a model without a servo loop, the absolute tip,
 //!    the physics-free correction). (b) is what the emphasis leaves at r_w beyond what it
 //!    leaves at the recording's own rate. Measured without the emphasis: a 1000 Hz sensor-delay case (tip
@@ -499,10 +501,11 @@ pub fn decimate_zero_phase(x: &[f64], q: usize) -> Vec<f64> {
 }
 
 /// `d` at its working rate: every channel [decimated](decimate_zero_phase) by `q` (`q` ≤ 1: as
-/// recorded), the time base kept at every `q`-th sample; the model's inputs (`cmd_m`,
-/// `drive_m`) then [emphasised](emphasise) so its piecewise-linear treatment of them costs no
-/// accuracy, the command and drive as sampled kept in `cmd_identity_m` and `drive_identity_m`
-/// (the base positions: a model without a servo loop, the absolute tip).
+/// recorded), the time base kept at every `q`-th sample; the model's inputs then
+/// [emphasised](emphasise) so its piecewise-linear treatment of them costs no accuracy — the
+/// command always, a measured drive (`drive_m`) only when `q` > 1 — and the command and drive
+/// as sampled kept in `cmd_identity_m` and `drive_identity_m` (`None` when the drive is not
+/// emphasised; the base positions: a model without a servo loop, the absolute tip).
 pub fn decimate_prepared(d: &Prepared, q: usize) -> Prepared {
     let q = q.max(1);
     let dec = |c: &Option<Vec<f64>>| c.as_ref().map(|v| decimate_zero_phase(v, q));
