@@ -24,16 +24,15 @@
 //!    interpolation error of the content inside it. The model takes its inputs as piecewise
 //!    linear between samples (exact integration of the beam for such a base, second
 //!    difference for the motor force), a triangle kernel whose gain is sinc²(f/r)
-//!    ([`interpolation_error`]: 7 % low at 0.15 r). The model's inputs (`base_cmd_m`, the
+//!    ([`interpolation_error`]: 7 % low at 0.15 r). Decimated inputs (`base_cmd_m`, the
 //!    measured base that drives the beam) are therefore [emphasised](emphasis_taps) by a
 //!    13-tap FIR ≈ 1/sinc², maximally flat at DC ([`emphasised_error`] < 1e-8 to 0.1 r, 1e-3
-//!    to 0.25 r): the command at the working rate whether decimated or not (at 50 Hz a beam's
-//!    second mode near 0.2 r lost 12 % of its drive), a measured base only when decimated (at
-//!    its own rate it drives the model as recorded: emphasised, a `backlash` fitted the boost
-//!    on null recordings, docs/diagnose.md); the recorded outputs are not; the command and drive
-//!    as recorded stay the base positions (a model without a servo loop, the absolute tip,
-//!    the physics-free correction). (b) is what the emphasis leaves at r_w beyond what it
-//!    leaves at the recording's own rate. Measured without the emphasis: a 1000 Hz sensor-delay case (tip
+//!    to 0.25 r), the recorded outputs are not; the command and drive as recorded stay the
+//!    base positions (a model without a servo loop, the absolute tip, the physics-free
+//!    correction). At the recording's own rate nothing is emphasised: tried in session 9, a
+//!    boosted command let a lightly damped position loop take a loose tip sensor's resonance
+//!    on tip-only 50 Hz recordings (docs/diagnose.md). (b) is what the emphasis leaves at r_w beyond the
+//!    recording's own interpolation error. Measured without the emphasis: a 1000 Hz sensor-delay case (tip
 //!    content to 27 Hz) decimated to 200 Hz got a spurious 60 Hz `mount_resonance` (ζ 0.06, a
 //!    resonant boost that undoes the droop) worth 10 % of the noise power, as (b) predicted;
 //!    with it, none.
@@ -267,7 +266,7 @@ impl Spectrum {
                 e
             } else {
                 e * (emphasised_error_of(&taps, f / rate_w_hz).powi(2)
-                    - emphasised_error_of(&taps, f / rate_hz).powi(2))
+                    - interpolation_error(f, rate_hz).powi(2))
                 .max(0.0)
             };
         }
@@ -500,14 +499,16 @@ pub fn decimate_zero_phase(x: &[f64], q: usize) -> Vec<f64> {
         .collect()
 }
 
-/// `d` at its working rate: every channel [decimated](decimate_zero_phase) by `q` (`q` ≤ 1: as
-/// recorded), the time base kept at every `q`-th sample; the model's inputs then
-/// [emphasised](emphasise) so its piecewise-linear treatment of them costs no accuracy — the
-/// command always, a measured drive (`drive_m`) only when `q` > 1 — and the command and drive
-/// as sampled kept in `cmd_identity_m` and `drive_identity_m` (`None` when the drive is not
-/// emphasised; the base positions: a model without a servo loop, the absolute tip).
+/// `d` at its working rate: every channel [decimated](decimate_zero_phase) by `q` (`q` ≤ 1:
+/// `d` as recorded, nothing emphasised), the time base kept at every `q`-th sample; the model's
+/// inputs (`cmd_m`, `drive_m`) then [emphasised](emphasise) so its piecewise-linear treatment
+/// of them costs no more accuracy than at the recording's own rate, the command and drive as
+/// sampled kept in `cmd_identity_m` and `drive_identity_m` (the base positions: a model
+/// without a servo loop, the absolute tip, the physics-free correction).
 pub fn decimate_prepared(d: &Prepared, q: usize) -> Prepared {
-    let q = q.max(1);
+    if q <= 1 {
+        return d.clone();
+    }
     let dec = |c: &Option<Vec<f64>>| c.as_ref().map(|v| decimate_zero_phase(v, q));
     let cmd = decimate_zero_phase(&d.cmd_m, q);
     Prepared {
@@ -517,12 +518,8 @@ pub fn decimate_prepared(d: &Prepared, q: usize) -> Prepared {
         cmd_m: emphasise(&cmd),
         cmd_identity_m: Some(cmd),
         base_m: dec(&d.base_m),
-        drive_m: if q > 1 {
-            dec(&d.drive_m).map(|v| emphasise(&v))
-        } else {
-            d.drive_m.clone()
-        },
-        drive_identity_m: if q > 1 { dec(&d.drive_m) } else { None },
+        drive_m: dec(&d.drive_m).map(|v| emphasise(&v)),
+        drive_identity_m: dec(&d.drive_m),
         tip_m: dec(&d.tip_m),
         force_n: dec(&d.force_n),
     }

@@ -1458,59 +1458,6 @@ mod tests {
         move_rec_at(100.0)
     }
 
-    /// A smooth back-and-forth move (minimum-jerk legs of 0.2 s, 40 mm) sampled at `rate`.
-    fn smooth_rec_at(rate: f64) -> crate::recording::Recording {
-        let leg = |t: f64| {
-            let u = (t / 0.2).clamp(0.0, 1.0);
-            0.04 * u * u * u * (10.0 - 15.0 * u + 6.0 * u * u)
-        };
-        let y: Vec<f64> = (0..(4.0 * rate) as usize)
-            .map(|k| {
-                let t = k as f64 / rate;
-                leg(t - 0.2) - leg(t - 1.2)
-            })
-            .collect();
-        let mut r = crate::recording::Recording::with_uniform_time(y.len(), rate);
-        r.base_cmd_m = Some(y.clone());
-        r.tip_pos_m = Some(y.clone());
-        r.force_n = Some(vec![0.0; y.len()]);
-        r
-    }
-
-    #[test]
-    fn a_50_hz_model_of_a_smooth_move_matches_a_1_khz_one_at_its_samples() {
-        // the beam's 2nd mode (≈ 7 Hz) sits at 0.15 × 50 Hz, where the model's piecewise-linear
-        // input keeps sinc² = 93 % of the drive; the emphasised input restores it, and the
-        // absolute tip adds the base as sampled
-        let rig = rig();
-        let p = Params::default();
-        let fine = Prepared::new("f", &smooth_rec_at(1000.0)).unwrap();
-        let pf = predict(&rig, &p, &fine, &mut None).unwrap();
-        let coarse = super::super::rate::decimate_prepared(
-            &Prepared::new("c", &smooth_rec_at(50.0)).unwrap(),
-            1,
-        );
-        let pc = predict(&rig, &p, &coarse, &mut None).unwrap();
-        let (tf, tc) = (pf.tip_m.unwrap(), pc.tip_m.unwrap());
-        let (ff, fc) = (pf.force_n.unwrap(), pc.force_n.unwrap());
-        let (mut e_tip, mut s_tip, mut e_f, mut s_f) = (0.0, 0.0, 0.0, 0.0);
-        for k in 0..tc.len() {
-            let def = tf[20 * k] - fine.cmd_m[20 * k];
-            e_tip += (tc[k] - tf[20 * k]).powi(2);
-            s_tip += def * def;
-            e_f += (fc[k] - ff[20 * k]).powi(2);
-            s_f += ff[20 * k].powi(2);
-        }
-        let (r_tip, r_f) = ((e_tip / s_tip).sqrt(), (e_f / s_f).sqrt());
-        // measured: tip 0.16 %, force 5.1 % (the force's rest not examined); with the inputs as
-        // sampled 0.53 % and 9.3 %
-        assert!(
-            r_tip < 0.003,
-            "tip: rms error {r_tip} of the deflection's rms"
-        );
-        assert!(r_f < 0.07, "force: rms error {r_f} of the force's rms");
-    }
-
     #[test]
     fn nominal_matches_the_model_simulator() {
         // at 1 kHz every model mode is below Nyquist and kept: identical to `model::sim`
