@@ -97,11 +97,6 @@ pub struct Params {
     /// Cubic clamp stiffness k₃ (N·m/rad³) in `M = k_r θ + k₃ θ³`; needs
     /// `root_stiffness_nm_per_rad` (the root rotation is then a coordinate).
     pub cubic_root_stiffness_nm_per_rad3: f64,
-    /// The carriage's acceleration between samples: `false` that of the piecewise-linear path
-    /// through the drive's samples (the model's), `true` that of the interpolating cubic spline
-    /// ([`spline_accel`]); the alternative the 1-σ of the carriage mass is widened by
-    /// (`honesty::add_drive_interpolation_std`).
-    pub smooth_drive: bool,
 }
 
 impl Default for Params {
@@ -132,65 +127,25 @@ impl Default for Params {
             force_delay_s: 0.0,
             backlash_m: 0.0,
             cubic_root_stiffness_nm_per_rad3: 0.0,
-            smooth_drive: false,
         }
     }
 }
 
-/// Half-length (samples) of the [`delayed`] interpolation kernel (2 × this many taps).
-const DELAY_HALF: usize = 8;
-/// Kaiser window shape β of the [`delayed`] kernel.
-const DELAY_BETA: f64 = 5.0;
-
-/// `x(t − τ)` between samples by a band-limited fractional delay (held at the ends): a
-/// Kaiser-windowed sinc (β [`DELAY_BETA`], 2 × [`DELAY_HALF`] taps, weights scaled to unit DC
-/// gain), flat within 0.3 % in amplitude up to 0.4 × the sample rate at every fraction.
-/// Linear interpolation, used before, is a low-pass whose gain depends on the fraction
-/// (half a sample: cos(πf/r), 0.51 at 0.33 r): at 50–100 Hz a latency of a few ms then also
-/// removed 10–50 % of the beam's second mode from the prediction, so the tip latency of
-/// `sensor_delay` lost to a position loop (exact between samples) and the force channel's
-/// calibrated half-sample latency took its modes' content out of the model (Laakso et al.,
-/// "Splitting the unit delay", IEEE Signal Processing Magazine 13(1), 1996).
+/// `x(t − τ)` by linear interpolation between samples (held at the ends).
 pub fn delayed(x: &[f64], delay_s: f64, dt: f64) -> Vec<f64> {
     let n = x.len();
     let s = delay_s / dt;
-    // x(k − s) = Σ_j w_j x[k + shift + j − h + 1]: the fraction, hence the weights, is the
-    // same for every k
-    let shift = (-s).floor();
-    let a = -s - shift;
-    let h = DELAY_HALF as i64;
-    let w: Vec<f64> = if a < 1e-12 {
-        vec![]
-    } else {
-        let i0b = super::rate::bessel_i0(DELAY_BETA);
-        let raw: Vec<f64> = (0..2 * h)
-            .map(|j| {
-                let t = a - (j - h + 1) as f64;
-                let r = t / h as f64;
-                let pt = std::f64::consts::PI * t;
-                pt.sin() / pt * super::rate::bessel_i0(DELAY_BETA * (1.0 - r * r).max(0.0).sqrt())
-                    / i0b
-            })
-            .collect();
-        let sum: f64 = raw.iter().sum();
-        raw.iter().map(|v| v / sum).collect()
-    };
-    let shift = shift as i64;
-    let at = |i: i64| x[i.clamp(0, n as i64 - 1) as usize];
-    (0..n as i64)
+    (0..n)
         .map(|k| {
             let pos = k as f64 - s;
             if pos <= 0.0 {
                 x[0]
             } else if pos >= (n - 1) as f64 {
                 x[n - 1]
-            } else if w.is_empty() {
-                at(k + shift)
             } else {
-                w.iter()
-                    .enumerate()
-                    .map(|(j, wj)| wj * at(k + shift + j as i64 - h + 1))
-                    .sum()
+                let i = pos.floor() as usize;
+                let a = pos - i as f64;
+                x[i] * (1.0 - a) + x[i + 1] * a
             }
         })
         .collect()
@@ -261,8 +216,6 @@ pub struct Prepared {
     pub base_m: Option<Vec<f64>>,
     /// Measured base used to drive the beam (= `base_m`, or the base when it is the only one).
     pub drive_m: Option<Vec<f64>>,
-    /// `drive_m` as sampled (not emphasised) when `drive_m` is emphasised; `None` = `drive_m`.
-    pub drive_identity_m: Option<Vec<f64>>,
     /// Tip position (m).
     pub tip_m: Option<Vec<f64>>,
     /// Force (N).
@@ -290,28 +243,9 @@ impl Prepared {
             cmd_identity_m: None,
             base_m: base,
             drive_m: drive,
-            drive_identity_m: None,
             tip_m: rec.tip_pos_m.clone(),
             force_n: rec.force_n.clone(),
         })
-    }
-}
-
-impl Prepared {
-    /// The command as recorded (at the working rate, not [emphasised](super::rate::emphasise)).
-    pub fn cmd_as_sampled(&self) -> &[f64] {
-        self.cmd_identity_m.as_deref().unwrap_or(&self.cmd_m)
-    }
-
-    /// The measured drive, else the command, as sampled (not emphasised): what a yardstick
-    /// built from the recordings (the physics-free correction) may use. The emphasised inputs
-    /// differ from these by ≈ (π²/3) dt² × their second derivative, a derivative of the motion
-    /// that the model's own physics (a servo loop, an inertia) should have to earn.
-    pub fn drive_as_sampled(&self) -> &[f64] {
-        match &self.drive_m {
-            Some(m) => self.drive_identity_m.as_deref().unwrap_or(m),
-            None => self.cmd_as_sampled(),
-        }
     }
 }
 
@@ -994,10 +928,8 @@ pub fn predict(
             _ => y_servo.clone(),
         });
     }
-    // 2. drive: the measured base when recorded; emphasised for the dynamics, as sampled for
-    // positions
-    let (drive, drive_pos) = drives(d, &law, &y_servo);
-    let (drive, drive_pos): (&[f64], &[f64]) = (&drive, &drive_pos);
+    // 2. drive: the measured base when recorded
+    let drive: &[f64] = d.drive_m.as_deref().unwrap_or(&y_servo);
     // 3. backlash and mount between the drive and the beam root
     let (root, exact) = root_motion(p, drive, dt, c);
     // 4. beam, tip sensor and motor force (those of a coupled mount from its exact state
@@ -1018,10 +950,7 @@ pub fn predict(
                 None => beam_response(p, &root, drive, dt, c),
             };
             if d.tip_m.is_some() {
-                let root_pos: Vec<f64> = (0..root.len())
-                    .map(|k| root[k] + drive_pos[k] - drive[k])
-                    .collect();
-                out.tip_m = Some(tip_sensor(p, &root_pos, &w, dt));
+                out.tip_m = Some(tip_sensor(p, &root, &w, dt));
             }
             force
         }
@@ -1040,68 +969,9 @@ pub fn predict(
     };
     // 5. carriage forces and the force channel's latency
     if d.force_n.is_some() {
-        let force = smooth_drive_of(p, rig, c, force, (drive, drive_pos), dt);
-        out.force_n = Some(carriage_forces(p, drive_pos, force, dt));
+        out.force_n = Some(carriage_forces(p, drive, force, dt));
     }
     Ok(out)
-}
-
-/// The motor force `force` (N, one per sample) of the model's drive, or, when `p.smooth_drive`
-/// asks for the drive-interpolation alternative, that of the cubic spline through the drive's
-/// samples *as recorded* ([`smooth_drive_force`]) for the carriage's mass. `drives` is (the
-/// model's input, the drive as sampled) of [`drives`]: the spline reads the samples, not the
-/// emphasised input (which already undoes the linear path's sinc² loss up to 0.3 × the rate;
-/// a spline through it would boost twice).
-fn smooth_drive_of(
-    p: &Params,
-    rig: &Rig,
-    c: Option<&BeamCache>,
-    force: Vec<f64>,
-    drives: (&[f64], &[f64]),
-    dt: f64,
-) -> Vec<f64> {
-    if !p.smooth_drive {
-        return force;
-    }
-    let carriage = match c {
-        Some(c) if p.mount.is_some() => c.base_mass - p.mount_mass_kg,
-        Some(c) => c.base_mass,
-        None => rig.base.mass_kg + p.base_mass_delta_kg,
-    };
-    smooth_drive_force(force, carriage, drives, dt)
-}
-
-/// The drive of the beam root and carriage as (the model's input, the base position at the
-/// samples). When `d`'s inputs are [emphasised](super::rate::emphasise) against the model's
-/// piecewise-linear treatment of them (`cmd_identity_m` set), the input is the emphasised
-/// signal — so the beam's forcing and the carriage's second difference carry the motion's
-/// content at its true amplitude up to 0.3 × the rate instead of sinc²(f/r) of it — while the
-/// absolute tip and the carriage's position-dependent forces take the base as sampled: the
-/// emphasis changes sample values by (1/sinc² − 1) of the content (0.8 % at 0.05 × the rate,
-/// millimetres of a 50 Hz move). A servo loop's output is the base at the samples (its
-/// integration is exact for the emphasised command), emphasised in turn as a drive.
-fn drives<'a>(
-    d: &'a Prepared,
-    law: &Option<ServoLaw>,
-    y_servo: &'a [f64],
-) -> (std::borrow::Cow<'a, [f64]>, std::borrow::Cow<'a, [f64]>) {
-    use std::borrow::Cow;
-    let emphasised = d.cmd_identity_m.is_some();
-    match (&d.drive_m, law) {
-        (Some(m), _) => (
-            Cow::Borrowed(m.as_slice()),
-            Cow::Borrowed(d.drive_identity_m.as_deref().unwrap_or(m)),
-        ),
-        (None, None) => (
-            Cow::Borrowed(y_servo),
-            Cow::Borrowed(d.cmd_identity_m.as_deref().unwrap_or(y_servo)),
-        ),
-        (None, Some(_)) if emphasised => (
-            Cow::Owned(super::rate::emphasise(y_servo)),
-            Cow::Borrowed(y_servo),
-        ),
-        (None, Some(_)) => (Cow::Borrowed(y_servo), Cow::Borrowed(y_servo)),
-    }
 }
 
 /// The structural model of `p`, rebuilt only when a structural parameter changed.
@@ -1133,54 +1003,6 @@ pub fn accel_at(y: &[f64], k: usize, dt: f64) -> f64 {
         vb
     };
     (va - vb) / dt
-}
-
-/// `force` (N) with the carriage's (`carriage_kg`) acceleration read from the cubic spline
-/// through the drive's samples as recorded (`drives.1`) instead of the model's own, the
-/// piecewise-linear path of its input `drives.0` ([`Params::smooth_drive`]):
-/// `force + m (a_spline − a_model)` at every sample.
-fn smooth_drive_force(
-    mut force: Vec<f64>,
-    carriage_kg: f64,
-    drives: (&[f64], &[f64]),
-    dt: f64,
-) -> Vec<f64> {
-    let (model, sampled) = drives;
-    let smooth = spline_accel(sampled, dt);
-    for (k, f) in force.iter_mut().enumerate() {
-        *f += carriage_kg * (smooth[k] - accel_at(model, k, dt));
-    }
-    force
-}
-
-/// Acceleration (m/s²) at every sample of the cubic spline through the samples `y` (spacing
-/// `dt` s): its second derivatives M at the knots, `(M_{k−1} + 4 M_k + M_{k+1}) / 6 = a_k` with
-/// a_k the piecewise-linear path's [`accel_at`] (the spline's continuity conditions; the rows of
-/// the end samples keep only their inner neighbour). Both paths pass through every sample; the
-/// linear one spreads a step of acceleration between two samples over three samples, the
-/// spline recovers more of it (at Nyquist its gain is 3× the linear path's, exact
-/// acceleration 2.47×), so the two bracket what the samples cannot say about the motion
-/// between them (de Boor, *A Practical Guide to Splines*, ch. IV).
-pub fn spline_accel(y: &[f64], dt: f64) -> Vec<f64> {
-    let n = y.len();
-    if n < 3 {
-        return (0..n).map(|k| accel_at(y, k, dt)).collect();
-    }
-    // Thomas algorithm on the symmetric (1, 4, 1) / 6 system
-    let mut c = vec![0.0; n];
-    let mut m: Vec<f64> = (0..n).map(|k| accel_at(y, k, dt)).collect();
-    let (off, diag) = (1.0 / 6.0, 4.0 / 6.0);
-    c[0] = off / diag;
-    m[0] /= diag;
-    for k in 1..n {
-        let den = diag - off * c[k - 1];
-        c[k] = off / den;
-        m[k] = (m[k] - off * m[k - 1]) / den;
-    }
-    for k in (0..n - 1).rev() {
-        m[k] -= c[k] * m[k + 1];
-    }
-    m
 }
 
 /// Beam-root position: the drive through the play (`backlash`) and the mount (coupled to the
@@ -1377,53 +1199,6 @@ fn carriage_forces(p: &Params, drive: &[f64], mut force: Vec<f64>, dt: f64) -> V
 mod tests {
     use super::*;
 
-    /// Position (m) at time t (s) of a move with acceleration `a` over [t0, t0 + ta], coasting,
-    /// then −a over [t1, t1 + ta] (steps of acceleration between samples), and its velocity.
-    fn short_move(t: f64, a: f64, t0: f64, ta: f64, t1: f64) -> (f64, f64) {
-        let v = a * ta;
-        let (u, w) = ((t - t0).clamp(0.0, ta), (t - t1).clamp(0.0, ta));
-        let pos = 0.5 * a * u * u + v * (t - t0 - ta).max(0.0)
-            - 0.5 * a * w * w
-            - v * (t - t1 - ta).max(0.0);
-        (pos, a * u - a * w)
-    }
-
-    #[test]
-    fn the_spline_reads_acceleration_steps_between_samples_closer_than_the_linear_path() {
-        let (dt, n) = (0.02, 60);
-        let mv = |t: f64| short_move(t, 2.5, 0.333, 0.047, 0.561);
-        let y: Vec<f64> = (0..n).map(|k| mv(k as f64 * dt).0).collect();
-        // what a drive that averages over the sample period reports: Δv / dt over [t_k, t_k+1]
-        let truth: Vec<f64> = (0..n - 1)
-            .map(|k| (mv((k + 1) as f64 * dt).1 - mv(k as f64 * dt).1) / dt)
-            .collect();
-        let lin: Vec<f64> = (0..n).map(|k| accel_at(&y, k, dt)).collect();
-        let spl = spline_accel(&y, dt);
-        // both read half a sample later (the force channel's latency calibration)
-        let slope = |e: &[f64]| {
-            let m: Vec<f64> = (0..n - 1).map(|k| 0.5 * (e[k] + e[k + 1])).collect();
-            let sxy: f64 = m.iter().zip(&truth).map(|(a, b)| a * b).sum();
-            let sxx: f64 = m.iter().map(|a| a * a).sum();
-            sxy / sxx
-        };
-        let (sl, ss) = (slope(&lin), slope(&spl));
-        // the mass fitted to the reported force is this slope × the true mass
-        assert!(sl > 1.1, "linear path: slope {sl}");
-        assert!(
-            (ss - 1.0).abs() < 0.5 * (sl - 1.0),
-            "spline {ss}, linear {sl}"
-        );
-        // a parabola through the samples is read exactly by both inside the record
-        let p: Vec<f64> = (0..n)
-            .map(|k| 0.5 * 3.0 * (k as f64 * dt).powi(2))
-            .collect();
-        let sp = spline_accel(&p, dt);
-        assert!(
-            sp[10..n - 10].iter().all(|x| (x - 3.0).abs() < 1e-4),
-            "{sp:?}"
-        );
-    }
-
     #[test]
     fn a_first_order_loop_with_full_velocity_feed_forward_is_the_command() {
         // the identity start of the base-motion alternative (honesty::identity_servo)
@@ -1607,34 +1382,6 @@ mod tests {
             .map(|(a, b)| b - a)
             .fold(0.0, f64::max);
         assert!((lag - 0.1 * 0.2 / w).abs() < 0.05 * 0.1 * 0.2 / w, "{lag}");
-    }
-
-    #[test]
-    fn a_fractional_delay_keeps_the_amplitude_up_to_0_4_of_the_rate() {
-        // a sinusoid at 0.33 × the sample rate (a beam's 2nd mode at 50 Hz sampling) delayed by
-        // 0.5 and 0.2 samples equals the sinusoid sampled late; linear interpolation loses 49 %
-        // and 27 % of it
-        for (f_cyc, frac) in [
-            (0.33, 0.5),
-            (0.33, 0.2),
-            (0.4, 0.5),
-            (0.05, 0.7),
-            (0.2, -1.3),
-        ] {
-            let dt = 0.02;
-            let w = 2.0 * std::f64::consts::PI * f_cyc / dt;
-            let x: Vec<f64> = (0..400).map(|k| (w * k as f64 * dt).sin()).collect();
-            let y = delayed(&x, frac * dt, dt);
-            let err = (50..350)
-                .map(|k| (y[k] - (w * (k as f64 - frac) * dt).sin()).abs())
-                .fold(0.0, f64::max);
-            assert!(err < 5e-3, "f {f_cyc} × rate, {frac} samples: error {err}");
-        }
-        // whole samples are a plain shift; the ends are held
-        let x: Vec<f64> = (0..20).map(|k| (k * k) as f64).collect();
-        let y = delayed(&x, 3.0 * 0.01, 0.01);
-        assert_eq!(&y[3..], &x[..17]);
-        assert!(y[..3].iter().all(|v| *v == x[0]));
     }
 
     #[test]

@@ -4,7 +4,7 @@ use beamtools::diagnose::diagnose;
 use beamtools::diagnose::report::to_json;
 use beamtools::diagnose::sim::Prepared;
 use beamtools::model::Rig;
-use beamtools::truth::{generate, TruthCase, TruthOptions};
+use beamtools::truth::{generate, TruthOptions};
 
 /// Generates `effect` at `seed` with 30 s recordings and diagnoses it (two fit recordings, one
 /// validation); returns the diagnosis JSON and the generator's truth (`truth.json`'s `truth`).
@@ -28,16 +28,6 @@ pub fn diagnose_generated_with(
     opts: &TruthOptions,
 ) -> (serde_json::Value, serde_json::Value) {
     let case = generate(effect, seed, opts).unwrap();
-    (
-        diagnose_case(&case),
-        serde_json::to_value(&case.truth).unwrap(),
-    )
-}
-
-/// The diagnosis JSON of a generated `case` (its two fit recordings, its validation) on its
-/// rig file.
-#[allow(dead_code)]
-pub fn diagnose_case(case: &TruthCase) -> serde_json::Value {
     let rig = Rig::from_toml_str(&case.rig_toml).unwrap();
     let fit: Vec<Prepared> = case
         .fit
@@ -46,7 +36,7 @@ pub fn diagnose_case(case: &TruthCase) -> serde_json::Value {
         .collect();
     let val = Prepared::new("validate", &case.validate).unwrap();
     let d = diagnose(&rig, &fit, &val, &mut beamtools::progress::Silent).unwrap();
-    to_json(&d)
+    (to_json(&d), serde_json::to_value(&case.truth).unwrap())
 }
 
 /// Catalogue effects named in a diagnosis JSON, sorted; `servo_lag` left out (every generated
