@@ -171,6 +171,9 @@ pub struct Calib {
     pub defs: Vec<ParamDef>,
     /// Galerkin basis functions (every in-band mode converged).
     pub n_basis: usize,
+    /// The drive between samples is the cubic spline through them ([`Params::smooth_drive`];
+    /// only in the 1-σ's model-form alternative).
+    pub smooth_drive: bool,
 }
 
 impl Calib {
@@ -229,7 +232,11 @@ pub fn calibration_defs(rig: &Rig, ch: &Channels, in_band_modes: usize, n_basis:
             false,
         ));
     }
-    Calib { defs: v, n_basis }
+    Calib {
+        defs: v,
+        n_basis,
+        smooth_drive: false,
+    }
 }
 
 /// Damping ratios the model applies ([`apply_calibration`] clamps a fitted ratio into this
@@ -270,6 +277,7 @@ pub fn calibration_unidentified(def: &ParamDef, value: f64, std: f64) -> Option<
 /// Applies the calibration vector (physical values, in [`calibration_defs`] order).
 pub fn apply_calibration(calib: &Calib, values: &[f64], p: &mut Params) {
     p.n_basis = calib.n_basis;
+    p.smooth_drive = calib.smooth_drive;
     let mut zm = Vec::new();
     for (d, &v) in calib.defs.iter().zip(values) {
         match d.name {

@@ -110,12 +110,59 @@ pub fn add_basis_std(
     let finer = Calib {
         defs: calib.defs.clone(),
         n_basis: calib.n_basis + 1,
+        smooth_drive: calib.smooth_drive,
     };
+    add_alternative_std(rig, data, sigma, &finer, set, f, max_evaluations)
+}
+
+/// Adds the **drive-interpolation uncertainty** to the 1-σ of `f` (calibration + `set`): the
+/// samples say nothing of the carriage's motion between them, and the force channel reports
+/// the carriage's acceleration there (a drive averages its force over the sample period). The
+/// model takes the piecewise-linear path through the samples, which spreads an acceleration
+/// step over three samples; the cubic spline through the same samples
+/// ([`super::sim::spline_accel`]) is the other standard reading. The final model is refitted
+/// (warm, at most `max_evaluations`) with the spline's acceleration in the force channel, and
+/// each parameter's change is added in quadrature. It is what the carriage mass absorbs from
+/// motion near the Nyquist rate (short moves, acceleration steps), a bias shared by every
+/// recording, which neither the long-run σ nor the recordings' disagreement sees. Nothing
+/// without a recorded force. Returns the model evaluations used.
+pub fn add_drive_interpolation_std(
+    rig: &Rig,
+    data: &[Prepared],
+    sigma: [f64; 3],
+    calib: &Calib,
+    set: &[&Candidate],
+    f: &mut FitResult,
+    max_evaluations: usize,
+) -> usize {
+    if !data.iter().any(|d| d.force_n.is_some()) {
+        return 0;
+    }
+    let smooth = Calib {
+        defs: calib.defs.clone(),
+        n_basis: calib.n_basis,
+        smooth_drive: true,
+    };
+    add_alternative_std(rig, data, sigma, &smooth, set, f, max_evaluations)
+}
+
+/// Refits `f` (calibration + `set`) warm with the model-form alternative `alt` and adds each
+/// parameter's change to its 1-σ in quadrature, σ² ← σ² + (θ_alt − θ)². Returns the model
+/// evaluations used.
+fn add_alternative_std(
+    rig: &Rig,
+    data: &[Prepared],
+    sigma: [f64; 3],
+    alt: &Calib,
+    set: &[&Candidate],
+    f: &mut FitResult,
+    max_evaluations: usize,
+) -> usize {
     let g = fit::fit(
         rig,
         data,
         sigma,
-        &finer,
+        alt,
         set,
         Some(&f.x),
         max_evaluations,

@@ -605,6 +605,16 @@ fn measure_final(
             share,
         ));
     }
+    let share = budget.share(3);
+    budget.spend(honesty::add_drive_interpolation_std(
+        rig,
+        fit_data,
+        sigma,
+        calib,
+        set,
+        &mut reference.fit,
+        share,
+    ));
     if let Some(servo) = honesty::identity_servo(cands, set, fit_data) {
         let share = budget.share(2);
         budget.spend(honesty::add_base_assumption_std(
