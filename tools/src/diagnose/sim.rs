@@ -981,12 +981,7 @@ pub fn predict(
                 Some(c) => c.base_mass,
                 None => rig.base.mass_kg + p.base_mass_delta_kg,
             };
-            let smooth = spline_accel(drive, dt);
-            force
-                .iter()
-                .enumerate()
-                .map(|(k, f)| f + carriage * (smooth[k] - accel_at(drive, k, dt)))
-                .collect()
+            smooth_drive_force(force, carriage, drive, dt)
         } else {
             force
         };
@@ -1024,6 +1019,17 @@ pub fn accel_at(y: &[f64], k: usize, dt: f64) -> f64 {
         vb
     };
     (va - vb) / dt
+}
+
+/// `force` (N) with the carriage's (`carriage_kg`) acceleration read from the cubic spline
+/// through the drive's samples instead of the piecewise-linear path ([`Params::smooth_drive`]):
+/// `force + m (a_spline − a_linear)` at every sample.
+fn smooth_drive_force(mut force: Vec<f64>, carriage_kg: f64, drive: &[f64], dt: f64) -> Vec<f64> {
+    let smooth = spline_accel(drive, dt);
+    for (k, f) in force.iter_mut().enumerate() {
+        *f += carriage_kg * (smooth[k] - accel_at(drive, k, dt));
+    }
+    force
 }
 
 /// Acceleration (m/s²) at every sample of the cubic spline through the samples `y` (spacing
