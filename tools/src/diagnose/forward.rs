@@ -237,9 +237,9 @@ impl Ctx<'_> {
             let (vrss, _) = channel_rss(std::slice::from_ref(&vres));
             for c in 0..3 {
                 if base.vn[c] > 0 && base.vrss[c] > 0.0 {
-                    let change = 1.0 - (vrss[c] / base.vrss[c]).sqrt();
+                    let change = split_change((vrss[c] / base.vrss[c]).sqrt());
                     if change.is_finite() {
-                        spread[c] = spread[c].min(change.abs());
+                        spread[c] = spread[c].min(change);
                     }
                 }
             }
@@ -965,6 +965,17 @@ fn best_reduction(r: &Reference, base: &Reference) -> (usize, f64) {
     best
 }
 
+/// The size of a split refit's change of the validation rms residual, ratio `rho` (refit /
+/// reference), on the scale of a candidate's reduction (1 − new/old, at most 1): 1 − ρ for an
+/// improvement and 1 − 1/ρ, the reduction from the refit back to the reference, for a
+/// worsening — the same |ln ρ| either way. The plain |1 − ρ| of a worsening is unbounded:
+/// a model so far that predicts the validation 2.3× worse when refitted to one recording gave an
+/// allowance of 132 %, which no reduction can beat (`quadratic_damping` 85400: its 92 % gain,
+/// the drag the amplitude-dependent split refits had disagreed on, was refused).
+pub(crate) fn split_change(rho: f64) -> f64 {
+    1.0 - rho.min(1.0 / rho)
+}
+
 /// The model-form allowance of channel `c` for `k` parameters: what the physics-free correction
 /// earns on `base`'s validation residual, or its split-refit spread if larger.
 pub(crate) fn allowance(base: &Reference, c: usize, k: usize) -> f64 {
@@ -978,6 +989,19 @@ pub(crate) fn allowance(base: &Reference, c: usize, k: usize) -> f64 {
 /// Ljung–Box Q of a residual (0 when absent).
 fn q_of(v: &Option<Vec<f64>>) -> f64 {
     v.as_ref().map_or(0.0, |r| ljung_box(r, LJUNG_BOX_LAGS))
+}
+
+/// Whether a parameter at representation `x` lies inside its range: a bounded one away from its
+/// ends (logistic within 1 %), a logarithmic one not collapsed towards 0 (value > e⁻²⁰). A
+/// parameter at an end has no curvature of the cost by construction, so its undefined σ says
+/// nothing about the others; one inside with an undefined σ sits on a null direction of the
+/// information matrix ([`crate::numeric::lm::std_errors_long_run`]).
+fn interior(t: &Transform, x: f64) -> bool {
+    match t {
+        Transform::Bounded(..) => x.abs() <= (99.0f64).ln(),
+        Transform::Log => x > -20.0,
+        Transform::Linear => true,
+    }
 }
 
 /// Largest |value|/σ over the candidate's null-at-zero parameters (∞ if it has none; a NaN σ,
@@ -1045,6 +1069,12 @@ fn implausible(
         if NON_NEGATIVE.contains(&p.name) && v < -2.0 * sd {
             out.push(format!(
                 "{} = {v:.3e} is negative by more than 2 σ: physically impossible",
+                p.name
+            ));
+        }
+        if f.std[off + i].is_nan() && interior(&p.transform, x) {
+            out.push(format!(
+                "{} = {v:.3e} not identified: the recordings leave a combination of its parameters unconstrained (1 σ undefined)",
                 p.name
             ));
         }
@@ -1128,6 +1158,15 @@ mod tests {
     use super::*;
     use crate::diagnose::effects::servo_candidate;
     use nalgebra::DVector;
+
+    #[test]
+    fn a_split_refit_that_worsens_moves_the_allowance_as_much_as_one_that_improves() {
+        // a refit predicting the validation 2.3× worse must not ask for more than a 100 %
+        // reduction: it moves the residual by as much (in ln ρ) as a 57 % improvement
+        assert!((split_change(2.3) - (1.0 - 1.0 / 2.3)).abs() < 1e-12);
+        assert!((split_change(2.3) - split_change(1.0 / 2.3)).abs() < 1e-12);
+        assert!(split_change(1e6) < 1.0 && split_change(0.9) > 0.099 && split_change(1.0) == 0.0);
+    }
 
     /// A fit of `cand` with effect values `values` (no calibration parameters).
     fn fitted(cand: &Candidate, values: &[f64]) -> FitResult {

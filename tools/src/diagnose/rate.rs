@@ -444,7 +444,7 @@ pub fn choose(fit_data: &[Prepared], validate: &Prepared) -> WorkingRate {
 }
 
 /// Zeroth-order modified Bessel function of the first kind (power series; |x| ≲ 20).
-fn bessel_i0(x: f64) -> f64 {
+pub(crate) fn bessel_i0(x: f64) -> f64 {
     let (mut sum, mut term) = (1.0, 1.0);
     let y = 0.25 * x * x;
     for k in 1..60 {
