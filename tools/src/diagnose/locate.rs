@@ -217,8 +217,8 @@ impl Gathered {
         let (Some(meas), Some(pr)) = (meas, pr) else {
             return;
         };
-        let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
-        let v = velocity(&d.cmd_m, d.dt);
+        let drive = d.drive_as_sampled();
+        let v = velocity(d.cmd_as_sampled(), d.dt);
         let vd = velocity(drive, d.dt);
         let n = meas.len();
         let r: Vec<f64> = meas.iter().zip(pr).map(|(a, b)| a - b).collect();

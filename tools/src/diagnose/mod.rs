@@ -160,7 +160,7 @@ pub struct Diagnosis {
 /// The recorded signal of channel `c` (0 base position m, 1 tip deflection tip − drive m,
 /// 2 force N) that a residual is normalised by; empty when the channel is missing.
 pub fn channel_signal(d: &Prepared, c: usize) -> Vec<f64> {
-    let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
+    let drive = d.drive_as_sampled();
     match c {
         0 => d.base_m.clone().unwrap_or_default(),
         1 => d
@@ -254,10 +254,10 @@ fn initial_sigma(fit_data: &[Prepared]) -> [f64; 3] {
     let mut acc: [Vec<f64>; 3] = [vec![], vec![], vec![]];
     for d in fit_data {
         if let Some(b) = &d.base_m {
-            acc[0].extend(b.iter().zip(&d.cmd_m).map(|(a, c)| a - c));
+            acc[0].extend(b.iter().zip(d.cmd_as_sampled()).map(|(a, c)| a - c));
         }
         if let Some(t) = &d.tip_m {
-            let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
+            let drive = d.drive_as_sampled();
             acc[1].extend(t.iter().zip(drive).map(|(a, c)| a - c));
         }
         if let Some(f) = &d.force_n {
@@ -451,7 +451,7 @@ fn start_hints(rig: &Rig, fit_data: &[Prepared], cal: &Calibrated, m: &ModelFact
     let mut peak_def: f64 = 0.0;
     let mut speed: f64 = 0.0;
     for (d, r) in fit_data.iter().zip(&cal.res) {
-        let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
+        let drive = d.drive_as_sampled();
         let v = locate::velocity(drive, d.dt);
         speed = speed.max(v.iter().fold(0.0f64, |a, x| a.max(x.abs())));
         if let Some(f) = &r[2] {
@@ -792,7 +792,7 @@ fn check_information(d: &Prepared) -> Result<()> {
         v.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
             - v.iter().cloned().fold(f64::INFINITY, f64::min)
     };
-    let drive = d.drive_m.as_ref().unwrap_or(&d.cmd_m);
+    let drive = d.drive_as_sampled();
     if !(span(drive) > 0.0) {
         bail!(
             "{}: no information: the base does not move (constant position), so nothing excites the model",

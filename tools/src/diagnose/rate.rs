@@ -27,9 +27,12 @@
 //!    ([`interpolation_error`]: 7 % low at 0.15 r). Decimated inputs (`base_cmd_m`, the
 //!    measured base that drives the beam) are therefore [emphasised](emphasis_taps) by a
 //!    13-tap FIR ≈ 1/sinc², maximally flat at DC ([`emphasised_error`] < 1e-8 to 0.1 r, 1e-3
-//!    to 0.25 r), the recorded outputs are not; the command as recorded stays the base of a
-//!    model without a servo loop. (b) is what the emphasis leaves beyond the recording's own
-//!    interpolation error. Measured without the emphasis: a 1000 Hz sensor-delay case (tip
+//!    to 0.25 r), the recorded outputs are not; the command and drive as recorded stay the
+//!    base positions (a model without a servo loop, the absolute tip, the physics-free
+//!    correction). At the recording's own rate nothing is emphasised: tried in session 9, a
+//!    boosted command let a lightly damped position loop take a loose tip sensor's resonance
+//!    on tip-only 50 Hz recordings (docs/diagnose.md). (b) is what the emphasis leaves at r_w beyond the
+//!    recording's own interpolation error. Measured without the emphasis: a 1000 Hz sensor-delay case (tip
 //!    content to 27 Hz) decimated to 200 Hz got a spurious 60 Hz `mount_resonance` (ζ 0.06, a
 //!    resonant boost that undoes the droop) worth 10 % of the noise power, as (b) predicted;
 //!    with it, none.
@@ -496,10 +499,12 @@ pub fn decimate_zero_phase(x: &[f64], q: usize) -> Vec<f64> {
         .collect()
 }
 
-/// `d` at its working rate: every channel [decimated](decimate_zero_phase) by `q`, the time
-/// base kept at every `q`-th sample; the model's inputs (`cmd_m`, `drive_m`) then
-/// [emphasised](emphasise) so its piecewise-linear treatment of them costs no accuracy, the
-/// command as recorded kept in `cmd_identity_m` (the base of a model without a servo loop).
+/// `d` at its working rate: every channel [decimated](decimate_zero_phase) by `q` (`q` ≤ 1:
+/// `d` as recorded, nothing emphasised), the time base kept at every `q`-th sample; the model's
+/// inputs (`cmd_m`, `drive_m`) then [emphasised](emphasise) so its piecewise-linear treatment
+/// of them costs no more accuracy than at the recording's own rate, the command and drive as
+/// sampled kept in `cmd_identity_m` and `drive_identity_m` (the base positions: a model
+/// without a servo loop, the absolute tip, the physics-free correction).
 pub fn decimate_prepared(d: &Prepared, q: usize) -> Prepared {
     if q <= 1 {
         return d.clone();
@@ -514,6 +519,7 @@ pub fn decimate_prepared(d: &Prepared, q: usize) -> Prepared {
         cmd_identity_m: Some(cmd),
         base_m: dec(&d.base_m),
         drive_m: dec(&d.drive_m).map(|v| emphasise(&v)),
+        drive_identity_m: dec(&d.drive_m),
         tip_m: dec(&d.tip_m),
         force_n: dec(&d.force_n),
     }
@@ -632,6 +638,7 @@ mod tests {
             cmd_identity_m: None,
             base_m: None,
             drive_m: None,
+            drive_identity_m: None,
             tip_m: Some(tip),
             force_n: None,
         }
