@@ -292,16 +292,23 @@ impl Ctx<'_> {
         let k = cand.params.len().max(1);
         let off = f.values.len() - cand.params.len();
         // likelihood ratios with the samples counted as independent ones: n / τ per channel,
-        // τ of the residual under the null (the model this candidate extends)
+        // τ of the fit residual under the alternative (the model with this candidate), as a
+        // heteroscedasticity-and-autocorrelation-consistent test scales by the unrestricted
+        // model's residual (e.g. Newey & West 1987): τ under the null holds the very signature
+        // the candidate is tested for (a friction's slow sign(v) square wave made τ 2 s of a
+        // 10 s force record, and a 57 % validation gain earned ΔBIC −7.7); the same for the
+        // validation recording (with the null's τ a 74 % gain on force_n lost to a 1 % change
+        // of tip_pos_m)
         let n_fit = n_of(self.fit_data);
-        let n_eff: f64 = (0..3).map(|c| n_fit[c] as f64 / base.tau_fit[c]).sum();
-        let delta_bic = delta_neg2ll_effective(&r.rss, &base.rss, &n_fit, &base.tau_fit)
+        let tau = r.tau_fit;
+        let n_eff: f64 = (0..3).map(|c| n_fit[c] as f64 / tau[c].max(1.0)).sum();
+        let delta_bic = delta_neg2ll_effective(&r.rss, &base.rss, &n_fit, &tau)
             + k as f64 * n_eff.max(1.0).ln();
         self.trace(format!(
             "{}: fit rss {:?} vs reference {:?}; values {:?}",
             cand.id, r.rss, base.rss, f.values
         ));
-        let delta_val = delta_neg2ll_effective(&r.vrss, &base.vrss, &base.vn, &base.tau_val);
+        let delta_val = delta_neg2ll_effective(&r.vrss, &base.vrss, &base.vn, &r.tau_val);
         let (best_channel, reduction) = best_reduction(&r, base);
         let whiteness = (q_of(&base.vres[best_channel]), q_of(&r.vres[best_channel]));
         let significance = significance(cand, &f, off);

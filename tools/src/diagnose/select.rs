@@ -6,11 +6,17 @@
 //!    with the Gaussian profile likelihood per channel, −2 ln L = Σ_c n_c ln(RSS_c / n_c)
 //!    (Schwarz 1978; Kass & Raftery 1995: ΔBIC < −10 is "very strong" evidence). A residual
 //!    is not white: its samples are counted as n_c / τ_c independent ones, τ_c the integrated
-//!    autocorrelation time of the residual of the model the candidate extends (the null;
-//!    [`autocorrelation_time`]), so N = Σ n_c / τ_c; otherwise a slow model-form residual
-//!    sampled fast makes any small gain "very strong";
+//!    autocorrelation time of the fit residual of the model *with* the candidate (the
+//!    alternative; [`autocorrelation_time`]), so N = Σ n_c / τ_c; otherwise a slow model-form
+//!    residual sampled fast makes any small gain "very strong". The alternative's τ, as a
+//!    heteroscedasticity-and-autocorrelation-consistent test scales by the unrestricted
+//!    model's residual (Newey & West 1987): the null's residual holds the very signature the
+//!    candidate is tested for, and a slow one (friction's sign(v) square wave, a 0.02–0.08 Hz
+//!    force drift beside a cogging ripple) set τ to seconds and the candidate's own evidence to
+//!    a handful of samples;
 //! 2. **validation** (data never fitted): the likelihood-ratio statistic Δ(−2 ln L)_val, with
-//!    the same effective sample count, < −[`VALIDATION_MARGIN`];
+//!    the effective sample count of the alternative's validation residual,
+//!    < −[`VALIDATION_MARGIN`];
 //! 3. **model-form allowance estimated from the data**: the relative rms reduction of the
 //!    validation residual on the channel it helps most must exceed what a *physics-free*
 //!    correction with the same number k of free coefficients, fitted on the fit data only,

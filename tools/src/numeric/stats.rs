@@ -71,7 +71,8 @@ pub fn autocorrelation_time(r: &[f64], max_lag: usize) -> f64 {
 }
 
 /// Δ(−2 ln L) of `rss` against `rss0` with every channel's samples counted as `n[c] / tau[c]`
-/// independent ones ([`autocorrelation_time`] of the residual under the null model).
+/// independent ones (`tau`: [`autocorrelation_time`] of a residual; the diagnosis's guard gives
+/// the alternative model's, see `diagnose::select`).
 pub fn delta_neg2ll_effective(
     rss: &[f64; 3],
     rss0: &[f64; 3],
