@@ -74,5 +74,8 @@ fn a_cogging_ripple_beside_drag_is_named_too() {
         .find_map(|e| e["parameters"]["cogging_pitch_m"].as_f64())
         .unwrap();
     let pitch_true = truth["cogging_pitch_m"].as_f64().unwrap();
-    assert!((pitch - pitch_true).abs() < 0.05 * pitch_true, "{pitch} vs {pitch_true}");
+    assert!(
+        (pitch - pitch_true).abs() < 0.05 * pitch_true,
+        "{pitch} vs {pitch_true}"
+    );
 }
