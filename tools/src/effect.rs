@@ -27,6 +27,18 @@ pub enum Channel {
     Force,
 }
 
+impl Channel {
+    /// Position in the recordings' channel order (`base_pos_m`, `tip_pos_m`, `force_n`; the
+    /// order of `diagnose::fit::CHANNEL_NAMES`).
+    pub fn index(self) -> usize {
+        match self {
+            Channel::BasePos => 0,
+            Channel::Tip => 1,
+            Channel::Force => 2,
+        }
+    }
+}
+
 /// A reported parameter: JSON name (SI unit in the name) and meaning.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ParamSpec {
@@ -194,6 +206,17 @@ impl Effect {
             Effect::BaseFriction | Effect::CoggingRipple => &[Channel::Force],
             Effect::ServoLag => &[Channel::BasePos, Channel::Tip, Channel::Force],
             _ => &[Channel::Tip],
+        }
+    }
+
+    /// The one channel an effect of the measurement acts on: a latency or a scale error of the
+    /// tip sensor changes what the sensor reports, never the motion, so with every other
+    /// parameter held it leaves `base_pos_m` and `force_n` unchanged. `None` for effects of
+    /// the plant, which act on every channel through the coupled motion.
+    pub fn measurement_channel(self) -> Option<Channel> {
+        match self {
+            Effect::SensorDelay | Effect::SensorGain => Some(Channel::Tip),
+            _ => None,
         }
     }
 
