@@ -77,8 +77,6 @@ fn a_mode_the_recordings_do_not_excite_has_no_reported_damping() {
 /// The final calibration's carriage-mass correction of a diagnosed truth case (value, 1 σ) and
 /// the truth's (kg), with every channel the case has recorded.
 fn carriage_mass(effect: &str, seed: u64, rate_hz: f64) -> (f64, f64, f64, f64) {
-    use beamtools::diagnose::{diagnose, report::to_json, sim::Prepared};
-    use beamtools::model::Rig;
     let opts = TruthOptions {
         duration_s: 30.0,
         rate_hz,
@@ -86,17 +84,9 @@ fn carriage_mass(effect: &str, seed: u64, rate_hz: f64) -> (f64, f64, f64, f64) 
         force: Some(true),
         ..Default::default()
     };
-    let case = beamtools::truth::generate(effect, seed, &opts).unwrap();
-    let rig = Rig::from_toml_str(&case.rig_toml).unwrap();
-    let fit: Vec<Prepared> = case
-        .fit
-        .iter()
-        .map(|r| Prepared::new("fit", r).unwrap())
-        .collect();
-    let val = Prepared::new("validate", &case.validate).unwrap();
-    let d = diagnose(&rig, &fit, &val, &mut beamtools::progress::Silent).unwrap();
-    let m = &to_json(&d)["final_calibration"]["base_mass_delta_kg"];
-    let truth = case.truth["true_carriage_mass_kg"].as_f64().unwrap() - rig.base.mass_kg;
+    let (j, truth, rig) = common::diagnose_case(effect, seed, &opts);
+    let m = &j["final_calibration"]["base_mass_delta_kg"];
+    let truth = truth["true_carriage_mass_kg"].as_f64().unwrap() - rig.base.mass_kg;
     (
         m["value"].as_f64().unwrap(),
         m["std"].as_f64().unwrap(),

@@ -27,6 +27,18 @@ pub fn diagnose_generated_with(
     seed: u64,
     opts: &TruthOptions,
 ) -> (serde_json::Value, serde_json::Value) {
+    let (j, truth, _) = diagnose_case(effect, seed, opts);
+    (j, truth)
+}
+
+/// As [`diagnose_generated_with`], also returning the rig file handed to the diagnosis (what
+/// the user believes, e.g. its carriage mass).
+#[allow(dead_code)]
+pub fn diagnose_case(
+    effect: &str,
+    seed: u64,
+    opts: &TruthOptions,
+) -> (serde_json::Value, serde_json::Value, Rig) {
     let case = generate(effect, seed, opts).unwrap();
     let rig = Rig::from_toml_str(&case.rig_toml).unwrap();
     let fit: Vec<Prepared> = case
@@ -36,7 +48,7 @@ pub fn diagnose_generated_with(
         .collect();
     let val = Prepared::new("validate", &case.validate).unwrap();
     let d = diagnose(&rig, &fit, &val, &mut beamtools::progress::Silent).unwrap();
-    (to_json(&d), serde_json::to_value(&case.truth).unwrap())
+    (to_json(&d), serde_json::to_value(&case.truth).unwrap(), rig)
 }
 
 /// Catalogue effects named in a diagnosis JSON, sorted; `servo_lag` left out (every generated
