@@ -108,7 +108,10 @@ impl Progress for StageProgress {
 
 /// Reads and prepares one recording.
 pub fn load(path: &Path) -> Result<Prepared> {
-    let rec = Recording::read_csv(path)?;
+    let rec = crate::recording::zero::zero_at_rest(Recording::read_csv(path)?);
+    for n in &rec.notes {
+        eprintln!("note: {}: {n}", path.display());
+    }
     Prepared::new(&path.display().to_string(), &rec)
 }
 

@@ -1,15 +1,20 @@
 //! The recording format shared by every tool of the project.
 //!
 //! CSV: a header row, comma-separated, uniform sampling. Columns:
-//! - `time_s` (required): time in seconds, strictly increasing, uniform step;
+//! - `time_s` (required): time in seconds of each sample, strictly increasing, uniform step
+//!   (dropped frames, duplicated rows and jittering stamps are mended by [`regular`]);
 //! - `base_cmd_m`: commanded base position (m);
 //! - `base_pos_m`: measured base position (m);
 //! - `tip_pos_m`: absolute tip position along the base axis, lab frame (m);
 //! - `force_n`: motor force (N).
 //!
-//! Columns other than `time_s` are optional; unknown columns are ignored with a note.
+//! Columns other than `time_s` are optional; unknown columns are ignored with a note. A blank
+//! or `nan` cell of a channel is a missing value ([`regular`] fills short runs of them).
 //! Also reads NumPy `.npy` arrays of shape (2, N) = [time; signal] (the format of the real
 //! data in `shared/data/real/`) via [`Recording::read_npy`], without assuming uniform time.
+
+pub mod regular;
+pub mod zero;
 
 use anyhow::{anyhow, bail, Context, Result};
 use std::path::Path;
@@ -147,16 +152,25 @@ impl Recording {
         Ok(())
     }
 
-    /// Reads a recording CSV and [validates](Recording::validate) it (uniform time).
+    /// Reads a recording CSV onto a uniform, complete time base: duplicated rows, dropped
+    /// frames, blank or `nan` cells and jittering time stamps are mended as
+    /// [`regular::regularise`] says, with a note each; the result passes
+    /// [`Recording::validate`].
     ///
     /// Errors: unreadable file, no time column, a cell that is not a number (row and
-    /// column named), a ragged row, non-uniform or non-increasing time, NaN/inf.
+    /// column named), a ragged row, and what [`regular::regularise`] refuses (time going
+    /// backwards, a long gap, a varying sample rate), each with the file's name.
     pub fn read_csv(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let rec = Self::read_csv_gapped(path, &mut |_| {})?;
-        rec.validate()
-            .with_context(|| format!("{}: invalid recording", path.display()))?;
-        Ok(rec)
+        let rec = Self::read_csv_cells(path, &mut |_| {})?;
+        if let Some(k) = rec.time_s.iter().position(|t| !t.is_finite()) {
+            bail!(
+                "{}: time_s is not finite at data row {}",
+                path.display(),
+                k + 1
+            );
+        }
+        regular::regularise(rec).with_context(|| format!("{}: invalid recording", path.display()))
     }
 
     /// Reads a recording CSV row by row (memory: the columns only, 8 bytes per value) and
@@ -167,6 +181,15 @@ impl Recording {
     /// Errors: unreadable file, no time column (a `time`/`t` column is refused with the
     /// hint to name its unit), a cell that is not a number, NaN/inf, non-increasing time.
     pub fn read_csv_gapped(path: &Path, progress: &mut dyn FnMut(usize)) -> Result<Self> {
+        let rec = Self::read_csv_cells(path, progress)?;
+        rec.validate_gapped()
+            .with_context(|| format!("{}: invalid recording", path.display()))?;
+        Ok(rec)
+    }
+
+    /// The cells of a recording CSV as numbers, unchecked: a blank or `nan` cell of a
+    /// channel is NaN (a missing value).
+    fn read_csv_cells(path: &Path, progress: &mut dyn FnMut(usize)) -> Result<Self> {
         let mut rdr = csv::ReaderBuilder::new()
             .trim(csv::Trim::All)
             .comment(Some(b'#'))
@@ -217,6 +240,9 @@ impl Recording {
                     anyhow!("{}: data row {row}: missing column {name}", path.display())
                 })?;
                 let s = std::str::from_utf8(b).unwrap_or("?");
+                if s.is_empty() && i != time_col {
+                    return Ok(f64::NAN);
+                }
                 s.parse::<f64>().map_err(|_| {
                     anyhow!(
                         "{}: data row {row}, column {name}: `{s}` is not a number",
@@ -236,8 +262,6 @@ impl Recording {
         for (slot, &(_, name)) in slots.into_iter().zip(&cols) {
             *rec.channel_slot(name).expect("known channel") = Some(slot);
         }
-        rec.validate_gapped()
-            .with_context(|| format!("{}: invalid recording", path.display()))?;
         Ok(rec)
     }
 
