@@ -26,7 +26,7 @@ use anyhow::{bail, Result};
 
 /// The longest run of consecutive missing samples that is filled (dropped frames, a marker
 /// lost for a moment); a longer gap is refused.
-pub const MAX_FILL_RUN: usize = 3;
+pub const MAX_FILL_RUN: usize = 5;
 
 /// The largest share of a channel's samples that may be filled.
 pub const MAX_FILL_FRACTION: f64 = 0.1;
@@ -154,15 +154,22 @@ fn drop_duplicate_rows(rec: Recording) -> Result<Recording> {
     })
 }
 
-/// The sample grid of a strictly increasing time base: grid indices from the median step,
-/// then the least-squares line time = t0 + dt · index.
+/// The sample grid of a strictly increasing time base: each step as a whole number of median
+/// steps, the least-squares line time = t0 + dt · index through those indices, every row's
+/// index again from that line (no drift over a long recording), and the line refitted.
 fn fit_grid(time_s: &[f64]) -> Result<Grid> {
     let mut steps: Vec<f64> = time_s.windows(2).map(|w| w[1] - w[0]).collect();
     steps.sort_by(f64::total_cmp);
     let step = steps[steps.len() / 2];
+    let mut index = vec![0.0; time_s.len()];
+    for k in 1..time_s.len() {
+        index[k] = index[k - 1] + ((time_s[k] - time_s[k - 1]) / step).round();
+    }
+    let (t0_s, dt_s) = line_fit(&index, time_s);
+    let first = ((time_s[0] - t0_s) / dt_s).round();
     let index: Vec<f64> = time_s
         .iter()
-        .map(|t| ((t - time_s[0]) / step).round())
+        .map(|t| ((t - t0_s) / dt_s).round() - first)
         .collect();
     if let Some(k) = index.windows(2).position(|w| w[1] <= w[0]) {
         bail!(
@@ -189,7 +196,7 @@ fn fit_grid(time_s: &[f64]) -> Result<Grid> {
              sample rate, not jitter; resample the recording first",
             k_max + 1,
             fmt_sig(offset[k_max], 3),
-            fmt_sig(1.0 / dt_s, 5),
+            fmt_sig(1.0 / dt_s, 4),
             100.0 * jitter_max_s / dt_s
         );
     }
@@ -224,7 +231,8 @@ fn line_fit(x: &[f64], y: &[f64]) -> (f64, f64) {
 
 /// The user's notes on the time base.
 fn grid_notes(grid: &Grid, resampled: bool, notes: &mut Vec<String>) {
-    let rate = fmt_sig(1.0 / grid.dt_s, 5);
+    let rate = format!("{:.3}", 1.0 / grid.dt_s);
+    let rate = rate.trim_end_matches('0').trim_end_matches('.');
     if grid.missing > 0 {
         notes.push(format!(
             "time_s: {} samples missing from the {rate} Hz grid (dropped frames; longest run {})",
