@@ -5,6 +5,8 @@
 //! `recording::zero`, any one of these refused the file or (the offsets) blinded the tip
 //! channel (a 20 % validation NRMSE from a 3 mm camera offset).
 
+mod common;
+
 use beamtools::recording::Recording;
 use beamtools::truth::{generate, TruthOptions};
 use std::path::Path;
@@ -71,14 +73,7 @@ fn diagnose_imperfect(effect: &str, seed: u64) -> (Vec<String>, String) {
     assert!(out.status.success(), "{stderr}");
     let j: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("out.json")).unwrap()).unwrap();
-    let mut named: Vec<String> = j["effects"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e["effect"].as_str().unwrap().to_string())
-        .filter(|e| e != "servo_lag")
-        .collect();
-    named.sort();
+    let named = common::named_effects(&j);
     (named, stderr)
 }
 
