@@ -9,7 +9,6 @@ use crate::ident::spectrum::amplitude_spectrum;
 use crate::model::Rig;
 use crate::plot::{lines, Series};
 use crate::progress::Progress;
-use crate::recording::Recording;
 use crate::truth::EFFECTS;
 use anyhow::{Context, Result};
 use clap::Args;
@@ -108,8 +107,10 @@ impl Progress for StageProgress {
 
 /// Reads and prepares one recording.
 pub fn load(path: &Path) -> Result<Prepared> {
-    let rec = crate::recording::zero::zero_at_rest(Recording::read_csv(path)?);
-    for n in &rec.notes {
+    let rec = super::read_recording(path)?;
+    let read = rec.notes.len();
+    let rec = crate::recording::zero::zero_at_rest(rec);
+    for n in &rec.notes[read..] {
         eprintln!("note: {}: {n}", path.display());
     }
     Prepared::new(&path.display().to_string(), &rec)

@@ -426,7 +426,7 @@ pub struct FrfArgs {
 
 /// `beamtool frf`.
 pub fn frf(a: FrfArgs) -> Result<()> {
-    let rec = Recording::read_csv(&a.recording)?;
+    let rec = super::read_recording(&a.recording)?;
     let opts = WelchOptions {
         nperseg: Some(a.nperseg.unwrap_or(rec.len() / 4)),
         overlap: a.overlap,

@@ -112,6 +112,16 @@ pub fn finite_f64(s: &str) -> std::result::Result<f64, String> {
     }
 }
 
+/// Reads a recording CSV onto a uniform time base ([`crate::recording::Recording::read_csv`]) and prints what
+/// was mended on the way (`note: FILE: …` on stderr).
+pub fn read_recording(path: &std::path::Path) -> Result<crate::recording::Recording> {
+    let rec = crate::recording::Recording::read_csv(path)?;
+    for n in &rec.notes {
+        eprintln!("note: {}: {n}", path.display());
+    }
+    Ok(rec)
+}
+
 /// The commands' default `--rig ../rigs/paper.toml` is relative to `tools/`. From any other
 /// directory: the `rigs/paper.toml` beside the binary (its checkout), else the built-in copy.
 pub fn default_rig(rig: &mut PathBuf) -> Result<()> {

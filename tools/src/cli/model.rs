@@ -109,7 +109,7 @@ fn at_sim_rate(rec: &Recording, channel: &[f64], hold: bool) -> Vec<f64> {
 /// The base command at [`SIM_RATE_HZ`] (`--command` or the move) and its description.
 fn command_of(a: &SimulateArgs) -> Result<(Vec<f64>, String)> {
     if let Some(p) = &a.command {
-        let rec = Recording::read_csv(p)?;
+        let rec = super::read_recording(p)?;
         let cmd = rec
             .base_cmd_m
             .clone()
@@ -246,7 +246,7 @@ fn plot_positions(path: &Path, title: &str, t: &[f64], base: &[f64], tip: &[f64]
 
 /// `simulate --force`: the force-driven free carriage.
 fn simulate_force(a: &SimulateArgs, rig: &Rig, model: &BeamModel, p: &Path) -> Result<()> {
-    let rec = Recording::read_csv(p)?;
+    let rec = super::read_recording(p)?;
     let u = rec
         .force_n
         .clone()
