@@ -141,10 +141,33 @@ fn recording_csv_errors_name_row_and_column() {
     std::fs::write(&p, "time_s,tip_pos_m\n0,0\n0.01,abc\n").unwrap();
     let e = format!("{:#}", Recording::read_csv(&p).unwrap_err());
     assert!(e.contains("row 2") && e.contains("tip_pos_m"), "{e}");
-    std::fs::write(&p, "time_s,tip_pos_m\n0,0\n0.01,NaN\n0.02,0\n").unwrap();
-    assert!(format!("{:#}", Recording::read_csv(&p).unwrap_err()).contains("not finite"));
-    std::fs::write(&p, "time_s,tip_pos_m\n0,0\n0.01,0\n0.05,0\n0.06,0\n").unwrap();
-    assert!(format!("{:#}", Recording::read_csv(&p).unwrap_err()).contains("not uniformly sampled"));
+    // a NaN or blank cell is a missing value, filled with a note (recording::regular)
+    let mut csv = String::from("time_s,tip_pos_m\n");
+    for k in 0..30 {
+        let v = match k {
+            3 => "NaN",
+            7 => "",
+            _ => "0",
+        };
+        csv.push_str(&format!("{},{v}\n", k as f64 / 100.0));
+    }
+    std::fs::write(&p, csv).unwrap();
+    let r = Recording::read_csv(&p).unwrap();
+    assert_eq!(r.tip_pos_m.as_deref(), Some(&[0.0; 30][..]));
+    assert!(r
+        .notes
+        .iter()
+        .any(|n| n.contains("tip_pos_m: 2 missing values filled")));
+    // a gap longer than the filled runs is refused with where it is
+    std::fs::write(&p, "time_s,tip_pos_m\n0,0\n0.01,0\n0.10,0\n0.11,0\n").unwrap();
+    let e = format!("{:#}", Recording::read_csv(&p).unwrap_err());
+    assert!(
+        e.contains("8 consecutive samples missing after 0.01"),
+        "{e}"
+    );
+    std::fs::write(&p, "time_s,tip_pos_m\n0,0\n0.02,0\n0.01,0\n").unwrap();
+    let e = format!("{:#}", Recording::read_csv(&p).unwrap_err());
+    assert!(e.contains("goes backwards at data row 3"), "{e}");
     std::fs::write(&p, "t,tip_pos_m\n0,0\n").unwrap();
     assert!(format!("{:#}", Recording::read_csv(&p).unwrap_err()).contains("time_s"));
 }

@@ -1,0 +1,134 @@
+#!/usr/bin/env python3
+"""`beamtool diagnose` on imperfect copies of recordings this project did not make.
+
+Usage (from the repository root; standard library only):
+    python3 bench/imperfect.py tools/target/*/release/beamtool \
+        [--set ../shared/data/independent/discrepancy-v1.tar.gz] \
+        [--cases case09,case02,case15] [--kinds clean,dropped,jitter,nan,dup,tip_offset,base_offset] \
+        [--seed 7] [--keep DIR]
+
+Each case of the independent set (rig.toml, sweep.csv and moves.csv to fit, validation.csv to
+validate) is copied with one imperfection of what real loggers hand over, applied to all three
+recordings alike, and diagnosed:
+  clean        unchanged
+  dropped      each row after the first two dropped with probability 1 % (dropped frames)
+  jitter       time stamps off the grid by Gaussian sigma = 5 % of a step (values as recorded)
+  nan          tip_pos_m blank in runs of 1-5 samples, a run starting with probability 0.3 %
+  dup          a row written twice with probability 0.5 %
+  tip_offset   tip_pos_m + 3 mm (a camera whose origin is not the beam's root)
+  base_offset  base_pos_m + 0.2 mm (an encoder referenced to another home)
+  force_offset force_n + 0.4 N
+  reorder      the channel columns in reverse order
+  t0           time_s + 1234.5 s
+One line per (case, kind): exit status, notes printed, named effects, unexplained channel,
+validation NRMSE before/after on the best channel, run time.
+"""
+import argparse
+import csv
+import json
+import os
+import random
+import subprocess
+import sys
+import tarfile
+import tempfile
+import time
+
+FILES = ['sweep.csv', 'moves.csv', 'validation.csv']
+
+
+def perturb(rows, kind, rng):
+    head, data = rows[0], rows[1:]
+    col = {h: i for i, h in enumerate(head)}
+
+    def add(c, v):
+        if c in col:
+            for r in data:
+                r[col[c]] = repr(float(r[col[c]]) + v)
+
+    if kind == 'tip_offset':
+        add('tip_pos_m', 0.003)
+    elif kind == 'base_offset':
+        add('base_pos_m', 2e-4)
+    elif kind == 'force_offset':
+        add('force_n', 0.4)
+    elif kind == 't0':
+        add('time_s', 1234.5)
+    elif kind == 'dropped':
+        data = [r for k, r in enumerate(data) if k < 2 or rng.random() > 0.01]
+    elif kind == 'jitter':
+        dt = float(data[1][0]) - float(data[0][0])
+        for r in data:
+            r[0] = repr(float(r[0]) + rng.gauss(0, 0.05 * dt))
+    elif kind == 'nan':
+        c, k = col['tip_pos_m'], 0
+        while k < len(data):
+            if rng.random() < 0.003:
+                for j in range(k, min(k + rng.randint(1, 5), len(data))):
+                    data[j][c] = ''
+                k += 6
+            else:
+                k += 1
+    elif kind == 'dup':
+        out = []
+        for r in data:
+            out.append(r)
+            if rng.random() < 0.005:
+                out.append(list(r))
+        data = out
+    elif kind == 'reorder':
+        perm = [0] + list(range(len(head) - 1, 0, -1))
+        head = [head[i] for i in perm]
+        data = [[r[i] for i in perm] for r in data]
+    elif kind != 'clean':
+        raise SystemExit('unknown kind ' + kind)
+    return [head] + data
+
+
+def summary(out_json):
+    d = json.load(open(out_json))
+    named = [e['effect'] for e in d.get('effects', [])] or [d.get('effect')]
+    unexpl = (d.get('unexplained') or {}).get('channel')
+    v = d.get('validation') or {}
+    nrmse = '%.4f -> %.4f' % (v.get('nrmse_before', float('nan')), v.get('nrmse_after', float('nan')))
+    return '%s unexplained=%s nrmse %s' % ('+'.join(named), unexpl, nrmse)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument('tool')
+    ap.add_argument('--set', default=os.path.join(os.path.dirname(__file__), '..', '..', 'shared', 'data',
+                                                   'independent', 'discrepancy-v1.tar.gz'))
+    ap.add_argument('--cases', default='case09,case02,case15')
+    ap.add_argument('--kinds', default='clean,dropped,jitter,nan,dup,tip_offset,base_offset')
+    ap.add_argument('--seed', type=int, default=7)
+    ap.add_argument('--keep')
+    a = ap.parse_args()
+    tool = os.path.abspath(a.tool)
+    work = a.keep or tempfile.mkdtemp(prefix='imperfect-')
+    with tarfile.open(a.set) as t:
+        t.extractall(work)
+    src_root = os.path.join(work, 'hidden_gen')
+    for case in a.cases.split(','):
+        for kind in a.kinds.split(','):
+            rng = random.Random(a.seed)
+            d = os.path.join(work, 'imperfect', case + '_' + kind)
+            os.makedirs(d, exist_ok=True)
+            with open(os.path.join(src_root, case, 'rig.toml')) as f, open(os.path.join(d, 'rig.toml'), 'w') as g:
+                g.write(f.read())
+            for name in FILES:
+                rows = list(csv.reader(open(os.path.join(src_root, case, name))))
+                with open(os.path.join(d, name), 'w', newline='') as f:
+                    csv.writer(f).writerows(perturb(rows, kind, rng))
+            t0 = time.time()
+            p = subprocess.run([tool, 'diagnose', '--rig', 'rig.toml', '--fit', 'sweep.csv', '--fit', 'moves.csv',
+                                '--validate', 'validation.csv', '--json', 'out.json'],
+                               cwd=d, capture_output=True, text=True)
+            notes = sum(1 for line in p.stderr.splitlines() if line.startswith('note:'))
+            res = summary(os.path.join(d, 'out.json')) if p.returncode == 0 else p.stderr.strip().splitlines()[-1]
+            print('%s %-12s rc=%d notes=%d %4.0fs %s' % (case, kind, p.returncode, notes, time.time() - t0, res),
+                  flush=True)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
