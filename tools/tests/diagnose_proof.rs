@@ -120,4 +120,30 @@ fn bad_input_is_a_clear_error() {
     .unwrap_err()
     .to_string();
     assert!(e.contains("no information"), "{e}");
+    // positions in millimetres: a 100 mm move written as 100 "m", and a tip 3 "m" off the base
+    // of a 0.5 m beam
+    let beam_rig = Rig::from_toml_file("../rigs/paper.toml").unwrap();
+    let mut mm = rec.clone();
+    mm.base_cmd_m = Some(ramp.iter().map(|x| x * 1e3).collect());
+    mm.tip_pos_m = mm.base_cmd_m.clone();
+    let s = Prepared::new("mm.csv", &mm).unwrap();
+    let run = |s: &Prepared| {
+        diagnose(
+            &beam_rig,
+            std::slice::from_ref(s),
+            s,
+            &mut beamtools::progress::Silent,
+        )
+        .unwrap_err()
+        .to_string()
+    };
+    let e = run(&s);
+    assert!(e.contains("mm.csv: `base_cmd_m` spans 99.9"), "{e}");
+    mm.base_cmd_m = Some(ramp.clone());
+    mm.tip_pos_m = Some(ramp.iter().map(|x| x + 3.0).collect());
+    let e = run(&Prepared::new("mm.csv", &mm).unwrap());
+    assert!(
+        e.contains("`tip_pos_m` is up to 3.0000 m from the base"),
+        "{e}"
+    );
 }

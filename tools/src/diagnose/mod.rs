@@ -507,6 +507,7 @@ pub fn diagnose(
 ) -> Result<Diagnosis> {
     for d in fit_data.iter().chain(std::iter::once(validate)) {
         check_information(d)?;
+        check_units(rig, d)?;
     }
     let working_rate = rate::choose(fit_data, validate);
     let (fit_w, val_w) = rate::to_working_rate(&working_rate, fit_data, validate);
@@ -811,6 +812,45 @@ fn check_information(d: &Prepared) -> Result<()> {
                     d.name
                 );
             }
+        }
+    }
+    Ok(())
+}
+
+/// The longest stroke a recording's base may span (m): a lab linear axis moves metres, not tens
+/// of metres; a longer one is a file in millimetres.
+pub const MAX_STROKE_M: f64 = 10.0;
+
+/// Refuses positions that cannot be metres on this rig: a base that spans more than
+/// [`MAX_STROKE_M`], or a tip farther from the base than the beam is long (positions in mm, or
+/// channels mixed up), naming the file, the channel and the figure.
+fn check_units(rig: &Rig, d: &Prepared) -> Result<()> {
+    let span = |v: &[f64]| {
+        v.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+            - v.iter().cloned().fold(f64::INFINITY, f64::min)
+    };
+    let base = d.base_m.as_deref().unwrap_or(&d.cmd_m);
+    for (name, v) in [("base_cmd_m", &d.cmd_m[..]), ("base_pos_m", base)] {
+        if span(v) > MAX_STROKE_M {
+            bail!(
+                "{}: `{name}` spans {:.4} m, more than any lab axis's stroke ({MAX_STROKE_M} m): positions are in metres (a file in millimetres?)",
+                d.name,
+                span(v)
+            );
+        }
+    }
+    if let (Some(beam), Some(tip)) = (&rig.beam, &d.tip_m) {
+        let off = tip
+            .iter()
+            .zip(base)
+            .map(|(t, b)| (t - b).abs())
+            .fold(0.0, f64::max);
+        if off > beam.length_m {
+            bail!(
+                "{}: `tip_pos_m` is up to {off:.4} m from the base, more than the beam's length ({} m): positions are in metres along the base axis (millimetres, or another channel?)",
+                d.name,
+                beam.length_m
+            );
         }
     }
     Ok(())
