@@ -340,3 +340,30 @@ fn lvm_spectrum_through_the_entry_point() {
     let (t, _, what) = beamtools::ident::identify::free_decay_signal(&rec).unwrap();
     assert!((0.15..0.3).contains(&t[0]), "{} {what}", t[0]);
 }
+
+/// A decay logged to CSV with blank cells where the sensor dropped out: identified as the
+/// clean one, and the fill is reported (before: `column tip_pos_m is not finite`).
+#[test]
+fn blank_cells_in_a_csv_are_filled_and_reported() {
+    let (t, x) = decay_6hz(100.0, 20.5);
+    let mut csv = String::from("time_s,tip_pos_m\n");
+    for (k, (t, x)) in t.iter().zip(&x).enumerate() {
+        let v = if k % 150 == 75 || k == 400 || k == 401 {
+            String::new()
+        } else {
+            format!("{x}")
+        };
+        csv.push_str(&format!("{t},{v}\n"));
+    }
+    let p = tmp("decay-with-blanks.csv");
+    std::fs::write(&p, csv).unwrap();
+    let id = identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap();
+    check(&id, &[(6.0, 0.005)], 1, 0.002, 0.10);
+    assert!(
+        id.warnings
+            .iter()
+            .any(|w| w.contains("tip_pos_m: 16 missing values filled")),
+        "{:?}",
+        id.warnings
+    );
+}

@@ -211,7 +211,11 @@ pub fn identify_file(
         return identify_spectrum_file(path, opts);
     }
     let rec = Recording::read_any(path, &mut |n| progress(Stage::Reading(n)))?;
-    identify(&rec, opts, progress).map_err(|e| anyhow::anyhow!("{}: {e:#}", path.display()))
+    let mut id =
+        identify(&rec, opts, progress).map_err(|e| anyhow::anyhow!("{}: {e:#}", path.display()))?;
+    // what reading noted or mended (ignored columns, blank cells filled, …) heads the warnings
+    id.warnings.splice(0..0, rec.notes.iter().cloned());
+    Ok(id)
 }
 
 fn identify_spectrum_file(

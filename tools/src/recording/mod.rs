@@ -187,6 +187,25 @@ impl Recording {
         Ok(rec)
     }
 
+    /// [`Recording::read_csv_gapped`], except that a file with blank or `nan` cells is first
+    /// [regularised](regular::regularise) (short runs filled, with notes); where that is refused
+    /// (a long logging gap, which `identify` splits at), the gapped reading's error stands.
+    fn read_csv_any(path: &Path, progress: &mut dyn FnMut(usize)) -> Result<Self> {
+        let rec = Self::read_csv_cells(path, progress)?;
+        let blanks = CHANNELS
+            .iter()
+            .filter_map(|n| rec.channel(n))
+            .any(|c| c.iter().any(|v| v.is_nan()));
+        if blanks && rec.time_s.iter().all(|t| t.is_finite()) {
+            if let Ok(r) = regular::regularise(rec.clone()) {
+                return Ok(r);
+            }
+        }
+        rec.validate_gapped()
+            .with_context(|| format!("{}: invalid recording", path.display()))?;
+        Ok(rec)
+    }
+
     /// The cells of a recording CSV as numbers, unchecked: a blank or `nan` cell of a
     /// channel is NaN (a missing value).
     fn read_csv_cells(path: &Path, progress: &mut dyn FnMut(usize)) -> Result<Self> {
@@ -270,7 +289,8 @@ impl Recording {
     /// extension, [`Recording::read_csv_gapped`]). Gaps and jitter are kept (see
     /// [`split_at_gaps`]); a time base in milliseconds is refused with that hint when
     /// nothing could be identified below its Nyquist frequency (see [`check_time_unit`]).
-    /// LabVIEW `.lvm` files are spectra here: read them with `ident::magspec::read_lvm`.
+    /// LabVIEW `.lvm` files are spectra here: read them with `ident::magspec::read_lvm`. A CSV
+    /// with blank or `nan` cells is read through [`regular::regularise`] where it allows.
     pub fn read_any(path: &Path, progress: &mut dyn FnMut(usize)) -> Result<Self> {
         let ext = path
             .extension()
@@ -294,7 +314,7 @@ impl Recording {
                 path.display()
             );
         } else {
-            Self::read_csv_gapped(path, progress)?
+            Self::read_csv_any(path, progress)?
         };
         check_time_unit(&rec).map_err(|e| anyhow!("{}: {e}", path.display()))?;
         Ok(rec)
