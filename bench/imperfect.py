@@ -4,7 +4,7 @@
 Usage (from the repository root; standard library only):
     python3 bench/imperfect.py tools/target/*/release/beamtool \
         [--set ../shared/data/independent/discrepancy-v1.tar.gz] \
-        [--cases case09,case02,case15] [--kinds clean,dropped,jitter,nan,dup,tip_offset,base_offset] \
+        [--cases case09,case02,case15|all] [--kinds clean,dropped,jitter,nan,dup,tip_offset,base_offset] \
         [--seed 7] [--keep DIR]
 
 Each case of the independent set (rig.toml, sweep.csv and moves.csv to fit, validation.csv to
@@ -20,8 +20,12 @@ recordings alike, and diagnosed:
   force_offset force_n + 0.4 N
   reorder      the channel columns in reverse order
   t0           time_s + 1234.5 s
+  combined     jitter (sigma 3 % of a step), then tip_offset, base_offset, nan, dropped, dup, all at once
 One line per (case, kind): exit status, notes printed, named effects, unexplained channel,
-validation NRMSE before/after on the best channel, run time.
+validation NRMSE before/after on the best channel, run time, and whether the answer is right by
+the scorer's rule (score_discrepancy.py: the named catalogue effects equal the key's; a named
+`servo_lag` never counts against a case, every simulated rig having a position loop); then a
+summary per kind.
 """
 import argparse
 import csv
@@ -80,9 +84,26 @@ def perturb(rows, kind, rng):
         perm = [0] + list(range(len(head) - 1, 0, -1))
         head = [head[i] for i in perm]
         data = [[r[i] for i in perm] for r in data]
+    elif kind == 'combined':
+        dt = float(data[1][0]) - float(data[0][0])
+        for r in data:
+            r[0] = repr(float(r[0]) + rng.gauss(0, 0.03 * dt))
+        rows = [head] + data
+        for k in ['tip_offset', 'base_offset', 'nan', 'dropped', 'dup']:
+            rows = perturb(rows, k, rng)
+        head, data = rows[0], rows[1:]
     elif kind != 'clean':
         raise SystemExit('unknown kind ' + kind)
     return [head] + data
+
+
+def right(named, key_effect):
+    """The scorer's rule: named catalogue effects equal the key's, `servo_lag` never against."""
+    truth = set() if key_effect == 'none' else set(key_effect.split('+'))
+    got = set(named) - {'none', 'unexplained', 'unknown', None}
+    if 'servo_lag' not in truth:
+        got.discard('servo_lag')
+    return got == truth
 
 
 def summary(out_json):
@@ -91,7 +112,7 @@ def summary(out_json):
     unexpl = (d.get('unexplained') or {}).get('channel')
     v = d.get('validation') or {}
     nrmse = '%.4f -> %.4f' % (v.get('nrmse_before', float('nan')), v.get('nrmse_after', float('nan')))
-    return '%s unexplained=%s nrmse %s' % ('+'.join(named), unexpl, nrmse)
+    return named, '%s unexplained=%s nrmse %s' % ('+'.join(str(n) for n in named), unexpl, nrmse)
 
 
 def main():
@@ -109,7 +130,10 @@ def main():
     with tarfile.open(a.set) as t:
         t.extractall(work)
     src_root = os.path.join(work, 'hidden_gen')
-    for case in a.cases.split(','):
+    key = json.load(open(os.path.join(src_root, 'key.json')))
+    cases = sorted(key) if a.cases == 'all' else a.cases.split(',')
+    tally = {}
+    for case in cases:
         for kind in a.kinds.split(','):
             rng = random.Random(a.seed)
             d = os.path.join(work, 'imperfect', case + '_' + kind)
@@ -125,9 +149,21 @@ def main():
                                 '--validate', 'validation.csv', '--json', 'out.json'],
                                cwd=d, capture_output=True, text=True)
             notes = sum(1 for line in p.stderr.splitlines() if line.startswith('note:'))
-            res = summary(os.path.join(d, 'out.json')) if p.returncode == 0 else p.stderr.strip().splitlines()[-1]
-            print('%s %-12s rc=%d notes=%d %4.0fs %s' % (case, kind, p.returncode, notes, time.time() - t0, res),
-                  flush=True)
+            if p.returncode == 0:
+                named, res = summary(os.path.join(d, 'out.json'))
+                ok = right(named, key[case]['effect'])
+            else:
+                ok, res = False, p.stderr.strip().splitlines()[-1]
+            null = key[case]['effect'] == 'none'
+            t = tally.setdefault(kind, [0, 0, 0, 0])
+            t[0] += ok
+            t[1] += 1
+            t[2] += null and not ok
+            t[3] += null
+            print('%s %-12s rc=%d notes=%d %4.0fs %s %s' % (case, kind, p.returncode, notes, time.time() - t0, res,
+                                                           'right' if ok else 'WRONG'), flush=True)
+    for kind, (ok, n, fa, nulls) in tally.items():
+        print('%-12s right %d/%d, false alarms %d/%d nulls' % (kind, ok, n, fa, nulls))
 
 
 if __name__ == '__main__':
