@@ -51,6 +51,9 @@ struct Grid {
     missing: usize,
     /// The longest run of grid points with no row.
     longest_missing: usize,
+    /// True when the stamps jitter by more than [`UNIFORM_TOLERANCE`] of a step, so that
+    /// every channel is resampled at its recorded times.
+    resampled: bool,
 }
 
 /// Brings `rec` (finite strictly increasing time allowed to jitter or skip samples; channels
@@ -74,8 +77,7 @@ pub fn regularise(rec: Recording) -> Result<Recording> {
         );
     }
     let grid = fit_grid(&rec.time_s)?;
-    let resampled = grid.jitter_max_s > UNIFORM_TOLERANCE * grid.dt_s;
-    grid_notes(&grid, resampled, &mut rec.notes);
+    grid_notes(&grid, &mut rec.notes);
     let (first, last) = common_span(&rec, &grid)?;
     let cut = (
         first - grid.pos[0].ceil().max(0.0) as usize,
@@ -216,6 +218,7 @@ fn fit_grid(time_s: &[f64]) -> Result<Grid> {
         jitter_rms_s,
         missing: runs.clone().sum(),
         longest_missing: runs.max().unwrap_or(0),
+        resampled,
     })
 }
 
@@ -230,7 +233,7 @@ fn line_fit(x: &[f64], y: &[f64]) -> (f64, f64) {
 }
 
 /// The user's notes on the time base.
-fn grid_notes(grid: &Grid, resampled: bool, notes: &mut Vec<String>) {
+fn grid_notes(grid: &Grid, notes: &mut Vec<String>) {
     let rate = format!("{:.3}", 1.0 / grid.dt_s);
     let rate = rate.trim_end_matches('0').trim_end_matches('.');
     if grid.missing > 0 {
@@ -239,7 +242,7 @@ fn grid_notes(grid: &Grid, resampled: bool, notes: &mut Vec<String>) {
             grid.missing, grid.longest_missing
         ));
     }
-    if resampled {
+    if grid.resampled {
         notes.push(format!(
             "time_s jitters by {} s RMS (at most {}) about a {rate} Hz grid: every channel \
              resampled onto the grid at its recorded times",
