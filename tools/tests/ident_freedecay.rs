@@ -159,10 +159,10 @@ fn recording_csv_errors_name_row_and_column() {
         .iter()
         .any(|n| n.contains("tip_pos_m: 2 missing values filled")));
     // a gap longer than the filled runs is refused with where it is
-    std::fs::write(&p, "time_s,tip_pos_m\n0,0\n0.01,0\n0.10,0\n0.11,0\n").unwrap();
+    std::fs::write(&p, "time_s,tip_pos_m\n0,0\n0.01,0\n0.20,0\n0.21,0\n").unwrap();
     let e = format!("{:#}", Recording::read_csv(&p).unwrap_err());
     assert!(
-        e.contains("8 consecutive samples missing after 0.01"),
+        e.contains("18 consecutive samples missing after 0.01"),
         "{e}"
     );
     std::fs::write(&p, "time_s,tip_pos_m\n0,0\n0.02,0\n0.01,0\n").unwrap();

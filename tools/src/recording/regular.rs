@@ -5,8 +5,11 @@
 //! - **duplicated rows** (the same time and values written twice): dropped;
 //! - **dropped frames** (a step of 2, 3, … sample intervals): the missing samples are filled;
 //! - **blank or `nan` cells** where a sensor lost its target: filled the same way;
-//! - **time stamps that jitter** about the sample grid: every channel is resampled onto the
-//!   grid at its recorded times (the format defines `time_s` as the time of the sample).
+//! - **time stamps that jitter** about the sample grid: where the samples were taken at the
+//!   stamped times, every channel is resampled onto the grid at its recorded times; where the
+//!   samples are uniform and only the stamps are noisy (a PC clock stamping a device's
+//!   samples), the values stay and their times go onto the grid. The smoothest channel (the
+//!   command where recorded) decides: it is smoother read the way it was sampled.
 //!
 //! The grid is the least-squares line through (grid index, time) of the kept rows, the grid
 //! index of a row being its time over the median step, rounded. Values are filled or
@@ -25,8 +28,10 @@ use super::{fmt_sig, Recording, CHANNELS, UNIFORM_TOLERANCE};
 use anyhow::{bail, Result};
 
 /// The longest run of consecutive missing samples that is filled (dropped frames, a marker
-/// lost for a moment); a longer gap is refused.
-pub const MAX_FILL_RUN: usize = 5;
+/// lost for a moment: 0.1 s at 100 Hz); a longer gap is refused. A gap this long across a
+/// mode at a tenth of the sample rate is filled only to its trend, an error of a handful of
+/// samples that the diagnosis reads as noise.
+pub const MAX_FILL_RUN: usize = 10;
 
 /// The largest share of a channel's samples that may be filled.
 pub const MAX_FILL_FRACTION: f64 = 0.1;
@@ -51,9 +56,19 @@ struct Grid {
     missing: usize,
     /// The longest run of grid points with no row.
     longest_missing: usize,
-    /// True when the stamps jitter by more than [`UNIFORM_TOLERANCE`] of a step, so that
-    /// every channel is resampled at its recorded times.
-    resampled: bool,
+    /// How the stamps jitter by more than [`UNIFORM_TOLERANCE`] of a step, if they do.
+    jitter: Option<Jitter>,
+}
+
+/// Which of two readings of jittering time stamps the data support better.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Jitter {
+    /// The samples were taken at the stamped times: every channel is resampled onto the grid
+    /// at its recorded times.
+    OfTheSamples,
+    /// The samples are uniform and only the stamps are noisy (a PC clock stamping a device's
+    /// samples): the values stay, their times go onto the grid.
+    OfTheStamps,
 }
 
 /// Brings `rec` (finite strictly increasing time allowed to jitter or skip samples; channels
@@ -76,8 +91,11 @@ pub fn regularise(rec: Recording) -> Result<Recording> {
             rec.len()
         );
     }
-    let grid = fit_grid(&rec.time_s)?;
-    grid_notes(&grid, &mut rec.notes);
+    let smooth = CHANNELS
+        .iter()
+        .find_map(|n| rec.channel(n).map(|c| (*n, c)));
+    let grid = fit_grid(&rec.time_s, smooth.map(|s| s.1))?;
+    grid_notes(&grid, smooth.map_or("", |s| s.0), &mut rec.notes);
     let (first, last) = common_span(&rec, &grid)?;
     let cut = (
         first - grid.pos[0].ceil().max(0.0) as usize,
@@ -158,8 +176,10 @@ fn drop_duplicate_rows(rec: Recording) -> Result<Recording> {
 
 /// The sample grid of a strictly increasing time base: each step as a whole number of median
 /// steps, the least-squares line time = t0 + dt · index through those indices, every row's
-/// index again from that line (no drift over a long recording), and the line refitted.
-fn fit_grid(time_s: &[f64]) -> Result<Grid> {
+/// index again from that line (no drift over a long recording), and the line refitted. When
+/// the stamps jitter, `smooth` (the smoothest channel: the command where recorded) decides
+/// whether the samples or only the stamps jitter ([`stamps_are_noisy`]).
+fn fit_grid(time_s: &[f64], smooth: Option<&[f64]>) -> Result<Grid> {
     let mut steps: Vec<f64> = time_s.windows(2).map(|w| w[1] - w[0]).collect();
     steps.sort_by(f64::total_cmp);
     let step = steps[steps.len() / 2];
@@ -203,8 +223,13 @@ fn fit_grid(time_s: &[f64]) -> Result<Grid> {
         );
     }
     let jitter_rms_s = (offset.iter().map(|e| e * e).sum::<f64>() / offset.len() as f64).sqrt();
-    let resampled = jitter_max_s > UNIFORM_TOLERANCE * dt_s;
-    let pos = if resampled {
+    let jitter = (jitter_max_s > UNIFORM_TOLERANCE * dt_s).then(|| {
+        match smooth.is_some_and(|x| stamps_are_noisy(time_s, &index, x, dt_s)) {
+            true => Jitter::OfTheStamps,
+            false => Jitter::OfTheSamples,
+        }
+    });
+    let pos = if jitter == Some(Jitter::OfTheSamples) {
         time_s.iter().map(|t| (t - t0_s) / dt_s).collect()
     } else {
         index.clone()
@@ -218,8 +243,30 @@ fn fit_grid(time_s: &[f64]) -> Result<Grid> {
         jitter_rms_s,
         missing: runs.clone().sum(),
         longest_missing: runs.max().unwrap_or(0),
-        resampled,
+        jitter,
     })
+}
+
+/// True when `x` is smoother against the grid than against its stamps: the sum of squared
+/// second differences over rows on consecutive grid points is smaller with the uniform step
+/// than with the stamped steps. A smooth signal sampled on the grid gains a roughness
+/// x′·δ/dt² from each stamp error δ when read at the stamps, and one sampled at the stamps
+/// gains the same when read on the grid, so the smaller sum names the reading the data
+/// support. Rows with a missing value are skipped.
+fn stamps_are_noisy(time_s: &[f64], index: &[f64], x: &[f64], dt_s: f64) -> bool {
+    let (mut on_grid, mut at_stamps) = (0.0, 0.0);
+    for k in 1..time_s.len().saturating_sub(1) {
+        let consecutive = index[k + 1] - index[k] == 1.0 && index[k] - index[k - 1] == 1.0;
+        if !consecutive || !(x[k - 1] + x[k] + x[k + 1]).is_finite() {
+            continue;
+        }
+        let (h0, h1) = (time_s[k] - time_s[k - 1], time_s[k + 1] - time_s[k]);
+        let d2_stamps = 2.0 * ((x[k + 1] - x[k]) / h1 - (x[k] - x[k - 1]) / h0) / (h0 + h1);
+        let d2_grid = (x[k + 1] - 2.0 * x[k] + x[k - 1]) / (dt_s * dt_s);
+        on_grid += d2_grid * d2_grid;
+        at_stamps += d2_stamps * d2_stamps;
+    }
+    on_grid < at_stamps
 }
 
 /// Least-squares intercept and slope of y against x.
@@ -233,7 +280,7 @@ fn line_fit(x: &[f64], y: &[f64]) -> (f64, f64) {
 }
 
 /// The user's notes on the time base.
-fn grid_notes(grid: &Grid, notes: &mut Vec<String>) {
+fn grid_notes(grid: &Grid, judged_on: &str, notes: &mut Vec<String>) {
     let rate = format!("{:.3}", 1.0 / grid.dt_s);
     let rate = rate.trim_end_matches('0').trim_end_matches('.');
     if grid.missing > 0 {
@@ -242,13 +289,21 @@ fn grid_notes(grid: &Grid, notes: &mut Vec<String>) {
             grid.missing, grid.longest_missing
         ));
     }
-    if grid.resampled {
-        notes.push(format!(
-            "time_s jitters by {} s RMS (at most {}) about a {rate} Hz grid: every channel \
-             resampled onto the grid at its recorded times",
-            fmt_sig(grid.jitter_rms_s, 2),
-            fmt_sig(grid.jitter_max_s, 2)
-        ));
+    let jitter = format!(
+        "time_s jitters by {} s RMS (at most {}) about a {rate} Hz grid",
+        fmt_sig(grid.jitter_rms_s, 2),
+        fmt_sig(grid.jitter_max_s, 2)
+    );
+    match grid.jitter {
+        Some(Jitter::OfTheSamples) => notes.push(format!(
+            "{jitter}; `{judged_on}` is smoother at the stamps than on the grid, so the samples \
+             were taken at the stamps: every channel resampled onto the grid at its recorded times"
+        )),
+        Some(Jitter::OfTheStamps) => notes.push(format!(
+            "{jitter}; `{judged_on}` is smoother on the grid than at the stamps, so the samples \
+             are uniform and the stamps noisy: values kept, times put on the grid"
+        )),
+        None => {}
     }
 }
 
@@ -468,7 +523,30 @@ mod tests {
         assert!(out.is_uniform());
         assert!((out.sample_rate_hz() - 100.0).abs() < 1e-6);
         assert!(
-            out.notes.iter().any(|n| n.contains("jitters")),
+            out.notes
+                .iter()
+                .any(|n| n.contains("resampled onto the grid")),
+            "{:?}",
+            out.notes
+        );
+    }
+
+    #[test]
+    fn noisy_stamps_of_uniform_samples_keep_the_values_and_go_onto_the_grid() {
+        // a device sampling at 100 Hz, a PC clock stamping it ±0.5 ms late or early
+        let grid = grid_times(3000, 100.0);
+        let mut r = recording(grid.clone());
+        r.time_s = grid
+            .iter()
+            .enumerate()
+            .map(|(k, t)| t + 5e-4 * (k as f64 * 1.7).sin())
+            .collect();
+        let out = regularise(r.clone()).unwrap();
+        assert_eq!(out.tip_pos_m, r.tip_pos_m);
+        let t_err = out.time_s.iter().zip(&grid).map(|(a, b)| (a - b).abs());
+        assert!(t_err.fold(0.0, f64::max) < 1e-6);
+        assert!(
+            out.notes.iter().any(|n| n.contains("the stamps noisy")),
             "{:?}",
             out.notes
         );
@@ -493,10 +571,10 @@ mod tests {
     #[test]
     fn long_gaps_too_many_blanks_and_varying_rates_are_refused_by_name() {
         let mut r = recording(grid_times(400, 100.0));
-        r.tip_pos_m.as_mut().unwrap()[200..210].fill(f64::NAN);
+        r.tip_pos_m.as_mut().unwrap()[200..212].fill(f64::NAN);
         let e = regularise(r).unwrap_err().to_string();
         assert!(
-            e.contains("tip_pos_m: 10 consecutive samples missing after 1.990 s"),
+            e.contains("tip_pos_m: 12 consecutive samples missing after 1.990 s"),
             "{e}"
         );
         let mut r = recording(grid_times(400, 100.0));
