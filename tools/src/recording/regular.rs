@@ -385,10 +385,7 @@ fn fill_channel(
 ///
 /// Degree 5 keeps a band-limited signal well below the Nyquist rate: a component at 9 % of
 /// the sample rate is filled across one missing sample to 0.1 % of its amplitude, where a
-/// cubic Hermite with three-point slopes misses by 1.5 % and a straight line by 16 %. The
-/// Hermite's error always smooths a peak, the same way in every recording, and a compliant
-/// clamp was named beside a servo lag on it (independent case14 with 2 % of its tip samples
-/// filled).
+/// cubic Hermite with three-point slopes misses by 1.5 % and a straight line by 16 %.
 pub fn lagrange_at(u: &[f64], x: &[f64], at: impl Iterator<Item = f64>) -> Vec<f64> {
     let n = u.len();
     let mut i = 0;
