@@ -110,9 +110,7 @@ pub fn load(path: &Path) -> Result<Prepared> {
     let rec = super::read_recording(path)?;
     let read = rec.notes.len();
     let rec = crate::recording::zero::zero_at_rest(rec);
-    for n in &rec.notes[read..] {
-        eprintln!("note: {}: {n}", path.display());
-    }
+    super::print_notes(path, &rec.notes[read..]);
     Prepared::new(&path.display().to_string(), &rec)
 }
 

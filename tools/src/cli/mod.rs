@@ -116,10 +116,15 @@ pub fn finite_f64(s: &str) -> std::result::Result<f64, String> {
 /// was mended on the way (`note: FILE: …` on stderr).
 pub fn read_recording(path: &std::path::Path) -> Result<crate::recording::Recording> {
     let rec = crate::recording::Recording::read_csv(path)?;
-    for n in &rec.notes {
+    print_notes(path, &rec.notes);
+    Ok(rec)
+}
+
+/// Prints notes on the recording at `path` (`note: FILE: …` on stderr).
+pub fn print_notes(path: &std::path::Path, notes: &[String]) {
+    for n in notes {
         eprintln!("note: {}: {n}", path.display());
     }
-    Ok(rec)
 }
 
 /// The commands' default `--rig ../rigs/paper.toml` is relative to `tools/`. From any other

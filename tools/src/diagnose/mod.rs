@@ -778,6 +778,12 @@ pub const MIN_SAMPLES: usize = 100;
 /// See [`MIN_SAMPLES`].
 pub const MIN_DURATION_S: f64 = 5.0;
 
+/// Largest minus smallest value of `v` (NaN-free).
+fn span(v: &[f64]) -> f64 {
+    v.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+        - v.iter().cloned().fold(f64::INFINITY, f64::min)
+}
+
 /// Refuses a recording that cannot inform a diagnosis: too short, a command that does not move,
 /// or a recorded channel that is constant.
 fn check_information(d: &Prepared) -> Result<()> {
@@ -789,10 +795,6 @@ fn check_information(d: &Prepared) -> Result<()> {
             d.name
         );
     }
-    let span = |v: &[f64]| {
-        v.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
-            - v.iter().cloned().fold(f64::INFINITY, f64::min)
-    };
     let drive = d.drive_as_sampled();
     if !(span(drive) > 0.0) {
         bail!(
@@ -825,10 +827,6 @@ pub const MAX_STROKE_M: f64 = 10.0;
 /// [`MAX_STROKE_M`], or a tip farther from the base than the beam is long (positions in mm, or
 /// channels mixed up), naming the file, the channel and the figure.
 fn check_units(rig: &Rig, d: &Prepared) -> Result<()> {
-    let span = |v: &[f64]| {
-        v.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
-            - v.iter().cloned().fold(f64::INFINITY, f64::min)
-    };
     let base = d.base_m.as_deref().unwrap_or(&d.cmd_m);
     for (name, v) in [("base_cmd_m", &d.cmd_m[..]), ("base_pos_m", base)] {
         if span(v) > MAX_STROKE_M {
