@@ -33,3 +33,15 @@ fn cubic_stiffness_is_named_with_its_cubic_compliance() {
     assert_eq!(named, ["cubic_stiffness"], "{named:?}");
     assert!((c3 - truth).abs() < 0.3 * truth.abs(), "{c3} vs {truth}");
 }
+
+/// A mount at the top of the band the model's own modes cover (40.0 Hz on 100 Hz recordings:
+/// the truth generator's ceiling, 0.4 × the rate; held-out seed 118700) is a mount, not "beyond
+/// the observable band": the mount's search reaches the band edge of the calibration, 0.45 × the
+/// rate ([`beamtools::diagnose::sim::band_edge_hz`]). Before, the fit at 40.9 Hz was refused
+/// and the diagnosis was `none`.
+#[test]
+fn a_mount_at_the_top_of_the_band_is_named() {
+    let (named, f, truth) = round_trip("mount_resonance", 118700, "mount_frequency_hz");
+    assert_eq!(named, ["mount_resonance"], "{named:?}");
+    assert!((f - truth).abs() < 0.1 * truth, "{f} vs {truth}");
+}

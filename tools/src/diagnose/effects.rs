@@ -639,9 +639,11 @@ pub fn mount_scan_hz(mode_freqs_hz: &[f64], fmax: f64) -> Vec<f64> {
 /// (frequency + damping ratio), either as a massless filter of the root motion (a mount much
 /// heavier than the beam: the beam does not load it) or, `coupled`, as a mount mass carrying
 /// the beam ([`super::sim`]'s `coupled_mount`, the mass a structural part of the carriage:
-/// 5–95 % of its mass). The frequency is scanned over the band before the fit.
+/// 5–95 % of its mass). The frequency is scanned over the band before the fit, up to the band
+/// edge of the model's own modes ([`super::sim::band_edge_hz`], 0.45 × the sample rate): a
+/// resonance the recording can show as a mode it can show as a mount.
 pub fn mount_candidate(h: &StartHints, coupled: bool) -> Candidate {
-    let fmax = 0.4 * h.rate_hz;
+    let fmax = super::sim::band_edge_hz(1.0 / h.rate_hz);
     let mut freq = def(
         "mount_frequency_hz",
         Transform::Log,

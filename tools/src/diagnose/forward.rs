@@ -502,7 +502,8 @@ impl Ctx<'_> {
             let fm = f.values[off + i];
             let zm = pos("mount_damping_ratio").map_or(0.05, |j| f.values[off + j]);
             let tol = 2.0 * sd(i) + zm * fm;
-            // the recording holds no information at the ceiling (0.4 × the sample rate)
+            // the recording holds no information at the ceiling (the band edge, 0.45 × the
+            // sample rate)
             let ceiling = cand.params[i].starts.iter().cloned().fold(0.0, f64::max);
             let at_edge = fm >= 0.95 * ceiling;
             if let Some(fr) = self.model_freqs.iter().find(|fr| (fm - **fr).abs() <= tol) {
