@@ -1207,7 +1207,7 @@ pub(crate) fn n_of(data: &[Prepared]) -> [usize; 3] {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::diagnose::effects::servo_candidate;
     use nalgebra::DVector;
@@ -1237,7 +1237,8 @@ mod tests {
         }
     }
 
-    fn outcome(delta_bic: f64, passed: bool, reason: &str) -> CandidateOutcome {
+    /// A `servo_lag` outcome for tests (reduction 0.5 on `tip_pos_m`).
+    pub(crate) fn outcome(delta_bic: f64, passed: bool, reason: &str) -> CandidateOutcome {
         let c = servo_candidate(1, 100.0);
         CandidateOutcome {
             id: c.id,
