@@ -894,6 +894,7 @@ pub(crate) fn select_forward(
             &mut sel.step,
             round,
         );
+        super::lookalike::within_partner_form(ctx, cands, &mut sel, &mut outs);
         let pick = backward_check(
             ctx,
             cands,
