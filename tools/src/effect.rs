@@ -166,7 +166,10 @@ impl Effect {
             Effect::SensorDelay => &[p!("sensor_delay_s", "latency of the tip sensor (s)")],
             Effect::GravityAxialLoad => &[],
             Effect::MountResonance => &[
-                p!("mount_frequency_hz", "mount resonance frequency (Hz)"),
+                p!(
+                    "mount_frequency_hz",
+                    "mount resonance frequency as the rig shows it (Hz; for a mount carrying the beam, the coupled mount + beam with the carriage held; in the candidate table, the fit's rigid-beam frequency)",
+                ),
                 p!("mount_damping_ratio", "mount damping ratio (1)"),
                 p!(
                     "mount_mass_kg",

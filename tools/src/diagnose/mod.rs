@@ -151,6 +151,10 @@ pub struct Diagnosis {
     /// Residual statistics, parameter stability and bounds of the final model
     /// ([`honesty`]).
     pub honesty: honesty::Honesty,
+    /// The resonance (Hz) and its 1 σ of a named mount that carries the beam, as the rig shows
+    /// it (the coupled mount + beam with the carriage held, [`sim::mount_resonance_hz`]): the
+    /// reported `mount_frequency_hz` of that effect. `None` without such a mount.
+    pub mount_resonance: Option<(f64, f64)>,
     /// Selection trace: every round's candidates with ΔBIC, validation Δ(−2 ln L), reduction,
     /// allowance and verdict, split-refit spreads and backward checks (`DIAG_SELECT=1` makes
     /// `beamtool diagnose` print it).
@@ -699,6 +703,7 @@ fn conclude(
     );
     let set: Vec<&Candidate> = final_set.iter().collect();
     let honesty = measure_final(ctx, cands, &set, &mut cal, &mut reference, &earlier, budget);
+    let mount_resonance = mount_resonance(ctx, &set, &reference.fit);
     let outcomes = rounds.first().cloned().unwrap_or_default();
     let selected = outcomes
         .iter()
@@ -733,8 +738,41 @@ fn conclude(
             .collect(),
         working_rate: earlier.working_rate,
         honesty,
+        mount_resonance,
         trace: ctx.trace.take(),
     }
+}
+
+/// The resonance of a coupled mount among `set` as the rig shows it, with 1 σ, for the final
+/// fit `f` ([`sim::mount_resonance_hz`]); the σ moves the mount's frequency and mass by their
+/// own 1 σ each and adds the changes in quadrature (NaN where one is not identified). `None`
+/// without a mount that carries the beam.
+fn mount_resonance(ctx: &Ctx, set: &[&Candidate], f: &FitResult) -> Option<(f64, f64)> {
+    let problem = fit::Problem::new(
+        ctx.rig,
+        ctx.fit_data,
+        ctx.sigma,
+        ctx.calib,
+        set,
+        f.x.clone(),
+    );
+    let p = problem.params_of(&f.x);
+    let dt = ctx.fit_data.first()?.dt;
+    let at = |q: &sim::Params| sim::mount_resonance_hz(ctx.rig, q, dt);
+    let resonance = at(&p)?;
+    let std_of = |name: &str| {
+        f.names
+            .iter()
+            .position(|n| *n == name)
+            .map_or(f64::NAN, |i| f.std[i])
+    };
+    let (fm, zm) = p.mount?;
+    let mut moved_f = p.clone();
+    moved_f.mount = Some((fm + std_of("mount_frequency_hz"), zm));
+    let mut moved_m = p.clone();
+    moved_m.mount_mass_kg += std_of("mount_mass_kg");
+    let change = |q: &sim::Params| at(q).map_or(f64::NAN, |g| g - resonance);
+    Some((resonance, change(&moved_f).hypot(change(&moved_m))))
 }
 
 /// Reports a stage `name` as step `step` of `total`.

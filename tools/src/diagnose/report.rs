@@ -85,11 +85,29 @@ pub fn final_effects(
     let mut out = Vec::new();
     for (c, o) in d.final_set.iter().zip(&d.effects) {
         let len = c.params.len();
-        let (p, or) = parameters_at(c.id, c.words, &d.final_fit, off, len);
+        let (mut p, or) = parameters_at(c.id, c.words, &d.final_fit, off, len);
         off += len;
+        if let (Effect::MountResonance, Some((f, s))) = (c.id, d.mount_resonance) {
+            as_the_rig_shows(&mut p, f, s);
+        }
         out.push((c.id, p, or, o));
     }
     out
+}
+
+/// A coupled mount's parameters `p` with `mount_frequency_hz` the resonance as the rig shows
+/// it (`f` ± `s` Hz, [`Diagnosis::mount_resonance`]); the fit's own frequency, the beam taken
+/// as a rigid mass on the mount, follows as `mount_rigid_beam_frequency_hz`.
+fn as_the_rig_shows(p: &mut Vec<(String, f64, f64)>, f: f64, s: f64) {
+    if let Some(i) = p.iter().position(|(n, ..)| n == "mount_frequency_hz") {
+        let (_, rigid, rigid_std) = p[i].clone();
+        p[i] = ("mount_frequency_hz".to_string(), f, s);
+        p.push((
+            "mount_rigid_beam_frequency_hz".to_string(),
+            rigid,
+            rigid_std,
+        ));
+    }
 }
 
 /// Following error of the fitted servo loop on the validation recording: (rms, peak) of

@@ -802,6 +802,22 @@ pub struct BeamCache {
     phi: Vec<nalgebra::Matrix2<f64>>,
 }
 
+/// The resonance (Hz) of a mount that carries the beam, as the rig shows it
+/// ([`crate::model::mount::coupled_resonance_hz`]), for the model `p` with a coupled mount
+/// (`p.mount` with `p.mount_mass_kg` > 0; its frequency is the rigid-beam one, k = (2π f)²
+/// (m_m + m_b)) and the modes it simulates at sample interval `dt` (below the band edge).
+/// `None` without a coupled mount or a beam.
+pub fn mount_resonance_hz(rig: &Rig, p: &Params, dt: f64) -> Option<f64> {
+    let (f, _) = p.mount?;
+    if !(p.mount_mass_kg > 0.0) {
+        return None;
+    }
+    let c = beam_cache(rig, p, dt).ok()?;
+    let m_b = c.total_mass - c.base_mass;
+    let k = (2.0 * std::f64::consts::PI * f).powi(2) * (p.mount_mass_kg + m_b);
+    crate::model::mount::coupled_resonance_hz(k, p.mount_mass_kg, m_b, &c.gamma, &c.omega)
+}
+
 fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
     let opts = ModelOptions {
         n_modes: p.n_basis.clamp(1, 12),

@@ -6,9 +6,11 @@
 //! - [`galerkin`]: M, K (eqs. 12–20), extensions, Rayleigh damping (eqs. 21–22), modes (eq. 24).
 //! - [`sim`]: exact modal time integration, base-motion and base-force driven.
 //! - [`statespace`]: continuous and ZOH-discrete state-space forms (both drives).
+//! - [`mount`]: the resonance of a mount that carries the beam, as the rig shows it.
 
 pub mod basis;
 pub mod galerkin;
+pub mod mount;
 pub mod rig;
 pub mod sim;
 pub mod statespace;
