@@ -127,15 +127,18 @@ impl Ctx<'_> {
         )
     }
 
+    /// The least-squares problem of the calibration and the effects `set` on the fit
+    /// recordings, at representation `x`.
+    pub(crate) fn fit_problem<'s>(
+        &'s self,
+        set: &[&'s Candidate],
+        x: nalgebra::DVector<f64>,
+    ) -> fit::Problem<'s> {
+        fit::Problem::new(self.rig, self.fit_data, self.sigma, self.calib, set, x)
+    }
+
     pub(crate) fn reference(&self, set: &[&Candidate], f: FitResult) -> Option<Reference> {
-        let prob = fit::Problem::new(
-            self.rig,
-            self.fit_data,
-            self.sigma,
-            self.calib,
-            set,
-            f.x.clone(),
-        );
+        let prob = self.fit_problem(set, f.x.clone());
         let preds = prob.predictions(&f.x)?;
         let res: Vec<_> = self
             .fit_data

@@ -252,14 +252,7 @@ fn convergence(
     f: &super::fit::FitResult,
     budget: &mut Budget,
 ) -> Option<String> {
-    let problem = super::fit::Problem::new(
-        ctx.rig,
-        ctx.fit_data,
-        ctx.sigma,
-        ctx.calib,
-        set,
-        f.x.clone(),
-    );
+    let problem = ctx.fit_problem(set, f.x.clone());
     let j = problem.jacobian_at(&f.x);
     budget.spend(*problem.evaluations.borrow());
     let refused = problem.refusals.borrow().first().cloned();

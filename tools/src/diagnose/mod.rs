@@ -748,15 +748,7 @@ fn conclude(
 /// own 1 σ each and adds the changes in quadrature (NaN where one is not identified). `None`
 /// without a mount that carries the beam.
 fn mount_resonance(ctx: &Ctx, set: &[&Candidate], f: &FitResult) -> Option<(f64, f64)> {
-    let problem = fit::Problem::new(
-        ctx.rig,
-        ctx.fit_data,
-        ctx.sigma,
-        ctx.calib,
-        set,
-        f.x.clone(),
-    );
-    let p = problem.params_of(&f.x);
+    let p = ctx.fit_problem(set, f.x.clone()).params_of(&f.x);
     let dt = ctx.fit_data.first()?.dt;
     let at = |q: &sim::Params| sim::mount_resonance_hz(ctx.rig, q, dt);
     let resonance = at(&p)?;
