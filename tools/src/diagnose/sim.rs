@@ -923,6 +923,28 @@ pub fn band_edge_hz(dt: f64) -> f64 {
     0.45 / dt
 }
 
+/// The model's stated accuracy of its in-band natural frequencies (relative): [`converged_basis`]
+/// adds basis functions until none of them moves by more than this when one more is added.
+pub const BASIS_CONVERGENCE_REL: f64 = 1e-3;
+
+/// How far the beam's structural parameters of `p` that `without` lacks (a tip mass, a root
+/// spring) move the clamped natural frequencies below the band edge of sample interval `dt`:
+/// the largest |f_r(p) / f_r(without) − 1| over the modes both have there (relative; the same
+/// stiffness scale, so a shift common to every mode counts). `None` when either model is
+/// refused or without a beam.
+pub fn frequency_shift_rel(rig: &Rig, p: &Params, without: &Params, dt: f64) -> Option<f64> {
+    rig.beam.as_ref()?;
+    let (a, b) = (
+        beam_cache(rig, p, dt).ok()?,
+        beam_cache(rig, without, dt).ok()?,
+    );
+    a.omega
+        .iter()
+        .zip(&b.omega)
+        .map(|(wa, wb)| (wa / wb - 1.0).abs())
+        .reduce(f64::max)
+}
+
 /// Galerkin convergence of the modes below a band edge.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BasisChoice {
@@ -935,7 +957,7 @@ pub struct BasisChoice {
 }
 
 /// The smallest number of basis functions (4–11) for which every clamped mode below
-/// `band_edge_hz` moves by less than 1e-3 (relative) when one more function is added.
+/// `band_edge_hz` moves by less than [`BASIS_CONVERGENCE_REL`] when one more function is added.
 ///
 /// Errors: the rig has no beam or the model refuses it.
 pub fn converged_basis(rig: &Rig, stiffness_scale: f64, band_edge_hz: f64) -> Result<BasisChoice> {
@@ -972,7 +994,7 @@ pub fn converged_basis(rig: &Rig, stiffness_scale: f64, band_edge_hz: f64) -> Re
             freqs_hz: prev[..below.min(prev.len())].to_vec(),
             convergence_rel: rel,
         };
-        if rel < 1e-3 && below < n {
+        if rel < BASIS_CONVERGENCE_REL && below < n {
             return Ok(choice);
         }
         last = Some(choice);
@@ -1472,6 +1494,45 @@ mod tests {
 
     fn move_rec() -> crate::recording::Recording {
         move_rec_at(100.0)
+    }
+
+    #[test]
+    fn a_tip_mass_moves_a_uniform_beams_frequencies_by_twice_its_mass_ratio() {
+        // uniform cantilever: every mass-normalised mode has |φ_r(L)|² = 4/M, so to first order
+        // a tip mass Δm lowers every f_r by 2 Δm/M (Rayleigh quotient)
+        let rig = rig();
+        let beam_mass_kg = 0.9 * 0.025 * 0.00115 * 8190.0;
+        let dt = 0.002;
+        let p0 = Params {
+            n_basis: 8,
+            ..Params::default()
+        };
+        for ratio in [1e-4, 1e-3, 0.01] {
+            let p = Params {
+                tip_mass_kg: ratio * beam_mass_kg,
+                ..p0.clone()
+            };
+            let shift = frequency_shift_rel(&rig, &p, &p0, dt).unwrap();
+            assert!(
+                (shift / (2.0 * ratio) - 1.0).abs() < 0.1,
+                "{ratio}: {shift}"
+            );
+        }
+        let tiny = Params {
+            tip_mass_kg: 1e-4 * beam_mass_kg,
+            ..p0.clone()
+        };
+        assert!(frequency_shift_rel(&rig, &tiny, &p0, dt).unwrap() < BASIS_CONVERGENCE_REL);
+        // a root spring lowering f1 by 5 %
+        let spring = Params {
+            root_stiffness_nm_per_rad: Some(6.0),
+            ..p0.clone()
+        };
+        let s = frequency_shift_rel(&rig, &spring, &p0, dt).unwrap();
+        assert!(s > 10.0 * BASIS_CONVERGENCE_REL, "{s}");
+        // no beam: no frequencies
+        let carriage = Rig::from_toml_str("[base]\nmass_kg = 2.5\n").unwrap();
+        assert!(frequency_shift_rel(&carriage, &spring, &p0, dt).is_none());
     }
 
     #[test]
