@@ -21,6 +21,12 @@ recordings alike, and diagnosed:
   reorder      the channel columns in reverse order
   t0           time_s + 1234.5 s
   combined     jitter (sigma 3 % of a step), then tip_offset, base_offset, nan, dropped, dup, all at once
+Another rig's recordings rather than a logger's faults (the rig file follows where it must):
+  half_rate    every other row (a camera at half the rate, no anti-alias filter; sample_rate_hz halved)
+  noisy        tip_pos_m + Gaussian noise sigma 50 um, force_n + sigma 0.1 N, base_pos_m + sigma 2 um
+  no_force     without force_n
+  tip_only     without base_pos_m and force_n
+  short        the first 60 % of each recording
 One line per (case, kind): exit status, notes printed, named effects, unexplained channel,
 validation NRMSE before/after on the best channel, run time, and whether the answer is right by
 the scorer's rule (score_discrepancy.py: the named catalogue effects equal the key's; a named
@@ -84,6 +90,20 @@ def perturb(rows, kind, rng):
         perm = [0] + list(range(len(head) - 1, 0, -1))
         head = [head[i] for i in perm]
         data = [[r[i] for i in perm] for r in data]
+    elif kind == 'half_rate':
+        data = data[::2]
+    elif kind == 'noisy':
+        for c, sd in [('tip_pos_m', 5e-5), ('force_n', 0.1), ('base_pos_m', 2e-6)]:
+            if c in col:
+                for r in data:
+                    r[col[c]] = repr(float(r[col[c]]) + rng.gauss(0, sd))
+    elif kind in ('no_force', 'tip_only'):
+        drop = {'force_n'} | ({'base_pos_m'} if kind == 'tip_only' else set())
+        keep = [i for i, h in enumerate(head) if h not in drop]
+        head = [head[i] for i in keep]
+        data = [[r[i] for i in keep] for r in data]
+    elif kind == 'short':
+        data = data[:int(0.6 * len(data))]
     elif kind == 'combined':
         dt = float(data[1][0]) - float(data[0][0])
         for r in data:
@@ -95,6 +115,19 @@ def perturb(rows, kind, rng):
     elif kind != 'clean':
         raise SystemExit('unknown kind ' + kind)
     return [head] + data
+
+
+def rig_text(text, kind):
+    """The rig file for `kind`: the sample rate halved for `half_rate`, else unchanged."""
+    if kind != 'half_rate':
+        return text
+    out = []
+    for line in text.splitlines(keepends=True):
+        k, sep, v = line.partition('=')
+        if sep and k.strip() == 'sample_rate_hz':
+            line = '%s= %r\n' % (k, float(v) / 2)
+        out.append(line)
+    return ''.join(out)
 
 
 def right(named, key_effect):
@@ -139,7 +172,7 @@ def main():
             d = os.path.join(work, 'imperfect', case + '_' + kind)
             os.makedirs(d, exist_ok=True)
             with open(os.path.join(src_root, case, 'rig.toml')) as f, open(os.path.join(d, 'rig.toml'), 'w') as g:
-                g.write(f.read())
+                g.write(rig_text(f.read(), kind))
             for name in FILES:
                 rows = list(csv.reader(open(os.path.join(src_root, case, name))))
                 with open(os.path.join(d, name), 'w', newline='') as f:

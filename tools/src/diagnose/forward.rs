@@ -1117,6 +1117,88 @@ fn significance(cand: &Candidate, f: &FitResult, off: usize) -> f64 {
     }
 }
 
+/// Parameters whose *infinite* value means "no effect": a rigid clamp, a rigid mount. For an
+/// effect without a null-at-zero parameter, its distance from the null is value / σ (in the
+/// reciprocal — compliance, 1/f — linearised: σ(1/k) / (1/k) = σ_k / k).
+const NULL_AT_INFINITY: [&str; 2] = ["root_stiffness_nm_per_rad", "mount_frequency_hz"];
+
+/// How many of its own 1 σ effect `cand` (parameters from `off` in `values` / `std`, physical
+/// units) lies from "no effect": the largest |value| / σ over its null-at-zero parameters, or
+/// without those over its null-at-infinity ones ([`NULL_AT_INFINITY`]); `None` for an effect
+/// without either (a servo loop, an orientation) or a σ that is not a finite positive number
+/// (not judged).
+pub(crate) fn sigmas_from_null(
+    cand: &Candidate,
+    values: &[f64],
+    std: &[f64],
+    off: usize,
+) -> Option<f64> {
+    let zero: Vec<usize> = (0..cand.params.len())
+        .filter(|&i| cand.params[i].zero_is_null)
+        .collect();
+    let idx = if zero.is_empty() {
+        (0..cand.params.len())
+            .filter(|&i| NULL_AT_INFINITY.contains(&cand.params[i].name))
+            .collect()
+    } else {
+        zero
+    };
+    if idx.is_empty() {
+        return None;
+    }
+    idx.iter()
+        .map(|&i| {
+            let (v, sd) = (values[off + i], std[off + i]);
+            (sd.is_finite() && sd > 0.0).then(|| v.abs() / sd)
+        })
+        .try_fold(0.0f64, |z, zi| zi.map(|zi| z.max(zi)))
+}
+
+/// The effect of the final model (`set` after `calib_len` calibration parameters, fitted as
+/// `f` with its honest 1 σ: long-run, split refits, discretisation, base assumption) whose
+/// 2 σ interval reaches "no effect" ([`sigmas_from_null`] below 2) — the recordings do not
+/// identify it, whatever it gained when it was chosen against the round's linearised σ — the
+/// least identified first: its index in `set` and the reason. `None`: every effect judged is
+/// identified.
+pub(crate) fn unidentified_in_final(
+    set: &[&Candidate],
+    f: &FitResult,
+    calib_len: usize,
+) -> Option<(usize, String)> {
+    let mut off = calib_len;
+    let mut worst: Option<(usize, f64)> = None;
+    for (i, c) in set.iter().enumerate() {
+        if let Some(z) = sigmas_from_null(c, &f.values, &f.std, off) {
+            if z < 2.0 && worst.is_none_or(|(_, w)| z < w) {
+                worst = Some((i, z));
+            }
+        }
+        off += c.params.len();
+    }
+    let (i, z) = worst?;
+    let off = calib_len + set[..i].iter().map(|c| c.params.len()).sum::<usize>();
+    let values: Vec<String> = set[i]
+        .params
+        .iter()
+        .enumerate()
+        .map(|(j, p)| {
+            format!(
+                "{} = {:.3e} ± {:.2e}",
+                p.name,
+                f.values[off + j],
+                f.std[off + j]
+            )
+        })
+        .collect();
+    Some((
+        i,
+        format!(
+            "not identified in the final model: {} (honest 1 σ: long-run, split refits, discretisation) — {z:.1} σ from no effect, its 2 σ interval reaches it",
+            values.join(", ")
+        ),
+    ))
+}
+
 /// Fraction of the structured validation residual (variance above the white-noise floor, the
 /// smaller innovation variance of the two, [`innovation_variance`]) that `after` removes from
 /// `before` ([`super::select`] condition 6); `None` without both.
@@ -1312,6 +1394,80 @@ pub(crate) mod tests {
             unplaced: None,
             look_alike: None,
         }
+    }
+
+    fn param(name: &'static str, zero_is_null: bool) -> crate::diagnose::effects::ParamDef {
+        crate::diagnose::effects::ParamDef {
+            name,
+            transform: Transform::Linear,
+            starts: vec![1.0],
+            scale: 1.0,
+            zero_is_null,
+            scan: vec![],
+        }
+    }
+
+    fn candidate(id: Effect, params: Vec<crate::diagnose::effects::ParamDef>) -> Candidate {
+        Candidate {
+            id,
+            words: "",
+            orientation: None,
+            params,
+        }
+    }
+
+    #[test]
+    fn an_effect_whose_honest_two_sigma_reaches_no_effect_is_not_identified() {
+        // independent case07 (a null, tip only) cut to its first 60 %: a root spring
+        // 101 ± 449 N·m/rad beside the rig's loop; a rigid clamp (k → ∞) is 0.2 σ away
+        let root = candidate(
+            Effect::RootCompliance,
+            vec![param("root_stiffness_nm_per_rad", false)],
+        );
+        let servo = servo_candidate(1, 100.0);
+        let friction = candidate(
+            Effect::BaseFriction,
+            vec![param("friction_n", true), param("viscous_n_s_per_m", true)],
+        );
+        let fit = |values: Vec<f64>, std: Vec<f64>| FitResult {
+            x: DVector::from_vec(values.clone()),
+            names: vec![""; values.len()],
+            values,
+            std,
+            cost: 0.0,
+            evaluations: 0,
+            trace: vec![],
+        };
+        // one calibration parameter, then the loop (no null: not judged), the spring, friction
+        let set = [&servo, &root, &friction];
+        let f = fit(
+            vec![1.0, 38.0, 0.99, 101.0, 0.5, 0.0],
+            vec![1e-3, 1.1, 0.02, 449.0, 0.1, 1.0],
+        );
+        let (i, why) = unidentified_in_final(&set, &f, 1).expect("the spring is not identified");
+        assert_eq!(i, 1);
+        assert!(
+            why.contains("root_stiffness_nm_per_rad") && why.contains("0.2 σ"),
+            "{why}"
+        );
+        // identified: 5 σ from a rigid clamp; friction is judged by its largest term (5 σ)
+        let g = fit(
+            vec![1.0, 38.0, 0.99, 101.0, 0.5, 0.0],
+            vec![1e-3, 1.1, 0.02, 20.0, 0.1, 1.0],
+        );
+        assert!(unidentified_in_final(&set, &g, 1).is_none());
+        // friction whose every term is within 2 σ of zero is the one dropped
+        let h = fit(
+            vec![1.0, 38.0, 0.99, 101.0, 0.15, 0.0],
+            vec![1e-3, 1.1, 0.02, 20.0, 0.1, 1.0],
+        );
+        assert_eq!(unidentified_in_final(&set, &h, 1).map(|(i, _)| i), Some(2));
+        // an undefined σ is not judged
+        assert_eq!(sigmas_from_null(&root, &[101.0], &[f64::NAN], 0), None);
+        assert_eq!(
+            sigmas_from_null(&servo, &[38.0, 0.99], &[1.0, 0.1], 0),
+            None
+        );
     }
 
     #[test]

@@ -667,21 +667,48 @@ fn unidentified_calibration(calib: &effects::Calib, cal: &FitResult) -> Vec<Opti
 fn conclude(
     ctx: &Ctx,
     cands: &[Candidate],
-    sel: forward::Selection,
+    mut sel: forward::Selection,
     mut cal: FitResult,
     earlier: Earlier,
     budget: &mut Budget,
     progress: &mut dyn crate::progress::Progress,
 ) -> Diagnosis {
     let (fit_data, sigma) = (ctx.fit_data, ctx.sigma);
+    let total_steps = sel.step + 1;
+    stage(
+        progress,
+        sel.step,
+        total_steps,
+        "uncertainty and stability of the final model",
+    );
+    let honesty = loop {
+        let set: Vec<&Candidate> = sel.chosen.iter().map(|&k| &cands[k]).collect();
+        let (mut cal_h, mut reference_h) = (cal.clone(), sel.reference.clone());
+        let h = measure_final(
+            ctx,
+            cands,
+            &set,
+            &mut cal_h,
+            &mut reference_h,
+            &earlier,
+            budget,
+        );
+        match forward::unidentified_in_final(&set, &reference_h.fit, ctx.calib.len()) {
+            Some((i, why)) if drop_effect(ctx, cands, &mut sel, i, &why, budget) => {}
+            _ => {
+                cal = cal_h;
+                sel.reference = reference_h;
+                break h;
+            }
+        }
+    };
     let forward::Selection {
         chosen,
         outcomes: chosen_outcomes,
-        mut reference,
+        reference,
         rounds,
-        step,
+        step: _,
     } = sel;
-    let total_steps = step + 1;
     let final_set: Vec<Candidate> = chosen.iter().map(|&k| cands[k].clone()).collect();
     let mut unexplained = unexplained::assess(
         ctx.validate,
@@ -695,14 +722,7 @@ fn conclude(
     ) {
         u.closest_catalogue_effect = Some(format!("{}: {}", o.id, o.reason));
     }
-    stage(
-        progress,
-        step,
-        total_steps,
-        "uncertainty and stability of the final model",
-    );
     let set: Vec<&Candidate> = final_set.iter().collect();
-    let honesty = measure_final(ctx, cands, &set, &mut cal, &mut reference, &earlier, budget);
     let mount_resonance = mount_resonance(ctx, &set, &reference.fit);
     let outcomes = rounds.first().cloned().unwrap_or_default();
     let selected = outcomes
@@ -741,6 +761,53 @@ fn conclude(
         mount_resonance,
         trace: ctx.trace.take(),
     }
+}
+
+/// Drops effect `i` (its index in `sel.chosen`) from the final model, which the recordings
+/// do not identify (`why`, [`forward::unidentified_in_final`]): the rest refitted from the joint
+/// optimum without its parameters, its outcome in the round that chose it marked failed with
+/// `why`. False (nothing changed) when the rest cannot be simulated.
+fn drop_effect(
+    ctx: &Ctx,
+    cands: &[Candidate],
+    sel: &mut forward::Selection,
+    i: usize,
+    why: &str,
+    budget: &mut Budget,
+) -> bool {
+    let k = sel.chosen[i];
+    let off = ctx.calib.len()
+        + sel.chosen[..i]
+            .iter()
+            .map(|&c| cands[c].params.len())
+            .sum::<usize>();
+    let x = &sel.reference.fit.x;
+    let n = cands[k].params.len();
+    let warm = nalgebra::DVector::from_iterator(
+        x.len() - n,
+        x.iter()
+            .enumerate()
+            .filter(|(j, _)| !(off..off + n).contains(j))
+            .map(|(_, v)| *v),
+    );
+    let rest: Vec<usize> = sel.chosen.iter().copied().filter(|&c| c != k).collect();
+    let set: Vec<&Candidate> = rest.iter().map(|&c| &cands[c]).collect();
+    let f = ctx.fit(&set, Some(&warm), budget.share(2));
+    budget.spend(f.evaluations);
+    let Some(reference) = ctx.reference(&set, f) else {
+        return false;
+    };
+    ctx.trace(format!("final model: {} dropped, {why}", cands[k].id));
+    sel.reference = reference;
+    sel.chosen = rest;
+    sel.outcomes.retain(|o| o.cand_index != k);
+    for o in sel.rounds.iter_mut().flatten() {
+        if o.cand_index == k && o.passed {
+            o.passed = false;
+            o.reason = why.to_string();
+        }
+    }
+    true
 }
 
 /// The resonance of a coupled mount among `set` as the rig shows it, with 1 σ, for the final
