@@ -1123,10 +1123,13 @@ fn significance(cand: &Candidate, f: &FitResult, off: usize) -> f64 {
 const NULL_AT_INFINITY: [&str; 2] = ["root_stiffness_nm_per_rad", "mount_frequency_hz"];
 
 /// How many of its own 1 σ effect `cand` (parameters from `off` in `values` / `std`, physical
-/// units) lies from "no effect": the largest |value| / σ over its null-at-zero parameters, or
-/// without those over its null-at-infinity ones ([`NULL_AT_INFINITY`]); `None` for an effect
-/// without either (a servo loop, an orientation) or a σ that is not a finite positive number
-/// (not judged).
+/// units) lies from "no effect", when one parameter alone says whether it is there: its
+/// null-at-zero parameter, or without one its null-at-infinity one ([`NULL_AT_INFINITY`]):
+/// |value| / σ. `None` (not judged) for an effect without such a parameter (a servo loop, an
+/// orientation), for one whose null is joint — friction (Coulomb and viscous), cogging (the
+/// sine and cosine of one ripple, whose phase at the origin a small pitch error leaves
+/// uncertain while the amplitude is sharp): that needs the parameters' covariance, which the
+/// per-parameter honest σ do not carry — and for a σ that is not a finite positive number.
 pub(crate) fn sigmas_from_null(
     cand: &Candidate,
     values: &[f64],
@@ -1136,22 +1139,18 @@ pub(crate) fn sigmas_from_null(
     let zero: Vec<usize> = (0..cand.params.len())
         .filter(|&i| cand.params[i].zero_is_null)
         .collect();
-    let idx = if zero.is_empty() {
+    let idx: Vec<usize> = if zero.is_empty() {
         (0..cand.params.len())
             .filter(|&i| NULL_AT_INFINITY.contains(&cand.params[i].name))
             .collect()
     } else {
         zero
     };
-    if idx.is_empty() {
+    let [i] = idx[..] else {
         return None;
-    }
-    idx.iter()
-        .map(|&i| {
-            let (v, sd) = (values[off + i], std[off + i]);
-            (sd.is_finite() && sd > 0.0).then(|| v.abs() / sd)
-        })
-        .try_fold(0.0f64, |z, zi| zi.map(|zi| z.max(zi)))
+    };
+    let (v, sd) = (values[off + i], std[off + i]);
+    (sd.is_finite() && sd > 0.0).then(|| v.abs() / sd)
 }
 
 /// The effect of the final model (`set` after `calib_len` calibration parameters, fitted as
@@ -1450,18 +1449,19 @@ pub(crate) mod tests {
             why.contains("root_stiffness_nm_per_rad") && why.contains("0.2 σ"),
             "{why}"
         );
-        // identified: 5 σ from a rigid clamp; friction is judged by its largest term (5 σ)
+        // identified: 5 σ from a rigid clamp; friction's null is joint (not judged here)
         let g = fit(
-            vec![1.0, 38.0, 0.99, 101.0, 0.5, 0.0],
-            vec![1e-3, 1.1, 0.02, 20.0, 0.1, 1.0],
-        );
-        assert!(unidentified_in_final(&set, &g, 1).is_none());
-        // friction whose every term is within 2 σ of zero is the one dropped
-        let h = fit(
             vec![1.0, 38.0, 0.99, 101.0, 0.15, 0.0],
             vec![1e-3, 1.1, 0.02, 20.0, 0.1, 1.0],
         );
-        assert_eq!(unidentified_in_final(&set, &h, 1).map(|(i, _)| i), Some(2));
+        assert!(unidentified_in_final(&set, &g, 1).is_none());
+        // a tip mass within 2 σ of zero is
+        let tip = candidate(Effect::TipMass, vec![param("tip_mass_kg", true)]);
+        let h = fit(vec![1.0, 101.0, 0.004], vec![1e-3, 20.0, 0.003]);
+        assert_eq!(
+            unidentified_in_final(&[&root, &tip], &h, 1).map(|(i, _)| i),
+            Some(1)
+        );
         // an undefined σ is not judged
         assert_eq!(sigmas_from_null(&root, &[101.0], &[f64::NAN], 0), None);
         assert_eq!(
