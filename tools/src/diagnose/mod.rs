@@ -681,27 +681,7 @@ fn conclude(
         total_steps,
         "uncertainty and stability of the final model",
     );
-    let honesty = loop {
-        let set: Vec<&Candidate> = sel.chosen.iter().map(|&k| &cands[k]).collect();
-        let (mut cal_h, mut reference_h) = (cal.clone(), sel.reference.clone());
-        let h = measure_final(
-            ctx,
-            cands,
-            &set,
-            &mut cal_h,
-            &mut reference_h,
-            &earlier,
-            budget,
-        );
-        match forward::unidentified_in_final(&set, &reference_h.fit, ctx.calib.len()) {
-            Some((i, why)) if drop_effect(ctx, cands, &mut sel, i, &why, budget) => {}
-            _ => {
-                cal = cal_h;
-                sel.reference = reference_h;
-                break h;
-            }
-        }
-    };
+    let honesty = identified_final(ctx, cands, &mut sel, &mut cal, &earlier, budget);
     let forward::Selection {
         chosen,
         outcomes: chosen_outcomes,
@@ -760,6 +740,41 @@ fn conclude(
         honesty,
         mount_resonance,
         trace: ctx.trace.take(),
+    }
+}
+
+/// The honest measurements of the final model ([`measure_final`]), after dropping, one at a
+/// time, every effect they show the recordings do not identify
+/// ([`forward::unidentified_in_final`], [`drop_effect`]); `cal` and `sel.reference` carry the
+/// honest 1 σ on return.
+fn identified_final(
+    ctx: &Ctx,
+    cands: &[Candidate],
+    sel: &mut forward::Selection,
+    cal: &mut FitResult,
+    earlier: &Earlier,
+    budget: &mut Budget,
+) -> honesty::Honesty {
+    loop {
+        let set: Vec<&Candidate> = sel.chosen.iter().map(|&k| &cands[k]).collect();
+        let (mut cal_h, mut reference_h) = (cal.clone(), sel.reference.clone());
+        let h = measure_final(
+            ctx,
+            cands,
+            &set,
+            &mut cal_h,
+            &mut reference_h,
+            earlier,
+            budget,
+        );
+        match forward::unidentified_in_final(&set, &reference_h.fit, ctx.calib.len()) {
+            Some((i, why)) if drop_effect(ctx, cands, sel, i, &why, budget) => {}
+            _ => {
+                *cal = cal_h;
+                sel.reference = reference_h;
+                return h;
+            }
+        }
     }
 }
 
