@@ -779,9 +779,11 @@ fn identified_final(
 }
 
 /// Drops effect `i` (its index in `sel.chosen`) from the final model, which the recordings
-/// do not identify (`why`, [`forward::unidentified_in_final`]): the rest refitted from the joint
-/// optimum without its parameters, its outcome in the round that chose it marked failed with
-/// `why`. False (nothing changed) when the rest cannot be simulated.
+/// do not identify (`why`, [`forward::unidentified_in_final`]), or puts its nested simpler form
+/// in its place ([`simpler_form`]: a cubic clamp whose cubic term is not identified is a linear
+/// root spring, whose stiffness may well be): the rest refitted from the joint optimum (the
+/// simpler form from the parameters it shares), its outcome in the round that chose it marked
+/// failed with `why`. False (nothing changed) when the result cannot be simulated.
 fn drop_effect(
     ctx: &Ctx,
     cands: &[Candidate],
@@ -796,26 +798,46 @@ fn drop_effect(
             .iter()
             .map(|&c| cands[c].params.len())
             .sum::<usize>();
+    let simpler = simpler_form(cands, sel, k);
     let x = &sel.reference.fit.x;
-    let n = cands[k].params.len();
-    let warm = nalgebra::DVector::from_iterator(
-        x.len() - n,
-        x.iter()
-            .enumerate()
-            .filter(|(j, _)| !(off..off + n).contains(j))
-            .map(|(_, v)| *v),
+    let mut warm: Vec<f64> = x.iter().take(off).copied().collect();
+    if let Some((s, _)) = &simpler {
+        for q in &cands[*s].params {
+            let j = cands[k].params.iter().position(|d| d.name == q.name);
+            warm.push(j.map_or(q.repr(q.starts[0]), |j| x[off + j]));
+        }
+    }
+    warm.extend(x.iter().skip(off + cands[k].params.len()));
+    let mut chosen = sel.chosen.clone();
+    match &simpler {
+        Some((s, _)) => chosen[i] = *s,
+        None => {
+            chosen.remove(i);
+        }
+    }
+    let set: Vec<&Candidate> = chosen.iter().map(|&c| &cands[c]).collect();
+    let f = ctx.fit(
+        &set,
+        Some(&nalgebra::DVector::from_vec(warm)),
+        budget.share(2),
     );
-    let rest: Vec<usize> = sel.chosen.iter().copied().filter(|&c| c != k).collect();
-    let set: Vec<&Candidate> = rest.iter().map(|&c| &cands[c]).collect();
-    let f = ctx.fit(&set, Some(&warm), budget.share(2));
     budget.spend(f.evaluations);
     let Some(reference) = ctx.reference(&set, f) else {
         return false;
     };
     ctx.trace(format!("final model: {} dropped, {why}", cands[k].id));
     sel.reference = reference;
-    sel.chosen = rest;
-    sel.outcomes.retain(|o| o.cand_index != k);
+    sel.chosen = chosen;
+    match simpler {
+        Some((_, mut o)) => {
+            o.passed = true;
+            o.reason = format!("in place of {}: {why}", cands[k].id);
+            if let Some(slot) = sel.outcomes.iter_mut().find(|e| e.cand_index == k) {
+                *slot = o;
+            }
+        }
+        None => sel.outcomes.retain(|o| o.cand_index != k),
+    }
     for o in sel.rounds.iter_mut().flatten() {
         if o.cand_index == k && o.passed {
             o.passed = false;
@@ -823,6 +845,27 @@ fn drop_effect(
         }
     }
     true
+}
+
+/// The nested simpler form of chosen effect `k` — a linear root spring for a cubic clamp (the
+/// cubic term at zero) — with its outcome in the round that chose `k`: its catalogue index and
+/// that outcome. `None` for other effects, or when the simpler form was not fitted then.
+fn simpler_form(
+    cands: &[Candidate],
+    sel: &forward::Selection,
+    k: usize,
+) -> Option<(usize, CandidateOutcome)> {
+    use crate::effect::Effect;
+    if cands[k].id != Effect::CubicStiffness {
+        return None;
+    }
+    let s = cands.iter().position(|c| c.id == Effect::RootCompliance)?;
+    let round = sel
+        .rounds
+        .iter()
+        .find(|r| r.iter().any(|o| o.cand_index == k && o.passed))?;
+    let o = round.iter().find(|o| o.cand_index == s)?.clone();
+    Some((s, o))
 }
 
 /// The resonance of a coupled mount among `set` as the rig shows it, with 1 σ, for the final
