@@ -798,7 +798,7 @@ fn drop_effect(
             .iter()
             .map(|&c| cands[c].params.len())
             .sum::<usize>();
-    let simpler = simpler_form(cands, sel, k);
+    let simpler = simpler_form(cands, &sel.rounds, k);
     let x = &sel.reference.fit.x;
     let mut warm: Vec<f64> = x.iter().take(off).copied().collect();
     if let Some((s, _)) = &simpler {
@@ -848,11 +848,12 @@ fn drop_effect(
 }
 
 /// The nested simpler form of chosen effect `k` — a linear root spring for a cubic clamp (the
-/// cubic term at zero) — with its outcome in the round that chose `k`: its catalogue index and
-/// that outcome. `None` for other effects, or when the simpler form was not fitted then.
+/// cubic term at zero) — with its outcome in the round of `rounds` that chose `k`: its
+/// catalogue index and that outcome. `None` for other effects, or when the simpler form was not
+/// fitted then.
 fn simpler_form(
     cands: &[Candidate],
-    sel: &forward::Selection,
+    rounds: &[Vec<CandidateOutcome>],
     k: usize,
 ) -> Option<(usize, CandidateOutcome)> {
     use crate::effect::Effect;
@@ -860,8 +861,7 @@ fn simpler_form(
         return None;
     }
     let s = cands.iter().position(|c| c.id == Effect::RootCompliance)?;
-    let round = sel
-        .rounds
+    let round = rounds
         .iter()
         .find(|r| r.iter().any(|o| o.cand_index == k && o.passed))?;
     let o = round.iter().find(|o| o.cand_index == s)?.clone();
@@ -1043,4 +1043,52 @@ fn assumptions(fit_data: &[Prepared], validate: &Prepared) -> Vec<String> {
         ));
     }
     v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::effect::Effect;
+
+    fn cand(id: Effect) -> Candidate {
+        Candidate {
+            id,
+            words: "",
+            orientation: None,
+            params: vec![],
+        }
+    }
+
+    fn row(cand_index: usize, id: Effect, passed: bool) -> CandidateOutcome {
+        let mut o = forward::tests::outcome(-100.0, passed, "");
+        o.cand_index = cand_index;
+        o.id = id;
+        o
+    }
+
+    #[test]
+    fn a_cubic_clamp_falls_back_to_the_root_spring_fitted_in_its_round() {
+        let cands = [
+            cand(Effect::ServoLag),
+            cand(Effect::RootCompliance),
+            cand(Effect::CubicStiffness),
+        ];
+        // round 1 chose the loop; round 2 chose the cubic clamp beside a (passing) root spring
+        let rounds = vec![
+            vec![
+                row(0, Effect::ServoLag, true),
+                row(1, Effect::RootCompliance, false),
+            ],
+            vec![
+                row(2, Effect::CubicStiffness, true),
+                row(1, Effect::RootCompliance, true),
+            ],
+        ];
+        let (s, o) = simpler_form(&cands, &rounds, 2).expect("a simpler form");
+        assert_eq!((s, o.id, o.passed), (1, Effect::RootCompliance, true));
+        // other effects have none; nor does a clamp whose round never fitted the spring
+        assert!(simpler_form(&cands, &rounds, 0).is_none());
+        let alone = vec![vec![row(2, Effect::CubicStiffness, true)]];
+        assert!(simpler_form(&cands, &alone, 2).is_none());
+    }
 }
