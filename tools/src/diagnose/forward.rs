@@ -475,26 +475,31 @@ impl Ctx<'_> {
     /// error |g − 1|, the relative change of every tip reading. Other effects are not
     /// judged here. Returns the failed condition.
     fn below_model_accuracy(&self, set: &[&Candidate], f: &FitResult) -> Option<String> {
+        use crate::effect::Effect;
         let cand = *set.last()?;
+        if !matches!(
+            cand.id,
+            Effect::TipMass | Effect::RootCompliance | Effect::SensorGain
+        ) {
+            return None;
+        }
         let p = self.fit_problem(set, f.x.clone()).params_of(&f.x);
-        let mut without = p.clone();
-        let what = match cand.id {
-            crate::effect::Effect::TipMass => {
-                without.tip_mass_kg = 0.0;
-                "moves the in-band natural frequencies"
-            }
-            crate::effect::Effect::RootCompliance => {
-                without.root_stiffness_nm_per_rad = None;
-                "moves the in-band natural frequencies"
-            }
-            crate::effect::Effect::SensorGain => "changes the tip readings",
-            _ => return None,
-        };
-        let size = if cand.id == crate::effect::Effect::SensorGain {
-            p.sensor_gain_error.abs()
-        } else {
+        let shift_without = |strip: fn(&mut super::sim::Params)| {
+            let mut without = p.clone();
+            strip(&mut without);
             let dt = self.fit_data.first()?.dt;
-            super::sim::frequency_shift_rel(self.rig, &p, &without, dt)?
+            super::sim::frequency_shift_rel(self.rig, &p, &without, dt)
+        };
+        let (what, size) = match cand.id {
+            Effect::TipMass => (
+                "moves the in-band natural frequencies",
+                shift_without(|q| q.tip_mass_kg = 0.0)?,
+            ),
+            Effect::RootCompliance => (
+                "moves the in-band natural frequencies",
+                shift_without(|q| q.root_stiffness_nm_per_rad = None)?,
+            ),
+            _ => ("changes the tip readings", p.sensor_gain_error.abs()),
         };
         let accuracy = super::sim::BASIS_CONVERGENCE_REL;
         (size < accuracy).then(|| {
