@@ -559,3 +559,56 @@ fn point_mass_matches_tip_mass_at_the_tip() {
     )
     .is_err());
 }
+
+/// The tip-load shape ψ (`ModelOptions::tip_load_shape`): with a tip mass of 12 % of the beam
+/// the clamped–free functions alone converge algebraically (they all have φ'''(l) = 0, while
+/// the mass puts a shear force at the tip): 4 functions leave mode 3 0.3 % above a 240-element FE
+/// model. With ψ, 4 functions are within 2e-5 on modes 1–3. On a uniform beam without tip mass
+/// ψ changes nothing below the n-th mode (Rayleigh–Ritz: those were already exact).
+#[test]
+fn the_tip_load_shape_makes_a_tip_mass_converge() {
+    let r = rig(0.025, 0.025);
+    let beam_kg = 0.9 * 0.025 * 0.00115 * 8190.0;
+    let tip_kg = 0.12 * beam_kg;
+    let fe = fe_hz(
+        &FeBeam {
+            tip_mass_kg: tip_kg,
+            ..fe_beam(0.025, 0.025, 240)
+        },
+        3,
+    );
+    let with = |n: usize, psi: bool, tip_mass_kg: f64| {
+        clamped_hz_opts(
+            &r,
+            ModelOptions {
+                n_modes: n,
+                tip_mass_kg,
+                tip_load_shape: psi,
+                ..Default::default()
+            },
+        )
+    };
+    let (plain, enriched) = (with(4, false, tip_kg), with(4, true, tip_kg));
+    let worst = |g: &[f64]| {
+        (0..3)
+            .map(|i| (g[i] / fe[i] - 1.0).abs())
+            .fold(0.0, f64::max)
+    };
+    println!(
+        "worst of modes 1-3 vs FE: plain {:.2e}, with ψ {:.2e}",
+        worst(&plain),
+        worst(&enriched)
+    );
+    assert!(worst(&plain) > 1e-3, "{}", worst(&plain));
+    assert!(worst(&enriched) < 2e-5, "{}", worst(&enriched));
+    let (a, b) = (with(4, false, 0.0), with(4, true, 0.0));
+    for i in 0..4 {
+        assert!(
+            (a[i] / b[i] - 1.0).abs() < 1e-9,
+            "mode {}: {} vs {}",
+            i + 1,
+            a[i],
+            b[i]
+        );
+    }
+}

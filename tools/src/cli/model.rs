@@ -347,17 +347,13 @@ pub fn modes(a: ModesArgs) -> Result<()> {
     }
     println!("mode shapes w(x)/w(l) at x/l = 0, 0.25, 0.5, 0.75, 1:");
     let l = model.length_m;
-    let basis: Vec<_> = (1..=a.modes)
-        .map(|i| crate::model::basis::BasisFn::new(i, l))
-        .collect();
-    let off = model.n_beam() - a.modes;
     for r in 0..cm.omega_rad_s.len().min(4) {
         let w = |x: f64| -> f64 {
-            let mut s = if off == 1 { cm.shapes[(0, r)] * x } else { 0.0 };
-            for (i, b) in basis.iter().enumerate() {
-                s += cm.shapes[(off + i, r)] * b.eval(x).0;
-            }
-            s
+            let c = model.coordinate_deflections(x);
+            c.iter()
+                .enumerate()
+                .map(|(i, v)| cm.shapes[(i, r)] * v)
+                .sum()
         };
         let tip = w(l);
         let pts: Vec<String> = [0.0, 0.25, 0.5, 0.75, 1.0]

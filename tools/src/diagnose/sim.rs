@@ -31,7 +31,6 @@
 //! 6. tip sensor latency τ: `tip(t − τ)` by linear interpolation (`sensor_delay`); tip sensor
 //!    scale g (camera calibration): `g · tip` (`sensor_gain`).
 
-use crate::model::basis::BasisFn;
 use crate::model::sim::mode_zoh;
 use crate::model::{BeamModel, ModelOptions, Orientation, Rig};
 use anyhow::{bail, Result};
@@ -828,6 +827,7 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
         axial_load: p.orientation,
         point_mass: None,
         damping_ratios: p.zeta,
+        tip_load_shape: true,
     };
     let model = BeamModel::new(rig, &opts)?;
     let modes = model.clamped_modes()?;
@@ -842,25 +842,19 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
         .max(1);
     let l = model.length_m;
     let npts = 16;
-    let nb = opts.n_modes;
     let off = usize::from(p.root_stiffness_nm_per_rad.is_some());
-    let basis: Vec<BasisFn> = (0..nb).map(|i| BasisFn::new(i + 1, l)).collect();
-    let xs: Vec<f64> = (0..npts)
-        .map(|j| (j as f64 + 0.5) * l / npts as f64)
+    let coords: Vec<Vec<f64>> = (0..npts)
+        .map(|j| model.coordinate_deflections((j as f64 + 0.5) * l / npts as f64))
         .collect();
     let shape: Vec<Vec<f64>> = (0..keep)
         .map(|r| {
-            xs.iter()
-                .map(|&x| {
-                    let mut v = if off == 1 {
-                        modes.shapes[(0, r)] * x
-                    } else {
-                        0.0
-                    };
-                    for (i, b) in basis.iter().enumerate() {
-                        v += modes.shapes[(off + i, r)] * b.eval(x).0;
-                    }
-                    v
+            coords
+                .iter()
+                .map(|c| {
+                    c.iter()
+                        .enumerate()
+                        .map(|(i, v)| modes.shapes[(i, r)] * v)
+                        .sum()
                 })
                 .collect()
         })
@@ -967,6 +961,7 @@ pub fn converged_basis(rig: &Rig, stiffness_scale: f64, band_edge_hz: f64) -> Re
             &ModelOptions {
                 n_modes: n,
                 stiffness_scale,
+                tip_load_shape: true,
                 ..Default::default()
             },
         )?;

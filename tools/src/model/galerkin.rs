@@ -50,6 +50,12 @@ pub struct ModelOptions {
     pub axial_load: Option<Orientation>,
     /// Damping ratios of the first two flexible modes (→ Rayleigh α1, α2); `None` = the rig's.
     pub damping_ratios: Option<(f64, f64)>,
+    /// Adds the static deflection under a tip load, ψ(x) = (3s² − s³)/2 with s = x/l, to the
+    /// basis. Every clamped–free function has φ'''(l) = 0, so alone they converge slowly
+    /// (algebraically) when a tip mass puts a shear force at the tip; ψ carries that shear.
+    /// For a uniform beam without tip mass the lowest `n_modes` frequencies do not change
+    /// (Rayleigh–Ritz on a larger space, the old ones already exact).
+    pub tip_load_shape: bool,
 }
 
 impl Default for ModelOptions {
@@ -63,6 +69,7 @@ impl Default for ModelOptions {
             point_mass: None,
             axial_load: None,
             damping_ratios: None,
+            tip_load_shape: false,
         }
     }
 }
@@ -86,6 +93,8 @@ pub struct BeamModel {
     pub rayleigh: (f64, f64),
     /// Damping ratios they were computed from.
     pub damping_ratios: (f64, f64),
+    /// The coordinates' shapes (evaluated by [`BeamModel::coordinate_deflections`]).
+    shapes: Shapes,
 }
 
 /// Modes of the beam on a clamped (immobile) base: natural frequencies and mass-normalised
@@ -158,24 +167,28 @@ fn check_options(opts: &ModelOptions, length_m: f64) -> Result<()> {
     Ok(())
 }
 
-/// The generalised coordinates' shape at a point: `[0 (y), (x if a root spring), φ_i]` for w,
-/// and their first and second derivatives.
+/// The generalised coordinates' shape at a point: `[0 (y), (x if a root spring), φ_i,
+/// (ψ if the tip-load shape)]` for w, and their first and second derivatives.
+#[derive(Clone, Debug)]
 struct Shapes {
     /// 1 with a root spring (the rigid rotation x is a coordinate), else 0.
     r: usize,
     basis: Vec<BasisFn>,
+    /// Beam length (m) when the tip-load shape ψ is the last coordinate.
+    tip_shape_l: Option<f64>,
     vals: Vec<f64>,
     d1: Vec<f64>,
     d2: Vec<f64>,
 }
 
 impl Shapes {
-    fn new(l: f64, n: usize, root_spring: bool) -> Self {
+    fn new(l: f64, n: usize, root_spring: bool, tip_shape: bool) -> Self {
         let r = usize::from(root_spring);
-        let dim = 1 + r + n;
+        let dim = 1 + r + n + usize::from(tip_shape);
         Shapes {
             r,
             basis: (1..=n).map(|i| BasisFn::new(i, l)).collect(),
+            tip_shape_l: tip_shape.then_some(l),
             vals: vec![0.0; dim],
             d1: vec![0.0; dim],
             d2: vec![0.0; dim],
@@ -199,6 +212,12 @@ impl Shapes {
             self.vals[1 + r + i] = p;
             self.d1[1 + r + i] = p1;
             self.d2[1 + r + i] = p2;
+        }
+        if let Some(l) = self.tip_shape_l {
+            let (s, k) = (x / l, self.vals.len() - 1);
+            self.vals[k] = 0.5 * s * s * (3.0 - s);
+            self.d1[k] = 1.5 * s * (2.0 - s) / l;
+            self.d2[k] = 3.0 * (1.0 - s) / (l * l);
         }
     }
 
@@ -292,7 +311,12 @@ impl BeamModel {
         let (pm_x, pm_kg) = opts.point_mass.unwrap_or((0.0, 0.0));
         let (l, rho) = (beam.length_m, beam.density_kg_m3);
         let e = beam.youngs_modulus_pa * opts.stiffness_scale;
-        let mut shapes = Shapes::new(l, opts.n_modes, opts.root_stiffness_nm_per_rad.is_some());
+        let mut shapes = Shapes::new(
+            l,
+            opts.n_modes,
+            opts.root_stiffness_nm_per_rad.is_some(),
+            opts.tip_load_shape,
+        );
         let dim = shapes.dim();
         let pts = quadrature(l, 40 + 20 * opts.n_modes);
         let mut mass = DMatrix::zeros(dim, dim);
@@ -338,6 +362,7 @@ impl BeamModel {
             base_mass_kg: base_mass,
             rayleigh: (0.0, 0.0),
             damping_ratios: zetas,
+            shapes,
         };
         let w = model.clamped_omegas()?;
         model.rayleigh = if w.len() >= 2 {
@@ -346,6 +371,15 @@ impl BeamModel {
             (2.0 * zetas.0 * w[0], 0.0)
         };
         Ok(model)
+    }
+
+    /// The deflection w(x) (m per unit coordinate) of each beam coordinate `[(θ), q_1 … q_n,
+    /// (ψ)]` at `x` (m from the clamp): a mode shape of [`ClampedModes::shapes`] is
+    /// `w_r(x) = Σ_i shapes[(i, r)] · coordinate_deflections(x)[i]`. Length [`Self::n_beam`].
+    pub fn coordinate_deflections(&self, x: f64) -> Vec<f64> {
+        let mut s = self.shapes.clone();
+        s.at(x);
+        s.vals[1..].to_vec()
     }
 
     /// Number of beam coordinates (excluding y).
