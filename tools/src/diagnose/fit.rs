@@ -62,7 +62,6 @@ pub fn f1_preserving_factor(rig: &Rig, p: &Params) -> Option<f64> {
     let base = ModelOptions {
         n_modes: p.n_basis.clamp(1, 12),
         stiffness_scale: p.stiffness_scale,
-        tip_load_shape: true,
         ..Default::default()
     };
     let f0 = BeamModel::new(rig, &base)
@@ -78,7 +77,7 @@ pub fn f1_preserving_factor(rig: &Rig, p: &Params) -> Option<f64> {
             tip_mass_kg: p.tip_mass_kg,
             root_stiffness_nm_per_rad: p.root_stiffness_nm_per_rad,
             axial_load: p.orientation,
-            tip_load_shape: true,
+            tip_load_shape: p.tip_mass_kg > 0.0,
             ..Default::default()
         };
         let f = BeamModel::new(rig, &ext)

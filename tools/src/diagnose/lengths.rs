@@ -237,7 +237,6 @@ impl Series<'_> {
         let mut o = ModelOptions {
             n_modes: self.opts.n_basis,
             stiffness_scale: scale,
-            tip_load_shape: true,
             ..Default::default()
         };
         let mut k = 0;

@@ -426,7 +426,6 @@ fn model_facts(rig: &Rig, p: &sim::Params) -> Result<ModelFacts> {
             n_modes: p.n_basis,
             stiffness_scale: p.stiffness_scale,
             damping_ratios: p.zeta,
-            tip_load_shape: true,
             ..Default::default()
         },
     )?;
