@@ -116,16 +116,20 @@ pub fn add_basis_std(
 }
 
 /// Adds the **drive-interpolation uncertainty** to the 1-σ of `f` (calibration + `set`): the
-/// samples say nothing of the carriage's motion between them, and the force channel reports
-/// the carriage's acceleration there (a drive averages its force over the sample period). The
-/// model takes the piecewise-linear path through the samples, which spreads an acceleration
-/// step over three samples; the cubic spline through the same samples
-/// ([`super::sim::spline_accel`]) is the other standard reading. The final model is refitted
-/// (warm, at most `max_evaluations`) with the spline's acceleration in the force channel, and
-/// each parameter's change is added in quadrature. It is what the carriage mass absorbs from
-/// motion near the Nyquist rate (short moves, acceleration steps), a bias shared by every
-/// recording, which neither the long-run σ nor the recordings' disagreement sees. Nothing
-/// without a recorded force. Returns the model evaluations used.
+/// samples say nothing of the carriage's motion between them. The model takes the
+/// piecewise-linear path through the samples: the force channel (a drive averages its force
+/// over the sample period) gets an acceleration step spread over three samples, and the beam,
+/// driven by that path at the recording's own rate, gets its content at sinc²(f/r) of its
+/// amplitude (3 % low at 0.1 × the rate). The smooth reading is the other standard one: the
+/// cubic spline's acceleration ([`super::sim::spline_accel`]) for the force, the band-limited
+/// path ([`super::rate::emphasise`]) for the beam. The final model is refitted (warm, at most
+/// `max_evaluations`) with it and each parameter's change is added in quadrature. It is what
+/// the carriage mass absorbs from motion near the Nyquist rate, and what a tip mass absorbs
+/// from the beam's forcing at its second mode (measured: a 250 Hz case, 1.0 % low with the
+/// linear path, 0.1 % with the band-limited one, docs/diagnose.md session 15): a bias shared by
+/// every recording, which neither the long-run σ nor the recordings' disagreement sees. Nothing
+/// without a recorded force or a tip recorded at its own rate. Returns the model evaluations
+/// used.
 pub fn add_drive_interpolation_std(
     rig: &Rig,
     data: &[Prepared],
@@ -135,7 +139,8 @@ pub fn add_drive_interpolation_std(
     f: &mut FitResult,
     max_evaluations: usize,
 ) -> usize {
-    if !data.iter().any(|d| d.force_n.is_some()) {
+    let own_rate_tip = |d: &Prepared| d.tip_m.is_some() && d.cmd_identity_m.is_none();
+    if !data.iter().any(|d| d.force_n.is_some() || own_rate_tip(d)) {
         return 0;
     }
     let smooth = Calib {

@@ -96,9 +96,10 @@ pub struct Params {
     /// Cubic clamp stiffness k₃ (N·m/rad³) in `M = k_r θ + k₃ θ³`; needs
     /// `root_stiffness_nm_per_rad` (the root rotation is then a coordinate).
     pub cubic_root_stiffness_nm_per_rad3: f64,
-    /// The carriage's acceleration between samples: `false` that of the piecewise-linear path
-    /// through the drive's samples (the model's), `true` that of the interpolating cubic spline
-    /// ([`spline_accel`]); the alternative the 1-σ of the carriage mass is widened by
+    /// The drive's path between samples: `false` the piecewise-linear path through the
+    /// samples (the model's), `true` a smooth one: the interpolating cubic spline's acceleration
+    /// ([`spline_accel`]) for the carriage's force, the band-limited (emphasised) path for the
+    /// beam ([`drives`]); the alternative the 1-σ are widened by
     /// (`honesty::add_drive_interpolation_std`).
     pub smooth_drive: bool,
 }
@@ -1031,7 +1032,7 @@ pub fn predict(
     }
     // 2. drive: the measured base when recorded; emphasised for the dynamics, as sampled for
     // positions
-    let (drive, drive_pos) = drives(d, &law, &y_servo);
+    let (drive, drive_pos) = drives(d, &law, &y_servo, p.smooth_drive);
     let (drive, drive_pos): (&[f64], &[f64]) = (&drive, &drive_pos);
     // 3. backlash and mount between the drive and the beam root
     let (root, exact) = root_motion(p, drive, dt, c);
@@ -1115,26 +1116,39 @@ fn smooth_drive_of(
 /// emphasis changes sample values by (1/sinc² − 1) of the content (0.8 % at 0.05 × the rate,
 /// millimetres of a 50 Hz move). A servo loop's output is the base at the samples (its
 /// integration is exact for the emphasised command), emphasised in turn as a drive.
+///
+/// `bandlimited` (the smooth-drive alternative, [`Params::smooth_drive`]) emphasises a drive
+/// taken at the recording's own rate as well: the band-limited path through the samples
+/// instead of the piecewise-linear one. Only the 1-σ's model-form alternative uses it: as the
+/// model's own reading it let backlash feed on the boosted encoder content of two independent
+/// cases (docs/diagnose.md, session 15).
 fn drives<'a>(
     d: &'a Prepared,
     law: &Option<ServoLaw>,
     y_servo: &'a [f64],
+    bandlimited: bool,
 ) -> (std::borrow::Cow<'a, [f64]>, std::borrow::Cow<'a, [f64]>) {
+    use super::rate::emphasise;
     use std::borrow::Cow;
     let emphasised = d.cmd_identity_m.is_some();
     match (&d.drive_m, law) {
-        (Some(m), _) => (
-            Cow::Borrowed(m.as_slice()),
-            Cow::Borrowed(d.drive_identity_m.as_deref().unwrap_or(m)),
-        ),
+        (Some(m), _) => match &d.drive_identity_m {
+            None if bandlimited => (Cow::Owned(emphasise(m)), Cow::Borrowed(m.as_slice())),
+            sampled => (
+                Cow::Borrowed(m.as_slice()),
+                Cow::Borrowed(sampled.as_deref().unwrap_or(m)),
+            ),
+        },
+        (None, None) if bandlimited && !emphasised => {
+            (Cow::Owned(emphasise(y_servo)), Cow::Borrowed(y_servo))
+        }
         (None, None) => (
             Cow::Borrowed(y_servo),
             Cow::Borrowed(d.cmd_identity_m.as_deref().unwrap_or(y_servo)),
         ),
-        (None, Some(_)) if emphasised => (
-            Cow::Owned(super::rate::emphasise(y_servo)),
-            Cow::Borrowed(y_servo),
-        ),
+        (None, Some(_)) if emphasised || bandlimited => {
+            (Cow::Owned(emphasise(y_servo)), Cow::Borrowed(y_servo))
+        }
         (None, Some(_)) => (Cow::Borrowed(y_servo), Cow::Borrowed(y_servo)),
     }
 }
