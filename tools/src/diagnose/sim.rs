@@ -1547,6 +1547,51 @@ mod tests {
     }
 
     #[test]
+    fn the_smooth_alternative_reads_a_drive_at_its_own_rate_band_limited() {
+        // a 10 Hz sine base at 100 Hz: the piecewise-linear path through its samples forces the
+        // beam with sinc²(0.1) = 0.968 of it, the band-limited reading with all of it, so the
+        // tip deflection's 10 Hz amplitude rises by 1/sinc²(0.1) = 1.033; a decimated drive
+        // (already emphasised) is left alone
+        let rig = rig();
+        let rate = 100.0;
+        let n = (8.0 * rate) as usize;
+        let two_pi_f = 2.0 * std::f64::consts::PI * 10.0;
+        let mut rec = crate::recording::Recording::with_uniform_time(n, rate);
+        // raised-cosine onset over 2 s: no start-up transient
+        let y: Vec<f64> = (0..n)
+            .map(|k| {
+                let t = k as f64 / rate;
+                let onset = 0.5 - 0.5 * (std::f64::consts::PI * (t / 2.0).min(1.0)).cos();
+                0.01 * onset * (two_pi_f * t).sin()
+            })
+            .collect();
+        rec.base_cmd_m = Some(y.clone());
+        rec.tip_pos_m = Some(y);
+        let amplitude = |d: &Prepared, smooth: bool| -> f64 {
+            let p = Params {
+                smooth_drive: smooth,
+                ..Params::default()
+            };
+            let tip = predict(&rig, &p, d, &mut None).unwrap().tip_m.unwrap();
+            let (mut c, mut s) = (0.0, 0.0);
+            let from = (3.0 / d.dt) as usize;
+            for k in from..tip.len() {
+                let (w, t) = (tip[k] - d.cmd_as_sampled()[k], k as f64 * d.dt);
+                c += w * (two_pi_f * t).cos();
+                s += w * (two_pi_f * t).sin();
+            }
+            c.hypot(s)
+        };
+        let d = Prepared::new("t", &rec).unwrap();
+        let ratio = amplitude(&d, true) / amplitude(&d, false);
+        let sinc = (0.1 * std::f64::consts::PI).sin() / (0.1 * std::f64::consts::PI);
+        assert!((ratio * sinc * sinc - 1.0).abs() < 3e-3, "{ratio}");
+        let decimated = super::super::rate::decimate_prepared(&d, 2);
+        let same = amplitude(&decimated, true) / amplitude(&decimated, false);
+        assert!((same - 1.0).abs() < 1e-12, "{same}");
+    }
+
+    #[test]
     fn nominal_matches_the_model_simulator() {
         // at 1 kHz every model mode is below Nyquist and kept: identical to `model::sim`
         let rig = rig();
