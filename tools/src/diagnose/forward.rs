@@ -474,11 +474,9 @@ impl Ctx<'_> {
     /// every mode counts: to first order a tip mass lowers every mode of a uniform beam alike,
     /// and it shows in the mode amplitudes as much as in the frequencies); for a root spring the
     /// shift one stiffness scale cannot absorb ([`super::sim::frequency_shift_beyond_scale_rel`]:
-    /// held-out nulls 167008 and 145008, tapered beams at 100 Hz, had named a stiff clamp that
-    /// lowered the three in-band modes by 2.0 %, 2.0 % and 1.97 %, a ratio change of 2e-4, where
-    /// every true root spring seen moves the ratios by 5e-3 to 1.2e-2); for a tip-sensor scale
-    /// error |g − 1|, the relative change of every tip reading. Other effects are not judged
-    /// here. Returns the failed condition.
+    /// a stiff clamp that lowers every in-band mode alike is a recalibration; docs/diagnose.md,
+    /// session 15); for a tip-sensor scale error |g − 1|, the relative change of every tip
+    /// reading. Other effects are not judged here. Returns the failed condition.
     fn below_model_accuracy(&self, set: &[&Candidate], f: &FitResult) -> Option<String> {
         use crate::effect::Effect;
         let cand = *set.last()?;

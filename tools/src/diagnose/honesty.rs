@@ -125,8 +125,7 @@ pub fn add_basis_std(
 /// path ([`super::rate::emphasise`]) for the beam. The final model is refitted (warm, at most
 /// `max_evaluations`) with it and each parameter's change is added in quadrature. It is what
 /// the carriage mass absorbs from motion near the Nyquist rate, and what a tip mass absorbs
-/// from the beam's forcing at its second mode (measured: a 250 Hz case, 1.0 % low with the
-/// linear path, 0.1 % with the band-limited one, docs/diagnose.md session 15): a bias shared by
+/// from the beam's forcing at its second mode (docs/diagnose.md, session 15): a bias shared by
 /// every recording, which neither the long-run σ nor the recordings' disagreement sees. Nothing
 /// without a recorded force or a tip recorded at its own rate. Returns the model evaluations
 /// used.

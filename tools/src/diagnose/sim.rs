@@ -828,9 +828,9 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
         axial_load: p.orientation,
         point_mass: None,
         damping_ratios: p.zeta,
-        // with a tip mass the clamped–free functions alone converge algebraically (a 12 % mass:
-        // mode 3 0.4 % off with 4 functions); without one they already meet the tip's natural
-        // conditions and the shape would only perturb a converged model
+        // with a tip mass the clamped–free functions alone converge algebraically; without one
+        // they already meet the tip's natural conditions and the shape would only perturb a
+        // converged model
         tip_load_shape: p.tip_mass_kg > 0.0,
     };
     let model = BeamModel::new(rig, &opts)?;
