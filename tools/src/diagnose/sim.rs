@@ -99,7 +99,7 @@ pub struct Params {
     /// The drive's path between samples: `false` the piecewise-linear path through the
     /// samples (the model's), `true` a smooth one: the interpolating cubic spline's acceleration
     /// ([`spline_accel`]) for the carriage's force, the band-limited (emphasised) path for the
-    /// beam ([`drives`]); the alternative the 1-σ are widened by
+    /// beam (`drives`); the alternative the 1-σ are widened by
     /// (`honesty::add_drive_interpolation_std`).
     pub smooth_drive: bool,
 }
