@@ -77,7 +77,7 @@ pub fn f1_preserving_factor(rig: &Rig, p: &Params) -> Option<f64> {
             tip_mass_kg: p.tip_mass_kg,
             root_stiffness_nm_per_rad: p.root_stiffness_nm_per_rad,
             axial_load: p.orientation,
-            tip_load_shape: p.tip_mass_kg > 0.0,
+            tip_load_shape: p.tip_load_shape(),
             ..Default::default()
         };
         let f = BeamModel::new(rig, &ext)

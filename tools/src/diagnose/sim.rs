@@ -104,6 +104,16 @@ pub struct Params {
     pub smooth_drive: bool,
 }
 
+impl Params {
+    /// Whether the beam model adds the tip-load shape to its basis
+    /// ([`ModelOptions::tip_load_shape`]): with a tip mass, whose shear at the tip the
+    /// clamped–free functions alone converge to only algebraically; without one they already
+    /// meet the tip's natural conditions and the shape would only perturb a converged model.
+    pub fn tip_load_shape(&self) -> bool {
+        self.tip_mass_kg > 0.0
+    }
+}
+
 impl Default for Params {
     fn default() -> Self {
         Params {
@@ -828,10 +838,7 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
         axial_load: p.orientation,
         point_mass: None,
         damping_ratios: p.zeta,
-        // with a tip mass the clamped–free functions alone converge algebraically; without one
-        // they already meet the tip's natural conditions and the shape would only perturb a
-        // converged model
-        tip_load_shape: p.tip_mass_kg > 0.0,
+        tip_load_shape: p.tip_load_shape(),
     };
     let model = BeamModel::new(rig, &opts)?;
     let modes = model.clamped_modes()?;
@@ -931,16 +938,27 @@ pub const BASIS_CONVERGENCE_REL: f64 = 1e-3;
 /// stiffness scale, so a shift common to every mode counts). `None` when either model is
 /// refused or without a beam.
 pub fn frequency_shift_rel(rig: &Rig, p: &Params, without: &Params, dt: f64) -> Option<f64> {
+    frequency_ratios(rig, p, without, dt)?
+        .iter()
+        .map(|r| (r - 1.0).abs())
+        .reduce(f64::max)
+}
+
+/// f_r(p) / f_r(without) of the clamped modes both models keep below the band edge of `dt`;
+/// `None` without a beam or when either model is refused.
+fn frequency_ratios(rig: &Rig, p: &Params, without: &Params, dt: f64) -> Option<Vec<f64>> {
     rig.beam.as_ref()?;
     let (a, b) = (
         beam_cache(rig, p, dt).ok()?,
         beam_cache(rig, without, dt).ok()?,
     );
-    a.omega
-        .iter()
-        .zip(&b.omega)
-        .map(|(wa, wb)| (wa / wb - 1.0).abs())
-        .reduce(f64::max)
+    Some(
+        a.omega
+            .iter()
+            .zip(&b.omega)
+            .map(|(wa, wb)| wa / wb)
+            .collect(),
+    )
 }
 
 /// The part of [`frequency_shift_rel`] that one stiffness scale cannot absorb: with d_r =
@@ -955,16 +973,9 @@ pub fn frequency_shift_beyond_scale_rel(
     without: &Params,
     dt: f64,
 ) -> Option<f64> {
-    rig.beam.as_ref()?;
-    let (a, b) = (
-        beam_cache(rig, p, dt).ok()?,
-        beam_cache(rig, without, dt).ok()?,
-    );
-    let d: Vec<f64> = a
-        .omega
+    let d: Vec<f64> = frequency_ratios(rig, p, without, dt)?
         .iter()
-        .zip(&b.omega)
-        .map(|(wa, wb)| (wa / wb).ln())
+        .map(|r| r.ln())
         .collect();
     let (lo, hi) = d
         .iter()
