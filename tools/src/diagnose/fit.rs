@@ -538,9 +538,13 @@ struct StartsRun {
     trace: Vec<String>,
 }
 
-/// Levenberg–Marquardt from every start in turn, each with an equal share of what is left of
-/// `max_evaluations` (`already` spent before) and the patience 30; stops early once the
-/// budget or the wall-clock safety net is spent (keeping the best so far).
+/// Levenberg–Marquardt from every start in turn, then the best of them continued
+/// (successive halving: Jamieson & Talwalkar 2016). Each start first gets an equal share of
+/// half of what is left of `max_evaluations` (`already` spent before), with the patience 30;
+/// the start with the lowest cost is then continued from where it stopped with what is left,
+/// while it has not converged (it stopped on its budget or its patience) and still improves. A fit with several starts far from its optimum
+/// thus ends converged from the most promising one instead of unconverged from all of them.
+/// Stops early once the budget or the wall-clock safety net is spent (keeping the best so far).
 fn run_starts<'a>(
     problem: &dyn Fn(&DVector<f64>) -> Problem<'a>,
     starts: Vec<DVector<f64>>,
@@ -548,18 +552,16 @@ fn run_starts<'a>(
     already: usize,
 ) -> StartsRun {
     let safety_net = Instant::now() + std::time::Duration::from_secs_f64(SAFETY_NET_S);
-    let mut best: Option<(f64, DVector<f64>)> = None;
+    let mut best: Option<(f64, DVector<f64>, bool)> = None;
     let mut evals = already;
     let mut trace = Vec::new();
     let n_starts = starts.len();
-    for (i, x0) in starts.into_iter().enumerate() {
-        if best.is_some() && (evals >= max_evaluations || Instant::now() >= safety_net) {
-            break;
-        }
-        // each start gets an equal share of what is left (at least one Jacobian's worth)
-        let share = (max_evaluations.saturating_sub(evals) / (n_starts - i)).max(2 * x0.len() + 2);
-        let pb = problem(&x0);
-        let c0 = pb.cost_at(&x0);
+    // with one start the exploration is the whole run
+    let explore_part = if n_starts > 1 { 2 } else { 1 };
+    let exploration_end = evals + max_evaluations.saturating_sub(evals) / explore_part;
+    let run = |x0: &DVector<f64>, share: usize, trace: &mut Vec<String>| {
+        let pb = problem(x0);
+        let c0 = pb.cost_at(x0);
         let opts = LmOptions {
             max_evaluations: share,
             patience: 30,
@@ -569,6 +571,7 @@ fn run_starts<'a>(
         };
         let residual = |x: &DVector<f64>| (Instant::now() < safety_net).then(|| pb.whitened(x));
         let out = lm::minimize(&residual, x0.clone(), &opts);
+        let unfinished = !out.converged;
         let (cost, xe) = if out.cost.is_finite() {
             (out.cost, out.x)
         } else {
@@ -582,12 +585,34 @@ fn run_starts<'a>(
             out.termination
         ));
         trace.extend(pb.refusals.take());
-        evals += out.evaluations;
+        (cost, xe, out.evaluations, unfinished)
+    };
+    for (i, x0) in starts.iter().enumerate() {
+        if best.is_some() && (evals >= exploration_end || Instant::now() >= safety_net) {
+            break;
+        }
+        // each start gets an equal share of the exploration (at least one Jacobian's worth)
+        let share = (exploration_end.saturating_sub(evals) / (n_starts - i)).max(2 * x0.len() + 2);
+        let (cost, xe, used, unfinished) = run(x0, share, &mut trace);
+        evals += used;
         if best.as_ref().map_or(true, |b| cost < b.0) {
-            best = Some((cost, xe));
+            best = Some((cost, xe, unfinished));
         }
     }
-    let (cost, x) = best.expect("at least one start");
+    let (mut cost, mut x, mut unfinished) = best.expect("at least one start");
+    // the best start continued while it has not converged, improves and budget is left
+    while unfinished && Instant::now() < safety_net {
+        let left = max_evaluations.saturating_sub(evals);
+        if left <= 2 * x.len() + 2 {
+            break;
+        }
+        let (c, xe, used, more) = run(&x, left, &mut trace);
+        evals += used;
+        if !(c < cost) {
+            break;
+        }
+        (cost, x, unfinished) = (c, xe, more);
+    }
     StartsRun {
         cost,
         x,

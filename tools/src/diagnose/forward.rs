@@ -297,8 +297,8 @@ impl Ctx<'_> {
         let off = f.values.len() - cand.params.len();
         let (delta_bic, delta_val) = self.likelihood_ratios(&r, base, k);
         self.trace(format!(
-            "{}: fit rss {:?} vs reference {:?}; values {:?}",
-            cand.id, r.rss, base.rss, f.values
+            "{}: fit rss {:?} vs reference {:?}; values {:?}; {} evaluations",
+            cand.id, r.rss, base.rss, f.values, f.evaluations
         ));
         let (best_channel, reduction) = credited_reduction(cand.id, &r.vrss, &base.vrss, &base.vn);
         let whiteness = (q_of(&base.vres[best_channel]), q_of(&r.vres[best_channel]));
@@ -736,6 +736,12 @@ fn fit_round(
             .chain(std::iter::once(&cands[ci]))
             .collect();
         let share = budget.share(pool.len() - j + 1);
+        ctx.trace(format!(
+            "round {}: {} gets {share} of {} evaluations left",
+            round + 1,
+            cands[ci].id,
+            budget.total.saturating_sub(budget.spent)
+        ));
         if let Some(o) = ctx.evaluate(&set, ci, reference, share, round == 0) {
             budget.spend(o.fit.evaluations);
             outs.push(o);
@@ -929,7 +935,7 @@ pub(crate) fn select_forward(
     for round in 0..MAX_EFFECTS {
         let mut pool = pool_of(cands, &sel.chosen);
         if round > 0 && budget.fraction_spent() > 0.8 {
-            pool.retain(|&i| passed_last_round(&sel, i));
+            pool.retain(|&i| showed_evidence_last_round(&sel, i));
         }
         if pool.is_empty() {
             break;
@@ -991,14 +997,25 @@ pub(crate) fn select_forward(
     sel
 }
 
-/// Whether candidate `i` passed every guard in the last round of `sel`. With most of the budget
-/// spent, only such candidates are refitted on the augmented model: each already showed
-/// evidence of its own, and a second effect must not go unexamined for want of budget (the
-/// effects of a pair otherwise compete for one place).
-fn passed_last_round(sel: &Selection, i: usize) -> bool {
-    sel.rounds
-        .last()
-        .is_some_and(|outs| outs.iter().any(|o| o.cand_index == i && o.passed))
+/// Whether candidate `i` showed evidence of its own in the last round of `sel`: the likelihood
+/// conditions of the guard (1–3 of [`super::select`]: ΔBIC, validation likelihood, a gain
+/// beyond the model-form allowance), whatever the others said. With most of the budget spent,
+/// only such candidates are refitted on the augmented model, and a second effect must not go
+/// unexamined for want of budget (the effects of a pair otherwise compete for one place). The
+/// conditions on what is left (the structure it accounts for, a parameter at a search limit)
+/// are judged again against the augmented model: an effect beside a larger one removes only
+/// part of a residual the larger one dominates, and its fit, pulled by that residual, may
+/// stop at a limit of its range.
+fn showed_evidence_last_round(sel: &Selection, i: usize) -> bool {
+    sel.rounds.last().is_some_and(|outs| {
+        outs.iter().any(|o| {
+            o.cand_index == i
+                && (o.passed
+                    || (o.delta_bic < -super::select::BIC_MARGIN
+                        && o.delta_val < -super::select::VALIDATION_MARGIN
+                        && o.reduction > o.allowance.max(0.0)))
+        })
+    })
 }
 
 /// Adds `outs[s]` to the selection; false when the augmented model cannot be simulated (the
