@@ -570,7 +570,20 @@ fn run_starts<'a>(
             ..LmOptions::new(pb.steps())
         };
         let residual = |x: &DVector<f64>| (Instant::now() < safety_net).then(|| pb.whitened(x));
-        let out = lm::minimize(&residual, x0.clone(), &opts);
+        let mut out = lm::minimize(&residual, x0.clone(), &opts);
+        // a start that "converges" where it began made no step the forward-difference Jacobian
+        // pointed to: across a kink of the model (a latency interpolated between samples, a
+        // dead band) that Jacobian is no descent direction; once more with central differences
+        if out.converged && !(out.cost < c0) && share > out.evaluations + 2 * (x0.len() + 1) {
+            let central = LmOptions {
+                max_evaluations: share - out.evaluations,
+                difference: lm::Difference::Central,
+                ..opts.clone()
+            };
+            let used = out.evaluations;
+            out = lm::minimize(&residual, x0.clone(), &central);
+            out.evaluations += used;
+        }
         let unfinished = !out.converged;
         let (cost, xe) = if out.cost.is_finite() {
             (out.cost, out.x)

@@ -300,6 +300,9 @@ impl Ctx<'_> {
             "{}: fit rss {:?} vs reference {:?}; values {:?}; {} evaluations",
             cand.id, r.rss, base.rss, f.values, f.evaluations
         ));
+        for line in &f.trace {
+            self.trace(format!("  {line}"));
+        }
         let (best_channel, reduction) = credited_reduction(cand.id, &r.vrss, &base.vrss, &base.vn);
         let whiteness = (q_of(&base.vres[best_channel]), q_of(&r.vres[best_channel]));
         let significance = significance(cand, &f, off);
