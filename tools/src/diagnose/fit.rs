@@ -538,13 +538,12 @@ struct StartsRun {
     trace: Vec<String>,
 }
 
-/// Levenberg–Marquardt from every start in turn, then the best of them continued
-/// (successive halving: Jamieson & Talwalkar 2016). Each start first gets an equal share of
-/// half of what is left of `max_evaluations` (`already` spent before), with the patience 30;
-/// the start with the lowest cost is then continued from where it stopped with what is left,
-/// while it has not converged (it stopped on its budget or its patience) and still improves. A fit with several starts far from its optimum
-/// thus ends converged from the most promising one instead of unconverged from all of them.
-/// Stops early once the budget or the wall-clock safety net is spent (keeping the best so far).
+/// Levenberg–Marquardt from every start of `starts` by [`successive_halving`], with the
+/// patience 30, within `max_evaluations` (`already` spent before) and the wall-clock safety
+/// net (keeping the best so far). A start that "converges" where it began made no step the
+/// forward-difference Jacobian pointed to: across a kink of the model (a latency interpolated
+/// between samples, a dead band) that Jacobian is no descent direction, so it is run once more
+/// with central differences.
 fn run_starts<'a>(
     problem: &dyn Fn(&DVector<f64>) -> Problem<'a>,
     starts: Vec<DVector<f64>>,
@@ -552,14 +551,8 @@ fn run_starts<'a>(
     already: usize,
 ) -> StartsRun {
     let safety_net = Instant::now() + std::time::Duration::from_secs_f64(SAFETY_NET_S);
-    let mut best: Option<(f64, DVector<f64>, bool)> = None;
-    let mut evals = already;
     let mut trace = Vec::new();
-    let n_starts = starts.len();
-    // with one start the exploration is the whole run
-    let explore_part = if n_starts > 1 { 2 } else { 1 };
-    let exploration_end = evals + max_evaluations.saturating_sub(evals) / explore_part;
-    let run = |x0: &DVector<f64>, share: usize, trace: &mut Vec<String>| {
+    let mut run = |x0: &DVector<f64>, share: usize| {
         let pb = problem(x0);
         let c0 = pb.cost_at(x0);
         let opts = LmOptions {
@@ -571,9 +564,6 @@ fn run_starts<'a>(
         };
         let residual = |x: &DVector<f64>| (Instant::now() < safety_net).then(|| pb.whitened(x));
         let mut out = lm::minimize(&residual, x0.clone(), &opts);
-        // a start that "converges" where it began made no step the forward-difference Jacobian
-        // pointed to: across a kink of the model (a latency interpolated between samples, a
-        // dead band) that Jacobian is no descent direction; once more with central differences
         if out.converged && !(out.cost < c0) && share > out.evaluations + 2 * (x0.len() + 1) {
             let central = LmOptions {
                 max_evaluations: share - out.evaluations,
@@ -584,8 +574,7 @@ fn run_starts<'a>(
             out = lm::minimize(&residual, x0.clone(), &central);
             out.evaluations += used;
         }
-        let unfinished = !out.converged;
-        let (cost, xe) = if out.cost.is_finite() {
+        let (cost, x) = if out.cost.is_finite() {
             (out.cost, out.x)
         } else {
             (c0, x0.clone())
@@ -593,50 +582,148 @@ fn run_starts<'a>(
         trace.push(format!(
             "start {:?} cost {c0:.4e} budget {share} → x {:?} cost {cost:.4e} after {} evaluations: {}",
             x0.as_slice(),
-            xe.as_slice(),
+            x.as_slice(),
             out.evaluations,
             out.termination
         ));
         trace.extend(pb.refusals.take());
-        (cost, xe, out.evaluations, unfinished)
+        StartOutcome {
+            cost,
+            x,
+            evaluations: out.evaluations,
+            unfinished: !out.converged,
+        }
     };
-    for (i, x0) in starts.iter().enumerate() {
-        if best.is_some() && (evals >= exploration_end || Instant::now() >= safety_net) {
-            break;
-        }
-        // each start gets an equal share of the exploration (at least one Jacobian's worth)
-        let share = (exploration_end.saturating_sub(evals) / (n_starts - i)).max(2 * x0.len() + 2);
-        let (cost, xe, used, unfinished) = run(x0, share, &mut trace);
-        evals += used;
-        if best.as_ref().map_or(true, |b| cost < b.0) {
-            best = Some((cost, xe, unfinished));
-        }
-    }
-    let (mut cost, mut x, mut unfinished) = best.expect("at least one start");
-    // the best start continued while it has not converged, improves and budget is left
-    while unfinished && Instant::now() < safety_net {
-        let left = max_evaluations.saturating_sub(evals);
-        if left <= 2 * x.len() + 2 {
-            break;
-        }
-        let (c, xe, used, more) = run(&x, left, &mut trace);
-        evals += used;
-        if !(c < cost) {
-            break;
-        }
-        (cost, x, unfinished) = (c, xe, more);
-    }
+    let out_of_time = || Instant::now() >= safety_net;
+    let (best, evaluations) =
+        successive_halving(&starts, max_evaluations, already, &out_of_time, &mut run);
     StartsRun {
-        cost,
-        x,
-        evaluations: evals,
+        cost: best.cost,
+        x: best.x,
+        evaluations,
         trace,
     }
+}
+
+/// What one least-squares run from a start gave.
+struct StartOutcome {
+    cost: f64,
+    x: DVector<f64>,
+    evaluations: usize,
+    /// Stopped on its budget or patience, not converged.
+    unfinished: bool,
+}
+
+/// The budget policy of a multi-start fit, successive halving (Jamieson & Talwalkar 2016):
+/// every start of `starts` first gets an equal share of half of what is left of
+/// `max_evaluations` (`already` spent before; at least one Jacobian's worth each); the start
+/// with the lowest cost is then continued from where it stopped with what is left, while it
+/// has not converged and still improves. A fit whose starts are all far from its optimum thus
+/// ends converged from the most promising one instead of unconverged from every one. `run(x0,
+/// share)` fits from `x0` within `share` evaluations. Returns the best outcome and the
+/// evaluations spent (with `already`).
+fn successive_halving(
+    starts: &[DVector<f64>],
+    max_evaluations: usize,
+    already: usize,
+    out_of_time: &dyn Fn() -> bool,
+    run: &mut dyn FnMut(&DVector<f64>, usize) -> StartOutcome,
+) -> (StartOutcome, usize) {
+    let mut evals = already;
+    // with one start the exploration is the whole run
+    let explore_part = if starts.len() > 1 { 2 } else { 1 };
+    let exploration_end = evals + max_evaluations.saturating_sub(evals) / explore_part;
+    let mut best: Option<StartOutcome> = None;
+    for (i, x0) in starts.iter().enumerate() {
+        if best.is_some() && (evals >= exploration_end || out_of_time()) {
+            break;
+        }
+        let share =
+            (exploration_end.saturating_sub(evals) / (starts.len() - i)).max(2 * x0.len() + 2);
+        let o = run(x0, share);
+        evals += o.evaluations;
+        if best.as_ref().map_or(true, |b| o.cost < b.cost) {
+            best = Some(o);
+        }
+    }
+    let mut best = best.expect("at least one start");
+    while best.unfinished && !out_of_time() {
+        let left = max_evaluations.saturating_sub(evals);
+        if left <= 2 * best.x.len() + 2 {
+            break;
+        }
+        let o = run(&best.x, left);
+        evals += o.evaluations;
+        if !(o.cost < best.cost) {
+            break;
+        }
+        best = o;
+    }
+    (best, evals)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A fake minimiser: from start `x0` (one coordinate: the distance to the optimum) it
+    /// lowers the cost by one per 10 evaluations until the distance is covered.
+    fn fake_run(
+        calls: &mut Vec<(f64, usize)>,
+    ) -> impl FnMut(&DVector<f64>, usize) -> StartOutcome + '_ {
+        move |x0, share| {
+            calls.push((x0[0], share));
+            let steps = (x0[0] * 10.0).min(share as f64);
+            let left = x0[0] - steps / 10.0;
+            StartOutcome {
+                cost: left,
+                x: DVector::from_element(1, left),
+                evaluations: steps as usize,
+                unfinished: left > 0.0,
+            }
+        }
+    }
+
+    #[test]
+    fn successive_halving_continues_the_best_start_to_convergence() {
+        // four starts 50, 80, 60, 90 evaluation-tenths from the optimum, 1000 evaluations: an
+        // equal split (250 each) would converge none of them; halving explores each with
+        // 125 (the budget left divided among the starts left), then continues the best (50 → 37.5)
+        let starts: Vec<DVector<f64>> = [50.0, 80.0, 60.0, 90.0]
+            .iter()
+            .map(|&d| DVector::from_element(1, d))
+            .collect();
+        let mut calls = Vec::new();
+        let (best, evals) = {
+            let mut run = fake_run(&mut calls);
+            successive_halving(&starts, 1000, 0, &|| false, &mut run)
+        };
+        assert_eq!(best.cost, 0.0, "converged");
+        assert!(!best.unfinished);
+        assert!(evals <= 1000);
+        assert_eq!(
+            calls.len(),
+            5,
+            "four explorations and one continuation: {calls:?}"
+        );
+        assert!(
+            calls[..4].iter().all(|&(_, share)| share == 125),
+            "{calls:?}"
+        );
+        assert_eq!(
+            calls[4].0, 37.5,
+            "the best start continued from where it stopped"
+        );
+        // a single start gets the whole budget at once
+        let mut calls = Vec::new();
+        let one = [DVector::from_element(1, 50.0)];
+        let (best, _) = {
+            let mut run = fake_run(&mut calls);
+            successive_halving(&one, 1000, 0, &|| false, &mut run)
+        };
+        assert_eq!(best.cost, 0.0);
+        assert_eq!(calls, vec![(50.0, 1000)]);
+    }
     use crate::diagnose::effects::{calibration_defs, Channels};
     use crate::diagnose::sim::{predict, Params};
 

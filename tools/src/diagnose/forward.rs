@@ -1005,25 +1005,27 @@ pub(crate) fn select_forward(
     sel
 }
 
-/// Whether candidate `i` showed evidence of its own in the last round of `sel`: the likelihood
-/// conditions of the guard (1–3 of [`super::select`]: ΔBIC, validation likelihood, a gain
-/// beyond the model-form allowance), whatever the others said. With most of the budget spent,
-/// only such candidates are refitted on the augmented model, and a second effect must not go
-/// unexamined for want of budget (the effects of a pair otherwise compete for one place). The
-/// conditions on what is left (the structure it accounts for, a parameter at a search limit)
-/// are judged again against the augmented model: an effect beside a larger one removes only
-/// part of a residual the larger one dominates, and its fit, pulled by that residual, may
-/// stop at a limit of its range.
+/// Whether candidate `i` showed evidence of its own in the last round of `sel`
+/// ([`showed_evidence`]). With most of the budget spent, only such candidates are refitted on
+/// the augmented model: a second effect must not go unexamined for want of budget (the effects
+/// of a pair otherwise compete for one place).
 fn showed_evidence_last_round(sel: &Selection, i: usize) -> bool {
-    sel.rounds.last().is_some_and(|outs| {
-        outs.iter().any(|o| {
-            o.cand_index == i
-                && (o.passed
-                    || (o.delta_bic < -super::select::BIC_MARGIN
-                        && o.delta_val < -super::select::VALIDATION_MARGIN
-                        && o.reduction > o.allowance.max(0.0)))
-        })
-    })
+    sel.rounds
+        .last()
+        .is_some_and(|outs| outs.iter().any(|o| o.cand_index == i && showed_evidence(o)))
+}
+
+/// Whether outcome `o` passed the likelihood conditions of the guard (1–3 of
+/// [`super::select`]: ΔBIC, validation likelihood, a gain beyond the model-form allowance),
+/// whatever the others said. The conditions on what is left — the structure it accounts for,
+/// a parameter at a search limit — are worth judging again against the augmented model: an
+/// effect beside a larger one removes only part of a residual the larger one dominates, and
+/// its fit, pulled by that residual, may stop at a limit of its range.
+fn showed_evidence(o: &CandidateOutcome) -> bool {
+    o.passed
+        || (o.delta_bic < -super::select::BIC_MARGIN
+            && o.delta_val < -super::select::VALIDATION_MARGIN
+            && o.reduction > o.allowance.max(0.0))
 }
 
 /// Adds `outs[s]` to the selection; false when the augmented model cannot be simulated (the
@@ -1540,6 +1542,29 @@ pub(crate) mod tests {
         rejudge(&mut kept, |_| None);
         assert!(kept[0].passed && kept[0].delta_bic == -50.0);
         assert!(kept[0].reason.contains("not re-simulated"));
+    }
+
+    #[test]
+    fn a_candidate_with_likelihood_evidence_is_refitted_in_the_next_round() {
+        // held-out pair 186050 (friction + mount): beside the friction's force residual the
+        // mount removed 44 % of the structure and its mass stopped at a search limit; it earns
+        // a refit on the augmented model, where it passed
+        let beside = outcome(
+            -473.8,
+            false,
+            "removes only 44 % of the structured residual",
+        );
+        assert!(showed_evidence(&beside));
+        assert!(showed_evidence(&outcome(-50.0, true, "passes every guard")));
+        // no likelihood evidence: not refitted once the budget is low
+        assert!(!showed_evidence(&outcome(
+            -5.0,
+            false,
+            "ΔBIC -5.0 not < −10"
+        )));
+        let mut within_allowance = outcome(-473.8, false, "does not beat the allowance");
+        within_allowance.allowance = 0.6;
+        assert!(!showed_evidence(&within_allowance));
     }
 
     #[test]
