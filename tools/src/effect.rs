@@ -245,12 +245,18 @@ impl Effect {
     /// The effect that, with the channels recorded, acts on them as the same filter to first
     /// order, so that the recordings cannot tell the two apart (`crate::diagnose::lookalike`):
     /// without `base_pos_m` a position loop's lag (`servo_lag`) and a tip-sensor latency
-    /// (`sensor_delay`) are both a lag between the command and the tip. `None`: no look-alike.
+    /// (`sensor_delay`) are both a lag between the command and the tip. With any channels, a
+    /// compliant clamp (`root_compliance`) and the axial load of a standing or hanging beam
+    /// (`gravity_axial_load`) both change the beam's stiffness most near the root and so its
+    /// frequency ratios the same way to first order: where one ratio is in band (two modes) they
+    /// are one change. `None`: no look-alike.
     pub fn look_alike(self, base_pos_recorded: bool) -> Option<Effect> {
         use Effect::*;
         match (self, base_pos_recorded) {
             (ServoLag, false) => Some(SensorDelay),
             (SensorDelay, false) => Some(ServoLag),
+            (RootCompliance, _) => Some(GravityAxialLoad),
+            (GravityAxialLoad, _) => Some(RootCompliance),
             _ => None,
         }
     }

@@ -7,7 +7,12 @@
 //! changes the carriage's acceleration and so the force, a sensor latency does not — but the
 //! calibration fits the force channel's own latency, which absorbs the loop's lag there to the
 //! same order. What is left to tell them apart is the *shape* of the filter (a loop's roll-off
-//! against a pure delay), which model-form error mimics as readily.
+//! against a pure delay), which model-form error mimics as readily. With any channels a
+//! compliant clamp (`root_compliance`) and the axial load of a standing or hanging beam
+//! (`gravity_axial_load`) both change the stiffness most near the root, and so the frequency
+//! ratios alike; with two modes in band (one ratio) they are one change, and which of them a
+//! round prefers can be decided by which optimum of the effects already chosen (the rig's loop)
+//! its fit happened to reach.
 //!
 //! So when an effect is chosen and its look-alike passed every guard in the same round (it
 //! explains the recordings on its own as well), the final model is refitted with the look-alike
@@ -397,8 +402,9 @@ pub(crate) fn within_partner_form(
                 effect: o.id,
                 indistinguishable: true,
                 words: format!(
-                    "indistinguishable from {} with these channels: {why}. Record base_pos_m to tell a loop's lag from a sensor's latency",
-                    o.id
+                    "indistinguishable from {} with these channels: {why}. {}",
+                    o.id,
+                    why_alike(o.id)
                 ),
             });
         }
@@ -426,8 +432,22 @@ fn reshapes_partner(
 /// Why the chosen effect cannot be told apart from `b`, in words.
 fn words(b: Effect, numbers: &str, gap: &str) -> String {
     format!(
-        "indistinguishable from {b} with these channels: {b} passed every guard too; {gap}; in the final model {numbers}. Without base_pos_m a position loop's lag and a tip-sensor latency are both filters between the command and the tip, and the calibrated force-channel latency absorbs the loop's lag on force_n. Record base_pos_m to tell them apart"
+        "indistinguishable from {b} with these channels: {b} passed every guard too; {gap}; in the final model {numbers}. {}",
+        why_alike(b)
     )
+}
+
+/// Why effect `b` and its look-alike act alike on the recordings, and what would tell them
+/// apart ([`Effect::look_alike`]).
+fn why_alike(b: Effect) -> &'static str {
+    match b {
+        Effect::RootCompliance | Effect::GravityAxialLoad => {
+            "A compliant clamp and the axial load of a standing or hanging beam both change the beam's stiffness most near its root, and so its frequency ratios alike: with few modes in band they are one change. Record at a rate that puts more modes in band, or with the beam turned, to tell them apart"
+        }
+        _ => {
+            "Without base_pos_m a position loop's lag and a tip-sensor latency are both filters between the command and the tip, and the calibrated force-channel latency absorbs the loop's lag on force_n. Record base_pos_m to tell them apart"
+        }
+    }
 }
 
 /// Model evaluations for the refits of one check: an equal share of what is left, and at least
