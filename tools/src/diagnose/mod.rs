@@ -782,7 +782,8 @@ fn identified_final(
 /// do not identify (`why`, [`forward::unidentified_in_final`]), or puts its nested simpler form
 /// in its place ([`simpler_form`]: a cubic clamp whose cubic term is not identified is a linear
 /// root spring, whose stiffness may well be): the rest refitted from the joint optimum (the
-/// simpler form from the parameters it shares), its outcome in the round that chose it marked
+/// simpler form from the parameters it shares; for the last effect chosen, from the rest's own
+/// optimum of the round before it where that fits better), its outcome in the round that chose it marked
 /// failed with `why`. False (nothing changed) when the result cannot be simulated.
 fn drop_effect(
     ctx: &Ctx,
@@ -816,11 +817,17 @@ fn drop_effect(
         }
     }
     let set: Vec<&Candidate> = chosen.iter().map(|&c| &cands[c]).collect();
-    let f = ctx.fit(
-        &set,
-        Some(&nalgebra::DVector::from_vec(warm)),
-        budget.share(2),
-    );
+    let mut warm = nalgebra::DVector::from_vec(warm);
+    // the last effect dropped: the rest's own optimum from the round before it came in is the
+    // other warm point (the joint optimum without it may lie far from any optimum of the rest)
+    if simpler.is_none() && i > 0 && i + 1 == sel.chosen.len() {
+        let before = &sel.outcomes[i - 1].fit.x;
+        let cost = |x: &nalgebra::DVector<f64>| ctx.fit_problem(&set, x.clone()).cost_at(x);
+        if before.len() == warm.len() && cost(before) < cost(&warm) {
+            warm = before.clone();
+        }
+    }
+    let f = ctx.fit(&set, Some(&warm), budget.share(2));
     budget.spend(f.evaluations);
     let Some(reference) = ctx.reference(&set, f) else {
         return false;
