@@ -330,7 +330,7 @@ impl Ctx<'_> {
                 whiteness.0
             ));
         }
-        fails.extend(self.calibration_matter(set, &f, off));
+        fails.extend(self.calibration_matter(cand, &f, off));
         fails.extend(self.below_model_accuracy(set, &f));
         let passed = fails.is_empty();
         CandidateOutcome {
@@ -525,8 +525,7 @@ impl Ctx<'_> {
     /// The calibration-matter rules: a resonance (mount, or a lightly damped servo loop) at one
     /// of the model's own modes is that mode's damping or the stiffness scale, never a new
     /// resonance; a mount fitted at the ceiling of its search range is not identified.
-    fn calibration_matter(&self, set: &[&Candidate], f: &FitResult, off: usize) -> Vec<String> {
-        let cand = *set.last().expect("a candidate");
+    fn calibration_matter(&self, cand: &Candidate, f: &FitResult, off: usize) -> Vec<String> {
         let mut fails = Vec::new();
         let pos = |name: &str| cand.params.iter().position(|q| q.name == name);
         let sd = |i: usize| {
@@ -563,23 +562,19 @@ impl Ctx<'_> {
             // [f_m(1 − ζ_m), f_m(1 + ζ_m)] is what a broad resonance changes most, and a mode's
             // frequency and damping are calibration (no cap on ζ_m: a heavily damped "mount"
             // next to a mode is that mode moved, e.g. by a crack changing the frequency ratios)
-            // a mount that carries the beam: the resonance the rig shows (the coupled one), not
-            // the rigid-beam frequency that parametrises it
-            let (fm, sd_fm) =
-                super::mount_resonance(self, set, f).unwrap_or((f.values[off + i], f.std[off + i]));
+            let fm = f.values[off + i];
             let zm = pos("mount_damping_ratio").map_or(0.05, |j| f.values[off + j]);
-            let tol = 2.0 * if sd_fm.is_finite() { sd_fm } else { 0.0 } + zm * fm;
+            let tol = 2.0 * sd(i) + zm * fm;
             // the recording holds no information at the ceiling (the band edge, 0.45 × the
             // sample rate)
             let ceiling = cand.params[i].starts.iter().cloned().fold(0.0, f64::max);
-            let fp = f.values[off + i];
-            let at_edge = fp >= 0.95 * ceiling;
+            let at_edge = fm >= 0.95 * ceiling;
             if let Some(fr) = self.model_freqs.iter().find(|fr| (fm - **fr).abs() <= tol) {
-                if !identified(fm, sd_fm) {
+                if !identified(fm, f.std[off + i]) {
                     fails.push(format!(
                         "mount frequency not identified (fitted {}, 1 σ {}): the recordings cannot place it",
                         hz_text(fm),
-                        hz_text(sd_fm)
+                        hz_text(f.std[off + i])
                     ));
                 } else if !at_edge {
                     fails.push(format!(
@@ -588,9 +583,9 @@ impl Ctx<'_> {
                 }
             }
             if at_edge {
-                fails.push(if fp <= ceiling {
+                fails.push(if fm <= ceiling {
                     format!(
-                        "mount frequency {fp:.1} Hz at the edge of the observable band ({ceiling:.1} Hz): not identified"
+                        "mount frequency {fm:.1} Hz at the edge of the observable band ({ceiling:.1} Hz): not identified"
                     )
                 } else {
                     format!(
