@@ -1017,10 +1017,7 @@ fn showed_evidence_last_round(sel: &Selection, i: usize) -> bool {
 /// effect beside a larger one removes only part of a residual the larger one dominates, and
 /// its fit, pulled by that residual, may stop at a limit of its range.
 fn showed_evidence(o: &CandidateOutcome) -> bool {
-    o.passed
-        || (o.delta_bic < -super::select::BIC_MARGIN
-            && o.delta_val < -super::select::VALIDATION_MARGIN
-            && o.reduction > o.allowance.max(0.0))
+    o.passed || (super::lookalike::has_evidence(o) && o.reduction > o.allowance.max(0.0))
 }
 
 /// Adds `outs[s]` to the selection; false when the augmented model cannot be simulated (the

@@ -339,7 +339,7 @@ fn form_range(round: &[CandidateOutcome], id: Effect, c: usize) -> Option<(f64, 
 
 /// Whether outcome `o` shows evidence on its own: ΔBIC and validation Δ(−2 ln L) beyond the
 /// guard's margins.
-fn has_evidence(o: &CandidateOutcome) -> bool {
+pub(crate) fn has_evidence(o: &CandidateOutcome) -> bool {
     o.delta_bic < -BIC_MARGIN && o.delta_val < -VALIDATION_MARGIN
 }
 
