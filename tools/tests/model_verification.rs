@@ -4,7 +4,7 @@
 //! conservation, and the rig file's errors.
 
 use beamtools::model::sim::{BaseMotionSim, ForceSim};
-use beamtools::model::{BeamModel, ModelOptions, Rig};
+use beamtools::model::{BeamModel, ModelOptions, Orientation, Rig};
 use beamtools::truth::fe::FeBeam;
 use nalgebra::{DMatrix, DVector, SymmetricEigen, Vector2};
 use std::f64::consts::PI;
@@ -359,11 +359,11 @@ fn structural_extensions_shift_frequency_ratios() {
         ..Default::default()
     });
     let hang = f(ModelOptions {
-        axial_load: Some(beamtools::model::Orientation::Hanging),
+        axial_load: Some(Orientation::Hanging),
         ..Default::default()
     });
     let up = f(ModelOptions {
-        axial_load: Some(beamtools::model::Orientation::Upright),
+        axial_load: Some(Orientation::Upright),
         ..Default::default()
     });
     let root = f(ModelOptions {
@@ -398,7 +398,6 @@ fn clamped_hz_opts(r: &Rig, o: ModelOptions) -> Vec<f64> {
 /// 0.5 % (Galerkin n = 8, FE 120 elements).
 #[test]
 fn structural_extensions_agree_with_the_finite_element_model() {
-    use beamtools::model::Orientation;
     let r = rig(0.030, 0.020);
     let fe0 = fe_beam(0.030, 0.020, 120);
     let cases: Vec<(&str, ModelOptions, FeBeam)> = vec![
@@ -534,6 +533,32 @@ fn point_mass_matches_tip_mass_at_the_tip() {
         );
         assert!((none[i] / at_root[i] - 1.0).abs() < 1e-12);
     }
+    // the same under gravity: a point mass's weight loads the beam between it and the clamp,
+    // a tip mass's the whole beam
+    for o in [Orientation::Hanging, Orientation::Upright] {
+        let with = |tip_mass_kg, point_mass| {
+            clamped_hz_opts(
+                &r,
+                ModelOptions {
+                    tip_mass_kg,
+                    point_mass,
+                    axial_load: Some(o),
+                    ..base.clone()
+                },
+            )
+        };
+        let (tip, at_tip) = (with(0.02, None), with(0.0, Some((0.9, 0.02))));
+        let (none, at_root) = (with(0.0, None), with(0.0, Some((0.0, 0.02))));
+        let mid = with(0.0, Some((0.45, 0.02)));
+        for i in 0..3 {
+            assert!(
+                (tip[i] / at_tip[i] - 1.0).abs() < 1e-12,
+                "{o:?}: {tip:?} {at_tip:?}"
+            );
+            assert!((none[i] / at_root[i] - 1.0).abs() < 1e-12, "{o:?}");
+        }
+        assert!(mid[0] != none[0] && mid[0] != tip[0], "{o:?}: {mid:?}");
+    }
     let near = |n| {
         clamped_hz_opts(
             &r,
@@ -610,5 +635,23 @@ fn the_tip_load_shape_makes_a_tip_mass_converge() {
             a[i],
             b[i]
         );
+    }
+}
+
+/// The integrals a model is assembled from are shared between models of the same beam and
+/// basis only: models of two beams built in turn keep their own frequencies.
+#[test]
+fn models_of_different_beams_built_in_turn_keep_their_own_frequencies() {
+    let (a, mut b) = (rig(0.025, 0.025), rig(0.025, 0.025));
+    b.beam.as_mut().unwrap().youngs_modulus_pa *= 4.0;
+    let fa = clamped_hz(&a, 6);
+    let fb = clamped_hz(&b, 6);
+    for _ in 0..3 {
+        assert_eq!(clamped_hz(&a, 6), fa);
+        assert_eq!(clamped_hz(&b, 6), fb);
+    }
+    // E × 4 doubles every natural frequency
+    for (x, y) in fa.iter().zip(&fb) {
+        assert!((y / x - 2.0).abs() < 1e-12, "{fa:?} {fb:?}");
     }
 }

@@ -14,7 +14,7 @@
 //! geometric stiffness `∫ N φ_i' φ_j' dx`, `N(x) = ±g(ρ∫_x^l A ds + m_tip)`.
 
 use super::basis::BasisFn;
-use super::rig::{Rig, SectionProfile};
+use super::rig::{BeamSection, Rig, SectionProfile};
 use anyhow::{bail, Context, Result};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
@@ -233,57 +233,155 @@ impl Shapes {
     }
 }
 
-/// Axial force N(x) (N, positive = tension) of the gravity load `o` at `x`: the weight of the
-/// beam beyond x (quadrature `pts`), the tip mass and a point mass beyond x.
-fn axial_force(
-    o: Orientation,
-    x: f64,
-    pts: &[(f64, f64)],
-    rho: f64,
-    profile: &SectionProfile,
-    opts: &ModelOptions,
-) -> f64 {
-    let (pm_x, pm_kg) = opts.point_mass.unwrap_or((0.0, 0.0));
-    let below: f64 = pts
-        .iter()
-        .filter(|p| p.0 > x)
-        .map(|&(s, w)| w * rho * profile.area(s))
-        .sum();
-    let sign = if o == Orientation::Hanging { 1.0 } else { -1.0 };
-    let point = if pm_x > x { pm_kg } else { 0.0 };
-    sign * G_M_S2 * (below + opts.tip_mass_kg + point)
+/// The quadrature integrals of one beam and basis: everything of M and K that the calibration
+/// (stiffness scale, carriage mass, damping) and the lumped masses do not change, so that a
+/// fit that moves only those assembles its model from them without integrating again.
+///
+/// Upper triangles, coordinates `[y, (θ), q, (ψ)]`: `mass` holds h_i (eq. 18, row 0) and m_ij
+/// (eq. 19) of the beam alone (J is left 0); `stiff_ei` holds k_ij (eq. 20) at the rig's E;
+/// `geo_own` holds `∫ ρ(∫_x^l A ds) φ_i' φ_j' dx` and `geo_unit` `∫ φ_i' φ_j' dx`, so that the
+/// geometric stiffness of the axial load ±g(ρ∫_x^l A ds + m_tip) is
+/// `±g (geo_own + m_tip · geo_unit)`.
+#[derive(Clone, Debug)]
+pub struct BeamIntegrals {
+    beam: BeamSection,
+    n_modes: usize,
+    root_spring: bool,
+    tip_shape: bool,
+    shapes: Shapes,
+    pts: Vec<(f64, f64)>,
+    mass: DMatrix<f64>,
+    stiff_ei: DMatrix<f64>,
+    geo_own: DMatrix<f64>,
+    geo_unit: DMatrix<f64>,
+    beam_mass_kg: f64,
+    /// The coordinates' deflections at the tip (entry 0, for y, is 0).
+    tip: DVector<f64>,
 }
 
-/// The beam's distributed contributions to the upper triangles of M (h_i eq. 18, m_ij eq. 19)
-/// and K (k_ij eq. 20 plus the geometric stiffness of the axial load) by quadrature `pts`.
-#[allow(clippy::too_many_arguments)]
-fn integrate_beam(
-    shapes: &mut Shapes,
-    pts: &[(f64, f64)],
-    rho: f64,
-    e: f64,
-    profile: &SectionProfile,
-    opts: &ModelOptions,
-    mass: &mut DMatrix<f64>,
-    stiff: &mut DMatrix<f64>,
-) {
-    let dim = shapes.dim();
-    for &(x, w) in pts {
-        shapes.at(x);
-        let (vals, d1, d2) = (&shapes.vals, &shapes.d1, &shapes.d2);
-        let ma = w * rho * profile.area(x);
-        let ei = w * e * profile.inertia(x);
-        let nn = match opts.axial_load {
-            Some(o) => w * axial_force(o, x, pts, rho, profile, opts),
-            None => 0.0,
-        };
-        for i in 1..dim {
-            mass[(0, i)] += ma * vals[i]; // h_i (eq. 18)
-            for j in i..dim {
-                mass[(i, j)] += ma * vals[i] * vals[j]; // m_ij (eq. 19)
-                stiff[(i, j)] += ei * d2[i] * d2[j] + nn * d1[i] * d1[j]; // k_ij (eq. 20) + geometric
+/// Integrals kept per thread ([`BeamIntegrals::shared`]); a diagnosis uses a handful at once
+/// (basis sizes × root spring × tip-load shape).
+const SHARED_INTEGRALS: usize = 8;
+
+thread_local! {
+    static INTEGRALS: std::cell::RefCell<Vec<std::rc::Rc<BeamIntegrals>>> =
+        const { std::cell::RefCell::new(Vec::new()) };
+}
+
+impl BeamIntegrals {
+    /// Integrates the beam of `rig` on `n_modes` clamped–free functions, plus the rigid
+    /// rotation θ of a compliant clamp if `root_spring` and the tip-load shape ψ if
+    /// `tip_shape` ([`ModelOptions`]), by `40 + 20 n_modes` intervals of 5-point
+    /// Gauss–Legendre.
+    ///
+    /// Errors: no `[beam]`, an invalid profile, `n_modes` outside 1..=12.
+    pub fn new(
+        rig: &Rig,
+        n_modes: usize,
+        root_spring: bool,
+        tip_shape: bool,
+    ) -> Result<BeamIntegrals> {
+        let beam = rig
+            .beam
+            .as_ref()
+            .context("the rig has no [beam] section: no beam model")?;
+        let profile: SectionProfile = rig.profile()?;
+        if !(1..=12).contains(&n_modes) {
+            bail!("number of basis functions must be 1..12 (got {n_modes})");
+        }
+        let (l, rho, e) = (beam.length_m, beam.density_kg_m3, beam.youngs_modulus_pa);
+        let mut shapes = Shapes::new(l, n_modes, root_spring, tip_shape);
+        let dim = shapes.dim();
+        let pts = quadrature(l, 40 + 20 * n_modes);
+        let point_mass: Vec<f64> = pts
+            .iter()
+            .map(|&(x, w)| w * rho * profile.area(x))
+            .collect();
+        let beam_mass_kg: f64 = point_mass.iter().sum();
+        // mass of the beam beyond each quadrature point (the points ascend)
+        let mut beyond = vec![0.0; pts.len()];
+        for k in (0..pts.len().saturating_sub(1)).rev() {
+            beyond[k] = beyond[k + 1] + point_mass[k + 1];
+        }
+        let zero = || DMatrix::zeros(dim, dim);
+        let (mut mass, mut stiff_ei, mut geo_own, mut geo_unit) = (zero(), zero(), zero(), zero());
+        for (k, &(x, w)) in pts.iter().enumerate() {
+            shapes.at(x);
+            let (vals, d1, d2) = (&shapes.vals, &shapes.d1, &shapes.d2);
+            let ei = w * e * profile.inertia(x);
+            for i in 1..dim {
+                mass[(0, i)] += point_mass[k] * vals[i]; // h_i (eq. 18)
+                for j in i..dim {
+                    mass[(i, j)] += point_mass[k] * vals[i] * vals[j]; // m_ij (eq. 19)
+                    stiff_ei[(i, j)] += ei * d2[i] * d2[j]; // k_ij (eq. 20)
+                    geo_unit[(i, j)] += w * d1[i] * d1[j];
+                    geo_own[(i, j)] += w * beyond[k] * d1[i] * d1[j];
+                }
             }
         }
+        shapes.at(l);
+        let tip = DVector::from_fn(dim, |i, _| if i == 0 { 0.0 } else { shapes.vals[i] });
+        Ok(BeamIntegrals {
+            beam: beam.clone(),
+            n_modes,
+            root_spring,
+            tip_shape,
+            shapes,
+            pts,
+            mass,
+            stiff_ei,
+            geo_own,
+            geo_unit,
+            beam_mass_kg,
+            tip,
+        })
+    }
+
+    /// [`Self::new`], or the same integrals computed earlier on this thread for the same beam
+    /// and basis (the last [`SHARED_INTEGRALS`] kept).
+    ///
+    /// Errors: as [`Self::new`].
+    pub fn shared(
+        rig: &Rig,
+        n_modes: usize,
+        root_spring: bool,
+        tip_shape: bool,
+    ) -> Result<std::rc::Rc<BeamIntegrals>> {
+        let same = |b: &BeamIntegrals| {
+            b.n_modes == n_modes
+                && b.root_spring == root_spring
+                && b.tip_shape == tip_shape
+                && rig.beam.as_ref() == Some(&b.beam)
+        };
+        if let Some(b) = INTEGRALS.with(|c| c.borrow().iter().find(|b| same(b)).cloned()) {
+            return Ok(b);
+        }
+        let b = std::rc::Rc::new(BeamIntegrals::new(rig, n_modes, root_spring, tip_shape)?);
+        INTEGRALS.with(|c| {
+            let mut c = c.borrow_mut();
+            if c.len() == SHARED_INTEGRALS {
+                c.remove(0);
+            }
+            c.push(b.clone());
+        });
+        Ok(b)
+    }
+
+    /// `∫_0^x φ_i' φ_j' dx` (upper triangle): the geometric stiffness per newton of an axial
+    /// force that acts only between the clamp and `x_m` (a point mass's weight).
+    fn geo_unit_below(&self, x_m: f64) -> DMatrix<f64> {
+        let mut shapes = self.shapes.clone();
+        let dim = shapes.dim();
+        let mut g = DMatrix::zeros(dim, dim);
+        for &(x, w) in self.pts.iter().take_while(|p| p.0 < x_m) {
+            shapes.at(x);
+            for i in 1..dim {
+                for j in i..dim {
+                    g[(i, j)] += w * shapes.d1[i] * shapes.d1[j];
+                }
+            }
+        }
+        g
     }
 }
 
@@ -297,7 +395,8 @@ fn symmetrise(m: &mut DMatrix<f64>) {
 }
 
 impl BeamModel {
-    /// Assembles the model of `rig` with `opts`.
+    /// Assembles the model of `rig` with `opts` (the integrals from
+    /// [`BeamIntegrals::shared`]).
     ///
     /// Errors: no `[beam]`, invalid profile, `n_modes` outside 1..=12, non-positive options,
     /// an upright beam that buckles under its own weight.
@@ -306,43 +405,35 @@ impl BeamModel {
             .beam
             .as_ref()
             .context("the rig has no [beam] section: no beam model")?;
-        let profile: SectionProfile = rig.profile()?;
         check_options(opts, beam.length_m)?;
-        let (pm_x, pm_kg) = opts.point_mass.unwrap_or((0.0, 0.0));
-        let (l, rho) = (beam.length_m, beam.density_kg_m3);
-        let e = beam.youngs_modulus_pa * opts.stiffness_scale;
-        let mut shapes = Shapes::new(
-            l,
+        let b = BeamIntegrals::shared(
+            rig,
             opts.n_modes,
             opts.root_stiffness_nm_per_rad.is_some(),
             opts.tip_load_shape,
-        );
-        let dim = shapes.dim();
-        let pts = quadrature(l, 40 + 20 * opts.n_modes);
-        let mut mass = DMatrix::zeros(dim, dim);
-        let mut stiff = DMatrix::zeros(dim, dim);
-        let beam_mass: f64 = pts.iter().map(|&(x, w)| w * rho * profile.area(x)).sum();
-        integrate_beam(
-            &mut shapes,
-            &pts,
-            rho,
-            e,
-            &profile,
-            opts,
-            &mut mass,
-            &mut stiff,
-        );
+        )?;
+        let (pm_x, pm_kg) = opts.point_mass.unwrap_or((0.0, 0.0));
+        let mut mass = b.mass.clone();
+        let mut stiff = &b.stiff_ei * opts.stiffness_scale;
+        if let Some(o) = opts.axial_load {
+            let sign = if o == Orientation::Hanging { 1.0 } else { -1.0 };
+            let mut geo = &b.geo_own + &b.geo_unit * opts.tip_mass_kg;
+            if pm_kg > 0.0 && pm_x > 0.0 {
+                geo += b.geo_unit_below(pm_x) * pm_kg;
+            }
+            stiff += geo * (sign * G_M_S2);
+        }
         let base_mass = rig.base.mass_kg + opts.base_mass_delta_kg;
         if !(base_mass > 0.0) {
             bail!("carriage mass must stay > 0 (got {base_mass} kg)");
         }
-        mass[(0, 0)] = base_mass + beam_mass + opts.tip_mass_kg + pm_kg; // J (eq. 17)
+        let mut shapes = b.shapes.clone();
+        mass[(0, 0)] = base_mass + b.beam_mass_kg + opts.tip_mass_kg + pm_kg; // J (eq. 17)
         if pm_kg > 0.0 {
             shapes.at(pm_x);
             shapes.add_point_mass(&mut mass, pm_kg);
         }
-        shapes.at(l);
-        let tip = DVector::from_fn(dim, |i, _| if i == 0 { 0.0 } else { shapes.vals[i] });
+        shapes.at(beam.length_m);
         shapes.add_point_mass(&mut mass, opts.tip_mass_kg);
         if let Some(kr) = opts.root_stiffness_nm_per_rad {
             if !(kr > 0.0) {
@@ -356,9 +447,9 @@ impl BeamModel {
         let mut model = BeamModel {
             mass,
             stiffness: stiff,
-            tip,
-            length_m: l,
-            beam_mass_kg: beam_mass,
+            tip: b.tip.clone(),
+            length_m: beam.length_m,
+            beam_mass_kg: b.beam_mass_kg,
             base_mass_kg: base_mass,
             rayleigh: (0.0, 0.0),
             damping_ratios: zetas,
