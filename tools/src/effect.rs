@@ -244,23 +244,57 @@ impl Effect {
 
     /// The effect that, with the channels recorded, acts on them as the same filter to first
     /// order, so that the recordings cannot tell the two apart (`crate::diagnose::lookalike`):
-    /// without `base_pos_m` a position loop's lag (`servo_lag`) and a tip-sensor latency
-    /// (`sensor_delay`) are both a lag between the command and the tip. With any channels, a
-    /// compliant clamp (`root_compliance`) and the axial load of a standing or hanging beam
-    /// (`gravity_axial_load`) both change the beam's stiffness most near the root and so its
-    /// frequency ratios the same way to first order: where one ratio is in band (two modes) they
-    /// are one change. `None`: no look-alike.
+    /// [`LOOK_ALIKES`]. `None`: no look-alike.
     pub fn look_alike(self, base_pos_recorded: bool) -> Option<Effect> {
-        use Effect::*;
-        match (self, base_pos_recorded) {
-            (ServoLag, false) => Some(SensorDelay),
-            (SensorDelay, false) => Some(ServoLag),
-            (RootCompliance, _) => Some(GravityAxialLoad),
-            (GravityAxialLoad, _) => Some(RootCompliance),
-            _ => None,
-        }
+        self.look_alike_why(base_pos_recorded).map(|(b, _)| b)
+    }
+
+    /// [`Self::look_alike`] with why the two act alike and what would tell them apart, in
+    /// words ([`LOOK_ALIKES`]).
+    pub fn look_alike_why(self, base_pos_recorded: bool) -> Option<(Effect, &'static str)> {
+        LOOK_ALIKES.iter().find_map(|p| {
+            if p.without_base_pos && base_pos_recorded {
+                None
+            } else if p.pair.0 == self {
+                Some((p.pair.1, p.why))
+            } else if p.pair.1 == self {
+                Some((p.pair.0, p.why))
+            } else {
+                None
+            }
+        })
     }
 }
+
+/// Two effects that act on the recorded channels as the same filter to first order.
+#[derive(Clone, Copy, Debug)]
+pub struct LookAlikePair {
+    /// The two effects (either way round).
+    pub pair: (Effect, Effect),
+    /// Alike only when `base_pos_m` is not recorded.
+    pub without_base_pos: bool,
+    /// Why they act alike, and what would tell them apart.
+    pub why: &'static str,
+}
+
+/// Every look-alike pair. Without `base_pos_m` a position loop's lag (`servo_lag`) and a
+/// tip-sensor latency (`sensor_delay`) are both a lag between the command and the tip. With any
+/// channels, a compliant clamp (`root_compliance`) and the axial load of a standing or hanging
+/// beam (`gravity_axial_load`) both change the beam's stiffness most near the root and so its
+/// frequency ratios the same way to first order: where one ratio is in band (two modes) they
+/// are one change.
+pub const LOOK_ALIKES: [LookAlikePair; 2] = [
+    LookAlikePair {
+        pair: (Effect::ServoLag, Effect::SensorDelay),
+        without_base_pos: true,
+        why: "Without base_pos_m a position loop's lag and a tip-sensor latency are both filters between the command and the tip, and the calibrated force-channel latency absorbs the loop's lag on force_n. Record base_pos_m to tell them apart",
+    },
+    LookAlikePair {
+        pair: (Effect::RootCompliance, Effect::GravityAxialLoad),
+        without_base_pos: false,
+        why: "A compliant clamp and the axial load of a standing or hanging beam both change the beam's stiffness most near its root, and so its frequency ratios alike: with few modes in band they are one change. Record at a rate that puts more modes in band, or with the beam turned, to tell them apart",
+    },
+];
 
 impl fmt::Display for Effect {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -305,6 +339,28 @@ impl serde::Serialize for Effect {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn look_alikes_are_symmetric_and_a_loop_and_a_latency_only_without_base_pos() {
+        for e in Effect::ALL {
+            for base in [false, true] {
+                if let Some((b, why)) = e.look_alike_why(base) {
+                    assert_eq!(b.look_alike(base), Some(e), "{e} ↔ {b}");
+                    assert!(!why.is_empty() && b != e);
+                }
+            }
+        }
+        assert_eq!(
+            Effect::ServoLag.look_alike(false),
+            Some(Effect::SensorDelay)
+        );
+        assert_eq!(Effect::ServoLag.look_alike(true), None);
+        assert_eq!(
+            Effect::GravityAxialLoad.look_alike(true),
+            Some(Effect::RootCompliance)
+        );
+        assert_eq!(Effect::TipMass.look_alike(false), None);
+    }
 
     #[test]
     fn ids_round_trip_and_are_unique() {

@@ -438,16 +438,9 @@ fn words(b: Effect, numbers: &str, gap: &str) -> String {
 }
 
 /// Why effect `b` and its look-alike act alike on the recordings, and what would tell them
-/// apart ([`Effect::look_alike`]).
+/// apart ([`Effect::look_alike_why`]; the words do not depend on the channels).
 fn why_alike(b: Effect) -> &'static str {
-    match b {
-        Effect::RootCompliance | Effect::GravityAxialLoad => {
-            "A compliant clamp and the axial load of a standing or hanging beam both change the beam's stiffness most near its root, and so its frequency ratios alike: with few modes in band they are one change. Record at a rate that puts more modes in band, or with the beam turned, to tell them apart"
-        }
-        _ => {
-            "Without base_pos_m a position loop's lag and a tip-sensor latency are both filters between the command and the tip, and the calibrated force-channel latency absorbs the loop's lag on force_n. Record base_pos_m to tell them apart"
-        }
-    }
+    b.look_alike_why(false).map_or("", |(_, why)| why)
 }
 
 /// Model evaluations for the refits of one check: an equal share of what is left, and at least
