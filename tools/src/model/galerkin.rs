@@ -6,7 +6,9 @@
 //! amplitudes q_i of the basis ([`super::basis`]); the deflection is
 //! `w(x) = x·θ + Σ q_i φ_i(x)`.
 //!
-//! Mass (eqs. 13, 17–19) and stiffness (eq. 20) by Gauss–Legendre quadrature over A(x), I(x).
+//! Mass (eqs. 13, 17–19) and stiffness (eq. 20) by Gauss–Legendre quadrature over A(x), I(x),
+//! done once per beam and basis ([`BeamIntegrals`]): a model is assembled from those integrals
+//! for any stiffness scale, carriage mass, damping and lumped mass.
 //! Eq. (20) is evaluated in its symmetric weak form `k_ij = E∫ I φ_i'' φ_j'' dx`: integrating the
 //! printed strong form by parts twice gives it, because the boundary terms vanish for
 //! φ(0) = φ'(0) = 0 and φ''(l) = φ'''(l) = 0. Extensions: a lumped tip mass adds to J, h_i and
@@ -293,15 +295,16 @@ impl BeamIntegrals {
         let mut shapes = Shapes::new(l, n_modes, root_spring, tip_shape);
         let dim = shapes.dim();
         let pts = quadrature(l, 40 + 20 * n_modes);
-        let point_mass: Vec<f64> = pts
+        // the mass of each quadrature point's slice of beam (kg)
+        let slice_kg: Vec<f64> = pts
             .iter()
             .map(|&(x, w)| w * rho * profile.area(x))
             .collect();
-        let beam_mass_kg: f64 = point_mass.iter().sum();
+        let beam_mass_kg: f64 = slice_kg.iter().sum();
         // mass of the beam beyond each quadrature point (the points ascend)
         let mut beyond = vec![0.0; pts.len()];
         for k in (0..pts.len().saturating_sub(1)).rev() {
-            beyond[k] = beyond[k + 1] + point_mass[k + 1];
+            beyond[k] = beyond[k + 1] + slice_kg[k + 1];
         }
         let zero = || DMatrix::zeros(dim, dim);
         let (mut mass, mut stiff_ei, mut geo_own, mut geo_unit) = (zero(), zero(), zero(), zero());
@@ -310,9 +313,9 @@ impl BeamIntegrals {
             let (vals, d1, d2) = (&shapes.vals, &shapes.d1, &shapes.d2);
             let ei = w * e * profile.inertia(x);
             for i in 1..dim {
-                mass[(0, i)] += point_mass[k] * vals[i]; // h_i (eq. 18)
+                mass[(0, i)] += slice_kg[k] * vals[i]; // h_i (eq. 18)
                 for j in i..dim {
-                    mass[(i, j)] += point_mass[k] * vals[i] * vals[j]; // m_ij (eq. 19)
+                    mass[(i, j)] += slice_kg[k] * vals[i] * vals[j]; // m_ij (eq. 19)
                     stiff_ei[(i, j)] += ei * d2[i] * d2[j]; // k_ij (eq. 20)
                     geo_unit[(i, j)] += w * d1[i] * d1[j];
                     geo_own[(i, j)] += w * beyond[k] * d1[i] * d1[j];
