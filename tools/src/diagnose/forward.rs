@@ -23,10 +23,9 @@ pub const MAX_EFFECTS: usize = 4;
 
 /// Work budget of one diagnosis in *sample-evaluations*: model evaluations × samples of the fit
 /// recordings simulated per evaluation. Counted, not timed, so the answer does not depend on
-/// the machine or its load; 2e8 is about 35 s of one core for a 4-basis-function beam
-/// (2.4 ms per evaluation of 13 800 samples, measured on case13 of the independent set), so
-/// that three 60–90 s recordings with four effects stay under a minute on a loaded 2-core
-/// machine.
+/// the machine or its load; sized so that three 60–90 s recordings with four effects stay
+/// under a minute on a 2-core machine (the measured run times: docs/diagnose.md, "Run time"
+/// and "Session 17").
 pub const WORK_BUDGET_SAMPLE_EVALUATIONS: f64 = 2.0e8;
 /// Bounds of the resulting number of model evaluations of one diagnosis.
 pub const EVALUATION_BUDGET_RANGE: (usize, usize) = (2_000, 40_000);
