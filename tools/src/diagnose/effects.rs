@@ -174,9 +174,20 @@ pub struct Calib {
     /// The drive between samples is the cubic spline through them ([`Params::smooth_drive`];
     /// only in the 1-σ's model-form alternative).
     pub smooth_drive: bool,
+    /// How the drive is read between samples at the recording's own rate
+    /// ([`super::sim::DriveReading`], chosen by the recordings).
+    pub drive_reading: super::sim::DriveReading,
 }
 
 impl Calib {
+    /// This calibration with the drive read as `reading`.
+    pub fn with_reading(&self, reading: super::sim::DriveReading) -> Calib {
+        Calib {
+            drive_reading: reading,
+            ..self.clone()
+        }
+    }
+
     /// Number of calibration parameters.
     pub fn len(&self) -> usize {
         self.defs.len()
@@ -236,6 +247,7 @@ pub fn calibration_defs(rig: &Rig, ch: &Channels, in_band_modes: usize, n_basis:
         defs: v,
         n_basis,
         smooth_drive: false,
+        drive_reading: super::sim::DriveReading::PiecewiseLinear,
     }
 }
 
@@ -278,6 +290,7 @@ pub fn calibration_unidentified(def: &ParamDef, value: f64, std: f64) -> Option<
 pub fn apply_calibration(calib: &Calib, values: &[f64], p: &mut Params) {
     p.n_basis = calib.n_basis;
     p.smooth_drive = calib.smooth_drive;
+    p.drive_reading = calib.drive_reading;
     let mut zm = Vec::new();
     for (d, &v) in calib.defs.iter().zip(values) {
         match d.name {

@@ -96,6 +96,9 @@ pub(crate) struct Ctx<'a> {
     pub(crate) sigma: [f64; 3],
     pub(crate) calib: &'a Calib,
     pub(crate) model_freqs: &'a [f64],
+    /// Step of the counts of the position sensor the drive is read from (`base_pos_m`, else
+    /// the command), m; `None` when not quantised ([`crate::numeric::stats::quantum`]).
+    pub(crate) drive_quantum_m: Option<f64>,
     /// Selection trace, one entry per line ([`super::Diagnosis::trace`]).
     pub(crate) trace: std::cell::RefCell<Vec<String>>,
 }
@@ -321,7 +324,13 @@ impl Ctx<'_> {
                 base.vres[best_channel].as_deref(),
                 r.vres[best_channel].as_deref(),
             ),
-            implausible: implausible(cand, &f, off, self.lowest_resolved_hz()),
+            implausible: implausible(
+                cand,
+                &f,
+                off,
+                self.lowest_resolved_hz(),
+                self.drive_quantum_m,
+            ),
         });
         if !(whiteness.0 > LJUNG_BOX_CRITICAL) {
             fails.push(format!(
@@ -1252,14 +1261,29 @@ pub(crate) fn structure_explained(before: Option<&[f64]>, after: Option<&[f64]>)
 /// `lowest_resolved_hz` is the lowest frequency the fit recordings resolve (1 / duration): a
 /// position loop slower than that never brings the carriage to its command within a recording
 /// (as its bandwidth → 0 the loop becomes a constant gain on the command, k_v or k_a): it is
-/// not a position loop.
+/// not a position loop. `drive_quantum_m` is the step of the counts the drive is read from: a
+/// play smaller than one step is motion the drive's own sensor does not resolve (on a 1 µm
+/// encoder read smooth between samples, a 0.2 µm "play" took up the reading's ±1/12-step
+/// echoes of every count, docs/diagnose.md, session 18).
 fn implausible(
     cand: &Candidate,
     f: &FitResult,
     off: usize,
     lowest_resolved_hz: f64,
+    drive_quantum_m: Option<f64>,
 ) -> Vec<String> {
     let mut out = Vec::new();
+    if let (Some(i), Some(q)) = (
+        cand.params.iter().position(|p| p.name == "backlash_m"),
+        drive_quantum_m,
+    ) {
+        let b = f.values[off + i].abs();
+        if b < q {
+            out.push(format!(
+                "backlash_m = {b:.2e} m below one count of the drive's position sensor ({q:.1e} m): motion it does not resolve"
+            ));
+        }
+    }
     if let Some(i) = cand
         .params
         .iter()
@@ -1379,6 +1403,22 @@ pub(crate) mod tests {
         assert!((split_change(2.3) - (1.0 - 1.0 / 2.3)).abs() < 1e-12);
         assert!((split_change(2.3) - split_change(1.0 / 2.3)).abs() < 1e-12);
         assert!(split_change(1e6) < 1.0 && split_change(0.9) > 0.099 && split_change(1.0) == 0.0);
+    }
+
+    #[test]
+    fn a_play_smaller_than_one_count_of_the_drive_sensor_is_not_resolved() {
+        // the catalogue's play has one parameter, backlash_m, on a log scale
+        let mut c = servo_candidate(1, 100.0);
+        c.id = Effect::Backlash;
+        c.params.truncate(1);
+        c.params[0].name = "backlash_m";
+        let sub_count = fitted(&c, &[1.8e-7]);
+        assert_eq!(implausible(&c, &sub_count, 0, 0.0, Some(1e-6)).len(), 1);
+        // counts of 0.1 µm (a command written with seven decimals), or no counts at all
+        assert!(implausible(&c, &sub_count, 0, 0.0, Some(1e-7)).is_empty());
+        assert!(implausible(&c, &sub_count, 0, 0.0, None).is_empty());
+        let real = fitted(&c, &[5e-5]);
+        assert!(implausible(&c, &real, 0, 0.0, Some(1e-6)).is_empty());
     }
 
     /// A fit of `cand` with effect values `values` (no calibration parameters).
@@ -1584,8 +1624,8 @@ pub(crate) mod tests {
         // order 1: bandwidth, velocity feed-forward; 30 s recordings resolve 1/30 Hz
         let c = servo_candidate(1, 100.0);
         let slow = fitted(&c, &[1e-6, 0.96]);
-        assert_eq!(implausible(&c, &slow, 0, 1.0 / 30.0).len(), 1);
+        assert_eq!(implausible(&c, &slow, 0, 1.0 / 30.0, None).len(), 1);
         let real = fitted(&c, &[5.0, 0.96]);
-        assert!(implausible(&c, &real, 0, 1.0 / 30.0).is_empty());
+        assert!(implausible(&c, &real, 0, 1.0 / 30.0, None).is_empty());
     }
 }

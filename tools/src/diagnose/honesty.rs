@@ -108,16 +108,16 @@ pub fn add_basis_std(
         return 0;
     }
     let finer = Calib {
-        defs: calib.defs.clone(),
         n_basis: calib.n_basis + 1,
-        smooth_drive: calib.smooth_drive,
+        ..calib.clone()
     };
     add_alternative_std(rig, data, sigma, &finer, set, f, max_evaluations)
 }
 
 /// Adds the **drive-interpolation uncertainty** to the 1-σ of `f` (calibration + `set`): the
 /// samples say nothing of the carriage's motion between them. The model takes the
-/// piecewise-linear path through the samples: the force channel (a drive averages its force
+/// piecewise-linear path through the samples (or, at the recording's own rate, the
+/// fourth-order reading the recordings chose, [`super::sim::DriveReading`]): the force channel (a drive averages its force
 /// over the sample period) gets an acceleration step spread over three samples, and the beam,
 /// driven by that path at the recording's own rate, gets its content at sinc²(f/r) of its
 /// amplitude (3 % low at 0.1 × the rate). The smooth reading is the other standard one: the
@@ -143,9 +143,8 @@ pub fn add_drive_interpolation_std(
         return 0;
     }
     let smooth = Calib {
-        defs: calib.defs.clone(),
-        n_basis: calib.n_basis,
         smooth_drive: true,
+        ..calib.clone()
     };
     add_alternative_std(rig, data, sigma, &smooth, set, f, max_evaluations)
 }

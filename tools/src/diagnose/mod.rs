@@ -131,6 +131,8 @@ pub struct Diagnosis {
     pub band_edge_hz: f64,
     /// The working rate the recordings were decimated to ([`rate`]).
     pub working_rate: rate::WorkingRate,
+    /// How the drive was read between samples, and why.
+    pub drive_reading: ReadingChoice,
     /// The effects forward selection added, in order, each as evaluated when it was added
     /// (its own validation gain against the model before it).
     pub effects: Vec<CandidateOutcome>,
@@ -159,6 +161,19 @@ pub struct Diagnosis {
     /// allowance and verdict, split-refit spreads and backward checks (`DIAG_SELECT=1` makes
     /// `beamtool diagnose` print it).
     pub trace: Vec<String>,
+}
+
+/// How the model read the drive between samples ([`sim::DriveReading`]) and the BIC that chose it.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ReadingChoice {
+    /// The reading of this diagnosis.
+    pub chosen: sim::DriveReading,
+    /// BIC of its final model on the fit recordings, `Σ_c n_c ln(RSS_c / n_c) + k ln n`
+    /// (channels c with n_c samples, n in all, k fitted parameters).
+    pub fit_bic: f64,
+    /// Each reading's BIC when both were run (empty: the reading changes nothing the
+    /// recordings hold, every one decimated or without tip and force).
+    pub compared: Vec<(sim::DriveReading, f64)>,
 }
 
 /// The recorded signal of channel `c` (0 base position m, 1 tip deflection tip − drive m,
@@ -206,11 +221,24 @@ fn rms(v: &[f64]) -> f64 {
 }
 
 /// What the preparation of a diagnosis found out about the recordings and the rig.
+#[derive(Clone)]
 struct Setup {
     channels: Channels,
     band_edge_hz: f64,
     basis: Option<sim::BasisChoice>,
     calib: effects::Calib,
+    /// [`drive_quantum_m`] of the recordings as loaded.
+    drive_quantum_m: Option<f64>,
+}
+
+/// Step of the counts (m) of the position the drive is read from — `base_pos_m` where
+/// recorded, else the command — in the fit recordings as loaded (the largest over them;
+/// `None` when none is quantised, [`crate::numeric::stats::quantum`]).
+fn drive_quantum_m(fit_data: &[Prepared]) -> Option<f64> {
+    fit_data
+        .iter()
+        .filter_map(|d| crate::numeric::stats::quantum(d.base_m.as_ref().unwrap_or(&d.cmd_m)))
+        .reduce(f64::max)
 }
 
 /// Refuses recordings without information or that the nominal model cannot simulate; the band
@@ -248,6 +276,7 @@ fn setup(rig: &Rig, fit_data: &[Prepared], validate: &Prepared) -> Result<Setup>
         band_edge_hz,
         basis,
         calib,
+        drive_quantum_m: None,
     })
 }
 
@@ -513,13 +542,105 @@ pub fn diagnose(
         check_information(d)?;
         check_units(rig, d)?;
     }
+    let drive_quantum_m = drive_quantum_m(fit_data);
     let working_rate = rate::choose(fit_data, validate);
     let (fit_w, val_w) = rate::to_working_rate(&working_rate, fit_data, validate);
     if let Some(w) = rate::words(&working_rate) {
         progress.note(&w);
     }
     let (fit_data, validate) = (&fit_w[..], &val_w);
-    let su = setup(rig, fit_data, validate)?;
+    let su = Setup {
+        drive_quantum_m,
+        ..setup(rig, fit_data, validate)?
+    };
+    if !drive_reading_matters(fit_data, validate) {
+        return diagnose_with(rig, fit_data, validate, &su, working_rate, progress);
+    }
+    // both readings of the drive between samples, side by side (a diagnosis runs on one core)
+    progress.note(
+        "the drive between samples is read both ways (piecewise linear, smooth); the recordings choose",
+    );
+    let smooth = Setup {
+        calib: su.calib.with_reading(sim::DriveReading::FourthOrder),
+        ..su.clone()
+    };
+    let (linear, smooth) = std::thread::scope(|s| {
+        let other = s.spawn(|| {
+            diagnose_with(
+                rig,
+                fit_data,
+                validate,
+                &smooth,
+                working_rate.clone(),
+                &mut crate::progress::Silent,
+            )
+        });
+        let linear = diagnose_with(rig, fit_data, validate, &su, working_rate.clone(), progress);
+        (linear, other.join())
+    });
+    let smooth = smooth.map_err(|_| anyhow::anyhow!("the smooth-drive diagnosis panicked"))?;
+    let chosen = choose_reading(linear?, smooth);
+    if let Some(words) = chosen.assumptions.last() {
+        progress.note(words);
+    }
+    Ok(chosen)
+}
+
+/// Whether the model's reading of the drive between samples changes what the recordings hold:
+/// some recording at its own rate (a decimated one is read band-limited, [`rate`]) with a tip
+/// or a force channel.
+fn drive_reading_matters(fit_data: &[Prepared], validate: &Prepared) -> bool {
+    fit_data
+        .iter()
+        .chain(std::iter::once(validate))
+        .any(|d| d.cmd_identity_m.is_none() && (d.tip_m.is_some() || d.force_n.is_some()))
+}
+
+/// The diagnosis of the reading whose final model has the lower BIC on the fit recordings
+/// (`Σ_c n_c ln(RSS_c / n_c) + k ln n`, the noise of every channel profiled out, so the two
+/// readings' own whitening does not matter); the piecewise-linear one when the smooth
+/// reading's diagnosis failed. Both readings have the same parameters, so the BIC's penalty
+/// only counts the effects each one needed. The choice and its margin join the assumptions.
+fn choose_reading(linear: Diagnosis, smooth: Result<Diagnosis>) -> Diagnosis {
+    let smooth = match smooth {
+        Ok(s) => s,
+        Err(e) => {
+            let mut linear = linear;
+            linear.assumptions.push(format!(
+                "the drive read {} (the smooth reading failed: {e:#})",
+                linear.drive_reading.chosen.words()
+            ));
+            return linear;
+        }
+    };
+    let compared = vec![
+        (linear.drive_reading.chosen, linear.drive_reading.fit_bic),
+        (smooth.drive_reading.chosen, smooth.drive_reading.fit_bic),
+    ];
+    let (mut chosen, other) = if smooth.drive_reading.fit_bic < linear.drive_reading.fit_bic {
+        (smooth, linear)
+    } else {
+        (linear, smooth)
+    };
+    chosen.assumptions.push(format!(
+        "the drive read {} (BIC on the fit recordings {:.1} lower than read {})",
+        chosen.drive_reading.chosen.words(),
+        other.drive_reading.fit_bic - chosen.drive_reading.fit_bic,
+        other.drive_reading.chosen.words(),
+    ));
+    chosen.drive_reading.compared = compared;
+    chosen
+}
+
+/// One diagnosis with the drive read as `su.calib` says ([`diagnose`]).
+fn diagnose_with(
+    rig: &Rig,
+    fit_data: &[Prepared],
+    validate: &Prepared,
+    su: &Setup,
+    working_rate: rate::WorkingRate,
+    progress: &mut dyn crate::progress::Progress,
+) -> Result<Diagnosis> {
     let mut budget = Budget::for_samples(fit_data.iter().map(|d| d.cmd_m.len()).sum());
     let total_steps = 12 + 3;
     let cal = calibrate(rig, fit_data, &su.calib, &mut budget, progress, total_steps)?;
@@ -534,6 +655,7 @@ pub fn diagnose(
         sigma: cal.sigma,
         calib: &su.calib,
         model_freqs: &facts.freqs_hz,
+        drive_quantum_m: su.drive_quantum_m,
         trace: Default::default(),
     };
     // the reference of the first round: the calibrated nominal model
@@ -548,7 +670,7 @@ pub fn diagnose(
         location,
         val_nrmse_nominal,
         val_pred_nominal: vpred0,
-        basis: su.basis,
+        basis: su.basis.clone(),
         band_edge_hz: su.band_edge_hz,
         working_rate,
     };
@@ -709,6 +831,7 @@ fn conclude(
         .iter()
         .position(|o| o.passed && chosen.first() == Some(&o.cand_index));
     stage(progress, total_steps, total_steps, "done");
+    let bic = fit_bic(fit_data, &reference.rss, reference.fit.x.len());
     Diagnosis {
         calibration_unidentified: unidentified_calibration(ctx.calib, &cal),
         effect: chosen
@@ -737,10 +860,32 @@ fn conclude(
             .chain(rate::words(&earlier.working_rate))
             .collect(),
         working_rate: earlier.working_rate,
+        drive_reading: ReadingChoice {
+            chosen: ctx.calib.drive_reading,
+            fit_bic: bic,
+            compared: Vec::new(),
+        },
         honesty,
         mount_resonance,
         trace: ctx.trace.take(),
     }
+}
+
+/// BIC on the fit recordings of a model with `k` parameters and residual sums of squares `rss`
+/// per channel: `Σ_c n_c ln(RSS_c / n_c) + k ln n` ([`ReadingChoice::fit_bic`]).
+fn fit_bic(fit_data: &[Prepared], rss: &[f64; 3], k: usize) -> f64 {
+    let mut n_c = [0usize; 3];
+    for d in fit_data {
+        let len = d.cmd_m.len();
+        for (c, held) in [d.base_m.is_some(), d.tip_m.is_some(), d.force_n.is_some()]
+            .into_iter()
+            .enumerate()
+        {
+            n_c[c] += if held { len } else { 0 };
+        }
+    }
+    let n: usize = n_c.iter().sum();
+    crate::numeric::stats::neg2ll(rss, &n_c) + k as f64 * (n.max(1) as f64).ln()
 }
 
 /// The honest measurements of the final model ([`measure_final`]), after dropping, one at a

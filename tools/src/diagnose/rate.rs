@@ -297,7 +297,11 @@ const EMPHASIS_HALF: usize = 6;
 /// undone, so the coarser working rate adds (almost) no interpolation error
 /// ([`emphasised_error`]).
 pub fn emphasis_taps() -> Vec<f64> {
-    let m = EMPHASIS_HALF;
+    emphasis_taps_of(EMPHASIS_HALF)
+}
+
+/// [`emphasis_taps`] with half-length `m`.
+pub fn emphasis_taps_of(m: usize) -> Vec<f64> {
     // Taylor coefficients in x² (x = πf/r) of sin x / x, squared, then inverted
     let mut sinc = vec![0.0; m + 1];
     let mut fact = 1.0;
@@ -358,8 +362,12 @@ fn emphasised_error_of(taps: &[f64], f: f64) -> f64 {
 
 /// `x` (at the working rate) through the [`emphasis_taps`], ends held.
 pub fn emphasise(x: &[f64]) -> Vec<f64> {
-    let h = emphasis_taps();
-    let half = EMPHASIS_HALF;
+    emphasise_of(x, EMPHASIS_HALF)
+}
+
+/// [`emphasise`] with half-length `half`.
+pub fn emphasise_of(x: &[f64], half: usize) -> Vec<f64> {
+    let h = emphasis_taps_of(half);
     let n = x.len();
     (0..n)
         .map(|c| {

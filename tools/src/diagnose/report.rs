@@ -289,6 +289,11 @@ pub fn to_json(d: &Diagnosis) -> Value {
             "basis_functions": d.basis.as_ref().map(|b| b.n_basis),
             "in_band_modes_hz": d.basis.as_ref().map(|b| b.freqs_hz.clone()),
             "convergence_rel": d.basis.as_ref().map(|b| b.convergence_rel),
+            "drive_reading": {
+                "chosen": d.drive_reading.chosen,
+                "fit_bic": d.drive_reading.fit_bic,
+                "compared": d.drive_reading.compared.iter().map(|(r, b)| json!({"reading": r, "fit_bic": b})).collect::<Vec<_>>(),
+            },
         },
     })
 }

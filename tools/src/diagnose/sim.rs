@@ -102,7 +102,49 @@ pub struct Params {
     /// beam (`drives`); the alternative the 1-σ are widened by
     /// (`honesty::add_drive_interpolation_std`).
     pub smooth_drive: bool,
+    /// How the model reads a drive recorded at the recording's own rate between its samples
+    /// (a decimated one is always emphasised, [`super::rate`]); chosen by the recordings
+    /// (`super::diagnose`).
+    pub drive_reading: DriveReading,
 }
+
+/// How the model reads a drive sampled at the recording's own rate between its samples: the
+/// samples say nothing of the motion between them, and two simulators of the same rig can
+/// differ there (a drive that moves linearly between setpoint updates, a position loop far
+/// faster than the recording), so the recordings choose ([`super::diagnose`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DriveReading {
+    /// The piecewise-linear path through the samples: the beam is forced by the second
+    /// difference of the drive, sinc²(f/r) of a smooth motion's content (12 % low at 0.2 ×
+    /// the rate).
+    #[default]
+    PiecewiseLinear,
+    /// A smooth motion: the model's input is `x_k − δ²x_k / 12`
+    /// ([`super::rate::emphasise_of`] with half-length 1), so its second difference is the
+    /// fourth-order central difference of the acceleration, `(−x_{k−2} + 16 x_{k−1} − 30 x_k +
+    /// 16 x_{k+1} − x_{k+2}) / 12` (Fornberg, Math. Comp. 51, 1988): sinc²(f/r)(1 +
+    /// sin²(πf/r)/3) of the content (2.4 % low at 0.2 × the rate), a gain of at most 4/3 on
+    /// noise at the Nyquist rate (the fully band-limited reading's 13 taps, 1.8 ×, let a play
+    /// feed on an encoder's rounding, docs/diagnose.md, session 15).
+    FourthOrder,
+}
+
+impl DriveReading {
+    /// Both readings, the model's default first.
+    pub const ALL: [DriveReading; 2] = [DriveReading::PiecewiseLinear, DriveReading::FourthOrder];
+
+    /// Words for the report.
+    pub fn words(self) -> &'static str {
+        match self {
+            DriveReading::PiecewiseLinear => "piecewise linear between samples",
+            DriveReading::FourthOrder => "smooth between samples (fourth-order acceleration)",
+        }
+    }
+}
+
+/// Half-length of the emphasis of [`DriveReading::FourthOrder`] (3 taps).
+const FOURTH_ORDER_HALF: usize = 1;
 
 impl Params {
     /// Whether the beam model adds the tip-load shape to its basis
@@ -143,6 +185,7 @@ impl Default for Params {
             backlash_m: 0.0,
             cubic_root_stiffness_nm_per_rad3: 0.0,
             smooth_drive: false,
+            drive_reading: DriveReading::PiecewiseLinear,
         }
     }
 }
@@ -1078,7 +1121,7 @@ pub fn predict(
     }
     // 2. drive: the measured base when recorded; emphasised for the dynamics, as sampled for
     // positions
-    let (drive, drive_pos) = drives(d, &law, &y_servo, p.smooth_drive);
+    let (drive, drive_pos) = drives(d, &law, &y_servo, p.smooth_drive, p.drive_reading);
     let (drive, drive_pos): (&[f64], &[f64]) = (&drive, &drive_pos);
     // 3. backlash and mount between the drive and the beam root
     let (root, exact) = root_motion(p, drive, dt, c);
@@ -1168,15 +1211,29 @@ fn smooth_drive_of(
 /// instead of the piecewise-linear one. Only the 1-σ's model-form alternative uses it: as the
 /// model's own reading it let backlash feed on the boosted encoder content of two independent
 /// cases (docs/diagnose.md, session 15).
+///
+/// `reading` [`DriveReading::FourthOrder`] (and not `bandlimited`) emphasises a drive at the
+/// recording's own rate by the three-tap filter of that reading; the positions stay as sampled.
 fn drives<'a>(
     d: &'a Prepared,
     law: &Option<ServoLaw>,
     y_servo: &'a [f64],
     bandlimited: bool,
+    reading: DriveReading,
 ) -> (std::borrow::Cow<'a, [f64]>, std::borrow::Cow<'a, [f64]>) {
-    use super::rate::emphasise;
+    use super::rate::{emphasise, emphasise_of};
     use std::borrow::Cow;
     let emphasised = d.cmd_identity_m.is_some();
+    if reading == DriveReading::FourthOrder && !emphasised && !bandlimited {
+        let own: &[f64] = match &d.drive_m {
+            Some(m) => m,
+            None => y_servo,
+        };
+        return (
+            Cow::Owned(emphasise_of(own, FOURTH_ORDER_HALF)),
+            Cow::Borrowed(own),
+        );
+    }
     match (&d.drive_m, law) {
         (Some(m), _) => match &d.drive_identity_m {
             None if bandlimited => (Cow::Owned(emphasise(m)), Cow::Borrowed(m.as_slice())),
@@ -1599,42 +1656,75 @@ mod tests {
         // tip deflection's 10 Hz amplitude rises by 1/sinc²(0.1) = 1.033; a decimated drive
         // (already emphasised) is left alone
         let rig = rig();
-        let rate = 100.0;
+        let d = sine_drive(100.0, 10.0);
+        let smooth = Params {
+            smooth_drive: true,
+            ..Params::default()
+        };
+        let ratio = tip_amplitude(&rig, &smooth, &d, 10.0)
+            / tip_amplitude(&rig, &Params::default(), &d, 10.0);
+        let sinc = (0.1 * std::f64::consts::PI).sin() / (0.1 * std::f64::consts::PI);
+        assert!((ratio * sinc * sinc - 1.0).abs() < 3e-3, "{ratio}");
+        let decimated = super::super::rate::decimate_prepared(&d, 2);
+        let same = tip_amplitude(&rig, &smooth, &decimated, 10.0)
+            / tip_amplitude(&rig, &Params::default(), &decimated, 10.0);
+        assert!((same - 1.0).abs() < 1e-12, "{same}");
+    }
+
+    #[test]
+    fn the_fourth_order_reading_forces_the_beam_with_its_stencils_gain() {
+        // a 20 Hz sine base at 100 Hz: the three-tap emphasis x − δ²x/12 raises the forcing
+        // by 1 + sin²(0.2π)/3 = 1.115 over the piecewise-linear reading (sinc²(0.2) = 0.875
+        // of the motion → 0.976); a decimated drive (already emphasised) is left alone
+        let taps = super::super::rate::emphasis_taps_of(FOURTH_ORDER_HALF);
+        for (t, want) in taps.iter().zip([-1.0 / 12.0, 7.0 / 6.0, -1.0 / 12.0]) {
+            assert!((t - want).abs() < 1e-12, "{taps:?}");
+        }
+        let rig = rig();
+        let d = sine_drive(100.0, 20.0);
+        let fourth = Params {
+            drive_reading: DriveReading::FourthOrder,
+            ..Params::default()
+        };
+        let ratio = tip_amplitude(&rig, &fourth, &d, 20.0)
+            / tip_amplitude(&rig, &Params::default(), &d, 20.0);
+        let gain = 1.0 + (0.2 * std::f64::consts::PI).sin().powi(2) / 3.0;
+        assert!((ratio / gain - 1.0).abs() < 3e-3, "{ratio} against {gain}");
+        let decimated = super::super::rate::decimate_prepared(&d, 2);
+        let same = tip_amplitude(&rig, &fourth, &decimated, 20.0)
+            / tip_amplitude(&rig, &Params::default(), &decimated, 20.0);
+        assert!((same - 1.0).abs() < 1e-12, "{same}");
+    }
+
+    /// A base commanded along a sine of `f_hz` (1 cm, raised-cosine onset over 2 s: no
+    /// start-up transient), 8 s at `rate` Hz, its tip recorded.
+    fn sine_drive(rate: f64, f_hz: f64) -> Prepared {
         let n = (8.0 * rate) as usize;
-        let two_pi_f = 2.0 * std::f64::consts::PI * 10.0;
         let mut rec = crate::recording::Recording::with_uniform_time(n, rate);
-        // raised-cosine onset over 2 s: no start-up transient
         let y: Vec<f64> = (0..n)
             .map(|k| {
                 let t = k as f64 / rate;
                 let onset = 0.5 - 0.5 * (std::f64::consts::PI * (t / 2.0).min(1.0)).cos();
-                0.01 * onset * (two_pi_f * t).sin()
+                0.01 * onset * (2.0 * std::f64::consts::PI * f_hz * t).sin()
             })
             .collect();
         rec.base_cmd_m = Some(y.clone());
         rec.tip_pos_m = Some(y);
-        let amplitude = |d: &Prepared, smooth: bool| -> f64 {
-            let p = Params {
-                smooth_drive: smooth,
-                ..Params::default()
-            };
-            let tip = predict(&rig, &p, d, &mut None).unwrap().tip_m.unwrap();
-            let (mut c, mut s) = (0.0, 0.0);
-            let from = (3.0 / d.dt) as usize;
-            for k in from..tip.len() {
-                let (w, t) = (tip[k] - d.cmd_as_sampled()[k], k as f64 * d.dt);
-                c += w * (two_pi_f * t).cos();
-                s += w * (two_pi_f * t).sin();
-            }
-            c.hypot(s)
-        };
-        let d = Prepared::new("t", &rec).unwrap();
-        let ratio = amplitude(&d, true) / amplitude(&d, false);
-        let sinc = (0.1 * std::f64::consts::PI).sin() / (0.1 * std::f64::consts::PI);
-        assert!((ratio * sinc * sinc - 1.0).abs() < 3e-3, "{ratio}");
-        let decimated = super::super::rate::decimate_prepared(&d, 2);
-        let same = amplitude(&decimated, true) / amplitude(&decimated, false);
-        assert!((same - 1.0).abs() < 1e-12, "{same}");
+        Prepared::new("t", &rec).unwrap()
+    }
+
+    /// Amplitude (m) at `f_hz` of the predicted tip deflection after the first 3 s.
+    fn tip_amplitude(rig: &Rig, p: &Params, d: &Prepared, f_hz: f64) -> f64 {
+        let two_pi_f = 2.0 * std::f64::consts::PI * f_hz;
+        let tip = predict(rig, p, d, &mut None).unwrap().tip_m.unwrap();
+        let (mut c, mut s) = (0.0, 0.0);
+        let from = (3.0 / d.dt) as usize;
+        for k in from..tip.len() {
+            let (w, t) = (tip[k] - d.cmd_as_sampled()[k], k as f64 * d.dt);
+            c += w * (two_pi_f * t).cos();
+            s += w * (two_pi_f * t).sin();
+        }
+        c.hypot(s)
     }
 
     #[test]

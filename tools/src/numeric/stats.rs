@@ -16,6 +16,32 @@ pub fn neg2ll(rss: &[f64; 3], n: &[usize; 3]) -> f64 {
         .sum()
 }
 
+/// Quantisation step of the sampled signal `x` (its unit): the smallest non-zero increment
+/// between successive samples, when at least 95 % of the non-zero increments are whole
+/// multiples of it (to 5 % of a step), as an encoder's or a camera's counts are. `None` with
+/// fewer than 20 non-zero increments or increments on no such grid (continuous noise).
+/// Increments below 1e-12 of the largest |x| count as zero.
+pub fn quantum(x: &[f64]) -> Option<f64> {
+    let scale = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let steps: Vec<f64> = x
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|d| *d > 1e-12 * scale)
+        .collect();
+    if steps.len() < 20 {
+        return None;
+    }
+    let q = steps.iter().cloned().fold(f64::INFINITY, f64::min);
+    let on_grid = steps
+        .iter()
+        .filter(|d| {
+            let m = *d / q;
+            (m - m.round()).abs() <= 0.05
+        })
+        .count();
+    (on_grid as f64 >= 0.95 * steps.len() as f64).then_some(q)
+}
+
 /// Δ(−2 ln L) of `rss` against `rss0` (same samples): the likelihood-ratio statistic.
 pub fn delta_neg2ll(rss: &[f64; 3], rss0: &[f64; 3], n: &[usize; 3]) -> f64 {
     (0..3)
@@ -264,6 +290,22 @@ pub fn noise_variance(r: &[f64], order: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_encoders_counts_have_a_quantum_and_noise_has_none() {
+        // a 1 µm encoder on a slow sine, parsed from seven decimals
+        let counts: Vec<f64> = (0..2000)
+            .map(|k| (2e-3 * (k as f64 * 0.01).sin() * 1e6).round() * 1e-6)
+            .map(|v: f64| format!("{v:.7}").parse().unwrap())
+            .collect();
+        let q = quantum(&counts).expect("quantised");
+        assert!((q - 1e-6).abs() < 1e-9, "{q}");
+        // continuous: a sine with an irrational phase step has no grid
+        let smooth: Vec<f64> = (0..2000).map(|k| (k as f64 * 0.0123).sin()).collect();
+        assert_eq!(quantum(&smooth), None);
+        // too few moves to tell
+        assert_eq!(quantum(&[0.0, 1e-6, 2e-6]), None);
+    }
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
 
