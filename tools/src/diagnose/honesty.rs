@@ -20,7 +20,7 @@
 use super::effects::{Calib, Candidate};
 use super::fit::{self, FitResult, CHANNEL_NAMES};
 use super::select::{ljung_box, LJUNG_BOX_LAGS};
-use super::sim::Prepared;
+use super::sim::{DriveReading, Prepared};
 use crate::model::Rig;
 use crate::numeric::{
     lm,
@@ -122,8 +122,9 @@ pub fn add_basis_std(
 /// driven by that path at the recording's own rate, gets its content at sinc²(f/r) of its
 /// amplitude (3 % low at 0.1 × the rate). The smooth reading is the other standard one: the
 /// cubic spline's acceleration ([`super::sim::spline_accel`]) for the force, the band-limited
-/// path ([`super::rate::emphasise`]) for the beam. The final model is refitted (warm, at most
-/// `max_evaluations`) with it and each parameter's change is added in quadrature. It is what
+/// path ([`super::rate::emphasise`]) for the beam; when the recordings chose the smooth
+/// reading, the piecewise-linear one is the alternative. The final model is refitted (warm, at
+/// most `max_evaluations`) with it and each parameter's change is added in quadrature. It is what
 /// the carriage mass absorbs from motion near the Nyquist rate, and what a tip mass absorbs
 /// from the beam's forcing at its second mode (docs/diagnose.md, session 15): a bias shared by
 /// every recording, which neither the long-run σ nor the recordings' disagreement sees. Nothing
@@ -142,11 +143,14 @@ pub fn add_drive_interpolation_std(
     if !data.iter().any(|d| d.force_n.is_some() || own_rate_tip(d)) {
         return 0;
     }
-    let smooth = Calib {
-        smooth_drive: true,
-        ..calib.clone()
+    let other = match calib.drive_reading {
+        DriveReading::PiecewiseLinear => Calib {
+            smooth_drive: true,
+            ..calib.clone()
+        },
+        DriveReading::FourthOrder => calib.with_reading(DriveReading::PiecewiseLinear),
     };
-    add_alternative_std(rig, data, sigma, &smooth, set, f, max_evaluations)
+    add_alternative_std(rig, data, sigma, &other, set, f, max_evaluations)
 }
 
 /// Refits `f` (calibration + `set`) warm with the model-form alternative `alt` and adds each
