@@ -11,6 +11,11 @@
 //!   long-run 1-σ, parameter stability, residual statistics of the final model;
 //! - the commands (`diagnose`, `diagnose-proof`, `diagnose-lengths`) live in `crate::cli::diagnose`;
 //!
+//! Where a recording is analysed at its own rate with a tip or force channel, the whole
+//! diagnosis runs twice in parallel, the drive read piecewise linear and smooth between samples
+//! ([`sim::DriveReading`]), and the final model with the lower BIC on the fit recordings is
+//! kept ([`ReadingChoice`]).
+//!
 //! Every fit of one diagnosis draws on one budget of model evaluations
 //! ([`WORK_BUDGET_SAMPLE_EVALUATIONS`] divided by the fit recordings' samples), never on the
 //! clock, so the same recordings give the same answer on any machine.

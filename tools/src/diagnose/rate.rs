@@ -29,9 +29,10 @@
 //!    13-tap FIR ≈ 1/sinc², maximally flat at DC ([`emphasised_error`] < 1e-8 to 0.1 r, 1e-3
 //!    to 0.25 r), the recorded outputs are not; the command and drive as recorded stay the
 //!    base positions (a model without a servo loop, the absolute tip, the physics-free
-//!    correction). At the recording's own rate nothing is emphasised: tried in session 9, a
+//!    correction). At the recording's own rate this emphasis is not applied: tried in session 9, a
 //!    boosted command let a lightly damped position loop take a loose tip sensor's resonance
-//!    on tip-only 50 Hz recordings (docs/diagnose.md). (b) is what the emphasis leaves at r_w beyond the
+//!    on tip-only 50 Hz recordings (docs/diagnose.md); there the recordings choose between the
+//!    piecewise-linear reading and a milder three-tap one ([`super::sim::DriveReading`]). (b) is what the emphasis leaves at r_w beyond the
 //!    recording's own interpolation error. Measured without the emphasis: a 1000 Hz sensor-delay case (tip
 //!    content to 27 Hz) decimated to 200 Hz got a spurious 60 Hz `mount_resonance` (ζ 0.06, a
 //!    resonant boost that undoes the droop) worth 10 % of the noise power, as (b) predicted;
