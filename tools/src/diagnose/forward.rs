@@ -324,13 +324,7 @@ impl Ctx<'_> {
                 base.vres[best_channel].as_deref(),
                 r.vres[best_channel].as_deref(),
             ),
-            implausible: implausible(
-                cand,
-                &f,
-                off,
-                self.lowest_resolved_hz(),
-                self.drive_quantum_m,
-            ),
+            implausible: implausible(cand, &f, off, self.resolution()),
         });
         if !(whiteness.0 > LJUNG_BOX_CRITICAL) {
             fails.push(format!(
@@ -387,6 +381,12 @@ impl Ctx<'_> {
             + k as f64 * n_eff.max(1.0).ln();
         let delta_val = delta_neg2ll_effective(&r.vrss, &base.vrss, &base.vn, &r.tau_val);
         (delta_bic, delta_val)
+    }
+
+    /// What the recordings resolve, as [`implausible`] takes it: the lowest frequency
+    /// ([`Ctx::lowest_resolved_hz`]) and one count of the drive's position sensor.
+    pub(crate) fn resolution(&self) -> (f64, Option<f64>) {
+        (self.lowest_resolved_hz(), self.drive_quantum_m)
     }
 
     /// The lowest frequency (Hz) every fit recording resolves: 1 / the shortest one's duration.
@@ -763,6 +763,13 @@ fn fit_round(
     place_resonances(ctx, cands, chosen, &mut outs, budget);
     outs
 }
+
+/// Largest command → base gain (10 dB) of a position loop a drive is tuned to
+/// ([`super::sim::ServoLaw::peak_gain`]): closed-loop peaking is held below about 3 dB for
+/// margin and 6 dB is marginal (Ellis, *Control System Design Guide*, 4th ed., ch. 3); a fitted
+/// "loop" peaking 18 × (25 dB) at a loose tip sensor's 6.1 Hz, or 93 × at a crack's 7.2 Hz residual,
+/// was that resonance in a loop's clothes (docs/diagnose.md, session 18).
+pub const MAX_LOOP_PEAK_GAIN: f64 = 3.162;
 
 /// Damping ratio below which a fitted position loop is a resonance of the carriage motion (the
 /// calibration-matter rule treats it as a mount; a tuned drive's loop is damped at ζ ≳ 0.5).
@@ -1269,10 +1276,22 @@ fn implausible(
     cand: &Candidate,
     f: &FitResult,
     off: usize,
-    lowest_resolved_hz: f64,
-    drive_quantum_m: Option<f64>,
+    (lowest_resolved_hz, drive_quantum_m): (f64, Option<f64>),
 ) -> Vec<String> {
     let mut out = Vec::new();
+    if cand.id == crate::effect::Effect::ServoLag {
+        let mut p = super::sim::Params::default();
+        let values = &f.values[off..off + cand.params.len()];
+        super::effects::apply_effect(cand, values, &mut p);
+        let peak = super::sim::ServoLaw::of(&p).map_or(0.0, |law| law.peak_gain());
+        if peak > MAX_LOOP_PEAK_GAIN {
+            out.push(format!(
+                "a position loop whose command → base gain peaks {:.0} dB would ring at every move: no drive is tuned so (more than {:.0} dB); the resonance lies elsewhere on the path to the tip",
+                20.0 * peak.log10(),
+                20.0 * MAX_LOOP_PEAK_GAIN.log10()
+            ));
+        }
+    }
     if let (Some(i), Some(q)) = (
         cand.params.iter().position(|p| p.name == "backlash_m"),
         drive_quantum_m,
@@ -1413,12 +1432,12 @@ pub(crate) mod tests {
         c.params.truncate(1);
         c.params[0].name = "backlash_m";
         let sub_count = fitted(&c, &[1.8e-7]);
-        assert_eq!(implausible(&c, &sub_count, 0, 0.0, Some(1e-6)).len(), 1);
+        assert_eq!(implausible(&c, &sub_count, 0, (0.0, Some(1e-6))).len(), 1);
         // counts of 0.1 µm (a command written with seven decimals), or no counts at all
-        assert!(implausible(&c, &sub_count, 0, 0.0, Some(1e-7)).is_empty());
-        assert!(implausible(&c, &sub_count, 0, 0.0, None).is_empty());
+        assert!(implausible(&c, &sub_count, 0, (0.0, Some(1e-7))).is_empty());
+        assert!(implausible(&c, &sub_count, 0, (0.0, None)).is_empty());
         let real = fitted(&c, &[5e-5]);
-        assert!(implausible(&c, &real, 0, 0.0, Some(1e-6)).is_empty());
+        assert!(implausible(&c, &real, 0, (0.0, Some(1e-6))).is_empty());
     }
 
     /// A fit of `cand` with effect values `values` (no calibration parameters).
@@ -1624,8 +1643,8 @@ pub(crate) mod tests {
         // order 1: bandwidth, velocity feed-forward; 30 s recordings resolve 1/30 Hz
         let c = servo_candidate(1, 100.0);
         let slow = fitted(&c, &[1e-6, 0.96]);
-        assert_eq!(implausible(&c, &slow, 0, 1.0 / 30.0, None).len(), 1);
+        assert_eq!(implausible(&c, &slow, 0, (1.0 / 30.0, None)).len(), 1);
         let real = fitted(&c, &[5.0, 0.96]);
-        assert!(implausible(&c, &real, 0, 1.0 / 30.0, None).is_empty());
+        assert!(implausible(&c, &real, 0, (1.0 / 30.0, None)).is_empty());
     }
 }

@@ -181,6 +181,17 @@ pub struct ReadingChoice {
     pub compared: Vec<(sim::DriveReading, f64)>,
 }
 
+impl ReadingChoice {
+    /// The reading of `ctx` and the BIC of its final model `reference` ([`fit_bic`]).
+    fn of(ctx: &Ctx, reference: &forward::Reference) -> ReadingChoice {
+        ReadingChoice {
+            chosen: ctx.calib.drive_reading,
+            fit_bic: fit_bic(ctx.fit_data, &reference.rss, reference.fit.x.len()),
+            compared: Vec::new(),
+        }
+    }
+}
+
 /// The recorded signal of channel `c` (0 base position m, 1 tip deflection tip − drive m,
 /// 2 force N) that a residual is normalised by; empty when the channel is missing.
 pub fn channel_signal(d: &Prepared, c: usize) -> Vec<f64> {
@@ -836,7 +847,7 @@ fn conclude(
         .iter()
         .position(|o| o.passed && chosen.first() == Some(&o.cand_index));
     stage(progress, total_steps, total_steps, "done");
-    let bic = fit_bic(fit_data, &reference.rss, reference.fit.x.len());
+    let drive_reading = ReadingChoice::of(ctx, &reference);
     Diagnosis {
         calibration_unidentified: unidentified_calibration(ctx.calib, &cal),
         effect: chosen
@@ -865,11 +876,7 @@ fn conclude(
             .chain(rate::words(&earlier.working_rate))
             .collect(),
         working_rate: earlier.working_rate,
-        drive_reading: ReadingChoice {
-            chosen: ctx.calib.drive_reading,
-            fit_bic: bic,
-            compared: Vec::new(),
-        },
+        drive_reading,
         honesty,
         mount_resonance,
         trace: ctx.trace.take(),

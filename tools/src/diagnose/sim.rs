@@ -607,6 +607,47 @@ impl ServoLaw {
         })
     }
 
+    /// Largest gain |Y/R(jω)| of the command → base transfer function for a rigid load
+    /// (the struct's header; order 1 `(k_v s + ω)/(s + ω)`, orders 2–4
+    /// `(k_a s³ + K_d k_v s² + K_p s + K_i) / (τ s⁴ + s³ + K_d s² + K_p s + K_i)` with K_i = 0 and
+    /// τ = 0 below order 3 and 4), over 0.01–100 × ω on a log grid of 801 points. A tuned loop
+    /// peaks at 1–1.3; the plain second-order loop at ζ 0.3 at 1.75.
+    pub fn peak_gain(&self) -> f64 {
+        use nalgebra::Complex;
+        let w = self.omega;
+        let (z, al) = (
+            self.zeta,
+            if self.order >= 3 {
+                self.integral_ratio
+            } else {
+                0.0
+            },
+        );
+        let (kd, kp, ki) = (
+            (2.0 * z + al) * w,
+            (1.0 + 2.0 * z * al) * w * w,
+            al * w * w * w,
+        );
+        let tau = if self.order >= 4 {
+            self.force_lag_ratio / w
+        } else {
+            0.0
+        };
+        let (kv, ka) = self.ff;
+        (0..=800)
+            .map(|i| {
+                let s = Complex::new(0.0, w * 10f64.powf(-2.0 + i as f64 / 200.0));
+                let h = if self.order == 1 {
+                    (s * kv + w) / (s + w)
+                } else {
+                    (s * s * s * ka + s * s * (kd * kv) + s * kp + ki)
+                        / (s * s * s * s * tau + s * s * s + s * s * kd + s * kp + ki)
+                };
+                h.norm()
+            })
+            .fold(0.0, f64::max)
+    }
+
     /// Base position for the command `r` sampled every `dt` s (piecewise linear between
     /// samples), coupled to the beam of `c` when given (the loop force then acts on the
     /// carriage, eq. 5 in modal form), else for a rigid load.
@@ -1694,6 +1735,31 @@ mod tests {
         let same = tip_amplitude(&rig, &fourth, &decimated, 20.0)
             / tip_amplitude(&rig, &Params::default(), &decimated, 20.0);
         assert!((same - 1.0).abs() < 1e-12, "{same}");
+    }
+
+    #[test]
+    fn a_loops_peak_gain_is_its_resonance() {
+        let law = |order, zeta, ff, integral_ratio, force_lag_ratio| ServoLaw {
+            order,
+            omega: 2.0 * std::f64::consts::PI * 10.0,
+            zeta,
+            ff,
+            integral_ratio,
+            force_lag_ratio,
+        };
+        // the plain second-order loop: 1 / (2ζ√(1 − ζ²)) at ζ = 0.3
+        let z = 0.3f64;
+        let want = 1.0 / (2.0 * z * (1.0 - z * z).sqrt());
+        assert!((law(2, z, (0.0, 0.0), 0.0, 0.0).peak_gain() / want - 1.0).abs() < 1e-3);
+        // a first-order lag never exceeds 1; a tuned PID with full feed-forward stays near 1
+        assert!(law(1, 0.7, (0.5, 0.0), 0.0, 0.0).peak_gain() <= 1.0 + 1e-12);
+        assert!(law(4, 0.7, (1.0, 1.0), 0.3, 0.1).peak_gain() < 1.3);
+        // session 18's fitted "loop" at a loose tip sensor (bandwidth 5.09 Hz): 18 ×
+        let odd = ServoLaw {
+            omega: 2.0 * std::f64::consts::PI * 5.0911,
+            ..law(4, 0.6748, (0.8832, 0.0060), 0.2756, 0.9437)
+        };
+        assert!((odd.peak_gain() - 18.04).abs() < 0.1, "{}", odd.peak_gain());
     }
 
     /// A base commanded along a sine of `f_hz` (1 cm, raised-cosine onset over 2 s: no
