@@ -67,6 +67,8 @@ impl Budget {
 pub(crate) struct Reference {
     pub(crate) fit: FitResult,
     pub(crate) rss: [f64; 3],
+    /// Samples per channel on the fit recordings (of `rss`).
+    pub(crate) n: [usize; 3],
     pub(crate) vres: [Option<Vec<f64>>; 3],
     pub(crate) vrss: [f64; 3],
     pub(crate) vn: [usize; 3],
@@ -148,7 +150,7 @@ impl Ctx<'_> {
             .zip(&preds)
             .map(|(d, p)| residuals(d, p))
             .collect();
-        let (rss, _) = channel_rss(&res);
+        let (rss, n) = channel_rss(&res);
         let vdata = std::slice::from_ref(self.validate);
         let vprob = fit::Problem::new(self.rig, vdata, self.sigma, self.calib, set, f.x.clone());
         let vpred = vprob.predictions(&f.x)?.remove(0);
@@ -193,6 +195,7 @@ impl Ctx<'_> {
             tau_val,
             fit: f,
             rss,
+            n,
             vres,
             vrss,
             vn,

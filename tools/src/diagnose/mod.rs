@@ -169,7 +169,7 @@ pub struct Diagnosis {
 }
 
 /// How the model read the drive between samples ([`sim::DriveReading`]) and the BIC that chose it.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug)]
 pub struct ReadingChoice {
     /// The reading of this diagnosis.
     pub chosen: sim::DriveReading,
@@ -186,7 +186,7 @@ impl ReadingChoice {
     fn of(ctx: &Ctx, reference: &forward::Reference) -> ReadingChoice {
         ReadingChoice {
             chosen: ctx.calib.drive_reading,
-            fit_bic: fit_bic(ctx.fit_data, &reference.rss, reference.fit.x.len()),
+            fit_bic: fit_bic(reference),
             compared: Vec::new(),
         }
     }
@@ -258,8 +258,14 @@ fn drive_quantum_m(fit_data: &[Prepared]) -> Option<f64> {
 }
 
 /// Refuses recordings without information or that the nominal model cannot simulate; the band
-/// edge, the converged Galerkin basis and the calibration parameters.
-fn setup(rig: &Rig, fit_data: &[Prepared], validate: &Prepared) -> Result<Setup> {
+/// edge, the converged Galerkin basis and the calibration parameters; `drive_quantum_m` (of the
+/// recordings as loaded, [`drive_quantum_m`]) is kept for the guard.
+fn setup(
+    rig: &Rig,
+    fit_data: &[Prepared],
+    validate: &Prepared,
+    drive_quantum_m: Option<f64>,
+) -> Result<Setup> {
     if fit_data.is_empty() {
         bail!("at least one --fit recording is needed");
     }
@@ -292,7 +298,7 @@ fn setup(rig: &Rig, fit_data: &[Prepared], validate: &Prepared) -> Result<Setup>
         band_edge_hz,
         basis,
         calib,
-        drive_quantum_m: None,
+        drive_quantum_m,
     })
 }
 
@@ -565,10 +571,7 @@ pub fn diagnose(
         progress.note(&w);
     }
     let (fit_data, validate) = (&fit_w[..], &val_w);
-    let su = Setup {
-        drive_quantum_m,
-        ..setup(rig, fit_data, validate)?
-    };
+    let su = setup(rig, fit_data, validate, drive_quantum_m)?;
     if !drive_reading_matters(fit_data, validate) {
         return diagnose_with(rig, fit_data, validate, &su, working_rate, progress);
     }
@@ -883,21 +886,12 @@ fn conclude(
     }
 }
 
-/// BIC on the fit recordings of a model with `k` parameters and residual sums of squares `rss`
-/// per channel: `Σ_c n_c ln(RSS_c / n_c) + k ln n` ([`ReadingChoice::fit_bic`]).
-fn fit_bic(fit_data: &[Prepared], rss: &[f64; 3], k: usize) -> f64 {
-    let mut n_c = [0usize; 3];
-    for d in fit_data {
-        let len = d.cmd_m.len();
-        for (c, held) in [d.base_m.is_some(), d.tip_m.is_some(), d.force_n.is_some()]
-            .into_iter()
-            .enumerate()
-        {
-            n_c[c] += if held { len } else { 0 };
-        }
-    }
-    let n: usize = n_c.iter().sum();
-    crate::numeric::stats::neg2ll(rss, &n_c) + k as f64 * (n.max(1) as f64).ln()
+/// BIC on the fit recordings of `reference`: `Σ_c n_c ln(RSS_c / n_c) + k ln n`
+/// ([`ReadingChoice::fit_bic`]).
+fn fit_bic(reference: &forward::Reference) -> f64 {
+    let n: usize = reference.n.iter().sum();
+    crate::numeric::stats::neg2ll(&reference.rss, &reference.n)
+        + reference.fit.x.len() as f64 * (n.max(1) as f64).ln()
 }
 
 /// The honest measurements of the final model ([`measure_final`]), after dropping, one at a
