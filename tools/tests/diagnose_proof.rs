@@ -120,9 +120,32 @@ fn bad_input_is_a_clear_error() {
     .unwrap_err()
     .to_string();
     assert!(e.contains("no information"), "{e}");
+    let beam_rig = Rig::from_toml_file("../rigs/paper.toml").unwrap();
+    // a tip sensor that records noise only: the model explains nothing of it, with or without
+    // the catalogue's effects
+    let mut noise = rec.clone();
+    let mut state = 12345u64;
+    let mut uniform = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let steps: Vec<f64> = (0..n).map(|k| 0.05 * ((k / 250) % 2) as f64).collect();
+    noise.base_cmd_m = Some(steps.clone());
+    noise.tip_pos_m = Some(steps.iter().map(|x| x + 1e-3 * uniform()).collect());
+    let s = Prepared::new("noise.csv", &noise).unwrap();
+    let e = diagnose(
+        &beam_rig,
+        std::slice::from_ref(&s),
+        &s,
+        &mut beamtools::progress::Silent,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("no information"), "{e}");
     // positions in millimetres: a 100 mm move written as 100 "m", and a tip 3 "m" off the base
     // of a 0.5 m beam
-    let beam_rig = Rig::from_toml_file("../rigs/paper.toml").unwrap();
     let mut mm = rec.clone();
     mm.base_cmd_m = Some(ramp.iter().map(|x| x * 1e3).collect());
     mm.tip_pos_m = mm.base_cmd_m.clone();
