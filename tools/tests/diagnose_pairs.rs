@@ -112,3 +112,34 @@ fn a_play_the_nominal_model_explains_nothing_of_is_still_found() {
         "{assumptions}"
     );
 }
+
+/// A small play beside a small tip mass, tip only, noise ×2 (held-out case 285060 of session
+/// 19): the play alone removes 42 % of the structured tip residual and the tip mass the rest,
+/// so the play failed condition 6 ("it does not account for it") and nothing was named. Read
+/// for a pair, the play goes in on trial, the tip mass then passes every guard, and together
+/// they remove all of the structure: both are named.
+#[test]
+fn the_first_of_a_pair_that_leaves_the_seconds_share_is_named_with_it() {
+    let opts = TruthOptions {
+        duration_s: 30.0,
+        noise_scale: 2.0,
+        ..Default::default()
+    };
+    let (j, truth) = common::diagnose_generated_with("backlash+tip_mass", 285060, &opts);
+    assert_eq!(
+        common::named_effects(&j),
+        ["backlash", "tip_mass"],
+        "{}",
+        j["effects"]
+    );
+    let play = j["effects"][0]["parameters"]["backlash_m"]
+        .as_f64()
+        .unwrap();
+    let play_true = truth["backlash_m"].as_f64().unwrap();
+    assert!(
+        (play - play_true).abs() < 0.2 * play_true,
+        "{play} vs {play_true}"
+    );
+    let words = j["effects"][0]["words"].to_string() + &j["candidates"].to_string();
+    assert!(words.contains("together they remove"), "{words}");
+}

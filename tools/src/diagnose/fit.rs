@@ -238,6 +238,25 @@ impl<'a> Problem<'a> {
             + usize::from(d.force_n.is_some()))
     }
 
+    /// Per parameter, whether it has no effect at and around `x`: a modal damping ratio beyond
+    /// the range the model applies ([`super::effects::ZETA_APPLIED_RANGE`], clamped in
+    /// [`super::effects::apply_calibration`]) by more than a finite-difference step, whose
+    /// Jacobian column is therefore exactly zero (a mode the recordings carry nothing of, whose
+    /// damping the calibration sent off the range). The minimiser skips evaluating those columns.
+    fn inert_at(&self, x: &DVector<f64>) -> Vec<bool> {
+        let (lo, hi) = super::effects::ZETA_APPLIED_RANGE;
+        let margin = 1e-2;
+        self.defs()
+            .iter()
+            .enumerate()
+            .map(|(i, d)| {
+                let v = d.value(x[i]);
+                d.name.starts_with("zeta_mode")
+                    && (v > hi * (1.0 + margin) || v < lo * (1.0 - margin))
+            })
+            .collect()
+    }
+
     /// Finite-difference steps (representation units) at the start point.
     fn steps(&self) -> Vec<f64> {
         self.defs()
@@ -560,6 +579,7 @@ fn run_starts<'a>(
             patience: 30,
             ftol: 1e-8,
             xtol: 1e-8,
+            inert: pb.inert_at(x0),
             ..LmOptions::new(pb.steps())
         };
         let residual = |x: &DVector<f64>| (Instant::now() < safety_net).then(|| pb.whitened(x));

@@ -316,6 +316,10 @@ impl Ctx<'_> {
                 .map_or(0.0, |r| structured_power(r, LJUNG_BOX_LAGS))
         };
         let allowance = allowance(base, best_channel, k);
+        let share = structure_explained(
+            base.vres[best_channel].as_deref(),
+            r.vres[best_channel].as_deref(),
+        );
         let mut fails = guard(&Evidence {
             delta_bic,
             delta_val,
@@ -323,10 +327,7 @@ impl Ctx<'_> {
             allowance,
             structured: Some((sp(&base.vres[best_channel]), sp(&r.vres[best_channel]))),
             significance,
-            structure_explained: structure_explained(
-                base.vres[best_channel].as_deref(),
-                r.vres[best_channel].as_deref(),
-            ),
+            structure_explained: share,
             implausible: implausible(cand, &f, off, self.resolution()),
         });
         if !(whiteness.0 > LJUNG_BOX_CRITICAL) {
@@ -338,6 +339,7 @@ impl Ctx<'_> {
         fails.extend(self.calibration_matter(cand, &f, off));
         fails.extend(self.below_model_accuracy(set, &f));
         let passed = fails.is_empty();
+        let partial = fails.len() == 1 && share.is_some_and(|f| !(f >= MIN_STRUCTURE_EXPLAINED));
         CandidateOutcome {
             id: cand.id,
             words: cand.words.to_string(),
@@ -363,6 +365,7 @@ impl Ctx<'_> {
             allowance,
             unplaced: None,
             look_alike: None,
+            partial,
         }
     }
 
@@ -666,6 +669,7 @@ fn hz_text(f: f64) -> String {
 }
 
 /// What forward selection ends with.
+#[derive(Clone)]
 pub(crate) struct Selection {
     /// Catalogue indices of the chosen effects, in order.
     pub(crate) chosen: Vec<usize>,
@@ -953,69 +957,153 @@ pub(crate) fn select_forward(
         rounds: Vec::new(),
         step,
     };
-    for round in 0..MAX_EFFECTS {
-        let mut pool = pool_of(cands, &sel.chosen);
-        if round > 0 && budget.fraction_spent() > 0.8 {
-            pool.retain(|&i| showed_evidence_last_round(&sel, i));
-        }
-        if pool.is_empty() {
+    let mut round = 0;
+    while round < MAX_EFFECTS {
+        let Some((mut outs, pick)) = play_round(ctx, cands, &mut sel, budget, progress, round)
+        else {
             break;
-        }
-        refresh_reference(
-            ctx,
-            cands,
-            &sel.chosen,
-            &mut sel.reference,
-            budget,
-            pool.len(),
-            round,
-        );
-        let mut outs = fit_round(
-            ctx,
-            cands,
-            &sel.chosen,
-            &pool,
-            &sel.reference,
-            budget,
-            progress,
-            &mut sel.step,
-            round,
-        );
-        super::lookalike::within_partner_form(ctx, cands, &mut sel, &mut outs);
-        let pick = backward_check(
-            ctx,
-            cands,
-            &sel.chosen,
-            &mut outs,
-            &mut sel.reference,
-            budget,
-            pool.len(),
-        );
-        for o in &outs {
-            ctx.trace(format!(
-                "round {} {}: ΔBIC {:.1} Δval {:.1} reduction {:.3} allowance {:.3} val NRMSE {:.4?} → {:.4?} {}",
-                round + 1,
-                o.id,
-                o.delta_bic,
-                o.delta_val,
-                o.reduction,
-                o.allowance,
-                o.nrmse_before,
-                o.val_nrmse,
-                o.reason
-            ));
-        }
-        if let Some(s) = pick {
-            if !accept(ctx, cands, &mut sel, &mut outs, s) {
+        };
+        match pick {
+            Some(s) => {
+                if !accept(ctx, cands, &mut sel, &mut outs, s) {
+                    break;
+                }
+                sel.rounds.push(outs);
+                round += 1;
+            }
+            None if round + 1 < MAX_EFFECTS
+                && pair_step(ctx, cands, &mut sel, &mut outs, budget, progress, round) =>
+            {
+                round += 2;
+            }
+            None => {
+                sel.rounds.push(outs);
                 break;
             }
         }
-        sel.rounds.push(outs);
-        if pick.is_none() {
-            break;
-        }
     }
     sel
+}
+
+/// One round of forward selection against `sel`'s model: every candidate of the pool fitted
+/// and judged, the look-alikes within a partner's form failed, the backward check done.
+/// Returns the round's outcomes and the pick (`None` when the pool is empty).
+fn play_round(
+    ctx: &Ctx,
+    cands: &[Candidate],
+    sel: &mut Selection,
+    budget: &mut Budget,
+    progress: &mut dyn Progress,
+    round: usize,
+) -> Option<(Vec<CandidateOutcome>, Option<usize>)> {
+    let mut pool = pool_of(cands, &sel.chosen);
+    if round > 0 && budget.fraction_spent() > 0.8 {
+        pool.retain(|&i| showed_evidence_last_round(sel, i));
+    }
+    if pool.is_empty() {
+        return None;
+    }
+    let (chosen, n) = (sel.chosen.clone(), pool.len());
+    refresh_reference(ctx, cands, &chosen, &mut sel.reference, budget, n, round);
+    let mut outs = fit_round(
+        ctx,
+        cands,
+        &chosen,
+        &pool,
+        &sel.reference,
+        budget,
+        progress,
+        &mut sel.step,
+        round,
+    );
+    super::lookalike::within_partner_form(ctx, cands, sel, &mut outs);
+    let pick = backward_check(
+        ctx,
+        cands,
+        &chosen,
+        &mut outs,
+        &mut sel.reference,
+        budget,
+        n,
+    );
+    for o in &outs {
+        ctx.trace(format!(
+            "round {} {}: ΔBIC {:.1} Δval {:.1} reduction {:.3} allowance {:.3} val NRMSE {:.4?} → {:.4?} {}",
+            round + 1,
+            o.id,
+            o.delta_bic,
+            o.delta_val,
+            o.reduction,
+            o.allowance,
+            o.nrmse_before,
+            o.val_nrmse,
+            o.reason
+        ));
+    }
+    Some((outs, pick))
+}
+
+/// Condition 6 of [`super::select`] read for a pair: when no candidate of round `round`
+/// (outcomes `outs`) passes, but the best one fails only for removing part, not most, of the
+/// structured residual ([`CandidateOutcome::partial`]) — the first effect of a pair leaves the
+/// second's share of that structure — it is added on trial and the next round played (not a
+/// resonance: its placement, condition 8, is tested only on passing). The pair
+/// is named when an effect of that round passes every guard against the model with the first
+/// (its own condition 6 included), and the two together remove at least
+/// [`MIN_STRUCTURE_EXPLAINED`] of the structure the first round's model left on the first's
+/// channel: the named explanation accounts for most of it, as condition 6 asks of one effect.
+/// Otherwise `sel` is restored (the budget spent on the trial stays spent). Returns whether
+/// the pair was named (both rounds then in `sel`).
+fn pair_step(
+    ctx: &Ctx,
+    cands: &[Candidate],
+    sel: &mut Selection,
+    outs: &mut [CandidateOutcome],
+    budget: &mut Budget,
+    progress: &mut dyn Progress,
+    round: usize,
+) -> bool {
+    // a resonance is placed (condition 8) only when it passes, so none is tried here
+    let Some(t) = outs
+        .iter()
+        .position(|o| o.partial && !resonance_to_place(&cands[o.cand_index], o))
+    else {
+        return false;
+    };
+    let saved = sel.clone();
+    let (before, c, first) = (sel.reference.clone(), outs[t].best_channel, outs[t].id);
+    if !accept(ctx, cands, sel, outs, t) {
+        *sel = saved;
+        return false;
+    }
+    sel.rounds.push(outs.to_vec());
+    let joint = match play_round(ctx, cands, sel, budget, progress, round + 1) {
+        Some((mut next, Some(s))) => {
+            let second = next[s].id;
+            let ok = accept(ctx, cands, sel, &mut next, s);
+            let share =
+                structure_explained(before.vres[c].as_deref(), sel.reference.vres[c].as_deref())
+                    .unwrap_or(f64::NAN);
+            sel.rounds.push(next);
+            (ok && share >= MIN_STRUCTURE_EXPLAINED).then_some((second, share))
+        }
+        _ => None,
+    };
+    ctx.trace(format!("pair step: {first} on trial, then {joint:?}"));
+    let Some((second, share)) = joint else {
+        *sel = saved;
+        return false;
+    };
+    let words = format!(
+        "passes every guard beside {second}: alone it removes part of the structured residual of {}, together they remove {:.0} %",
+        super::fit::CHANNEL_NAMES[c],
+        100.0 * share
+    );
+    for o in [&mut sel.rounds[round][t], &mut sel.outcomes[round]] {
+        o.passed = true;
+        o.reason = words.clone();
+    }
+    true
 }
 
 /// Whether candidate `i` showed evidence of its own in the last round of `sel`
@@ -1487,6 +1575,7 @@ pub(crate) mod tests {
             },
             unplaced: None,
             look_alike: None,
+            partial: false,
         }
     }
 

@@ -87,6 +87,10 @@ pub struct CandidateOutcome {
     pub unplaced: Option<String>,
     /// The effect the recordings cannot tell this one from, if so ([`lookalike`]).
     pub look_alike: Option<lookalike::LookAlike>,
+    /// It failed only condition 6 of [`select`]: it removes part, not most, of the structured
+    /// residual — what the first effect of a pair does beside the second ([`forward`]'s
+    /// pair step).
+    pub partial: bool,
 }
 
 impl CandidateOutcome {
