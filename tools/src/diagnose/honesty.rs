@@ -484,6 +484,29 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_base_assumption_leaves_a_latency_its_look_alike_to_the_lookalike_check() {
+        // calibration of 2 parameters, then a tip mass (1) and a tip latency (1): only the
+        // latency's parameter is the loop's alternative explanation
+        let param = |id, name| {
+            let mut c = crate::diagnose::effects::servo_candidate(1, 100.0);
+            c.id = id;
+            c.params.truncate(1);
+            c.params[0].name = name;
+            c
+        };
+        let calib = Calib {
+            defs: crate::diagnose::effects::servo_candidate(1, 100.0).params,
+            n_basis: 4,
+            smooth_drive: false,
+            drive_reading: crate::diagnose::sim::DriveReading::PiecewiseLinear,
+        };
+        let tip = param(crate::effect::Effect::TipMass, "tip_mass_kg");
+        let delay = param(crate::effect::Effect::SensorDelay, "sensor_delay_s");
+        assert_eq!(look_alike_params(&calib, &[&tip, &delay]), vec![3]);
+        assert!(look_alike_params(&calib, &[&tip]).is_empty());
+    }
+
+    #[test]
     fn spread_is_the_standard_error_of_the_per_recording_mean() {
         // two recordings: |θ₁ − θ₂|/2; three: s/√3; a parameter they agree on: 0
         let two = spread_std(&[vec![1.0, 5.0], vec![3.0, 5.0]]);
