@@ -1,7 +1,9 @@
 //! Forward selection ([`select_forward`]): each round fits every remaining candidate jointly
 //! with the calibration and the effects already chosen, applies every guard
 //! ([`super::select::guard`] and the calibration-matter rules) against the current model, adds
-//! the best that passes and stops when none does (at most [`MAX_EFFECTS`]).
+//! the best that passes and stops when none does (at most [`MAX_EFFECTS`]). When none passes
+//! but the best fails only for removing part of the structured residual, it is tried as the
+//! first of a pair ([`pair_step`]).
 //!
 //! Every fit draws on one [`Budget`] of model evaluations, never on the clock, so the same
 //! recordings give the same answer on any machine.

@@ -42,7 +42,10 @@
 //!    first-difference noise estimate of [`super::unexplained::difference_noise`] (the smaller
 //!    of the two residuals' estimates) — falls by at least [`MIN_STRUCTURE_EXPLAINED`] (most of
 //!    it). An effect that removes a sliver of a large structured residual is not what that
-//!    residual is; the residual is reported unexplained instead of being given its name;
+//!    residual is; the residual is reported unexplained instead of being given its name. In
+//!    `diagnose` the explanation may be a pair: an effect failing only this condition goes in on
+//!    trial when it is a round's best, and is named with the next round's passing effect if
+//!    the two together remove most of that structure (`forward::pair_step`);
 //! 7. **physically possible** (recordings): no parameter sits on the wrong side of a physical
 //!    limit by more than 2 σ (a negative sensor delay — the sensor reporting before the motion —,
 //!    or negative Coulomb friction), and no parameter sits at a search limit of
