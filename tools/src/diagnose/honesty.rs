@@ -184,24 +184,6 @@ fn add_alternative_std(
     g.evaluations
 }
 
-/// Indices (in the vector of `calib` + `set`) of the parameters of every effect of `set` whose
-/// look-alike without `base_pos_m` is the loop itself (a tip-sensor latency): the loop added by
-/// [`add_base_assumption_std`] is then that effect's alternative explanation, which
-/// [`super::lookalike`] settles or reports ("indistinguishable from"); counted in its 1-σ as
-/// well, it made the latency "not identified" and the diagnosis `none` where a lag of 2.0 ms was
-/// fitted to 3 µs (held-out 294500, 1000 Hz, tip only: 1.997 ± 1.26 ms).
-fn look_alike_params(calib: &Calib, set: &[&Candidate]) -> Vec<usize> {
-    let mut off = calib.len();
-    let mut own = Vec::new();
-    for c in set {
-        if c.id.look_alike(false) == Some(crate::effect::Effect::ServoLag) {
-            own.extend(off..off + c.params.len());
-        }
-        off += c.params.len();
-    }
-    own
-}
-
 /// Residual statistics of one channel (module docs, 3).
 #[derive(Clone, Debug, Serialize)]
 pub struct ResidualStats {
@@ -413,6 +395,24 @@ pub fn add_base_assumption_std(
         }
     }
     g.evaluations
+}
+
+/// Indices (in the vector of `calib` + `set`) of the parameters of every effect of `set` whose
+/// look-alike without `base_pos_m` is the loop itself (a tip-sensor latency): the loop added by
+/// [`add_base_assumption_std`] is then that effect's alternative explanation, which
+/// [`super::lookalike`] settles or reports ("indistinguishable from"); counted in its 1-σ as
+/// well, it made the latency "not identified" and the diagnosis `none` where a lag of 2.0 ms was
+/// fitted to 3 µs (held-out 294500, 1000 Hz, tip only: 1.997 ± 1.26 ms).
+fn look_alike_params(calib: &Calib, set: &[&Candidate]) -> Vec<usize> {
+    let mut off = calib.len();
+    let mut own = Vec::new();
+    for c in set {
+        if c.id.look_alike(false) == Some(crate::effect::Effect::ServoLag) {
+            own.extend(off..off + c.params.len());
+        }
+        off += c.params.len();
+    }
+    own
 }
 
 /// The catalogue's first-order `servo_lag` (`cands`) started at the identity (velocity
