@@ -379,12 +379,13 @@ fn effects_words(d: &Diagnosis) -> String {
 fn unexplained_words(d: &Diagnosis) -> String {
     match &d.unexplained {
         Some(u) => format!(
-            "\nUNEXPLAINED: {} keeps a structured residual {:.1}× its noise (rms {:.1}× the noise, NRMSE {:.4}, Ljung–Box {:.0}) in {:.2}–{:.2} Hz{}; windows {:?}; correlation with commanded velocity {:+.2}, acceleration {:+.2}{}\n",
+            "\nUNEXPLAINED: {} keeps a structured residual {:.1}× its noise (rms {:.1}× the noise, NRMSE {:.4}, Ljung–Box {:.0}, mean offset {:.3e}) in {:.2}–{:.2} Hz{}; windows {:?}; correlation with commanded velocity {:+.2}, acceleration {:+.2}{}\n",
             u.channel,
             u.structured_over_noise,
             u.residual_over_noise,
             u.nrmse,
             u.ljung_box_q,
+            u.offset,
             u.band_hz[0],
             u.band_hz[1],
             u.nearest_model_mode_hz

@@ -15,6 +15,11 @@
 //!    first-difference estimator σ̂² = mean((r_{k+1} − r_k)²)/2, von Neumann 1941,
 //!    [`difference_noise`], counts structure near the Nyquist rate as noise.)
 //!
+//! Its *structure* is either time structure (the Ljung–Box test above) or a **zero offset**:
+//! a residual mean at least the noise rms (a t statistic of at least √n), e.g. a tip sensor
+//! whose zero drifted between recordings, or a force bias. The mean counts in its rms (the
+//! offset is part of what the model leaves), never in its time structure.
+//!
 //! It is located, never named: the channel, the band holding half its spectral power around
 //! the spectral peak, the 1 s windows where its rms is over twice the median window rms, the
 //! NRMSE against the channel's signal, the nearest model mode and the correlation with the
@@ -44,8 +49,10 @@ pub struct Unexplained {
     pub windows: Vec<[f64; 2]>,
     /// rms(residual) / rms(signal − mean) on the validation recording.
     pub nrmse: f64,
-    /// rms of the residual over the estimated noise rms.
+    /// rms of the residual (its mean included) over the estimated noise rms.
     pub residual_over_noise: f64,
+    /// Mean of the residual (the channel's unit): a zero offset the model does not have.
+    pub offset: f64,
     /// Structured rms √(rms² − σ̂²) over the noise rms σ̂.
     pub structured_over_noise: f64,
     /// Ljung–Box Q (20 lags) of the residual.
@@ -166,7 +173,7 @@ fn locate_channel(d: &Prepared, c: usize, r: &[f64], model_freqs: &[f64]) -> Opt
     let noise = noise_variance(r, LJUNG_BOX_LAGS).sqrt();
     let m = r.iter().sum::<f64>() / r.len() as f64;
     let centred: Vec<f64> = r.iter().map(|x| x - m).collect();
-    let e = rms(&centred);
+    let e = rms(r);
     let structured = (e * e - noise * noise).max(0.0).sqrt();
     let ratio = if noise > 0.0 {
         structured / noise
@@ -174,7 +181,8 @@ fn locate_channel(d: &Prepared, c: usize, r: &[f64], model_freqs: &[f64]) -> Opt
         f64::INFINITY
     };
     let q = ljung_box(r, LJUNG_BOX_LAGS);
-    if !(q > LJUNG_BOX_CRITICAL && ratio >= STRUCTURE_OVER_NOISE) {
+    let offset_shows = m.abs() >= noise && m.abs() > 0.0;
+    if !((q > LJUNG_BOX_CRITICAL || offset_shows) && ratio >= STRUCTURE_OVER_NOISE) {
         return None;
     }
     let sig = super::channel_signal(d, c);
@@ -193,6 +201,7 @@ fn locate_channel(d: &Prepared, c: usize, r: &[f64], model_freqs: &[f64]) -> Opt
         windows: windows_of(&centred, &d.time_s, rate),
         nrmse: e / ss.max(1e-300),
         residual_over_noise: e / noise.max(1e-300),
+        offset: m,
         structured_over_noise: ratio,
         ljung_box_q: q,
         nearest_model_mode_hz: nearest,
@@ -231,6 +240,32 @@ mod tests {
     use super::*;
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
+
+    #[test]
+    fn a_zero_offset_well_above_the_noise_is_unexplained_and_white_noise_is_not() {
+        // a tip sensor whose zero moved by 3 noise rms between recordings: white in time, yet
+        // the model leaves it; a tenth of that is not "well above noise"
+        let (n, rate) = (3000, 100.0);
+        let mut rec = crate::recording::Recording::with_uniform_time(n, rate);
+        let cmd: Vec<f64> = (0..n).map(|k| 0.1 * (k as f64 / 500.0).sin()).collect();
+        rec.base_cmd_m = Some(cmd.clone());
+        rec.tip_pos_m = Some(cmd);
+        let d = Prepared::new("t", &rec).unwrap();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let noise = Normal::new(0.0, 1e-4).unwrap();
+        let white: Vec<f64> = (0..n).map(|_| noise.sample(&mut rng)).collect();
+        let with = |offset: f64| -> [Option<Vec<f64>>; 3] {
+            [None, Some(white.iter().map(|v| v + offset).collect()), None]
+        };
+        let pred = Prediction::default();
+        assert!(assess(&d, &with(0.0), &pred, &[]).is_none());
+        assert!(assess(&d, &with(3e-5), &pred, &[]).is_none());
+        let u = assess(&d, &with(3e-4), &pred, &[]).expect("an offset of 3 noise rms");
+        assert_eq!(u.channel, "tip_pos_m");
+        assert!((u.offset - 3e-4).abs() < 1e-5, "{}", u.offset);
+        assert!(u.ljung_box_q < LJUNG_BOX_CRITICAL, "white in time");
+        assert!((u.residual_over_noise - 10f64.sqrt()).abs() < 0.2);
+    }
 
     #[test]
     fn difference_noise_recovers_white_noise_and_ignores_slow_structure() {
