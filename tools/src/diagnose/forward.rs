@@ -313,21 +313,22 @@ impl Ctx<'_> {
         let (best_channel, reduction) = credited_reduction(cand.id, &r.vrss, &base.vrss, &base.vn);
         let whiteness = (q_of(&base.vres[best_channel]), q_of(&r.vres[best_channel]));
         let significance = significance(cand, &f, off);
-        let sp = |v: &Option<Vec<f64>>| {
-            v.as_ref()
-                .map_or(0.0, |r| structured_power(r, LJUNG_BOX_LAGS))
-        };
         let allowance = allowance(base, best_channel, k);
         let share = structure_explained(
             base.vres[best_channel].as_deref(),
             r.vres[best_channel].as_deref(),
+            best_channel,
         );
         let mut fails = guard(&Evidence {
             delta_bic,
             delta_val,
             reduction,
             allowance,
-            structured: Some((sp(&base.vres[best_channel]), sp(&r.vres[best_channel]))),
+            structured: Some(structured_powers(
+                base.vres[best_channel].as_deref(),
+                r.vres[best_channel].as_deref(),
+                best_channel,
+            )),
             significance,
             structure_explained: share,
             implausible: implausible(cand, &f, off, self.resolution()),
@@ -633,20 +634,21 @@ fn placement_guard(
     extra: usize,
 ) -> Vec<String> {
     let (c, reduction) = best_reduction(mount, at_sensor);
-    let sp = |v: &Option<Vec<f64>>| {
-        v.as_ref()
-            .map_or(0.0, |r| structured_power(r, LJUNG_BOX_LAGS))
-    };
     guard(&Evidence {
         delta_bic: fit_gain,
         delta_val: val_gain,
         reduction,
         allowance: allowance(at_sensor, c, extra.max(1)),
-        structured: Some((sp(&at_sensor.vres[c]), sp(&mount.vres[c]))),
+        structured: Some(structured_powers(
+            at_sensor.vres[c].as_deref(),
+            mount.vres[c].as_deref(),
+            c,
+        )),
         significance: f64::INFINITY,
         structure_explained: structure_explained(
             at_sensor.vres[c].as_deref(),
             mount.vres[c].as_deref(),
+            c,
         ),
         implausible: Vec::new(),
     })
@@ -1083,9 +1085,12 @@ fn pair_step(
         Some((mut next, Some(s))) => {
             let second = next[s].id;
             let ok = accept(ctx, cands, sel, &mut next, s);
-            let share =
-                structure_explained(before.vres[c].as_deref(), sel.reference.vres[c].as_deref())
-                    .unwrap_or(f64::NAN);
+            let share = structure_explained(
+                before.vres[c].as_deref(),
+                sel.reference.vres[c].as_deref(),
+                c,
+            )
+            .unwrap_or(f64::NAN);
             sel.rounds.push(next);
             (ok && share >= MIN_STRUCTURE_EXPLAINED).then_some((second, share))
         }
@@ -1340,21 +1345,107 @@ pub(crate) fn unidentified_in_final(
     ))
 }
 
+/// The validation residuals `before` and `after` (one channel) as conditions 4 and 6 of
+/// [`super::select`] judge them. On `force_n` (`channel` 2) the residual's **bursts**
+/// ([`burst_samples`] of `before`) are replaced by each residual's median: the force a drive
+/// reports around an acceleration step is its loop's transient between samples, which the
+/// samples do not resolve and no catalogue effect models; at ±1 N against a 0.05 N cogging
+/// ripple those few samples held most of the force residual's variance and autocovariance, and
+/// every force effect "removed only" a third of it (docs/diagnose.md, session 20). Other
+/// channels, and a residual without bursts, are returned as they are.
+pub(crate) fn judged(
+    before: Option<&[f64]>,
+    after: Option<&[f64]>,
+    channel: usize,
+) -> (Option<Vec<f64>>, Option<Vec<f64>>) {
+    let burst = match (before, channel) {
+        (Some(b), 2) => burst_samples(b),
+        _ => None,
+    };
+    let quiet = |r: Option<&[f64]>| -> Option<Vec<f64>> {
+        let r = r?;
+        let Some(burst) = &burst else {
+            return Some(r.to_vec());
+        };
+        let mut sorted = r.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted[sorted.len() / 2];
+        Some(
+            r.iter()
+                .zip(burst)
+                .map(|(x, out)| if *out { median } else { *x })
+                .collect(),
+        )
+    };
+    (quiet(before), quiet(after))
+}
+
 /// Fraction of the structured validation residual (variance above the white-noise floor, the
 /// smaller innovation variance of the two, [`innovation_variance`]) that `after` removes from
-/// `before` ([`super::select`] condition 6); `None` without both.
-pub(crate) fn structure_explained(before: Option<&[f64]>, after: Option<&[f64]>) -> Option<f64> {
-    let (b, a) = (before?, after?);
+/// `before` ([`super::select`] condition 6), both as [`judged`] on `channel`; `None` without
+/// both.
+pub(crate) fn structure_explained(
+    before: Option<&[f64]>,
+    after: Option<&[f64]>,
+    channel: usize,
+) -> Option<f64> {
+    let (b, a) = judged(before, after, channel);
+    let (b, a) = (b?, a?);
     let var = |r: &[f64]| {
         let m = r.iter().sum::<f64>() / r.len().max(1) as f64;
         r.iter().map(|x| (x - m).powi(2)).sum::<f64>() / r.len().max(1) as f64
     };
-    let noise = innovation_variance(b, LJUNG_BOX_LAGS).min(innovation_variance(a, LJUNG_BOX_LAGS));
-    let (sb, sa) = ((var(b) - noise).max(0.0), (var(a) - noise).max(0.0));
+    let noise =
+        innovation_variance(&b, LJUNG_BOX_LAGS).min(innovation_variance(&a, LJUNG_BOX_LAGS));
+    let (sb, sa) = ((var(&b) - noise).max(0.0), (var(&a) - noise).max(0.0));
     if !(sb > 0.0) {
         return Some(0.0);
     }
     Some(1.0 - sa / sb)
+}
+
+/// Condition 4's correlated power (Σ of squared autocovariances, [`structured_power`]) of
+/// `before` and `after` as [`judged`] on `channel` (0 for a missing channel).
+fn structured_powers(before: Option<&[f64]>, after: Option<&[f64]>, channel: usize) -> (f64, f64) {
+    let (b, a) = judged(before, after, channel);
+    let sp = |v: Option<Vec<f64>>| v.map_or(0.0, |r| structured_power(&r, LJUNG_BOX_LAGS));
+    (sp(b), sp(a))
+}
+
+/// Robust outlier threshold of a burst, in robust standard deviations (1.4826 × the median
+/// absolute deviation) of the residual.
+pub const BURST_ROBUST_SIGMAS: f64 = 6.0;
+/// Largest share of the samples that may be bursts; beyond it the residual is not "a background
+/// with bursts" and nothing is excluded.
+pub const MAX_BURST_SHARE: f64 = 0.1;
+
+/// The samples of `r` in **bursts**: beyond [`BURST_ROBUST_SIGMAS`] robust σ of the median,
+/// widened by two samples either side (the tail of a transient). `None` when there are none, or
+/// when more than [`MAX_BURST_SHARE`] of the samples would be.
+pub(crate) fn burst_samples(r: &[f64]) -> Option<Vec<bool>> {
+    let n = r.len();
+    if n < 4 * LJUNG_BOX_LAGS {
+        return None;
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let centre = median(&mut r.to_vec());
+    let scale = 1.4826 * median(&mut r.iter().map(|x| (x - centre).abs()).collect());
+    if !(scale > 0.0) {
+        return None;
+    }
+    let mut burst = vec![false; n];
+    for (k, x) in r.iter().enumerate() {
+        if (x - centre).abs() > BURST_ROBUST_SIGMAS * scale {
+            burst[k.saturating_sub(2)..(k + 3).min(n)]
+                .iter_mut()
+                .for_each(|b| *b = true);
+        }
+    }
+    let count = burst.iter().filter(|b| **b).count();
+    (count > 0 && (count as f64) <= MAX_BURST_SHARE * n as f64).then_some(burst)
 }
 
 /// Parameters that sign- or range-limited physics forbids ([`super::select`] condition 7);
@@ -1507,6 +1598,49 @@ pub(crate) mod tests {
     use super::*;
     use crate::diagnose::effects::servo_candidate;
     use nalgebra::DVector;
+
+    #[test]
+    fn a_force_ripple_is_judged_outside_the_drives_bursts_at_acceleration_steps() {
+        // force residual: a 0.05 N ripple (what the effect explains) over 0.02 N of noise,
+        // and at eight acceleration steps a ±1.5 N loop transient of a few samples (what
+        // nothing explains); the effect leaves noise and bursts
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let n = 10_000;
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        let noise = Normal::new(0.0, 0.02).unwrap();
+        let white: Vec<f64> = (0..n).map(|_| noise.sample(&mut rng)).collect();
+        let burst = |k: usize| -> f64 {
+            // a ringing transient, 1.5 N decaying by −0.8 per sample
+            let j = k % 1250;
+            if (100..112).contains(&j) {
+                1.5 * (-0.8f64).powi((j - 100) as i32)
+            } else {
+                0.0
+            }
+        };
+        let after: Vec<f64> = (0..n).map(|k| white[k] + burst(k)).collect();
+        let before: Vec<f64> = (0..n)
+            .map(|k| after[k] + 0.05 * (k as f64 * 0.07).sin())
+            .collect();
+        let flagged = burst_samples(&before).expect("bursts");
+        assert!(flagged.iter().filter(|b| **b).count() <= 8 * 16);
+        assert!((0..n)
+            .filter(|k| burst(*k).abs() >= 0.4)
+            .all(|k| flagged[k]));
+        // on another channel the bursts stay in: the ripple is a sliver of the variance
+        let whole = structure_explained(Some(&before), Some(&after), 1).unwrap();
+        assert!(whole < MIN_STRUCTURE_EXPLAINED, "{whole}");
+        let (p_before, p_after) = structured_powers(Some(&before), Some(&after), 1);
+        assert!(p_after > 0.5 * p_before);
+        // on the force channel the ripple is what is left once the bursts are out
+        let quiet = structure_explained(Some(&before), Some(&after), 2).unwrap();
+        assert!(quiet > 0.9, "{quiet}");
+        let (q_before, q_after) = structured_powers(Some(&before), Some(&after), 2);
+        assert!(q_after < 0.1 * q_before);
+        // a white force residual has no bursts to take out
+        assert!(burst_samples(&white).is_none());
+    }
 
     #[test]
     fn a_split_refit_that_worsens_moves_the_allowance_as_much_as_one_that_improves() {

@@ -42,7 +42,11 @@
 //!    first-difference noise estimate of [`super::unexplained::difference_noise`] (the smaller
 //!    of the two residuals' estimates) — falls by at least [`MIN_STRUCTURE_EXPLAINED`] (most of
 //!    it). An effect that removes a sliver of a large structured residual is not what that
-//!    residual is; the residual is reported unexplained instead of being given its name. In
+//!    residual is; the residual is reported unexplained instead of being given its name. On
+//!    `force_n` conditions 4 and 6 are judged outside the residual's bursts (samples beyond 6
+//!    robust σ, `forward::judged`): a drive's loop transient at an acceleration step, which the
+//!    samples do not resolve and no catalogue effect models, is not what a force effect must
+//!    account for. In
 //!    `diagnose` the explanation may be a pair: an effect failing only this condition goes in on
 //!    trial when it is a round's best, and is named with the next round's passing effect if
 //!    the two together remove most of that structure (`forward::pair_step`);
