@@ -23,6 +23,8 @@ pub use crate::numeric::lm::covariance;
 
 /// Channel order used everywhere in the diagnosis.
 pub const CHANNEL_NAMES: [&str; 3] = ["base_pos_m", "tip_pos_m", "force_n"];
+/// Index of `force_n` in [`CHANNEL_NAMES`].
+pub const FORCE_CHANNEL: usize = 2;
 
 /// Per-channel residuals (recording − prediction) of one recording; `None` where not recorded.
 pub fn residuals(d: &Prepared, pred: &Prediction) -> [Option<Vec<f64>>; 3] {

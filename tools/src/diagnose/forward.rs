@@ -9,7 +9,7 @@
 //! recordings give the same answer on any machine.
 
 use super::effects::{Calib, Candidate, Transform};
-use super::fit::{self, channel_rss, residuals, FitResult};
+use super::fit::{self, channel_rss, residuals, FitResult, FORCE_CHANNEL};
 use super::select::*;
 use super::sim::{Prediction, Prepared};
 use super::unexplained::LJUNG_BOX_CRITICAL;
@@ -17,7 +17,7 @@ use super::{nrmse, stage, CandidateOutcome};
 use crate::effect::Effect;
 use crate::model::Rig;
 use crate::numeric::arx;
-use crate::numeric::stats::innovation_variance;
+use crate::numeric::stats::{innovation_variance, median};
 use crate::progress::Progress;
 
 /// Most effects forward selection adds.
@@ -314,7 +314,7 @@ impl Ctx<'_> {
         let whiteness = (q_of(&base.vres[best_channel]), q_of(&r.vres[best_channel]));
         let significance = significance(cand, &f, off);
         let allowance = allowance(base, best_channel, k);
-        let share = structure_explained(
+        let (structured, share) = structure_evidence(
             base.vres[best_channel].as_deref(),
             r.vres[best_channel].as_deref(),
             best_channel,
@@ -324,11 +324,7 @@ impl Ctx<'_> {
             delta_val,
             reduction,
             allowance,
-            structured: Some(structured_powers(
-                base.vres[best_channel].as_deref(),
-                r.vres[best_channel].as_deref(),
-                best_channel,
-            )),
+            structured: Some(structured),
             significance,
             structure_explained: share,
             implausible: implausible(cand, &f, off, self.resolution()),
@@ -634,22 +630,16 @@ fn placement_guard(
     extra: usize,
 ) -> Vec<String> {
     let (c, reduction) = best_reduction(mount, at_sensor);
+    let (structured, share) =
+        structure_evidence(at_sensor.vres[c].as_deref(), mount.vres[c].as_deref(), c);
     guard(&Evidence {
         delta_bic: fit_gain,
         delta_val: val_gain,
         reduction,
         allowance: allowance(at_sensor, c, extra.max(1)),
-        structured: Some(structured_powers(
-            at_sensor.vres[c].as_deref(),
-            mount.vres[c].as_deref(),
-            c,
-        )),
+        structured: Some(structured),
         significance: f64::INFINITY,
-        structure_explained: structure_explained(
-            at_sensor.vres[c].as_deref(),
-            mount.vres[c].as_deref(),
-            c,
-        ),
+        structure_explained: share,
         implausible: Vec::new(),
     })
 }
@@ -1346,10 +1336,10 @@ pub(crate) fn unidentified_in_final(
 }
 
 /// The validation residuals `before` and `after` (one channel) as conditions 4 and 6 of
-/// [`super::select`] judge them. On `force_n` (`channel` 2) the residual's **bursts**
-/// ([`burst_samples`] of `before`) are replaced by each residual's median: the force a drive
-/// reports around an acceleration step is its loop's transient between samples, which the
-/// samples do not resolve and no catalogue effect models; at ±1 N against a 0.05 N cogging
+/// [`super::select`] judge them. On `force_n` (`channel` [`FORCE_CHANNEL`]) the residual's
+/// **bursts** ([`burst_samples`] of `before`) are replaced by each residual's median: the force
+/// a drive reports around an acceleration step is its loop's transient between samples, which
+/// the samples do not resolve and no catalogue effect models; at ±1 N against a 0.05 N cogging
 /// ripple those few samples held most of the force residual's variance and autocovariance, and
 /// every force effect "removed only" a third of it (docs/diagnose.md, session 20). Other
 /// channels, and a residual without bursts, are returned as they are.
@@ -1359,7 +1349,7 @@ pub(crate) fn judged(
     channel: usize,
 ) -> (Option<Vec<f64>>, Option<Vec<f64>>) {
     let burst = match (before, channel) {
-        (Some(b), 2) => burst_samples(b),
+        (Some(b), FORCE_CHANNEL) => burst_samples(b),
         _ => None,
     };
     let quiet = |r: Option<&[f64]>| -> Option<Vec<f64>> {
@@ -1367,13 +1357,11 @@ pub(crate) fn judged(
         let Some(burst) = &burst else {
             return Some(r.to_vec());
         };
-        let mut sorted = r.to_vec();
-        sorted.sort_by(f64::total_cmp);
-        let median = sorted[sorted.len() / 2];
+        let centre = median(r);
         Some(
             r.iter()
                 .zip(burst)
-                .map(|(x, out)| if *out { median } else { *x })
+                .map(|(x, out)| if *out { centre } else { *x })
                 .collect(),
         )
     };
@@ -1390,26 +1378,38 @@ pub(crate) fn structure_explained(
     channel: usize,
 ) -> Option<f64> {
     let (b, a) = judged(before, after, channel);
+    share_removed(b.as_deref(), a.as_deref())
+}
+
+/// [`structure_explained`] of residuals already [`judged`].
+fn share_removed(b: Option<&[f64]>, a: Option<&[f64]>) -> Option<f64> {
     let (b, a) = (b?, a?);
     let var = |r: &[f64]| {
         let m = r.iter().sum::<f64>() / r.len().max(1) as f64;
         r.iter().map(|x| (x - m).powi(2)).sum::<f64>() / r.len().max(1) as f64
     };
-    let noise =
-        innovation_variance(&b, LJUNG_BOX_LAGS).min(innovation_variance(&a, LJUNG_BOX_LAGS));
-    let (sb, sa) = ((var(&b) - noise).max(0.0), (var(&a) - noise).max(0.0));
+    let noise = innovation_variance(b, LJUNG_BOX_LAGS).min(innovation_variance(a, LJUNG_BOX_LAGS));
+    let (sb, sa) = ((var(b) - noise).max(0.0), (var(a) - noise).max(0.0));
     if !(sb > 0.0) {
         return Some(0.0);
     }
     Some(1.0 - sa / sb)
 }
 
-/// Condition 4's correlated power (Σ of squared autocovariances, [`structured_power`]) of
-/// `before` and `after` as [`judged`] on `channel` (0 for a missing channel).
-fn structured_powers(before: Option<&[f64]>, after: Option<&[f64]>, channel: usize) -> (f64, f64) {
+/// Conditions 4 and 6 from one [`judged`] pass: the correlated power (Σ of squared
+/// autocovariances, [`structured_power`]; 0 for a missing channel) of `before` and `after`,
+/// and the share of the structure `after` removes ([`structure_explained`]).
+fn structure_evidence(
+    before: Option<&[f64]>,
+    after: Option<&[f64]>,
+    channel: usize,
+) -> ((f64, f64), Option<f64>) {
     let (b, a) = judged(before, after, channel);
-    let sp = |v: Option<Vec<f64>>| v.map_or(0.0, |r| structured_power(&r, LJUNG_BOX_LAGS));
-    (sp(b), sp(a))
+    let sp = |v: Option<&[f64]>| v.map_or(0.0, |r| structured_power(r, LJUNG_BOX_LAGS));
+    (
+        (sp(b.as_deref()), sp(a.as_deref())),
+        share_removed(b.as_deref(), a.as_deref()),
+    )
 }
 
 /// Robust outlier threshold of a burst, in robust standard deviations (1.4826 × the median
@@ -1427,12 +1427,8 @@ pub(crate) fn burst_samples(r: &[f64]) -> Option<Vec<bool>> {
     if n < 4 * LJUNG_BOX_LAGS {
         return None;
     }
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
-    let centre = median(&mut r.to_vec());
-    let scale = 1.4826 * median(&mut r.iter().map(|x| (x - centre).abs()).collect());
+    let centre = median(r);
+    let scale = 1.4826 * median(&r.iter().map(|x| (x - centre).abs()).collect::<Vec<f64>>());
     if !(scale > 0.0) {
         return None;
     }
@@ -1631,12 +1627,13 @@ pub(crate) mod tests {
         // on another channel the bursts stay in: the ripple is a sliver of the variance
         let whole = structure_explained(Some(&before), Some(&after), 1).unwrap();
         assert!(whole < MIN_STRUCTURE_EXPLAINED, "{whole}");
-        let (p_before, p_after) = structured_powers(Some(&before), Some(&after), 1);
+        let ((p_before, p_after), _) = structure_evidence(Some(&before), Some(&after), 1);
         assert!(p_after > 0.5 * p_before);
         // on the force channel the ripple is what is left once the bursts are out
         let quiet = structure_explained(Some(&before), Some(&after), 2).unwrap();
         assert!(quiet > 0.9, "{quiet}");
-        let (q_before, q_after) = structured_powers(Some(&before), Some(&after), 2);
+        let ((q_before, q_after), share) = structure_evidence(Some(&before), Some(&after), 2);
+        assert_eq!(share, Some(quiet));
         assert!(q_after < 0.1 * q_before);
         // a white force residual has no bursts to take out
         assert!(burst_samples(&white).is_none());

@@ -10,6 +10,7 @@
 
 use super::poles::Pole;
 use super::std_dev;
+use crate::numeric::stats::median;
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 use serde::Serialize;
@@ -113,24 +114,13 @@ pub fn label(raw: Vec<(usize, Vec<Pole>)>, c: &StabCriteria) -> Vec<OrderPoles> 
     out
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(|a, b| a.total_cmp(b));
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
 fn robust_std(v: &[f64]) -> f64 {
     if v.len() < 3 {
         return std_dev(v);
     }
-    let mut w = v.to_vec();
-    let m = median(&mut w);
-    let mut d: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
-    1.4826 * median(&mut d)
+    let m = median(v);
+    let d: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
+    1.4826 * median(&d)
 }
 
 /// Selects the modes (clusters of stable poles), sorted by frequency.
@@ -150,8 +140,8 @@ pub fn select(orders: &[OrderPoles], c: &StabCriteria) -> Vec<StableMode> {
         match clusters.last_mut() {
             Some(cl)
                 if {
-                    let mut f: Vec<f64> = cl.iter().map(|q| q.freq_hz).collect();
-                    (p.freq_hz / median(&mut f) - 1.0).abs() < c.df_rel
+                    let f: Vec<f64> = cl.iter().map(|q| q.freq_hz).collect();
+                    (p.freq_hz / median(&f) - 1.0).abs() < c.df_rel
                 } =>
             {
                 cl.push(p)
@@ -164,12 +154,12 @@ pub fn select(orders: &[OrderPoles], c: &StabCriteria) -> Vec<StableMode> {
         .into_iter()
         .filter(|cl| cl.len() >= need)
         .map(|cl| {
-            let mut f: Vec<f64> = cl.iter().map(|p| p.freq_hz).collect();
-            let mut z: Vec<f64> = cl.iter().map(|p| p.zeta).collect();
+            let f: Vec<f64> = cl.iter().map(|p| p.freq_hz).collect();
+            let z: Vec<f64> = cl.iter().map(|p| p.zeta).collect();
             let (fs, zs) = (robust_std(&f), robust_std(&z));
             StableMode {
-                freq_hz: median(&mut f),
-                zeta: median(&mut z),
+                freq_hz: median(&f),
+                zeta: median(&z),
                 freq_hz_std: fs,
                 zeta_std: zs,
                 count: cl.len(),

@@ -278,6 +278,21 @@ pub const WIENER_SMOOTH_BINS: usize = 4;
 /// 2 × [`WIENER_SMOOTH_BINS`] + 1 = 9 noise-only periodogram ordinates, each χ²(2)/2).
 pub const WIENER_OVERSUBTRACTION: f64 = 42.31 / 18.0;
 
+/// Median of `v` (the mean of the two middle values for an even length; NaN when empty).
+pub fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let mut sorted = v.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let n = sorted.len();
+    if n % 2 == 1 {
+        sorted[n / 2]
+    } else {
+        0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
+    }
+}
+
 /// The white-noise variance of a residual `r`: the smaller of its innovation variance
 /// ([`innovation_variance`], `order` lags) and its spectral floor
 /// ([`spectral_floor_variance`]). Both estimate σ² for white noise; structure biases each
