@@ -30,6 +30,7 @@ pub mod lookalike;
 pub mod proof;
 pub mod rate;
 pub mod report;
+pub mod saturation;
 pub mod select;
 pub mod sim;
 pub mod unexplained;
@@ -614,6 +615,10 @@ pub fn diagnose(
         check_information(d)?;
         check_units(rig, d)?;
     }
+    let saturated = saturation_words(fit_data, validate);
+    for w in &saturated {
+        progress.note(w);
+    }
     let drive_quantum_m = drive_quantum_m(fit_data);
     let working_rate = rate::choose(fit_data, validate);
     let (fit_w, val_w) = rate::to_working_rate(&working_rate, fit_data, validate);
@@ -623,7 +628,9 @@ pub fn diagnose(
     let (fit_data, validate) = (&fit_w[..], &val_w);
     let su = setup(rig, fit_data, validate, drive_quantum_m)?;
     if !drive_reading_matters(fit_data, validate) {
-        return diagnose_with(rig, fit_data, validate, &su, working_rate, progress);
+        let mut d = diagnose_with(rig, fit_data, validate, &su, working_rate, progress)?;
+        d.assumptions.extend(saturated);
+        return Ok(d);
     }
     // both readings of the drive between samples, side by side (a diagnosis runs on one core)
     progress.note(
@@ -648,11 +655,35 @@ pub fn diagnose(
         (linear, other.join())
     });
     let smooth = smooth.map_err(|_| anyhow::anyhow!("the smooth-drive diagnosis panicked"))?;
-    let chosen = choose_reading(linear?, smooth);
+    let mut chosen = choose_reading(linear?, smooth);
     if let Some(words) = chosen.assumptions.last() {
         progress.note(words);
     }
+    chosen.assumptions.extend(saturated);
     Ok(chosen)
+}
+
+/// The channels held at a sensor's rail, in words (an assumption of the diagnosis: those
+/// samples are left out, [`saturation`]).
+fn saturation_words(fit_data: &[Prepared], validate: &Prepared) -> Vec<String> {
+    let mut out = Vec::new();
+    for d in fit_data.iter().chain(std::iter::once(validate)) {
+        for (c, r) in d.rails.iter().enumerate() {
+            if r.runs.is_empty() {
+                continue;
+            }
+            let rails: Vec<String> = r.values.iter().map(|v| format!("{v:.6}")).collect();
+            out.push(format!(
+                "{} of {} is held at its sensor's rail ({}) on {} samples ({:.1} %): a clipped reading says only \"at least this far\"; those samples are left out of every residual",
+                fit::CHANNEL_NAMES[c],
+                d.name,
+                rails.join(", "),
+                r.samples(),
+                100.0 * r.samples() as f64 / d.cmd_m.len().max(1) as f64
+            ));
+        }
+    }
+    out
 }
 
 /// Whether the model's reading of the drive between samples changes what the recordings hold:

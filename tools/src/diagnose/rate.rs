@@ -531,8 +531,16 @@ pub fn decimate_prepared(d: &Prepared, q: usize) -> Prepared {
         drive_identity_m: dec(&d.drive_m),
         tip_m: dec(&d.tip_m),
         force_n: dec(&d.force_n),
+        rails: d
+            .rails
+            .clone()
+            .map(|r| r.decimated(q, RAIL_MARGIN, d.cmd_m.len().div_ceil(q))),
     }
 }
+
+/// Kept samples on each side of a decimated run of rail samples also left out: the filter's
+/// main lobe (±1 kept sample at its −6 dB point) and a sample more of its first side lobes.
+const RAIL_MARGIN: usize = 2;
 
 /// The recordings at the working rate `w` ([`choose`]): fit recordings, validation recording.
 pub fn to_working_rate(
@@ -650,6 +658,7 @@ mod tests {
             drive_identity_m: None,
             tip_m: Some(tip),
             force_n: None,
+            rails: Default::default(),
         }
     }
 

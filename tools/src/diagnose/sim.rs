@@ -320,11 +320,15 @@ pub struct Prepared {
     pub tip_m: Option<Vec<f64>>,
     /// Force (N).
     pub force_n: Option<Vec<f64>>,
+    /// Samples held at a sensor's rail, per compared channel (base, tip, force): left out of
+    /// every residual ([`super::saturation`]; the base, which also drives the model, has none).
+    pub rails: [super::saturation::Rails; 3],
 }
 
 impl Prepared {
-    /// Prepares a validated recording. Errors: no `base_cmd_m` and no `base_pos_m`, or no
-    /// channel to compare with.
+    /// Prepares a validated recording; finds the rails of its tip and force channels
+    /// ([`super::saturation`]). Errors: no `base_cmd_m` and no `base_pos_m`, no channel to
+    /// compare with, a channel more than [`super::saturation::MAX_RAIL_FRACTION`] at its rails.
     pub fn new(name: &str, rec: &crate::recording::Recording) -> Result<Prepared> {
         rec.validate()?;
         let (cmd, base, drive) = match (&rec.base_cmd_m, &rec.base_pos_m) {
@@ -335,6 +339,26 @@ impl Prepared {
         if base.is_none() && rec.tip_pos_m.is_none() && rec.force_n.is_none() {
             bail!("{name}: nothing to compare: record at least one of `base_pos_m` (with `base_cmd_m`), `tip_pos_m`, `force_n`");
         }
+        let rails_of = |c: &Option<Vec<f64>>, channel: &str| -> Result<super::saturation::Rails> {
+            let Some(y) = c else {
+                return Ok(Default::default());
+            };
+            let r = super::saturation::rails(y);
+            let share = r.samples() as f64 / y.len().max(1) as f64;
+            if share > super::saturation::MAX_RAIL_FRACTION {
+                bail!(
+                    "{name}: {channel} sits at its sensor's rail ({}) on {:.0} % of the samples: too little of the motion was recorded; reduce the amplitude or widen the sensor's range",
+                    r.values.iter().map(|v| format!("{v:.6}")).collect::<Vec<_>>().join(", "),
+                    100.0 * share
+                );
+            }
+            Ok(r)
+        };
+        let rails = [
+            Default::default(),
+            rails_of(&rec.tip_pos_m, "tip_pos_m")?,
+            rails_of(&rec.force_n, "force_n")?,
+        ];
         Ok(Prepared {
             name: name.to_string(),
             dt: rec.sample_interval_s(),
@@ -346,6 +370,7 @@ impl Prepared {
             drive_identity_m: None,
             tip_m: rec.tip_pos_m.clone(),
             force_n: rec.force_n.clone(),
+            rails,
         })
     }
 }
