@@ -11,26 +11,31 @@
 //! **Rule** (per output channel, `tip_pos_m` and `force_n`, of one recording as read): a rail
 //! is the channel's largest (or smallest) value when
 //! 1. it is held exactly — a rail is one number — on at least [`MIN_RAIL_SAMPLES`] samples, and
-//! 2. the signal arrives at it or leaves it at speed: on at least [`MIN_CUT_OFF_RUNS`] runs of
-//!    two samples or more the step into or out of the rail exceeds [`MIN_ENTRY_NOISE`] × the
-//!    channel's noise σ and two quanta of its grid ([`crate::numeric::stats::quantum`]). A beam that settles at its extreme position
-//!    comes to rest there in steps of the noise; a clipped one is cut off in mid-swing.
+//! 2. on at least one run the signal was cut off in mid-swing: it steps into the run and out
+//!    of it by s_in, s_out > [`MIN_STEP_NOISE`] × the channel's noise σ and two quanta of its
+//!    grid ([`crate::numeric::stats::quantum`]), and a parabola leaving the run's ends with the
+//!    smaller of those steps would have passed the rail by H = min(s_in, s_out)(L + 1)/4 over
+//!    the run's L samples, more than [`MIN_HIDDEN_NOISE`] σ and four quanta. A beam that
+//!    settles at its extreme position arrives in steps of a count or of the noise, a peak
+//!    rounded within a count hides a few σ (held-out 332002: a 250 Hz tip on 0.1 mm counts
+//!    held a peak for four samples, H = 4.1 σ, the most of any unclipped recording of held-out
+//!    327000 and the independent set); a clipped swing hides 16–380 σ (docs/diagnose.md,
+//!    session 21). A run at either end of the recording shows no cut-off.
 //!
 //! Every sample at a rail is left out of every residual ([`super::fit::residuals`] gives it
 //! zero), so it constrains nothing; more than [`MAX_RAIL_FRACTION`] of a channel at its rails is
 //! refused (the recording says too little). The noise σ is the robust spread of the second
-//! difference, 1.4826 MAD(Δ²y)/√6 (white noise of σ has Δ² of variance 6σ²).
+//! difference, 1.4826 MAD(Δ²y)/√6 (white noise of σ has Δ² of variance 6σ²; a swing's own
+//! curvature A ω² dt² inflates it, but a cut-off hides ≈ A ω dt L, larger by L/(ω dt)).
 
 use crate::numeric::stats::{median, quantum};
 
 /// Fewest samples at one rail for it to be one.
 pub const MIN_RAIL_SAMPLES: usize = 3;
-/// Fewest flat tops cut off at one rail: a sensor clips every swing beyond its range, while a
-/// single flat top can be a coincidence of noise and counts (held-out 332002: a 250 Hz tip on
-/// 0.1 mm counts held its peak for four samples).
-pub const MIN_CUT_OFF_RUNS: usize = 2;
-/// The step into or out of a rail that shows a cut-off swing, in units of the noise σ.
-pub const MIN_ENTRY_NOISE: f64 = 5.0;
+/// The steps into and out of a cut-off run, at least, in units of the noise σ.
+pub const MIN_STEP_NOISE: f64 = 3.0;
+/// The swing a flat run hides beyond its rail that shows a cut-off, in units of the noise σ.
+pub const MIN_HIDDEN_NOISE: f64 = 10.0;
 /// Largest share of a channel at its rails that still leaves a recording worth fitting.
 pub const MAX_RAIL_FRACTION: f64 = 0.25;
 
@@ -89,7 +94,11 @@ pub fn rails(y: &[f64]) -> Rails {
         .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
         .collect();
     let noise = 1.4826 * median(&d2) / 6f64.sqrt();
-    let step_min = (MIN_ENTRY_NOISE * noise).max(2.0 * quantum(y).unwrap_or(0.0));
+    let q = quantum(y).unwrap_or(0.0);
+    let (step_min, hidden_min) = (
+        (MIN_STEP_NOISE * noise).max(2.0 * q),
+        (MIN_HIDDEN_NOISE * noise).max(4.0 * q),
+    );
     let lo = y.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = y.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     if !(hi > lo) {
@@ -101,13 +110,14 @@ pub fn rails(y: &[f64]) -> Rails {
         let held: usize = runs.iter().map(|(a, b)| b - a).sum();
         let cut_off = runs
             .iter()
-            .filter(|&&(a, b)| {
-                let into = a.checked_sub(1).map_or(0.0, |k| (y[k] - rail).abs());
-                let out_of = y.get(b).map_or(0.0, |v| (v - rail).abs());
-                b - a >= 2 && into.max(out_of) > step_min
-            })
-            .count();
-        if held >= MIN_RAIL_SAMPLES && cut_off >= MIN_CUT_OFF_RUNS {
+            .any(|&(a, b)| match (a.checked_sub(1), y.get(b)) {
+                (Some(k), Some(v)) => {
+                    let step = (y[k] - rail).abs().min((v - rail).abs());
+                    step > step_min && step * (b - a + 1) as f64 / 4.0 > hidden_min
+                }
+                _ => false,
+            });
+        if held >= MIN_RAIL_SAMPLES && cut_off {
             out.values.push(rail);
             out.runs.extend(runs);
         }
