@@ -20,6 +20,8 @@ recordings alike, and diagnosed:
   force_offset force_n + 0.4 N
   reorder      the channel columns in reverse order
   t0           time_s + 1234.5 s
+  tip_clip     tip_pos_m clipped at 80 % of its largest excursion either way (a camera's field of view)
+  force_clip   force_n clipped likewise (a drive's current limit)
   combined     jitter (sigma 3 % of a step), then tip_offset, base_offset, nan, dropped, dup, all at once
 Another rig's recordings rather than a logger's faults (the rig file follows where it must):
   half_rate    every other row (a camera at half the rate, no anti-alias filter; sample_rate_hz halved)
@@ -104,6 +106,14 @@ def perturb(rows, kind, rng):
         data = [[r[i] for i in keep] for r in data]
     elif kind == 'short':
         data = data[:int(0.6 * len(data))]
+    elif kind in ('tip_clip', 'force_clip'):
+        # the sensor's range ends at 80 % of the largest excursion either way (a camera's field
+        # of view, a drive's current limit): every sample beyond it reads the rail
+        c = 'tip_pos_m' if kind == 'tip_clip' else 'force_n'
+        if c in col:
+            lim = 0.8 * max(abs(float(r[col[c]])) for r in data)
+            for r in data:
+                r[col[c]] = repr(max(-lim, min(lim, float(r[col[c]]))))
     elif kind == 'combined':
         dt = float(data[1][0]) - float(data[0][0])
         for r in data:
