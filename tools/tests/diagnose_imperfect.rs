@@ -44,6 +44,34 @@ fn write_imperfect(rec: &Recording, path: &Path) {
     std::fs::write(path, out).unwrap();
 }
 
+/// Writes `case` into `dir` (its rig file; each recording through `write`) and diagnoses it
+/// with the binary; returns (named effects without `servo_lag`, stderr).
+fn diagnose_written(
+    case: &beamtools::truth::TruthCase,
+    dir: &Path,
+    write: impl Fn(&Recording, &Path),
+) -> (Vec<String>, String) {
+    std::fs::create_dir_all(dir).unwrap();
+    std::fs::write(dir.join("rig.toml"), &case.rig_toml).unwrap();
+    let mut args = vec!["diagnose".to_string(), "--rig".into(), "rig.toml".into()];
+    for (i, r) in case.fit.iter().enumerate() {
+        write(r, &dir.join(format!("fit{i}.csv")));
+        args.extend(["--fit".into(), format!("fit{i}.csv")]);
+    }
+    write(&case.validate, &dir.join("validate.csv"));
+    args.extend(["--validate", "validate.csv", "--json", "out.json"].map(String::from));
+    let out = Command::new(env!("CARGO_BIN_EXE_beamtool"))
+        .args(&args)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(out.status.success(), "{stderr}");
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("out.json")).unwrap()).unwrap();
+    (common::named_effects(&j), stderr)
+}
+
 /// Generates `effect` at `seed` (30 s, base and force recorded), writes it imperfect into a
 /// fresh directory and diagnoses it with the binary; returns (named effects without
 /// `servo_lag`, stderr).
@@ -56,26 +84,7 @@ fn diagnose_imperfect(effect: &str, seed: u64) -> (Vec<String>, String) {
     };
     let case = generate(effect, seed, &opts).unwrap();
     let dir = std::env::temp_dir().join(format!("beamtool-imperfect-{effect}-{seed}"));
-    std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join("rig.toml"), &case.rig_toml).unwrap();
-    let mut args = vec!["diagnose".to_string(), "--rig".into(), "rig.toml".into()];
-    for (i, r) in case.fit.iter().enumerate() {
-        write_imperfect(r, &dir.join(format!("fit{i}.csv")));
-        args.extend(["--fit".into(), format!("fit{i}.csv")]);
-    }
-    write_imperfect(&case.validate, &dir.join("validate.csv"));
-    args.extend(["--validate", "validate.csv", "--json", "out.json"].map(String::from));
-    let out = Command::new(env!("CARGO_BIN_EXE_beamtool"))
-        .args(&args)
-        .current_dir(&dir)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(out.status.success(), "{stderr}");
-    let j: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("out.json")).unwrap()).unwrap();
-    let named = common::named_effects(&j);
-    (named, stderr)
+    diagnose_written(&case, &dir, write_imperfect)
 }
 
 #[test]
@@ -130,24 +139,7 @@ fn a_tip_clipped_at_the_cameras_field_of_view_is_fitted_on_what_it_recorded() {
     };
     let case = generate("root_compliance", 1300, &opts).unwrap();
     let dir = std::env::temp_dir().join("beamtool-clipped-root_compliance-1300");
-    std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join("rig.toml"), &case.rig_toml).unwrap();
-    let mut args = vec!["diagnose".to_string(), "--rig".into(), "rig.toml".into()];
-    for (i, r) in case.fit.iter().enumerate() {
-        write_clipped(r, &dir.join(format!("fit{i}.csv")), 0.8);
-        args.extend(["--fit".into(), format!("fit{i}.csv")]);
-    }
-    write_clipped(&case.validate, &dir.join("validate.csv"), 0.8);
-    args.extend(["--validate", "validate.csv", "--json", "out.json"].map(String::from));
-    let out = Command::new(env!("CARGO_BIN_EXE_beamtool"))
-        .args(&args)
-        .current_dir(&dir)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(out.status.success(), "{stderr}");
+    let (named, stderr) = diagnose_written(&case, &dir, |r, p| write_clipped(r, p, 0.8));
     assert!(stderr.contains("held at its sensor's rail"), "{stderr}");
-    let j: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("out.json")).unwrap()).unwrap();
-    assert_eq!(common::named_effects(&j), ["root_compliance"], "{stderr}");
+    assert_eq!(named, ["root_compliance"], "{stderr}");
 }
