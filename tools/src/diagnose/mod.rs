@@ -6,6 +6,7 @@
 //! - [`fit`]: Levenberg–Marquardt ([`crate::numeric::lm`]) on whitened residuals, parameter
 //!   uncertainties;
 //! - [`locate`]: where/when/at which frequency the residual is structured;
+//! - [`saturation`]: samples a sensor held at its rail, left out of every residual;
 //! - [`select`]: BIC + validation + model-form allowance + whiteness + significance guard;
 //! - [`report`]: JSON, words, SVG plots; [`proof`]: the own-generator proof; [`honesty`]:
 //!   long-run 1-σ, parameter stability, residual statistics of the final model;
@@ -672,12 +673,11 @@ fn saturation_words(fit_data: &[Prepared], validate: &Prepared) -> Vec<String> {
             if r.runs.is_empty() {
                 continue;
             }
-            let rails: Vec<String> = r.values.iter().map(|v| format!("{v:.6}")).collect();
             out.push(format!(
                 "{} of {} is held at its sensor's rail ({}) on {} samples ({:.1} %): a clipped reading says only \"at least this far\"; those samples are left out of every residual",
                 fit::CHANNEL_NAMES[c],
                 d.name,
-                rails.join(", "),
+                r.values_words(),
                 r.samples(),
                 100.0 * r.samples() as f64 / d.cmd_m.len().max(1) as f64
             ));

@@ -54,6 +54,12 @@ impl Rails {
         self.runs.iter().map(|(a, b)| b - a).sum()
     }
 
+    /// The rail values in words, e.g. `-0.008000, 0.008000`.
+    pub fn values_words(&self) -> String {
+        let v: Vec<String> = self.values.iter().map(|v| format!("{v:.6}")).collect();
+        v.join(", ")
+    }
+
     /// Whether sample `k` is at a rail.
     pub fn contains(&self, k: usize) -> bool {
         self.runs.iter().any(|&(a, b)| a <= k && k < b)

@@ -348,7 +348,7 @@ impl Prepared {
             if share > super::saturation::MAX_RAIL_FRACTION {
                 bail!(
                     "{name}: {channel} sits at its sensor's rail ({}) on {:.0} % of the samples: too little of the motion was recorded; reduce the amplitude or widen the sensor's range",
-                    r.values.iter().map(|v| format!("{v:.6}")).collect::<Vec<_>>().join(", "),
+                    r.values_words(),
                     100.0 * share
                 );
             }
