@@ -60,11 +60,6 @@ impl Rails {
         v.join(", ")
     }
 
-    /// Whether sample `k` is at a rail.
-    pub fn contains(&self, k: usize) -> bool {
-        self.runs.iter().any(|&(a, b)| a <= k && k < b)
-    }
-
     /// The runs on a time base decimated by `q` (kept sample `k` = input sample `k q`), widened
     /// by `margin` kept samples on each side: a filtered sample near a clipped one carries it.
     pub fn decimated(&self, q: usize, margin: usize, len: usize) -> Rails {
@@ -230,6 +225,7 @@ mod tests {
         let d = r.decimated(4, 1, 30);
         // (10,14) → kept 2..4 widened to 1..5; (17,19) → 4..5 widened 3..6, merged
         assert_eq!(d.runs, vec![(1, 6), (24, 27)]);
-        assert!(d.contains(5) && !d.contains(6));
+        let at = |k: usize| d.runs.iter().any(|&(a, b)| a <= k && k < b);
+        assert!(at(5) && !at(6));
     }
 }
