@@ -22,6 +22,9 @@ recordings alike, and diagnosed:
   t0           time_s + 1234.5 s
   tip_clip     tip_pos_m clipped at 80 % of its largest excursion either way (a camera's field of view)
   force_clip   force_n clipped likewise (a drive's current limit)
+  tip_flip     tip_pos_m negated (a camera whose axis points the other way)
+  force_flip   force_n negated (a drive whose force sign is the opposite convention)
+  base_flip    base_pos_m negated (an encoder counting down)
   combined     jitter (sigma 3 % of a step), then tip_offset, base_offset, nan, dropped, dup, all at once
 Another rig's recordings rather than a logger's faults (the rig file follows where it must):
   half_rate    every other row (a camera at half the rate, no anti-alias filter; sample_rate_hz halved)
@@ -114,6 +117,11 @@ def perturb(rows, kind, rng):
             lim = 0.8 * max(abs(float(r[col[c]])) for r in data)
             for r in data:
                 r[col[c]] = repr(max(-lim, min(lim, float(r[col[c]]))))
+    elif kind in ('tip_flip', 'force_flip', 'base_flip'):
+        c = {'tip_flip': 'tip_pos_m', 'force_flip': 'force_n', 'base_flip': 'base_pos_m'}[kind]
+        if c in col:
+            for r in data:
+                r[col[c]] = repr(-float(r[col[c]]))
     elif kind == 'combined':
         dt = float(data[1][0]) - float(data[0][0])
         for r in data:

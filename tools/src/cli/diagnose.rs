@@ -105,13 +105,33 @@ impl Progress for StageProgress {
     }
 }
 
-/// Reads and prepares one recording.
-pub fn load(path: &Path) -> Result<Prepared> {
+/// Reads and prepares one recording of `rig`: sensor directions brought to the format's
+/// ([`crate::recording::orient`], low-pass corners at ¼ and 10 × the rig's first clamped
+/// natural frequency), then sensor zeros from the rest ([`crate::recording::zero`]).
+pub fn load(path: &Path, rig: &Rig) -> Result<Prepared> {
     let rec = super::read_recording(path)?;
     let read = rec.notes.len();
+    let rec = match first_natural_freq_hz(rig) {
+        Some(f1) => crate::recording::orient::orient(rec, f1 / 4.0, 10.0 * f1),
+        None => rec,
+    };
     let rec = crate::recording::zero::zero_at_rest(rec);
     super::print_notes(path, &rec.notes[read..]);
     Prepared::new(&path.display().to_string(), &rec)
+}
+
+/// The rig file's first clamped natural frequency (Hz); `None` for a carriage-only rig or a
+/// beam the model refuses (the diagnosis then reports why).
+fn first_natural_freq_hz(rig: &Rig) -> Option<f64> {
+    use crate::model::{BeamModel, ModelOptions};
+    let modes = BeamModel::new(rig, &ModelOptions::default())
+        .ok()?
+        .clamped_modes()
+        .ok()?;
+    modes
+        .omega_rad_s
+        .first()
+        .map(|w| w / (2.0 * std::f64::consts::PI))
 }
 
 /// Runs a diagnosis on files, with progress shown when `show`.
@@ -122,8 +142,8 @@ pub fn diagnose_files(
     show: bool,
 ) -> Result<Diagnosis> {
     let rig = Rig::from_toml_file(rig)?;
-    let fit: Vec<Prepared> = fit.iter().map(|p| load(p)).collect::<Result<_>>()?;
-    let val = load(validate)?;
+    let fit: Vec<Prepared> = fit.iter().map(|p| load(p, &rig)).collect::<Result<_>>()?;
+    let val = load(validate, &rig)?;
     let mut progress = StageProgress::new(show);
     let d = run_diagnosis(&rig, &fit, &val, &mut progress)?;
     progress.finish();
