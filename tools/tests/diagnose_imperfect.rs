@@ -188,6 +188,9 @@ fn sensors_mounted_the_other_way_round_are_named_and_read_the_right_way() {
     let j: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("out.json")).unwrap()).unwrap();
     let base = &j["validation"]["per_channel"]["base_pos_m"]["nrmse_after"];
-    assert!(base.as_f64().unwrap() < 0.01, "base_pos_m NRMSE {base}\n{stderr}");
+    assert!(
+        base.as_f64().unwrap() < 0.01,
+        "base_pos_m NRMSE {base}\n{stderr}"
+    );
     assert!(j["unexplained"].is_null(), "{}", j["unexplained"]);
 }

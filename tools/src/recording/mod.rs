@@ -1,6 +1,7 @@
 //! The recording format shared by every tool of the project.
 //!
-//! CSV: a header row, comma-separated, uniform sampling. Columns:
+//! CSV: a header row, comma-separated (`;` with decimal commas, or tabs, are read too, with a
+//! note), uniform sampling. Columns:
 //! - `time_s` (required): time in seconds of each sample, strictly increasing, uniform step
 //!   (dropped frames, duplicated rows and jittering stamps are mended by [`regular`]);
 //! - `base_cmd_m`: commanded base position (m);
@@ -210,9 +211,11 @@ impl Recording {
     /// The cells of a recording CSV as numbers, unchecked: a blank or `nan` cell of a
     /// channel is NaN (a missing value).
     fn read_csv_cells(path: &Path, progress: &mut dyn FnMut(usize)) -> Result<Self> {
+        let delimiter = sniff_delimiter(path)?;
         let mut rdr = csv::ReaderBuilder::new()
             .trim(csv::Trim::All)
             .comment(Some(b'#'))
+            .delimiter(delimiter)
             .from_path(path)
             .with_context(|| format!("cannot open recording {}", path.display()))?;
         let headers = rdr
@@ -223,6 +226,17 @@ impl Recording {
         let (time_col, time_scale) =
             time_column(&names).map_err(|e| anyhow!("{}: {e}", path.display()))?;
         let mut rec = Recording::default();
+        if delimiter != b',' {
+            rec.notes.push(format!(
+                "columns separated by {}{}",
+                if delimiter == b'\t' { "tabs" } else { "`;`" },
+                if delimiter == b';' {
+                    " (decimal commas read as points)"
+                } else {
+                    ""
+                }
+            ));
+        }
         if time_scale != 1.0 {
             rec.notes
                 .push("time column `time_ms` in milliseconds, converted to seconds".into());
@@ -263,6 +277,13 @@ impl Recording {
                 if s.is_empty() && i != time_col {
                     return Ok(f64::NAN);
                 }
+                let decimal_comma;
+                let s = if delimiter == b';' && s.contains(',') {
+                    decimal_comma = s.replacen(',', ".", 1);
+                    decimal_comma.as_str()
+                } else {
+                    s
+                };
                 s.parse::<f64>().map_err(|_| {
                     anyhow!(
                         "{}: data row {row}, column {name}: `{s}` is not a number",
@@ -477,6 +498,27 @@ fn time_column(names: &[&str]) -> Result<(usize, f64)> {
 }
 
 /// A csv error without Rust debug text.
+/// The column separator of a recording CSV, read from its header (the first line that is not
+/// a `#` comment): a comma where it has one, else `;` (spreadsheets set to a decimal comma
+/// write that), else a tab, else a comma (a one-column file).
+fn sniff_delimiter(path: &Path) -> Result<u8> {
+    use std::io::BufRead;
+    let file = std::fs::File::open(path)
+        .with_context(|| format!("cannot open recording {}", path.display()))?;
+    for line in std::io::BufReader::new(file).split(b'\n') {
+        let line = line.with_context(|| format!("cannot read recording {}", path.display()))?;
+        let line = line.trim_ascii();
+        if line.is_empty() || line.starts_with(b"#") {
+            continue;
+        }
+        return Ok([b',', b';', b'\t']
+            .into_iter()
+            .find(|d| line.contains(d))
+            .unwrap_or(b','));
+    }
+    Ok(b',')
+}
+
 fn csv_error(e: &csv::Error) -> String {
     match e.kind() {
         csv::ErrorKind::UnequalLengths {
@@ -697,6 +739,38 @@ mod tests {
             rms(&kept)
         );
         assert!(rms(&decimate_fir(&tone(170.0), 10)) < 0.01);
+    }
+
+    #[test]
+    fn semicolons_with_decimal_commas_and_tabs_read_as_commas_do() {
+        let dir = std::env::temp_dir().join(format!("beamtools-delimiters-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let comma = "# logger v2; 100 Hz\ntime_s,base_cmd_m,tip_pos_m\n0,0,0.001\n0.01,0.5,-0.25\n";
+        let files = [
+            ("comma.csv", comma.to_string()),
+            (
+                "semicolon.csv",
+                "time_s;base_cmd_m;tip_pos_m\n0;0;0,001\n0,01;0,5;-0,25\n".into(),
+            ),
+            ("tab.csv", comma.replace(',', "\t")),
+        ];
+        let mut read = Vec::new();
+        for (name, text) in files {
+            let p = dir.join(name);
+            std::fs::write(&p, text).unwrap();
+            read.push(Recording::read_csv(&p).unwrap());
+        }
+        assert!(read[0].notes.is_empty(), "{:?}", read[0].notes);
+        for r in &read[1..] {
+            assert_eq!(r.time_s, read[0].time_s);
+            assert_eq!(r.base_cmd_m, read[0].base_cmd_m);
+            assert_eq!(r.tip_pos_m, read[0].tip_pos_m);
+            assert!(
+                r.notes[0].starts_with("columns separated by"),
+                "{:?}",
+                r.notes
+            );
+        }
     }
 
     #[test]

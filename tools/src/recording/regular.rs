@@ -2,6 +2,8 @@
 //!
 //! Every model and estimator of the project assumes uniform sampling. What a camera or a PC
 //! logger hands over is often not quite that:
+//! - **rows written out of time order** (a buffered logger flushing a row late): put in order
+//!   when no row is more than [`MAX_REORDER_ROWS`] rows from its place;
 //! - **duplicated rows** (the same time and values written twice): dropped;
 //! - **dropped frames** (a step of 2, 3, … sample intervals): the missing samples are filled;
 //! - **blank or `nan` cells** where a sensor lost its target: filled the same way;
@@ -17,7 +19,8 @@
 //! ([`lagrange_at`]: in a component at 9 % of the sample rate one missing sample is filled to
 //! 0.14 % of its amplitude, three in a row to 1.3 %). Rows at either end where a channel is missing are cut, never extrapolated.
 //!
-//! Refused, with the row and the reason: time that goes backwards; one time with two different
+//! Refused, with the row and the reason: time that goes backwards further than a late row (a
+//! clock reset, or two recordings in one file); one time with two different
 //! rows; rows closer than half a step; a row more than [`MAX_JITTER_STEPS`] steps off the
 //! grid (a varying sample rate, not jitter); a run of more than [`MAX_FILL_RUN`] missing
 //! samples in a channel, or more than [`MAX_FILL_FRACTION`] of it missing (cut the recording
@@ -31,6 +34,10 @@ use anyhow::{bail, Result};
 /// mode at a tenth of the sample rate is filled only to its trend, an error of a handful of
 /// samples that the diagnosis reads as noise.
 pub const MAX_FILL_RUN: usize = 10;
+
+/// The farthest a row written out of time order may be from its place (rows) and still be put
+/// in order; farther, time going backwards is a clock reset or two recordings in one file.
+pub const MAX_REORDER_ROWS: usize = 10;
 
 /// The largest share of a channel's samples that may be filled.
 pub const MAX_FILL_FRACTION: f64 = 0.1;
@@ -83,6 +90,7 @@ pub fn regularise(rec: Recording) -> Result<Recording> {
     if complete && rec.validate().is_ok() {
         return Ok(rec);
     }
+    let rec = in_time_order(rec)?;
     let mut rec = drop_duplicate_rows(rec)?;
     if rec.len() < 2 {
         bail!(
@@ -123,6 +131,47 @@ pub fn regularise(rec: Recording) -> Result<Recording> {
     }
     out.validate()?;
     Ok(out)
+}
+
+/// `rec` with rows written out of time order put in order (a stable sort by time) when none
+/// moves more than [`MAX_REORDER_ROWS`] rows, with a note; unchanged when already in order.
+/// Errors: time going backwards further (named by its row, with the jump).
+fn in_time_order(mut rec: Recording) -> Result<Recording> {
+    let t = &rec.time_s;
+    let Some(first) = (1..t.len()).find(|&k| t[k] < t[k - 1]) else {
+        return Ok(rec);
+    };
+    let mut order: Vec<usize> = (0..t.len()).collect();
+    order.sort_by(|&a, &b| t[a].total_cmp(&t[b]));
+    let moved = order
+        .iter()
+        .enumerate()
+        .map(|(place, &row)| place.abs_diff(row))
+        .max()
+        .unwrap_or(0);
+    if moved > MAX_REORDER_ROWS {
+        bail!(
+            "time_s goes backwards at data row {} ({} -> {}) and a row would move {moved} rows to its place (at most {MAX_REORDER_ROWS} are put in order): a clock reset, or two recordings in one file? Split the file there",
+            first + 1,
+            t[first - 1],
+            t[first]
+        );
+    }
+    let late = order
+        .iter()
+        .enumerate()
+        .filter(|(place, &row)| *place != row)
+        .count();
+    rec.time_s = order.iter().map(|&k| rec.time_s[k]).collect();
+    for name in CHANNELS {
+        if let Some(c) = rec.channel_slot(name).expect("known channel") {
+            *c = order.iter().map(|&k| c[k]).collect();
+        }
+    }
+    rec.notes.push(format!(
+        "{late} rows written out of time order (none more than {moved} rows from its place): put in order"
+    ));
+    Ok(rec)
 }
 
 /// Drops rows that repeat the previous row's time and values (a logger writing a sample
@@ -547,6 +596,48 @@ mod tests {
             out.notes.iter().any(|n| n.contains("the stamps noisy")),
             "{:?}",
             out.notes
+        );
+    }
+
+    #[test]
+    fn rows_written_late_are_put_in_order_and_a_clock_reset_refused() {
+        let truth = recording(grid_times(1000, 100.0));
+        let mut late = truth.clone();
+        let swap = |r: &mut Recording, a: usize, b: usize| {
+            r.time_s.swap(a, b);
+            for c in [&mut r.tip_pos_m, &mut r.base_cmd_m] {
+                c.as_mut().unwrap().swap(a, b);
+            }
+        };
+        // each 100th row flushed three rows late
+        for k in (100..900).step_by(100) {
+            swap(&mut late, k, k + 3);
+        }
+        let out = regularise(late).unwrap();
+        let worst = |a: &[f64], b: &[f64]| {
+            assert_eq!(a.len(), b.len());
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max)
+        };
+        assert!(worst(&out.time_s, &truth.time_s) < 1e-9);
+        let tip = (out.tip_pos_m.as_ref(), truth.tip_pos_m.as_ref());
+        assert!(worst(tip.0.unwrap(), tip.1.unwrap()) < 1e-9);
+        assert!(
+            out.notes[0].contains("out of time order (none more than 3 rows"),
+            "{:?}",
+            out.notes
+        );
+        // the clock reset after 500 rows: two recordings, not late rows
+        let mut reset = truth.clone();
+        for t in &mut reset.time_s[500..] {
+            *t -= 5.0;
+        }
+        let e = regularise(reset).unwrap_err().to_string();
+        assert!(
+            e.contains("data row 501") && e.contains("clock reset"),
+            "{e}"
         );
     }
 
