@@ -10,8 +10,10 @@
 //! recording whose sensors agree at rest is returned unchanged.
 //!
 //! The rest is the leading run of samples whose command stays within [`REST_TOLERANCE_M`] of
-//! its first value; with fewer than [`MIN_REST_SAMPLES`] of them, or without `base_cmd_m`,
-//! nothing is changed. `force_n` is left alone: at rest the drive may hold a force inside the
+//! its first value; without `base_cmd_m` nothing is changed, and with fewer than
+//! [`MIN_REST_SAMPLES`] of them nothing but a note that the recording does not start at rest; a tip that rings
+//! over the rest (a logger started after a move) is named too, since the model starts every
+//! recording at rest. `force_n` is left alone: at rest the drive may hold a force inside the
 //! guide's static friction, which is physics, not an offset.
 
 use super::{fmt_sig, Recording};
@@ -19,6 +21,16 @@ use super::{fmt_sig, Recording};
 /// How far the command may be from its first value and still count as "not yet moved" (m):
 /// a 1 µm encoder count.
 pub const REST_TOLERANCE_M: f64 = 1e-6;
+
+/// The tip's rms motion about the base over the rest, in multiples of its noise, above which
+/// the beam counts as still ringing when the recording starts.
+pub const RINGING_NOISE_MULTIPLE: f64 = 5.0;
+
+/// The tip's rms motion about the base over the rest, as a share of the deflection's largest
+/// value over the recording, above which the beam counts as still ringing: the truth
+/// generator's rests (sensor noise with slow components, camera counts) reach 0.03 mm against
+/// deflections of tens of mm; a logger started 9 s into independent case03 shows 22 mm.
+pub const RINGING_SHARE: f64 = 0.02;
 
 /// The fewest rest samples from which an offset is estimated.
 pub const MIN_REST_SAMPLES: usize = 10;
@@ -39,6 +51,9 @@ pub fn zero_at_rest(mut rec: Recording) -> Recording {
         .position(|c| (c - cmd[0]).abs() > REST_TOLERANCE_M)
         .unwrap_or(cmd.len());
     if n < MIN_REST_SAMPLES {
+        rec.notes.push(format!(
+            "the command moves within the first {n} samples: the recording does not start at rest, as the diagnosis's model starts it, and its first seconds may not fit (start the logger before the first move)"
+        ));
         return rec;
     }
     let rest_s = n as f64 * rec.sample_interval_s();
@@ -50,6 +65,13 @@ pub fn zero_at_rest(mut rec: Recording) -> Recording {
         }
     }
     let reference = rec.base_pos_m.clone().unwrap_or(cmd);
+    if let Some(note) = rec
+        .tip_pos_m
+        .as_deref()
+        .and_then(|tip| still_ringing(tip, &reference, n, rest_s))
+    {
+        rec.notes.push(note);
+    }
     if let Some(tip) = rec.tip_pos_m.as_mut() {
         if let Some(off) = significant_offset(&tip[..n], &reference[..n]) {
             tip.iter_mut().for_each(|t| *t -= off);
@@ -58,6 +80,40 @@ pub fn zero_at_rest(mut rec: Recording) -> Recording {
         }
     }
     rec
+}
+
+/// A note when the tip moves about the base over the rest (its first `n` samples) by more
+/// than [`RINGING_NOISE_MULTIPLE`] × its noise (σ = 1.4826 MAD(Δ²x)/√6, which a ring well
+/// below the sample rate hardly reaches) and more than [`RINGING_SHARE`] of the deflection's
+/// largest value over the recording: the beam still rings from a motion before the recording.
+fn still_ringing(tip: &[f64], reference: &[f64], n: usize, rest_s: f64) -> Option<String> {
+    let largest = tip
+        .iter()
+        .zip(reference)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    let d: Vec<f64> = tip[..n]
+        .iter()
+        .zip(&reference[..n])
+        .map(|(a, b)| a - b)
+        .collect();
+    let n = d.len() as f64;
+    let mean = d.iter().sum::<f64>() / n;
+    let rms = (d.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt();
+    let mut dd: Vec<f64> = d
+        .windows(3)
+        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
+        .collect();
+    dd.sort_by(f64::total_cmp);
+    let noise = 1.4826 * dd.get(dd.len() / 2).copied()? / 6f64.sqrt();
+    (rms > RINGING_NOISE_MULTIPLE * noise && rms > RINGING_SHARE * largest).then(|| {
+        format!(
+            "the tip moves about the base by {} mm rms over the rest before the first move ({} s; its noise {} mm): the beam still rings from a motion before the recording, which the diagnosis's model starts at rest, and its first seconds may not fit (start the logger with the beam at rest)",
+            fmt_sig(rms * 1e3, 3),
+            fmt_sig(rest_s, 3),
+            fmt_sig(noise * 1e3, 2)
+        )
+    })
 }
 
 /// The mean of `x − reference` when it exceeds [`OFFSET_STANDARD_ERRORS`] standard errors.
@@ -155,7 +211,7 @@ mod tests {
     }
 
     #[test]
-    fn without_a_rest_nothing_is_changed() {
+    fn without_a_rest_nothing_is_changed_but_a_note() {
         let mut r = recording();
         let cmd = r.base_cmd_m.as_mut().unwrap();
         for (k, c) in cmd.iter_mut().enumerate() {
@@ -166,6 +222,34 @@ mod tests {
             .unwrap()
             .iter_mut()
             .for_each(|t| *t += 3e-3);
-        assert_eq!(zero_at_rest(r.clone()), r);
+        let z = zero_at_rest(r.clone());
+        assert_eq!(
+            (&z.time_s, &z.base_pos_m, &z.tip_pos_m),
+            (&r.time_s, &r.base_pos_m, &r.tip_pos_m)
+        );
+        assert_eq!(z.notes.len(), 1);
+        assert!(
+            z.notes[0].contains("does not start at rest"),
+            "{:?}",
+            z.notes
+        );
+    }
+
+    #[test]
+    fn a_beam_still_ringing_when_the_recording_starts_is_named() {
+        // a 1 mm ring at 1.5 Hz decaying slowly over the rest, under the ±20 µm scatter
+        let mut r = recording();
+        for (k, t) in r.tip_pos_m.as_mut().unwrap().iter_mut().enumerate() {
+            let s = k as f64 / 100.0;
+            *t += 1e-3 * (-0.1 * s).exp() * (2.0 * std::f64::consts::PI * 1.5 * s).cos();
+        }
+        let z = zero_at_rest(r);
+        assert!(
+            z.notes.iter().any(|n| n.contains("still rings")),
+            "{:?}",
+            z.notes
+        );
+        // the scatter alone is not a ring
+        assert!(zero_at_rest(recording()).notes.is_empty());
     }
 }
