@@ -32,6 +32,7 @@ Another rig's recordings rather than a logger's faults (the rig file follows whe
   no_force     without force_n
   tip_only     without base_pos_m and force_n
   short        the first 60 % of each recording
+  late_start   the first 15 % of each recording dropped (a logger started mid-motion)
 One line per (case, kind): exit status, notes printed, named effects, unexplained channel,
 validation NRMSE before/after on the best channel, run time, and whether the answer is right by
 the scorer's rule (score_discrepancy.py: the named catalogue effects equal the key's; a named
@@ -109,6 +110,8 @@ def perturb(rows, kind, rng):
         data = [[r[i] for i in keep] for r in data]
     elif kind == 'short':
         data = data[:int(0.6 * len(data))]
+    elif kind == 'late_start':
+        data = data[int(0.15 * len(data)):]
     elif kind in ('tip_clip', 'force_clip'):
         # the sensor's range ends at 80 % of the largest excursion either way (a camera's field
         # of view, a drive's current limit): every sample beyond it reads the rail

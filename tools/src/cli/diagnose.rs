@@ -117,7 +117,9 @@ pub fn load(path: &Path, rig: &Rig) -> Result<Prepared> {
     };
     let rec = crate::recording::zero::zero_at_rest(rec);
     super::print_notes(path, &rec.notes[read..]);
-    Prepared::new(&path.display().to_string(), &rec)
+    let mut d = Prepared::new(&path.display().to_string(), &rec)?;
+    d.free_start = !crate::recording::zero::starts_at_rest(&rec);
+    Ok(d)
 }
 
 /// The rig file's first clamped natural frequency (Hz); `None` for a carriage-only rig or a

@@ -535,6 +535,7 @@ pub fn decimate_prepared(d: &Prepared, q: usize) -> Prepared {
             .rails
             .clone()
             .map(|r| r.decimated(q, RAIL_MARGIN, d.cmd_m.len().div_ceil(q))),
+        free_start: d.free_start,
     }
 }
 
@@ -659,6 +660,7 @@ mod tests {
             tip_m: Some(tip),
             force_n: None,
             rails: Default::default(),
+            free_start: false,
         }
     }
 

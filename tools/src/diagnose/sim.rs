@@ -323,6 +323,10 @@ pub struct Prepared {
     /// Samples held at a sensor's rail, per compared channel (base, tip, force): left out of
     /// every residual ([`super::saturation`]; the base, which also drives the model, has none).
     pub rails: [super::saturation::Rails; 3],
+    /// The recording does not start at rest (a logger started mid-motion, or while the beam
+    /// still rang: [`crate::recording::zero::starts_at_rest`]): the prediction adds the beam
+    /// modes' free response from an unknown initial state ([`add_free_response`]).
+    pub free_start: bool,
 }
 
 impl Prepared {
@@ -371,6 +375,7 @@ impl Prepared {
             tip_m: rec.tip_pos_m.clone(),
             force_n: rec.force_n.clone(),
             rails,
+            free_start: false,
         })
     }
 }
@@ -1235,7 +1240,77 @@ pub fn predict(
         let force = smooth_drive_of(p, rig, c, force, (drive, drive_pos), dt);
         out.force_n = Some(carriage_forces(p, drive_pos, force, dt));
     }
+    if let (true, Some(c)) = (d.free_start, c) {
+        add_free_response(d, c, &mut out);
+    }
     Ok(out)
+}
+
+/// Adds to the predicted tip and force of a recording that does not start at rest the free
+/// response of the beam's modes from the state it was in at the first sample, which nothing
+/// recorded tells: each mode r rings from there as `e^{−ζ_r ω_r t} (a cos ω_dr t + b sin ω_dr t)`
+/// (ω_dr = ω_r √(1 − ζ_r²)) in the tip and, as its modal acceleration, in the force (eq. 5's
+/// `hᵀ q̈`: the same two functions). The 2 coefficients per mode below 0.8 × Nyquist are least
+/// squares on the channel's residual, samples at a sensor's rail left out — the initial state
+/// estimated as a nuisance, per recording and per channel, at every parameter set (variable
+/// projection). The same mend as a fit of the initial conditions, without the 4R parameters
+/// in the Levenberg–Marquardt problem.
+fn add_free_response(d: &Prepared, c: &BeamCache, out: &mut Prediction) {
+    use nalgebra::{DMatrix, DVector};
+    let nyquist = std::f64::consts::PI / d.dt;
+    let modes: Vec<(f64, f64)> = c
+        .omega
+        .iter()
+        .zip(&c.zeta)
+        .filter(|(w, z)| **w < 0.8 * nyquist && **z < 1.0)
+        .map(|(w, z)| (*w, *z))
+        .collect();
+    for (measured, predicted, rails) in [
+        (&d.tip_m, &mut out.tip_m, &d.rails[1]),
+        (&d.force_n, &mut out.force_n, &d.rails[2]),
+    ] {
+        let (Some(m), Some(p)) = (measured, predicted.as_mut()) else {
+            continue;
+        };
+        let n = m.len().min(p.len());
+        if modes.is_empty() || n < 4 * modes.len() {
+            continue;
+        }
+        // e^{(−ζω + iω_d) k dt} by recurrence: one complex product per sample and mode
+        let mut basis = DMatrix::zeros(n, 2 * modes.len());
+        for (r, &(w, z)) in modes.iter().enumerate() {
+            let step = nalgebra::Complex::from_polar(
+                (-z * w * d.dt).exp(),
+                w * (1.0 - z * z).sqrt() * d.dt,
+            );
+            let mut e = nalgebra::Complex::new(1.0, 0.0);
+            for k in 0..n {
+                basis[(k, 2 * r)] = e.re;
+                basis[(k, 2 * r + 1)] = e.im;
+                e *= step;
+            }
+        }
+        let mut fitted = basis.clone();
+        let mut r = DVector::from_fn(n, |k, _| m[k] - p[k]);
+        for &(s, e) in &rails.runs {
+            for k in s.min(n)..e.min(n) {
+                r[k] = 0.0;
+                fitted.row_mut(k).fill(0.0);
+            }
+        }
+        let gram = fitted.tr_mul(&fitted);
+        let ridge = 1e-12 * gram.trace().max(f64::MIN_POSITIVE);
+        let size = gram.nrows();
+        let gram = gram + DMatrix::identity(size, size) * ridge;
+        let Some(ch) = gram.cholesky() else {
+            continue;
+        };
+        let coef = ch.solve(&fitted.tr_mul(&r));
+        let free = &basis * coef;
+        if free.iter().all(|v| v.is_finite()) {
+            p.iter_mut().zip(free.iter()).for_each(|(p, f)| *p += f);
+        }
+    }
 }
 
 /// The motor force `force` (N, one per sample) of the model's drive, or, when `p.smooth_drive`
@@ -1901,6 +1976,45 @@ mod tests {
         assert!(
             worst_instant > 3.0 * worst_mean,
             "{worst_instant} vs {worst_mean}"
+        );
+    }
+
+    #[test]
+    fn a_recording_started_while_the_beam_rings_is_predicted_with_its_free_response() {
+        // the move recorded from 0.2 s after its end: the beam rings, the carriage rests
+        let rig = rig();
+        let full = Prepared::new("t", &move_rec_at(100.0)).unwrap();
+        let truth = predict(&rig, &Params::default(), &full, &mut None).unwrap();
+        let end = full
+            .cmd_m
+            .iter()
+            .rposition(|c| *c != full.cmd_m[full.cmd_m.len() - 1]);
+        let k0 = end.unwrap() + 20;
+        let mut late = crate::recording::Recording::with_uniform_time(full.cmd_m.len() - k0, 100.0);
+        late.base_cmd_m = Some(full.cmd_m[k0..].to_vec());
+        late.tip_pos_m = Some(truth.tip_m.as_ref().unwrap()[k0..].to_vec());
+        late.force_n = Some(truth.force_n.as_ref().unwrap()[k0..].to_vec());
+        let mut d = Prepared::new("late", &late).unwrap();
+        let rms_of = |d: &Prepared| {
+            let p = predict(&rig, &Params::default(), d, &mut None).unwrap();
+            let rms = |a: &[f64], b: &[f64]| {
+                (a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>() / a.len() as f64)
+                    .sqrt()
+            };
+            (
+                rms(p.tip_m.as_ref().unwrap(), d.tip_m.as_ref().unwrap()),
+                rms(p.force_n.as_ref().unwrap(), d.force_n.as_ref().unwrap()),
+            )
+        };
+        let at_rest = rms_of(&d);
+        d.free_start = true;
+        let free = rms_of(&d);
+        // from rest the model sees no ring at all; with the free response, all of it
+        assert!(at_rest.0 > 1e-3 && at_rest.1 > 1e-2, "{at_rest:?}");
+        // (measured 1.2e-13 m and 7e-13 N against 0.042 m and 0.18 N)
+        assert!(
+            free.0 < 1e-9 * at_rest.0 && free.1 < 1e-9 * at_rest.1,
+            "{free:?} vs {at_rest:?}"
         );
     }
 

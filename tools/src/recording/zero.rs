@@ -46,13 +46,10 @@ pub fn zero_at_rest(mut rec: Recording) -> Recording {
     let Some(cmd) = rec.base_cmd_m.clone() else {
         return rec;
     };
-    let n = cmd
-        .iter()
-        .position(|c| (c - cmd[0]).abs() > REST_TOLERANCE_M)
-        .unwrap_or(cmd.len());
+    let n = rest_samples(&cmd);
     if n < MIN_REST_SAMPLES {
         rec.notes.push(format!(
-            "the command moves within the first {n} samples: the recording does not start at rest, as the diagnosis's model starts it, and its first seconds may not fit (start the logger before the first move)"
+            "the command moves within the first {n} samples: the recording does not start at rest, as the diagnosis's model starts it; the beam modes' free response from an unknown initial state is fitted with it (start the logger before the first move)"
         ));
         return rec;
     }
@@ -82,6 +79,30 @@ pub fn zero_at_rest(mut rec: Recording) -> Recording {
     rec
 }
 
+/// Whether `rec` starts at rest, as the diagnosis's model starts every recording: its command
+/// rests for at least [`MIN_REST_SAMPLES`] samples and the tip does not ring about the base
+/// over that rest (see [`zero_at_rest`]). True without `base_cmd_m` (nothing tells).
+pub fn starts_at_rest(rec: &Recording) -> bool {
+    let Some(cmd) = rec.base_cmd_m.as_deref() else {
+        return true;
+    };
+    let n = rest_samples(cmd);
+    if n < MIN_REST_SAMPLES {
+        return false;
+    }
+    let reference = rec.base_pos_m.as_deref().unwrap_or(cmd);
+    rec.tip_pos_m.as_deref().map_or(true, |tip| {
+        still_ringing(tip, reference, n, n as f64 * rec.sample_interval_s()).is_none()
+    })
+}
+
+/// Samples in the leading run whose command stays within [`REST_TOLERANCE_M`] of its first value.
+fn rest_samples(cmd: &[f64]) -> usize {
+    cmd.iter()
+        .position(|c| (c - cmd[0]).abs() > REST_TOLERANCE_M)
+        .unwrap_or(cmd.len())
+}
+
 /// A note when the tip moves about the base over the rest (its first `n` samples) by more
 /// than [`RINGING_NOISE_MULTIPLE`] × its noise (σ = 1.4826 MAD(Δ²x)/√6, which a ring well
 /// below the sample rate hardly reaches) and more than [`RINGING_SHARE`] of the deflection's
@@ -108,7 +129,7 @@ fn still_ringing(tip: &[f64], reference: &[f64], n: usize, rest_s: f64) -> Optio
     let noise = 1.4826 * dd.get(dd.len() / 2).copied()? / 6f64.sqrt();
     (rms > RINGING_NOISE_MULTIPLE * noise && rms > RINGING_SHARE * largest).then(|| {
         format!(
-            "the tip moves about the base by {} mm rms over the rest before the first move ({} s; its noise {} mm): the beam still rings from a motion before the recording, which the diagnosis's model starts at rest, and its first seconds may not fit (start the logger with the beam at rest)",
+            "the tip moves about the base by {} mm rms over the rest before the first move ({} s; its noise {} mm): the beam still rings from a motion before the recording, which the diagnosis's model starts at rest; the beam modes' free response from an unknown initial state is fitted with it (start the logger with the beam at rest)",
             fmt_sig(rms * 1e3, 3),
             fmt_sig(rest_s, 3),
             fmt_sig(noise * 1e3, 2)
