@@ -1241,7 +1241,7 @@ pub fn predict(
         out.force_n = Some(carriage_forces(p, drive_pos, force, dt));
     }
     if let (true, Some(c)) = (d.free_start, c) {
-        add_free_response(d, c, &mut out);
+        add_free_response(d, c, p.mount, &mut out);
     }
     Ok(out)
 }
@@ -1250,20 +1250,23 @@ pub fn predict(
 /// response of the beam's modes from the state it was in at the first sample, which nothing
 /// recorded tells: each mode r rings from there as `e^{−ζ_r ω_r t} (a cos ω_dr t + b sin ω_dr t)`
 /// (ω_dr = ω_r √(1 − ζ_r²)) in the tip and, as its modal acceleration, in the force (eq. 5's
-/// `hᵀ q̈`: the same two functions). The 2 coefficients per mode below 0.8 × Nyquist are least
+/// `hᵀ q̈`: the same two functions); so does a mount's resonance (`mount`: Hz, damping ratio),
+/// its frequency as the candidate states it. The 2 coefficients per mode below 0.8 × Nyquist are least
 /// squares on the channel's residual, samples at a sensor's rail left out — the initial state
 /// estimated as a nuisance, per recording and per channel, at every parameter set (variable
 /// projection). The same mend as a fit of the initial conditions, without the 4R parameters
 /// in the Levenberg–Marquardt problem.
-fn add_free_response(d: &Prepared, c: &BeamCache, out: &mut Prediction) {
+fn add_free_response(d: &Prepared, c: &BeamCache, mount: Option<(f64, f64)>, out: &mut Prediction) {
     use nalgebra::{DMatrix, DVector};
     let nyquist = std::f64::consts::PI / d.dt;
+    let mount = mount.map(|(f_hz, z)| (2.0 * std::f64::consts::PI * f_hz, z));
     let modes: Vec<(f64, f64)> = c
         .omega
         .iter()
-        .zip(&c.zeta)
-        .filter(|(w, z)| **w < 0.8 * nyquist && **z < 1.0)
-        .map(|(w, z)| (*w, *z))
+        .copied()
+        .zip(c.zeta.iter().copied())
+        .chain(mount)
+        .filter(|(w, z)| *w < 0.8 * nyquist && *z < 1.0)
         .collect();
     for (measured, predicted, rails) in [
         (&d.tip_m, &mut out.tip_m, &d.rails[1]),
