@@ -73,17 +73,21 @@ fn diagnose_written(
     (common::named_effects(&j), stderr)
 }
 
+/// Truth-generator options: 30 s recordings, `base_pos_m` and `force_n` recorded or not.
+fn thirty_seconds(base_and_force: bool) -> TruthOptions {
+    TruthOptions {
+        duration_s: 30.0,
+        base_pos: Some(base_and_force),
+        force: Some(base_and_force),
+        ..Default::default()
+    }
+}
+
 /// Generates `effect` at `seed` (30 s, base and force recorded), writes it imperfect into a
 /// fresh directory and diagnoses it with the binary; returns (named effects without
 /// `servo_lag`, stderr).
 fn diagnose_imperfect(effect: &str, seed: u64) -> (Vec<String>, String) {
-    let opts = TruthOptions {
-        duration_s: 30.0,
-        base_pos: Some(true),
-        force: Some(true),
-        ..Default::default()
-    };
-    let case = generate(effect, seed, &opts).unwrap();
+    let case = generate(effect, seed, &thirty_seconds(true)).unwrap();
     let dir = std::env::temp_dir().join(format!("beamtool-imperfect-{effect}-{seed}"));
     diagnose_written(&case, &dir, write_imperfect)
 }
@@ -132,13 +136,7 @@ fn write_clipped(rec: &Recording, path: &Path, fraction: f64) {
 fn a_tip_clipped_at_the_cameras_field_of_view_is_fitted_on_what_it_recorded() {
     // a clamp spring, the tip alone recorded by a camera that loses the marker beyond 80 % of
     // its largest excursion
-    let opts = TruthOptions {
-        duration_s: 30.0,
-        base_pos: Some(false),
-        force: Some(false),
-        ..Default::default()
-    };
-    let case = generate("root_compliance", 1300, &opts).unwrap();
+    let case = generate("root_compliance", 1300, &thirty_seconds(false)).unwrap();
     let dir = std::env::temp_dir().join("beamtool-clipped-root_compliance-1300");
     let (named, stderr) = diagnose_written(&case, &dir, |r, p| write_clipped(r, p, 0.8));
     assert!(stderr.contains("held at its sensor's rail"), "{stderr}");
@@ -168,13 +166,7 @@ fn sensors_mounted_the_other_way_round_are_named_and_read_the_right_way() {
     // carriage friction, seen on the force and the base; before `recording::orient` the
     // friction was still found on the force, but the reversed encoder stood as an
     // unexplained `base_pos_m` residual of validation NRMSE 2.09
-    let opts = TruthOptions {
-        duration_s: 30.0,
-        base_pos: Some(true),
-        force: Some(true),
-        ..Default::default()
-    };
-    let case = generate("base_friction", 1001, &opts).unwrap();
+    let case = generate("base_friction", 1001, &thirty_seconds(true)).unwrap();
     let dir = std::env::temp_dir().join("beamtool-reversed-base_friction-1001");
     let (named, stderr) = diagnose_written(&case, &dir, write_reversed);
     for note in [
