@@ -226,17 +226,7 @@ impl Recording {
         let (time_col, time_scale) =
             time_column(&names).map_err(|e| anyhow!("{}: {e}", path.display()))?;
         let mut rec = Recording::default();
-        if delimiter != b',' {
-            rec.notes.push(format!(
-                "columns separated by {}{}",
-                if delimiter == b'\t' { "tabs" } else { "`;`" },
-                if delimiter == b';' {
-                    " (decimal commas read as points)"
-                } else {
-                    ""
-                }
-            ));
-        }
+        rec.notes.extend(delimiter_note(delimiter));
         if time_scale != 1.0 {
             rec.notes
                 .push("time column `time_ms` in milliseconds, converted to seconds".into());
@@ -277,14 +267,7 @@ impl Recording {
                 if s.is_empty() && i != time_col {
                     return Ok(f64::NAN);
                 }
-                let decimal_comma;
-                let s = if delimiter == b';' && s.contains(',') {
-                    decimal_comma = s.replacen(',', ".", 1);
-                    decimal_comma.as_str()
-                } else {
-                    s
-                };
-                s.parse::<f64>().map_err(|_| {
+                parse_number(s, delimiter).map_err(|_| {
                     anyhow!(
                         "{}: data row {row}, column {name}: `{s}` is not a number",
                         path.display()
@@ -498,6 +481,24 @@ fn time_column(names: &[&str]) -> Result<(usize, f64)> {
 }
 
 /// A csv error without Rust debug text.
+/// The note on a column separator other than the comma.
+fn delimiter_note(delimiter: u8) -> Option<String> {
+    match delimiter {
+        b';' => Some("columns separated by `;` (decimal commas read as points)".into()),
+        b'\t' => Some("columns separated by tabs".into()),
+        _ => None,
+    }
+}
+
+/// A cell as a number; with `;` as the separator, a decimal comma reads as a point.
+fn parse_number(cell: &str, delimiter: u8) -> std::result::Result<f64, std::num::ParseFloatError> {
+    if delimiter == b';' && cell.contains(',') {
+        cell.replacen(',', ".", 1).parse()
+    } else {
+        cell.parse()
+    }
+}
+
 /// The column separator of a recording CSV, read from its header (the first line that is not
 /// a `#` comment): a comma where it has one, else `;` (spreadsheets set to a decimal comma
 /// write that), else a tab, else a comma (a one-column file).
