@@ -28,7 +28,7 @@
 //! difference, 1.4826 MAD(Δ²y)/√6 (white noise of σ has Δ² of variance 6σ²; a swing's own
 //! curvature A ω² dt² inflates it, but a cut-off hides ≈ A ω dt L, larger by L/(ω dt)).
 
-use crate::numeric::stats::{median, quantum};
+use crate::numeric::stats::{quantum, second_difference_noise};
 
 /// Fewest samples at one rail for it to be one.
 pub const MIN_RAIL_SAMPLES: usize = 3;
@@ -90,11 +90,7 @@ pub fn rails(y: &[f64]) -> Rails {
     if n < 8 || y.iter().any(|v| !v.is_finite()) {
         return Rails::default();
     }
-    let d2: Vec<f64> = y
-        .windows(3)
-        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
-        .collect();
-    let noise = 1.4826 * median(&d2) / 6f64.sqrt();
+    let noise = second_difference_noise(y);
     let q = quantum(y).unwrap_or(0.0);
     let (step_min, hidden_min) = (
         (MIN_STEP_NOISE * noise).max(2.0 * q),

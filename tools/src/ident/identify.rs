@@ -672,14 +672,10 @@ pub fn base_motion(b: &[f64]) -> BaseMotion {
         }
     }
     // Sample-to-sample noise: 1.4826 × MAD of the second differences / √6 (white noise).
-    let mut d2: Vec<f64> = b
-        .windows(3)
-        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
-        .collect();
-    let noise_hf = if d2.is_empty() {
+    let noise_hf = if b.len() < 3 {
         0.0
     } else {
-        1.4826 * median(&mut d2) / 6f64.sqrt()
+        crate::numeric::stats::second_difference_noise(b)
     };
     let moves = range > 20.0 * noise_hf && range > 0.0;
     BaseMotion {

@@ -278,6 +278,18 @@ pub const WIENER_SMOOTH_BINS: usize = 4;
 /// 2 × [`WIENER_SMOOTH_BINS`] + 1 = 9 noise-only periodogram ordinates, each χ²(2)/2).
 pub const WIENER_OVERSUBTRACTION: f64 = 42.31 / 18.0;
 
+/// The white-noise σ of a sampled signal from its second differences: 1.4826 × the median
+/// of |Δ²x| / √6 (white noise of σ has Δ² of variance 6σ²; 1.4826 × MAD is σ for a Gaussian,
+/// Hampel 1974), which a signal well below the sample rate hardly reaches. NaN for fewer than
+/// 3 samples.
+pub fn second_difference_noise(x: &[f64]) -> f64 {
+    let d2: Vec<f64> = x
+        .windows(3)
+        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
+        .collect();
+    1.4826 * median(&d2) / 6f64.sqrt()
+}
+
 /// Median of `v` (the mean of the two middle values for an even length; NaN when empty).
 pub fn median(v: &[f64]) -> f64 {
     if v.is_empty() {

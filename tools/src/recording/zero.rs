@@ -121,12 +121,10 @@ fn still_ringing(tip: &[f64], reference: &[f64], n: usize, rest_s: f64) -> Optio
     let n = d.len() as f64;
     let mean = d.iter().sum::<f64>() / n;
     let rms = (d.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt();
-    let mut dd: Vec<f64> = d
-        .windows(3)
-        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
-        .collect();
-    dd.sort_by(f64::total_cmp);
-    let noise = 1.4826 * dd.get(dd.len() / 2).copied()? / 6f64.sqrt();
+    let noise = crate::numeric::stats::second_difference_noise(&d);
+    if !noise.is_finite() {
+        return None;
+    }
     (rms > RINGING_NOISE_MULTIPLE * noise && rms > RINGING_SHARE * largest).then(|| {
         format!(
             "the tip moves about the base by {} mm rms over the rest before the first move ({} s; its noise {} mm): the beam still rings from a motion before the recording, which the diagnosis's model starts at rest; the beam modes' free response from an unknown initial state is fitted with it (start the logger with the beam at rest)",
