@@ -809,3 +809,40 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
         Effect::GravityAxialLoad => {}
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A rig file may list a damping ratio per mode (the way a modal test reports them): the
+    /// model's Rayleigh pair takes modes 1 and 2, and the diagnosis starts each in-band mode's
+    /// ratio from its own entry, the last repeated beyond the list.
+    #[test]
+    fn a_damping_ratio_listed_per_mode_starts_that_modes_calibration() {
+        let text = "[beam]\nlength_m = 0.9\ndensity_kg_m3 = 8190.0\nyoungs_modulus_pa = 1.9e11\n\
+            stations = [ { x_m = 0.0, width_m = 0.025, thickness_m = 0.00115 },\n\
+                         { x_m = 0.9, width_m = 0.025, thickness_m = 0.00115 } ]\n\
+            [base]\nmass_kg = 2.5\n[damping]\nratios = [0.007, 0.005, 0.012, 0.02]\n";
+        let rig = Rig::from_toml_str(text).expect("four ratios are a valid rig");
+        assert_eq!(rig.damping_ratios(), (0.007, 0.005));
+        let ch = Channels {
+            tip: true,
+            ..Default::default()
+        };
+        let calib = calibration_defs(&rig, &ch, 6, 12);
+        let starts: Vec<(&str, f64)> = calib
+            .defs
+            .iter()
+            .filter(|d| d.name.starts_with("zeta"))
+            .map(|d| (d.name, d.starts[0]))
+            .collect();
+        let expected = [0.007, 0.005, 0.012, 0.02, 0.02, 0.02];
+        assert_eq!(starts.len(), expected.len(), "{starts:?}");
+        for ((name, z), want) in starts.iter().zip(expected) {
+            assert_eq!(*z, want, "{name}");
+        }
+        let empty = text.replace("[0.007, 0.005, 0.012, 0.02]", "[]");
+        let err = Rig::from_toml_str(&empty).unwrap_err().to_string();
+        assert!(err.contains("damping.ratios"), "{err}");
+    }
+}

@@ -77,7 +77,9 @@ pub struct BaseSection {
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct DampingSection {
-    /// Damping ratios of modes 1 and 2 (→ Rayleigh α1, α2, eq. 22).
+    /// Damping ratios of modes 1, 2, … in order (one or more). Modes 1 and 2 set Rayleigh's
+    /// α1, α2 (eq. 22) for the model; the diagnosis starts each mode's ratio from its entry
+    /// (the last repeated for higher modes).
     pub ratios: Vec<f64>,
 }
 
@@ -171,8 +173,8 @@ impl Rig {
             positive(s.sample_rate_hz, "sensors.sample_rate_hz")?;
         }
         if let Some(d) = &self.damping {
-            if d.ratios.is_empty() || d.ratios.len() > 2 {
-                bail!("`damping.ratios` needs one or two damping ratios (modes 1 and 2)");
+            if d.ratios.is_empty() {
+                bail!("`damping.ratios` needs at least one damping ratio (mode 1, then 2, …)");
             }
             for (i, z) in d.ratios.iter().enumerate() {
                 if !(z.is_finite() && *z >= 0.0 && *z < 1.0) {
@@ -254,12 +256,12 @@ impl Rig {
         Ok(p)
     }
 
-    /// Damping ratios of modes 1 and 2 (one value is used for both; default 0.0074, the
-    /// paper's eq. 35).
+    /// Damping ratios of modes 1 and 2 (one value is used for both; entries for higher modes
+    /// are not Rayleigh's; default 0.0074, the paper's eq. 35).
     pub fn damping_ratios(&self) -> (f64, f64) {
         match self.damping.as_ref().map(|d| d.ratios.as_slice()) {
             Some([z]) => (*z, *z),
-            Some([z1, z2]) => (*z1, *z2),
+            Some([z1, z2, ..]) => (*z1, *z2),
             _ => (0.0074, 0.0074),
         }
     }
