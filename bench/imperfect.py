@@ -25,6 +25,7 @@ recordings alike, and diagnosed:
   tip_flip     tip_pos_m negated (a camera whose axis points the other way)
   force_flip   force_n negated (a drive whose force sign is the opposite convention)
   base_flip    base_pos_m negated (an encoder counting down)
+  units        time in ms, positions in mm (`time_ms`, `tip_pos_mm`, ...: a logger writing its own units)
   combined     jitter (sigma 3 % of a step), then tip_offset, base_offset, nan, dropped, dup, all at once
 Another rig's recordings rather than a logger's faults (the rig file follows where it must):
   half_rate    every other row (a camera at half the rate, no anti-alias filter; sample_rate_hz halved)
@@ -125,6 +126,12 @@ def perturb(rows, kind, rng):
         if c in col:
             for r in data:
                 r[col[c]] = repr(-float(r[col[c]]))
+    elif kind == 'units':
+        for i, h in enumerate(head):
+            if h.endswith('_s') or h.endswith('_m'):
+                head[i] = h[:-1] + 'ms' if h.endswith('_s') else h + 'm'
+                for r in data:
+                    r[i] = repr(1e3 * float(r[i])) if r[i] else r[i]
     elif kind == 'combined':
         dt = float(data[1][0]) - float(data[0][0])
         for r in data:

@@ -9,7 +9,9 @@
 //! - `tip_pos_m`: absolute tip position along the base axis, lab frame (m);
 //! - `force_n`: motor force (N).
 //!
-//! Columns other than `time_s` are optional; unknown columns are ignored with a note. A blank
+//! Columns other than `time_s` are optional; unknown columns are ignored with a note. Positions
+//! in millimetres or micrometres (`tip_pos_mm`, `base_cmd_um`, …) and times in `time_ms` or
+//! `time_us` are converted to SI with a note. A blank
 //! or `nan` cell of a channel is a missing value ([`regular`] fills short runs of them).
 //! Also reads NumPy `.npy` arrays of shape (2, N) = [time; signal] (the format of the real
 //! data in `shared/data/real/`) via [`Recording::read_npy`], without assuming uniform time.
@@ -228,21 +230,13 @@ impl Recording {
         let mut rec = Recording::default();
         rec.notes.extend(delimiter_note(delimiter));
         if time_scale != 1.0 {
-            rec.notes
-                .push("time column `time_ms` in milliseconds, converted to seconds".into());
+            let h = names[time_col];
+            rec.notes.push(format!(
+                "time column `{h}` converted to seconds (×{time_scale:e})"
+            ));
         }
-        let mut cols: Vec<(usize, &'static str)> = Vec::new();
-        for (i, h) in names.iter().enumerate() {
-            if i == time_col {
-                continue;
-            }
-            if let Some(name) = CHANNELS.iter().find(|c| *c == h) {
-                cols.push((i, name));
-                *rec.channel_slot(name).expect("known channel") = Some(Vec::new());
-            } else {
-                rec.notes.push(format!("ignored column `{h}`"));
-            }
-        }
+        let cols = channel_columns(&names, time_col, &mut rec)
+            .map_err(|e| anyhow!("{}: {e}", path.display()))?;
         let mut slots: Vec<Vec<f64>> = vec![Vec::new(); cols.len()];
         let mut record = csv::ByteRecord::new();
         let mut row = 0usize;
@@ -276,14 +270,14 @@ impl Recording {
             };
             rec.time_s
                 .push(cell(time_col, names[time_col])? * time_scale);
-            for (slot, &(i, name)) in slots.iter_mut().zip(&cols) {
-                slot.push(cell(i, name)?);
+            for (slot, &(i, name, scale)) in slots.iter_mut().zip(&cols) {
+                slot.push(cell(i, name)? * scale);
             }
             if row % (1 << 20) == 0 {
                 progress(row);
             }
         }
-        for (slot, &(_, name)) in slots.into_iter().zip(&cols) {
+        for (slot, &(_, name, _)) in slots.into_iter().zip(&cols) {
             *rec.channel_slot(name).expect("known channel") = Some(slot);
         }
         Ok(rec)
@@ -460,14 +454,17 @@ fn npy_values(bytes: &[u8]) -> Option<Vec<f64>> {
         .or_else(|| conv::<u8>(bytes))
 }
 
-/// The time column of a CSV header and its scale to seconds: `time_s` (1) or `time_ms`
-/// (10⁻³). A column named `time` or `t` without a unit is refused with the hint.
+/// The time column of a CSV header and its scale to seconds: `time_s` (1), `time_ms` (10⁻³)
+/// or `time_us` (10⁻⁶). A column named `time` or `t` without a unit is refused with the hint.
 fn time_column(names: &[&str]) -> Result<(usize, f64)> {
     if let Some(i) = names.iter().position(|h| *h == "time_s") {
         return Ok((i, 1.0));
     }
     if let Some(i) = names.iter().position(|h| *h == "time_ms") {
         return Ok((i, 1e-3));
+    }
+    if let Some(i) = names.iter().position(|h| *h == "time_us") {
+        return Ok((i, 1e-6));
     }
     if names
         .iter()
@@ -480,7 +477,52 @@ fn time_column(names: &[&str]) -> Result<(usize, f64)> {
     bail!("no `time_s` column (header: {})", names.join(", "))
 }
 
-/// A csv error without Rust debug text.
+/// The channel columns of a CSV header (index, channel, scale to SI, see [`channel_column`]),
+/// with an empty slot in `rec` for each and a note for every converted or ignored column.
+/// Errors: two columns holding one channel.
+fn channel_columns(
+    names: &[&str],
+    time_col: usize,
+    rec: &mut Recording,
+) -> Result<Vec<(usize, &'static str, f64)>> {
+    let mut cols: Vec<(usize, &'static str, f64)> = Vec::new();
+    for (i, h) in names.iter().enumerate() {
+        if i == time_col {
+            continue;
+        }
+        if let Some((name, scale)) = channel_column(h) {
+            if cols.iter().any(|c| c.1 == name) {
+                bail!("two columns hold `{name}` (`{h}` and another)");
+            }
+            if scale != 1.0 {
+                rec.notes
+                    .push(format!("column `{h}` converted to `{name}` (×{scale:e})"));
+            }
+            cols.push((i, name, scale));
+            *rec.channel_slot(name).expect("known channel") = Some(Vec::new());
+        } else {
+            rec.notes.push(format!("ignored column `{h}`"));
+        }
+    }
+    Ok(cols)
+}
+
+/// The channel a CSV column holds and its scale to SI: a channel's own name (1), or a position
+/// channel in millimetres or micrometres (`tip_pos_mm`, `base_cmd_um`: 10⁻³, 10⁻⁶).
+fn channel_column(header: &str) -> Option<(&'static str, f64)> {
+    CHANNELS.iter().find_map(|&c| {
+        if header == c {
+            return Some((c, 1.0));
+        }
+        let stem = c.strip_suffix("_m")?;
+        match header.strip_prefix(stem)? {
+            "_mm" => Some((c, 1e-3)),
+            "_um" => Some((c, 1e-6)),
+            _ => None,
+        }
+    })
+}
+
 /// The note on a column separator other than the comma.
 fn delimiter_note(delimiter: u8) -> Option<String> {
     match delimiter {
@@ -520,6 +562,7 @@ fn sniff_delimiter(path: &Path) -> Result<u8> {
     Ok(b',')
 }
 
+/// A csv error without Rust debug text.
 fn csv_error(e: &csv::Error) -> String {
     match e.kind() {
         csv::ErrorKind::UnequalLengths {
@@ -772,6 +815,50 @@ mod tests {
                 r.notes
             );
         }
+    }
+
+    #[test]
+    fn positions_in_millimetres_and_times_in_milliseconds_are_read_in_si_units() {
+        let dir = std::env::temp_dir().join(format!("beamtools-units-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let si = dir.join("si.csv");
+        std::fs::write(
+            &si,
+            "time_s,base_cmd_m,tip_pos_m\n0,0,0.001\n0.01,0.5,-0.25\n",
+        )
+        .unwrap();
+        let mm = dir.join("mm.csv");
+        std::fs::write(
+            &mm,
+            "time_ms,base_cmd_mm,tip_pos_um\n0,0,1000\n10,500,-250000\n",
+        )
+        .unwrap();
+        let (a, b) = (
+            Recording::read_csv(&si).unwrap(),
+            Recording::read_csv(&mm).unwrap(),
+        );
+        for (x, y) in [(&a.time_s, &b.time_s)]
+            .into_iter()
+            .chain([(
+                a.base_cmd_m.as_ref().unwrap(),
+                b.base_cmd_m.as_ref().unwrap(),
+            )])
+            .chain([(a.tip_pos_m.as_ref().unwrap(), b.tip_pos_m.as_ref().unwrap())])
+        {
+            for (u, v) in x.iter().zip(y) {
+                assert!((u - v).abs() < 1e-12, "{u} vs {v}");
+            }
+        }
+        assert_eq!(b.notes.len(), 3, "{:?}", b.notes);
+        assert!(
+            b.notes[2].contains("`tip_pos_um` converted to `tip_pos_m`"),
+            "{:?}",
+            b.notes
+        );
+        let twice = dir.join("twice.csv");
+        std::fs::write(&twice, "time_s,tip_pos_m,tip_pos_mm\n0,0,0\n0.01,0.001,1\n").unwrap();
+        let err = Recording::read_csv(&twice).unwrap_err().to_string();
+        assert!(err.contains("two columns hold `tip_pos_m`"), "{err}");
     }
 
     #[test]
