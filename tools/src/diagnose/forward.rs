@@ -1337,19 +1337,23 @@ pub(crate) fn unidentified_in_final(
 
 /// The validation residuals `before` and `after` (one channel) as conditions 4 and 6 of
 /// [`super::select`] judge them. On `force_n` (`channel` [`FORCE_CHANNEL`]) the residual's
-/// **bursts** ([`burst_samples`] of `before`) are replaced by each residual's median: the force
-/// a drive reports around an acceleration step is its loop's transient between samples, which
-/// the samples do not resolve and no catalogue effect models; at ±1 N against a 0.05 N cogging
-/// ripple those few samples held most of the force residual's variance and autocovariance, and
-/// every force effect "removed only" a third of it (docs/diagnose.md, session 20). Other
-/// channels, and a residual without bursts, are returned as they are.
+/// **bursts** ([`burst_samples`]: outliers of `before` that `after` leaves as outliers too) are
+/// replaced by each residual's median: the force a drive reports around an acceleration step is
+/// its loop's transient between samples, which the samples do not resolve and no catalogue
+/// effect models; at ±1 N against a 0.05 N cogging ripple those few samples held most of the
+/// force residual's variance and autocovariance, and every force effect "removed only" a third
+/// of it (docs/diagnose.md, session 20). Samples the effect brings back to the background are its
+/// own signal, not bursts: friction's force while a short move runs stood out of a mostly
+/// resting residual like a burst, and taking it out left the effect "removing −189 %" of what
+/// remained (docs/diagnose.md, session 23). Other channels, and a residual without bursts, are
+/// returned as they are.
 pub(crate) fn judged(
     before: Option<&[f64]>,
     after: Option<&[f64]>,
     channel: usize,
 ) -> (Option<Vec<f64>>, Option<Vec<f64>>) {
-    let burst = match (before, channel) {
-        (Some(b), FORCE_CHANNEL) => burst_samples(b),
+    let burst = match (before, after, channel) {
+        (Some(b), Some(a), FORCE_CHANNEL) => burst_samples(b, a),
         _ => None,
     };
     let quiet = |r: Option<&[f64]>| -> Option<Vec<f64>> {
@@ -1419,12 +1423,10 @@ pub const BURST_ROBUST_SIGMAS: f64 = 6.0;
 /// with bursts" and nothing is excluded.
 pub const MAX_BURST_SHARE: f64 = 0.1;
 
-/// The samples of `r` in **bursts**: beyond [`BURST_ROBUST_SIGMAS`] robust σ of the median,
-/// widened by two samples either side (the tail of a transient). `None` when there are none, or
-/// when more than [`MAX_BURST_SHARE`] of the samples would be.
-pub(crate) fn burst_samples(r: &[f64]) -> Option<Vec<bool>> {
-    let n = r.len();
-    if n < 4 * LJUNG_BOX_LAGS {
+/// The samples of `r` beyond [`BURST_ROBUST_SIGMAS`] robust σ of its median; `None` for a
+/// residual too short to judge or without spread.
+fn outliers(r: &[f64]) -> Option<Vec<bool>> {
+    if r.len() < 4 * LJUNG_BOX_LAGS {
         return None;
     }
     let centre = median(r);
@@ -1432,13 +1434,29 @@ pub(crate) fn burst_samples(r: &[f64]) -> Option<Vec<bool>> {
     if !(scale > 0.0) {
         return None;
     }
+    Some(
+        r.iter()
+            .map(|x| (x - centre).abs() > BURST_ROBUST_SIGMAS * scale)
+            .collect(),
+    )
+}
+
+/// The samples of the residuals `before` and `after` an effect (one channel, same length) in
+/// **bursts**: outliers ([`outliers`], beyond [`BURST_ROBUST_SIGMAS`] robust σ of the median)
+/// of `before` that stay outliers of `after` — what neither model explains —, widened by two
+/// samples either side (the tail of a transient). `None` when there are none, or when more than
+/// [`MAX_BURST_SHARE`] of the samples would be.
+pub(crate) fn burst_samples(before: &[f64], after: &[f64]) -> Option<Vec<bool>> {
+    let n = before.len();
+    if after.len() != n {
+        return None;
+    }
+    let (ob, oa) = (outliers(before)?, outliers(after)?);
     let mut burst = vec![false; n];
-    for (k, x) in r.iter().enumerate() {
-        if (x - centre).abs() > BURST_ROBUST_SIGMAS * scale {
-            burst[k.saturating_sub(2)..(k + 3).min(n)]
-                .iter_mut()
-                .for_each(|b| *b = true);
-        }
+    for k in (0..n).filter(|&k| ob[k] && oa[k]) {
+        burst[k.saturating_sub(2)..(k + 3).min(n)]
+            .iter_mut()
+            .for_each(|b| *b = true);
     }
     let count = burst.iter().filter(|b| **b).count();
     (count > 0 && (count as f64) <= MAX_BURST_SHARE * n as f64).then_some(burst)
@@ -1619,7 +1637,7 @@ pub(crate) mod tests {
         let before: Vec<f64> = (0..n)
             .map(|k| after[k] + 0.05 * (k as f64 * 0.07).sin())
             .collect();
-        let flagged = burst_samples(&before).expect("bursts");
+        let flagged = burst_samples(&before, &after).expect("bursts");
         assert!(flagged.iter().filter(|b| **b).count() <= 8 * 16);
         assert!((0..n)
             .filter(|k| burst(*k).abs() >= 0.4)
@@ -1636,7 +1654,18 @@ pub(crate) mod tests {
         assert_eq!(share, Some(quiet));
         assert!(q_after < 0.1 * q_before);
         // a white force residual has no bursts to take out
-        assert!(burst_samples(&white).is_none());
+        assert!(burst_samples(&white, &white).is_none());
+        // a force the effect explains while a short move runs (friction: 0.3 N over 6 % of
+        // the samples) stands out of the resting residual like a burst, but the effect brings
+        // it back to the background: its own signal, judged with every sample
+        let moving = |k: usize| (k % 1250) >= 500 && (k % 1250) < 575;
+        let friction: Vec<f64> = (0..n)
+            .map(|k| white[k] + if moving(k) { 0.3 } else { 0.0 })
+            .collect();
+        assert!(outliers(&friction).unwrap().iter().filter(|o| **o).count() > 400);
+        assert!(burst_samples(&friction, &white).is_none());
+        let share = structure_explained(Some(&friction), Some(&white), 2).unwrap();
+        assert!(share > 0.9, "{share}");
     }
 
     #[test]
