@@ -25,6 +25,7 @@ recordings alike, and diagnosed:
   tip_flip     tip_pos_m negated (a camera whose axis points the other way)
   force_flip   force_n negated (a drive whose force sign is the opposite convention)
   base_flip    base_pos_m negated (an encoder counting down)
+  slow_tip     tip_pos_m blank on every other row (a camera at half the rows' rate, logged beside the drive)
   units        time in ms, positions in mm (`time_ms`, `tip_pos_mm`, ...: a logger writing its own units)
   combined     jitter (sigma 3 % of a step), then tip_offset, base_offset, nan, dropped, dup, all at once
 Another rig's recordings rather than a logger's faults (the rig file follows where it must):
@@ -126,6 +127,11 @@ def perturb(rows, kind, rng):
         if c in col:
             for r in data:
                 r[col[c]] = repr(-float(r[col[c]]))
+    elif kind == 'slow_tip':
+        if 'tip_pos_m' in col:
+            for k, r in enumerate(data):
+                if k % 2:
+                    r[col['tip_pos_m']] = ''
     elif kind == 'units':
         for i, h in enumerate(head):
             if h.endswith('_s') or h.endswith('_m'):

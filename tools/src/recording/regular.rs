@@ -25,6 +25,8 @@
 //! grid (a varying sample rate, not jitter); a run of more than [`MAX_FILL_RUN`] missing
 //! samples in a channel, or more than [`MAX_FILL_FRACTION`] of it missing (cut the recording
 //! there, or split it). A recording that is already uniform and complete is returned as it is.
+//! A channel logged on every k-th row (a slower sensor) sets the rate of the whole recording
+//! first ([`super::multirate`]).
 
 use super::{fmt_sig, Recording, CHANNELS, UNIFORM_TOLERANCE};
 use anyhow::{bail, Result};
@@ -91,7 +93,8 @@ pub fn regularise(rec: Recording) -> Result<Recording> {
         return Ok(rec);
     }
     let rec = in_time_order(rec)?;
-    let mut rec = drop_duplicate_rows(rec)?;
+    let rec = drop_duplicate_rows(rec)?;
+    let mut rec = super::multirate::to_slowest_rate(rec)?;
     if rec.len() < 2 {
         bail!(
             "recording has {} distinct samples; at least 2 are needed",

@@ -1,0 +1,219 @@
+//! A channel logged at a lower rate than the others, in one file.
+//!
+//! A logger that writes a row per encoder sample leaves a slower sensor's cells blank between
+//! its samples: a 100 Hz camera beside a 1 kHz drive fills one row in ten. Those blanks are not
+//! missing values to interpolate (they are 90 % of the channel, and the camera never saw what
+//! happened between its frames): the recording holds the slow channel at its own rate.
+//!
+//! [`to_slowest_rate`] finds such a channel — its valid samples on every k-th row (k ≥ 2) for
+//! at least [`MIN_REGULAR_SHARE`] of their steps — and brings the whole recording to that
+//! rate: the rows where the slow channel was sampled are kept, the fully sampled channels are
+//! low-passed there first (zero-phase windowed-sinc FIR, cut-off 0.4 × the new rate, as
+//! [`super::decimate_fir`]) so nothing above the new Nyquist frequency aliases into them. The
+//! slow channel's own samples are kept as recorded; a frame it missed stays a missing value
+//! for [`super::regular`] to fill. Only a uniform time base is read this way (jittering or
+//! dropped rows with a slow channel are refused by [`super::regular`] as before).
+
+use super::{windowed_sinc, Recording, CHANNELS};
+use anyhow::{bail, Result};
+
+/// The smallest share of the steps between a slow channel's samples that must be the same
+/// whole number of rows.
+pub const MIN_REGULAR_SHARE: f64 = 0.9;
+
+/// The slowest channel's period in rows and the row of its first sample, when some channel is
+/// logged on every k-th row (k ≥ 2); `None` when every channel is at the rows' rate.
+fn slow_period(rec: &Recording) -> Option<(usize, usize, &'static str)> {
+    let mut slowest: Option<(usize, usize, &'static str)> = None;
+    for name in CHANNELS {
+        let Some(values) = rec.channel(name) else {
+            continue;
+        };
+        let rows: Vec<usize> = (0..values.len())
+            .filter(|&k| values[k].is_finite())
+            .collect();
+        if rows.len() < 3 || rows.len() * 2 > values.len() {
+            continue;
+        }
+        let steps: Vec<usize> = rows.windows(2).map(|w| w[1] - w[0]).collect();
+        let mut sorted = steps.clone();
+        sorted.sort_unstable();
+        let k = sorted[sorted.len() / 2];
+        let regular = steps.iter().filter(|&&s| s % k == 0).count();
+        let exact = steps.iter().filter(|&&s| s == k).count();
+        if k < 2 || regular < steps.len() || (exact as f64) < MIN_REGULAR_SHARE * steps.len() as f64
+        {
+            continue;
+        }
+        if slowest.is_none_or(|(k0, _, _)| k > k0) {
+            slowest = Some((k, rows[0] % k, name));
+        }
+    }
+    slowest
+}
+
+/// `rec` at its slowest channel's rate (see the module header), with a note; `rec` unchanged
+/// when every channel is at the rows' rate or the time base is not uniform.
+///
+/// Errors: a fully sampled channel with blank cells (it cannot be low-passed across them), or
+/// two slow channels whose samples do not fall on one set of rows.
+pub fn to_slowest_rate(rec: Recording) -> Result<Recording> {
+    let n = rec.len();
+    let lengths_agree = CHANNELS
+        .iter()
+        .filter_map(|c| rec.channel(c))
+        .all(|v| v.len() == n);
+    if n < 2 || !lengths_agree || !rec.is_uniform() {
+        return Ok(rec);
+    }
+    let Some((k, phase, slow)) = slow_period(&rec) else {
+        return Ok(rec);
+    };
+    let kept: Vec<usize> = (phase..rec.len()).step_by(k).collect();
+    let half = 8 * k;
+    let fir = windowed_sinc(half, 0.4 / k as f64, |i| {
+        0.54 - 0.46 * (2.0 * std::f64::consts::PI * i as f64 / (2 * half) as f64).cos()
+    });
+    let mut out = Recording {
+        time_s: kept.iter().map(|&j| rec.time_s[j]).collect(),
+        notes: rec.notes.clone(),
+        ..Default::default()
+    };
+    let mut slow_names = Vec::new();
+    for name in CHANNELS {
+        let Some(values) = rec.channel(name) else {
+            continue;
+        };
+        let finite = values.iter().filter(|v| v.is_finite()).count();
+        let sampled: Vec<f64> = if finite * 2 <= values.len() {
+            let off_rows = (0..values.len())
+                .filter(|j| values[*j].is_finite() && j % k != phase)
+                .count();
+            if off_rows > 0 {
+                bail!(
+                    "column {name} is logged at a lower rate than the rows, but {off_rows} of its \
+                     samples fall between those of {slow} (every {} row): write each \
+                     sensor's samples on the rows where it was sampled, or one file per rate",
+                    ordinal(k)
+                );
+            }
+            slow_names.push(name);
+            kept.iter().map(|&j| values[j]).collect()
+        } else {
+            if let Some(j) = values.iter().position(|v| !v.is_finite()) {
+                bail!(
+                    "column {name}: blank at data row {} beside {slow}, which is logged on every \
+                     {} row: a channel at the full rate must be complete to be low-passed to \
+                     {slow}'s rate",
+                    j + 1,
+                    ordinal(k)
+                );
+            }
+            let n = values.len();
+            kept.iter()
+                .map(|&c| {
+                    fir.iter()
+                        .enumerate()
+                        .map(|(i, h)| h * values[(c + i).saturating_sub(half).min(n - 1)])
+                        .sum()
+                })
+                .collect()
+        };
+        *out.channel_slot(name).expect("known channel") = Some(sampled);
+    }
+    let rate = rec.sample_rate_hz();
+    out.notes.push(format!(
+        "{} logged on every {} row ({} Hz of {} Hz): the recording read at that rate, \
+         the other channels low-passed to it (zero-phase FIR, cut-off {} Hz)",
+        slow_names.join(" and "),
+        ordinal(k),
+        plain_hz(rate / k as f64),
+        plain_hz(rate),
+        plain_hz(0.4 * rate / k as f64)
+    ));
+    Ok(out)
+}
+
+/// A rate in Hz to the millihertz, without trailing zeros (`100`, `33.333`).
+fn plain_hz(x: f64) -> String {
+    format!("{}", (x * 1e3).round() / 1e3)
+}
+
+/// `2nd`, `3rd`, `10th`, … (k ≥ 2).
+fn ordinal(k: usize) -> String {
+    let suffix = match (k % 10, k % 100) {
+        (_, 11..=13) => "th",
+        (1, _) => "st",
+        (2, _) => "nd",
+        (3, _) => "rd",
+        _ => "th",
+    };
+    format!("{k}{suffix}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A tip camera at 100 Hz beside a 1 kHz command and force in one file: read at 100 Hz,
+    /// the camera's samples as recorded, the command low-passed — a 5 Hz motion kept, a 300 Hz
+    /// ripple (which would alias to 0 Hz… 50 Hz) removed.
+    #[test]
+    fn a_camera_logged_on_every_tenth_row_sets_the_rate_and_the_rest_are_low_passed() {
+        let n = 5000;
+        let mut rec = Recording::with_uniform_time(n, 1000.0);
+        let tone = |f: f64, t: f64| (2.0 * std::f64::consts::PI * f * t).sin();
+        rec.base_cmd_m = Some(
+            rec.time_s
+                .iter()
+                .map(|&t| 0.1 * tone(5.0, t) + 0.01 * tone(300.0, t))
+                .collect(),
+        );
+        rec.tip_pos_m = Some(
+            rec.time_s
+                .iter()
+                .enumerate()
+                .map(|(j, &t)| {
+                    if j % 10 == 3 {
+                        0.2 * tone(5.0, t)
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect(),
+        );
+        let out = to_slowest_rate(rec.clone()).unwrap();
+        assert_eq!(out.len(), 500);
+        assert!((out.sample_rate_hz() - 100.0).abs() < 1e-9);
+        assert!((out.time_s[0] - 0.003).abs() < 1e-12);
+        let tip = out.tip_pos_m.as_ref().unwrap();
+        let cmd = out.base_cmd_m.as_ref().unwrap();
+        for (j, &t) in out.time_s.iter().enumerate() {
+            assert_eq!(tip[j], 0.2 * tone(5.0, t));
+            if (20..480).contains(&j) {
+                assert!(
+                    (cmd[j] - 0.1 * tone(5.0, t)).abs() < 1e-4,
+                    "{j}: {}",
+                    cmd[j]
+                );
+            }
+        }
+        assert!(
+            out.notes[0].starts_with("tip_pos_m logged on every 10th row (100 Hz of 1000 Hz)"),
+            "{:?}",
+            out.notes
+        );
+        // a full-rate channel with a blank cell cannot be low-passed: refused by name
+        let mut holed = rec.clone();
+        holed.base_cmd_m.as_mut().unwrap()[1234] = f64::NAN;
+        let e = to_slowest_rate(holed).unwrap_err().to_string();
+        assert!(e.contains("base_cmd_m: blank at data row 1235"), "{e}");
+        // a few lost values in an otherwise complete channel are not a slower channel
+        let mut lost = rec;
+        lost.tip_pos_m = lost.base_cmd_m.clone();
+        lost.tip_pos_m.as_mut().unwrap()[100] = f64::NAN;
+        let kept = to_slowest_rate(lost).unwrap();
+        assert_eq!(kept.len(), n);
+        assert!(kept.notes.is_empty());
+    }
+}
