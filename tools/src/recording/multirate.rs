@@ -32,7 +32,7 @@ fn slow_period(rec: &Recording) -> Option<(usize, usize, &'static str)> {
         let rows: Vec<usize> = (0..values.len())
             .filter(|&k| values[k].is_finite())
             .collect();
-        if rows.len() < 3 || rows.len() * 2 > values.len() {
+        if rows.len() < 3 || !at_most_half(rows.len(), values.len()) {
             continue;
         }
         let steps: Vec<usize> = rows.windows(2).map(|w| w[1] - w[0]).collect();
@@ -85,7 +85,7 @@ pub fn to_slowest_rate(rec: Recording) -> Result<Recording> {
             continue;
         };
         let finite = values.iter().filter(|v| v.is_finite()).count();
-        let sampled: Vec<f64> = if finite * 2 <= values.len() {
+        let sampled: Vec<f64> = if at_most_half(finite, values.len()) {
             let off_rows = (0..values.len())
                 .filter(|j| values[*j].is_finite() && j % k != phase)
                 .count();
@@ -134,6 +134,12 @@ pub fn to_slowest_rate(rec: Recording) -> Result<Recording> {
     Ok(out)
 }
 
+/// Whether `valid` samples of `n` rows are at most every other row (⌈n/2⌉: an odd row count
+/// holds one more sample of a channel on every 2nd row than half).
+fn at_most_half(valid: usize, n: usize) -> bool {
+    2 * valid <= n + 1
+}
+
 /// A rate in Hz to the millihertz, without trailing zeros (`100`, `33.333`).
 fn plain_hz(x: f64) -> String {
     format!("{}", (x * 1e3).round() / 1e3)
@@ -160,7 +166,7 @@ mod tests {
     /// ripple (which would alias to 0 Hz… 50 Hz) removed.
     #[test]
     fn a_camera_logged_on_every_tenth_row_sets_the_rate_and_the_rest_are_low_passed() {
-        let n = 5000;
+        let n = 5001;
         let mut rec = Recording::with_uniform_time(n, 1000.0);
         let tone = |f: f64, t: f64| (2.0 * std::f64::consts::PI * f * t).sin();
         rec.base_cmd_m = Some(
@@ -184,6 +190,14 @@ mod tests {
         );
         let out = to_slowest_rate(rec.clone()).unwrap();
         assert_eq!(out.len(), 500);
+        // on every 2nd row of an odd count the camera holds one sample more than half the rows
+        let mut every_other = rec.clone();
+        every_other.tip_pos_m = Some(
+            (0..n)
+                .map(|j| if j % 2 == 0 { 0.0 } else { f64::NAN })
+                .collect(),
+        );
+        assert_eq!(to_slowest_rate(every_other).unwrap().len(), 2501);
         assert!((out.sample_rate_hz() - 100.0).abs() < 1e-9);
         assert!((out.time_s[0] - 0.003).abs() < 1e-12);
         let tip = out.tip_pos_m.as_ref().unwrap();
