@@ -5,16 +5,19 @@
 //! missing values to interpolate (they are 90 % of the channel, and the camera never saw what
 //! happened between its frames): the recording holds the slow channel at its own rate.
 //!
-//! [`to_slowest_rate`] finds such a channel — its valid samples on every k-th row (k ≥ 2) for
-//! at least [`MIN_REGULAR_SHARE`] of their steps — and brings the whole recording to that
-//! rate: the rows where the slow channel was sampled are kept, the fully sampled channels are
-//! low-passed there first (zero-phase windowed-sinc FIR, cut-off 0.4 × the new rate, as
-//! [`super::decimate_fir`]) so nothing above the new Nyquist frequency aliases into them. The
-//! slow channel's own samples are kept as recorded; a frame it missed stays a missing value
-//! for [`super::regular`] to fill. Only a uniform time base is read this way (jittering or
-//! dropped rows with a slow channel are refused by [`super::regular`] as before).
+//! [`to_slowest_rate`] finds such a channel — its valid samples on every k-th row (k ≥ 2), every
+//! step a multiple of k and at least [`MIN_REGULAR_SHARE`] of them exactly k — and reads the
+//! whole recording at that rate: the rows where the slow channel was sampled are kept with
+//! every channel's value as recorded there, as a sampler at that rate would have taken them.
+//! The other channels are **not** low-passed: the model predicts each sample as it was taken,
+//! and its drive is the carriage's motion at the sample instants; a filter would take real
+//! content of the drive away from the model (a 20 Hz cut-off at 50 Hz hid the beam's 22 Hz
+//! mode from it and turned independent case12's servo lag into `none`, docs/diagnose.md,
+//! session 23). A frame the slow channel missed stays a missing value for [`super::regular`]
+//! to fill. Only a uniform time base is read this way (jittering or dropped rows with a slow
+//! channel are refused by [`super::regular`] as before).
 
-use super::{windowed_sinc, Recording, CHANNELS};
+use super::{Recording, CHANNELS};
 use anyhow::{bail, Result};
 
 /// The smallest share of the steps between a slow channel's samples that must be the same
@@ -55,8 +58,7 @@ fn slow_period(rec: &Recording) -> Option<(usize, usize, &'static str)> {
 /// `rec` at its slowest channel's rate (see the module header), with a note; `rec` unchanged
 /// when every channel is at the rows' rate or the time base is not uniform.
 ///
-/// Errors: a fully sampled channel with blank cells (it cannot be low-passed across them), or
-/// two slow channels whose samples do not fall on one set of rows.
+/// Errors: two slow channels whose samples do not fall on one set of rows.
 pub fn to_slowest_rate(rec: Recording) -> Result<Recording> {
     let n = rec.len();
     let lengths_agree = CHANNELS
@@ -69,11 +71,7 @@ pub fn to_slowest_rate(rec: Recording) -> Result<Recording> {
     let Some((k, phase, slow)) = slow_period(&rec) else {
         return Ok(rec);
     };
-    let kept: Vec<usize> = (phase..rec.len()).step_by(k).collect();
-    let half = 8 * k;
-    let fir = windowed_sinc(half, 0.4 / k as f64, |i| {
-        0.54 - 0.46 * (2.0 * std::f64::consts::PI * i as f64 / (2 * half) as f64).cos()
-    });
+    let kept: Vec<usize> = (phase..n).step_by(k).collect();
     let mut out = Recording {
         time_s: kept.iter().map(|&j| rec.time_s[j]).collect(),
         notes: rec.notes.clone(),
@@ -85,8 +83,8 @@ pub fn to_slowest_rate(rec: Recording) -> Result<Recording> {
             continue;
         };
         let finite = values.iter().filter(|v| v.is_finite()).count();
-        let sampled: Vec<f64> = if at_most_half(finite, values.len()) {
-            let off_rows = (0..values.len())
+        if at_most_half(finite, n) {
+            let off_rows = (0..n)
                 .filter(|j| values[*j].is_finite() && j % k != phase)
                 .count();
             if off_rows > 0 {
@@ -98,38 +96,18 @@ pub fn to_slowest_rate(rec: Recording) -> Result<Recording> {
                 );
             }
             slow_names.push(name);
-            kept.iter().map(|&j| values[j]).collect()
-        } else {
-            if let Some(j) = values.iter().position(|v| !v.is_finite()) {
-                bail!(
-                    "column {name}: blank at data row {} beside {slow}, which is logged on every \
-                     {} row: a channel at the full rate must be complete to be low-passed to \
-                     {slow}'s rate",
-                    j + 1,
-                    ordinal(k)
-                );
-            }
-            let n = values.len();
-            kept.iter()
-                .map(|&c| {
-                    fir.iter()
-                        .enumerate()
-                        .map(|(i, h)| h * values[(c + i).saturating_sub(half).min(n - 1)])
-                        .sum()
-                })
-                .collect()
-        };
-        *out.channel_slot(name).expect("known channel") = Some(sampled);
+        }
+        *out.channel_slot(name).expect("known channel") =
+            Some(kept.iter().map(|&j| values[j]).collect());
     }
     let rate = rec.sample_rate_hz();
     out.notes.push(format!(
-        "{} logged on every {} row ({} Hz of {} Hz): the recording read at that rate, \
-         the other channels low-passed to it (zero-phase FIR, cut-off {} Hz)",
+        "{} logged on every {} row ({} Hz of {} Hz): the recording read at that rate, every \
+         channel as recorded on those rows",
         slow_names.join(" and "),
         ordinal(k),
         plain_hz(rate / k as f64),
         plain_hz(rate),
-        plain_hz(0.4 * rate / k as f64)
     ));
     Ok(out)
 }
@@ -161,11 +139,11 @@ fn ordinal(k: usize) -> String {
 mod tests {
     use super::*;
 
-    /// A tip camera at 100 Hz beside a 1 kHz command and force in one file: read at 100 Hz,
-    /// the camera's samples as recorded, the command low-passed — a 5 Hz motion kept, a 300 Hz
-    /// ripple (which would alias to 0 Hz… 50 Hz) removed.
+    /// A tip camera at 100 Hz beside a 1 kHz command in one file: read at 100 Hz, every
+    /// channel's value on the camera's rows as recorded (a filter would take the drive's real
+    /// content from the model).
     #[test]
-    fn a_camera_logged_on_every_tenth_row_sets_the_rate_and_the_rest_are_low_passed() {
+    fn a_camera_logged_on_every_tenth_row_sets_the_rate_of_the_recording() {
         let n = 5001;
         let mut rec = Recording::with_uniform_time(n, 1000.0);
         let tone = |f: f64, t: f64| (2.0 * std::f64::consts::PI * f * t).sin();
@@ -204,24 +182,25 @@ mod tests {
         let cmd = out.base_cmd_m.as_ref().unwrap();
         for (j, &t) in out.time_s.iter().enumerate() {
             assert_eq!(tip[j], 0.2 * tone(5.0, t));
-            if (20..480).contains(&j) {
-                assert!(
-                    (cmd[j] - 0.1 * tone(5.0, t)).abs() < 1e-4,
-                    "{j}: {}",
-                    cmd[j]
-                );
-            }
+            assert_eq!(cmd[j], rec.base_cmd_m.as_ref().unwrap()[10 * j + 3]);
         }
         assert!(
             out.notes[0].starts_with("tip_pos_m logged on every 10th row (100 Hz of 1000 Hz)"),
             "{:?}",
             out.notes
         );
-        // a full-rate channel with a blank cell cannot be low-passed: refused by name
-        let mut holed = rec.clone();
-        holed.base_cmd_m.as_mut().unwrap()[1234] = f64::NAN;
-        let e = to_slowest_rate(holed).unwrap_err().to_string();
-        assert!(e.contains("base_cmd_m: blank at data row 1235"), "{e}");
+        // a second slow channel on other rows is refused by name
+        let mut two = rec.clone();
+        two.force_n = Some(
+            (0..n)
+                .map(|j| if j % 10 == 5 { 1.0 } else { f64::NAN })
+                .collect(),
+        );
+        let e = to_slowest_rate(two).unwrap_err().to_string();
+        assert!(
+            e.contains("column force_n is logged at a lower rate"),
+            "{e}"
+        );
         // a few lost values in an otherwise complete channel are not a slower channel
         let mut lost = rec;
         lost.tip_pos_m = lost.base_cmd_m.clone();
