@@ -12,6 +12,10 @@
 //!   samples are uniform and only the stamps are noisy (a PC clock stamping a device's
 //!   samples), the values stay and their times go onto the grid. The smoothest channel (the
 //!   command where recorded) decides: it is smoother read the way it was sampled.
+//! - **an irregular sampler** (a PC polling a drive: every step between 0.8 and 1.5 median
+//!   steps, at random, and no grid fits): every channel is resampled at its recorded times
+//!   onto a uniform grid of the mean step ([`irregular_grid`]), when the local rate holds
+//!   within [`MAX_LOCAL_RATE_CHANGE`] throughout (a rate that changes is still refused).
 //!
 //! The grid is the least-squares line through (grid index, time) of the kept rows, the grid
 //! index of a row being its time over the median step, rounded. Values are filled or
@@ -77,6 +81,9 @@ enum Jitter {
     /// The samples are uniform and only the stamps are noisy (a PC clock stamping a device's
     /// samples): the values stay, their times go onto the grid.
     OfTheStamps,
+    /// No grid fits: the samples were taken at irregular times (shortest and longest step,
+    /// s) and every channel is resampled at its recorded times ([`irregular_grid`]).
+    Irregular { min_step_s: f64, max_step_s: f64 },
 }
 
 /// Brings `rec` (finite strictly increasing time allowed to jitter or skip samples; channels
@@ -231,6 +238,11 @@ fn drop_duplicate_rows(rec: Recording) -> Result<Recording> {
 /// the stamps jitter, `smooth` (the smoothest channel: the command where recorded) decides
 /// whether the samples or only the stamps jitter ([`stamps_are_noisy`]).
 fn fit_grid(time_s: &[f64], smooth: Option<&[f64]>) -> Result<Grid> {
+    fit_uniform_grid(time_s, smooth).or_else(|e| irregular_grid(time_s).ok_or(e))
+}
+
+/// [`fit_grid`] when the rows sit on one grid (jitter within [`MAX_JITTER_STEPS`]).
+fn fit_uniform_grid(time_s: &[f64], smooth: Option<&[f64]>) -> Result<Grid> {
     let mut steps: Vec<f64> = time_s.windows(2).map(|w| w[1] - w[0]).collect();
     steps.sort_by(f64::total_cmp);
     let step = steps[steps.len() / 2];
@@ -298,6 +310,69 @@ fn fit_grid(time_s: &[f64], smooth: Option<&[f64]>) -> Result<Grid> {
     })
 }
 
+/// The largest relative change of the local sample interval (the median step over
+/// [`IRREGULAR_WINDOW`] rows against the whole recording's) that still counts as one
+/// irregular sampler rather than a sample rate that changes.
+pub const MAX_LOCAL_RATE_CHANGE: f64 = 0.2;
+
+/// Rows over which the local sample interval of an irregular sampler is taken.
+pub const IRREGULAR_WINDOW: usize = 50;
+
+/// The grid of an **irregular sampler**: stamps that fit no uniform grid (steps from 0.8 to
+/// 1.5 median steps at random, a PC polling a drive over a serial or field bus), but whose local
+/// sample interval — the median step of every [`IRREGULAR_WINDOW`] rows — stays within
+/// [`MAX_LOCAL_RATE_CHANGE`] of the whole recording's, and with no step over 2 median steps (a
+/// gap) or of zero. The grid has the mean step (as many samples as rows), and every row sits at
+/// its recorded time ([`Jitter::Irregular`]): every channel is resampled onto the grid like
+/// jittering samples (degree-5 interpolation at the recorded times, [`lagrange_at`]). `None`
+/// otherwise: a rate that changes, or too few rows to tell (fewer than 2 windows).
+fn irregular_grid(time_s: &[f64]) -> Option<Grid> {
+    use crate::numeric::stats::median;
+    let n = time_s.len();
+    if n < 2 * IRREGULAR_WINDOW {
+        return None;
+    }
+    let steps: Vec<f64> = time_s.windows(2).map(|w| w[1] - w[0]).collect();
+    let typical = median(&steps);
+    if !(typical > 0.0) || steps.iter().any(|h| !(*h > 0.0 && *h <= 2.0 * typical)) {
+        return None;
+    }
+    let local_ok = steps
+        .windows(IRREGULAR_WINDOW)
+        .step_by(IRREGULAR_WINDOW / 2)
+        .all(|w| (median(w) / typical - 1.0).abs() <= MAX_LOCAL_RATE_CHANGE);
+    if !local_ok {
+        return None;
+    }
+    let dt_s = (time_s[n - 1] - time_s[0]) / (n - 1) as f64;
+    let pos: Vec<f64> = time_s.iter().map(|t| (t - time_s[0]) / dt_s).collect();
+    let offset: Vec<f64> = pos
+        .iter()
+        .enumerate()
+        .map(|(k, p)| (p - k as f64) * dt_s)
+        .collect();
+    let fold = |a: (f64, f64), h: &f64| (a.0.min(*h), a.1.max(*h));
+    let (min_step_s, max_step_s) = steps.iter().fold((f64::INFINITY, 0.0), fold);
+    Some(Grid {
+        t0_s: time_s[0],
+        dt_s,
+        // the last row is the grid's last point (rounding would put it a hair before)
+        pos: pos
+            .iter()
+            .enumerate()
+            .map(|(k, p)| if k + 1 == n { (n - 1) as f64 } else { *p })
+            .collect(),
+        jitter_max_s: offset.iter().fold(0.0, |a, e| a.max(e.abs())),
+        jitter_rms_s: (offset.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt(),
+        missing: 0,
+        longest_missing: 0,
+        jitter: Some(Jitter::Irregular {
+            min_step_s,
+            max_step_s,
+        }),
+    })
+}
+
 /// True when `x` is smoother against the grid than against its stamps: the sum of squared
 /// second differences over rows on consecutive grid points is smaller with the uniform step
 /// than with the stamped steps. A smooth signal sampled on the grid gains a roughness
@@ -349,6 +424,16 @@ fn grid_notes(grid: &Grid, judged_on: &str, notes: &mut Vec<String>) {
         Some(Jitter::OfTheSamples) => notes.push(format!(
             "{jitter}; `{judged_on}` is smoother at the stamps than on the grid, so the samples \
              were taken at the stamps: every channel resampled onto the grid at its recorded times"
+        )),
+        Some(Jitter::Irregular {
+            min_step_s,
+            max_step_s,
+        }) => notes.push(format!(
+            "time_s steps irregularly, from {} to {} s (no uniform grid fits: a logger polling \
+             the drive); every channel resampled at its recorded times onto a uniform {rate} Hz \
+             grid of the mean step",
+            fmt_sig(min_step_s, 3),
+            fmt_sig(max_step_s, 3)
         )),
         Some(Jitter::OfTheStamps) => notes.push(format!(
             "{jitter}; `{judged_on}` is smoother on the grid than at the stamps, so the samples \
@@ -658,6 +743,51 @@ mod tests {
         r.tip_pos_m.as_mut().unwrap()[41] += 1e-3;
         let e = regularise(r).unwrap_err().to_string();
         assert!(e.contains("repeats at data row 42"), "{e}");
+    }
+
+    #[test]
+    fn a_logger_polling_at_irregular_intervals_is_resampled_at_its_recorded_times() {
+        use rand::{Rng, SeedableRng};
+        // a PC polling a drive: steps of 12-21 ms at random about a 14 ms median (the real
+        // LinB axis of docs/diagnose.md, session 24); no grid fits the stamps
+        let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+        let mut t = vec![0.0];
+        for _ in 1..1200 {
+            let h = if rng.gen_bool(0.15) {
+                rng.gen_range(0.017..0.021)
+            } else {
+                rng.gen_range(0.012..0.015)
+            };
+            t.push(t[t.len() - 1] + (h * 1e3_f64).round() / 1e3);
+        }
+        let out = regularise(recording(t.clone())).unwrap();
+        assert_eq!(out.len(), t.len());
+        out.validate().unwrap();
+        let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+        assert!((out.time_s[1] - out.time_s[0] - dt).abs() < 1e-12);
+        let want = signal(&out.time_s);
+        let worst = out
+            .tip_pos_m
+            .as_ref()
+            .unwrap()
+            .iter()
+            .zip(&want)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 5e-3, "{worst}");
+        assert!(
+            out.notes
+                .iter()
+                .any(|n| n.contains("steps irregularly, from 0.0120 to 0.0210 s")),
+            "{:?}",
+            out.notes
+        );
+        // the same logger slowing to half its rate half-way is a rate that changes: refused
+        let mut slowed = t.clone();
+        for k in 600..slowed.len() {
+            slowed[k] = t[600] + 2.0 * (t[k] - t[600]);
+        }
+        assert!(regularise(recording(slowed)).is_err());
     }
 
     #[test]

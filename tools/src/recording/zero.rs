@@ -49,7 +49,7 @@ pub fn zero_at_rest(mut rec: Recording) -> Recording {
     let n = rest_samples(&cmd);
     if n < MIN_REST_SAMPLES {
         rec.notes.push(format!(
-            "the command moves within the first {n} samples: the recording does not start at rest, as the diagnosis's model starts it; the beam modes' free response from an unknown initial state is fitted with it (start the logger before the first move)"
+            "the command moves within the first {n} samples: the recording does not start at rest, as the diagnosis's model starts it; where the rig has a beam, its modes' free response from an unknown initial state is fitted with it (start the logger before the first move)"
         ));
         return rec;
     }
