@@ -27,6 +27,8 @@ recordings alike, and diagnosed:
   base_flip    base_pos_m negated (an encoder counting down)
   slow_tip     tip_pos_m blank on every other row (a camera at half the rows' rate, logged beside the drive)
   units        time in ms, positions in mm (`time_ms`, `tip_pos_mm`, ...: a logger writing its own units)
+  polled       rows taken at irregular times, 0.85-1.5 steps apart at random and stamped to 1 ms
+               (a PC polling the drive), values interpolated (4-point cubic) from the recording
   combined     jitter (sigma 3 % of a step), then tip_offset, base_offset, nan, dropped, dup, all at once
 Another rig's recordings rather than a logger's faults (the rig file follows where it must):
   half_rate    every other row (a camera at half the rate, no anti-alias filter; sample_rate_hz halved)
@@ -146,6 +148,27 @@ def perturb(rows, kind, rng):
         for k in ['tip_offset', 'base_offset', 'nan', 'dropped', 'dup']:
             rows = perturb(rows, k, rng)
         head, data = rows[0], rows[1:]
+    elif kind == 'polled':
+        # a PC polling the drive: each row taken 0.85-1.5 recorded steps after the one before,
+        # at random (85 % of steps short, 15 % long, stamped to 1 ms), values read off the
+        # recording there by 4-point cubic (Catmull-Rom) interpolation
+        dt = float(data[1][0]) - float(data[0][0])
+        t_rec = [float(r[0]) for r in data]
+        out, t = [], t_rec[1]
+        while t <= t_rec[-3]:
+            u = (t - t_rec[0]) / dt
+            k = min(max(int(u), 1), len(data) - 3)
+            f = u - k
+            row = ['%.3f' % t]
+            for c in range(1, len(head)):
+                p0, p1, p2, p3 = (float(data[k + j][c]) if data[k + j][c] != '' else float('nan')
+                                  for j in (-1, 0, 1, 2))
+                v = p1 + 0.5 * f * (p2 - p0 + f * (2 * p0 - 5 * p1 + 4 * p2 - p3 + f * (3 * (p1 - p2) + p3 - p0)))
+                row.append(repr(v))
+            out.append(row)
+            step = rng.uniform(1.2, 1.5) if rng.random() < 0.15 else rng.uniform(0.85, 1.05)
+            t = round(t + step * dt, 3)
+        data = out
     elif kind != 'clean':
         raise SystemExit('unknown kind ' + kind)
     return [head] + data

@@ -314,10 +314,15 @@ impl Ctx<'_> {
         let whiteness = (q_of(&base.vres[best_channel]), q_of(&r.vres[best_channel]));
         let significance = significance(cand, &f, off);
         let allowance = allowance(base, best_channel, k);
+        let predicted = [&r.vpred.base_m, &r.vpred.tip_m, &r.vpred.force_n][best_channel];
+        let inputs: Vec<&[f64]> = std::iter::once(self.validate.cmd_as_sampled())
+            .chain(predicted.as_deref())
+            .collect();
         let (structured, share) = structure_evidence(
             base.vres[best_channel].as_deref(),
             r.vres[best_channel].as_deref(),
             best_channel,
+            &inputs,
         );
         let mut fails = guard(&Evidence {
             delta_bic,
@@ -630,8 +635,12 @@ fn placement_guard(
     extra: usize,
 ) -> Vec<String> {
     let (c, reduction) = best_reduction(mount, at_sensor);
-    let (structured, share) =
-        structure_evidence(at_sensor.vres[c].as_deref(), mount.vres[c].as_deref(), c);
+    let (structured, share) = structure_evidence(
+        at_sensor.vres[c].as_deref(),
+        mount.vres[c].as_deref(),
+        c,
+        &[],
+    );
     guard(&Evidence {
         delta_bic: fit_gain,
         delta_val: val_gain,
@@ -1382,12 +1391,14 @@ pub(crate) fn structure_explained(
     channel: usize,
 ) -> Option<f64> {
     let (b, a) = judged(before, after, channel);
-    share_removed(b.as_deref(), a.as_deref())
+    share_removed(b.as_deref(), a.as_deref(), &[])
 }
 
 /// [`structure_explained`] of residuals already [`judged`]: the larger of the share over the
-/// whole band and the share in the effect's own band ([`share_in_effect_band`]).
-fn share_removed(b: Option<&[f64]>, a: Option<&[f64]>) -> Option<f64> {
+/// whole band and the share in the effect's own band ([`share_in_effect_band`]) when what the
+/// effect leaves outside its band is not a response to `inputs` ([`driven_share`]); the whole
+/// band alone without inputs.
+fn share_removed(b: Option<&[f64]>, a: Option<&[f64]>, inputs: &[&[f64]]) -> Option<f64> {
     let (b, a) = (b?, a?);
     let var = |r: &[f64]| {
         let m = r.iter().sum::<f64>() / r.len().max(1) as f64;
@@ -1396,7 +1407,10 @@ fn share_removed(b: Option<&[f64]>, a: Option<&[f64]>) -> Option<f64> {
     let noise = innovation_variance(b, LJUNG_BOX_LAGS).min(innovation_variance(a, LJUNG_BOX_LAGS));
     let (sb, sa) = ((var(b) - noise).max(0.0), (var(a) - noise).max(0.0));
     let whole = if sb > 0.0 { 1.0 - sa / sb } else { 0.0 };
-    Some(share_in_effect_band(b, a, noise).map_or(whole, |s| s.max(whole)))
+    if inputs.is_empty() {
+        return Some(whole);
+    }
+    Some(share_in_effect_band(b, a, noise, inputs).map_or(whole, |s| s.max(whole)))
 }
 
 /// Share of power the effect's band must hold of the change it makes (`before − after`).
@@ -1408,10 +1422,15 @@ pub const EFFECT_BAND_POWER: f64 = 0.9;
 /// bins. Structure outside that band is another thing the effect does not claim to be — a
 /// drive's position loop hunting near the Nyquist rate beside friction's sign(v) force on a
 /// real axis — and is left for the unexplained report; in the band where it acts the effect
-/// must still remove most of it, as condition 6 asks. `None` when the structure in the band is
-/// not significant (below 3 standard errors of the noise's periodogram summed over the band) or
-/// the residuals are too short: the whole-band share then decides alone.
-fn share_in_effect_band(b: &[f64], a: &[f64], noise: f64) -> Option<f64> {
+/// must still remove most of it, as condition 6 asks. Only structure that is *not a response
+/// to the inputs* counts as another thing: when most of what is left outside the band is
+/// coherent with the command or the model's prediction ([`driven_share`] over
+/// [`MAX_DRIVEN_SHARE`]), it is the rest of the same driven signature — a loose tip sensor's
+/// resonance seen at mode 1 as a latency and at mode 2 as nothing in the catalogue — and the
+/// whole band decides. `None` then, when the structure in the band is not significant (below 3
+/// standard errors of the noise's periodogram summed over the band) or the residuals are too
+/// short.
+fn share_in_effect_band(b: &[f64], a: &[f64], noise: f64, inputs: &[&[f64]]) -> Option<f64> {
     let n = b.len();
     if n != a.len() || n < 4 * LJUNG_BOX_LAGS {
         return None;
@@ -1440,7 +1459,142 @@ fn share_in_effect_band(b: &[f64], a: &[f64], noise: f64) -> Option<f64> {
     if !(sb > 3.0 * floor / (band.len() as f64).sqrt()) {
         return None;
     }
+    let mut in_band = vec![false; pd.len()];
+    band.iter().for_each(|&k| in_band[k] = true);
+    if driven_share(a, noise, &in_band, inputs) > MAX_DRIVEN_SHARE {
+        return None;
+    }
     Some(1.0 - sa / sb)
+}
+
+/// Largest share of the structure an effect leaves outside its own band that may be a
+/// response to the inputs for the in-band judgement to apply ([`share_in_effect_band`]).
+pub const MAX_DRIVEN_SHARE: f64 = 0.5;
+
+/// The share of the structured power of `after` outside the bins `in_band` (of its length-n
+/// periodogram) that is coherent with one of `inputs` (same length): Σ γ²(f) S(f) / Σ S(f)
+/// over Welch frequencies (Hann segments of the largest power of two ≤ n/4, half overlapping;
+/// Welch 1967) outside the band, S the auto-spectrum above the white floor `noise`
+/// (variance), γ² the largest magnitude-squared coherence with an input (Bendat & Piersol,
+/// *Random Data*, 4th ed., §9.2.3; with K segments an incoherent pair reads ≈ 1/K). A
+/// response to the command — linear, or through the model's own prediction — is coherent; a
+/// drive's loop hunting, a sensor's drift or mains pickup is not. 0 when nothing structured
+/// is left outside the band or the residual is too short for two segments.
+fn driven_share(after: &[f64], noise: f64, in_band: &[bool], inputs: &[&[f64]]) -> f64 {
+    let n = after.len();
+    let quarter = n / 4;
+    if quarter < 32 {
+        return 0.0;
+    }
+    // the largest power of two ≤ n/4
+    let seg = 1usize << (usize::BITS - 1 - quarter.leading_zeros());
+    let welch = Welch::new(seg);
+    let saa = welch.auto_spectrum(after);
+    let floor = noise / seg as f64;
+    let fine = in_band.len().saturating_sub(1).max(1) as f64;
+    let outside = |j: usize| {
+        // the fine bins this Welch bin spans (± half a bin)
+        let (lo, hi) = (
+            (j as f64 - 0.5) * 2.0 / seg as f64,
+            (j as f64 + 0.5) * 2.0 / seg as f64,
+        );
+        let (lo, hi) = (
+            (lo * fine).max(0.0) as usize,
+            ((hi * fine).ceil() as usize).min(in_band.len() - 1),
+        );
+        !(lo..=hi).any(|k| in_band[k])
+    };
+    let left: Vec<(usize, f64)> = (1..saa.len())
+        .filter(|&j| outside(j))
+        .map(|j| (j, (saa[j] - 2.0 * floor).max(0.0)))
+        .filter(|(_, s)| *s > 0.0)
+        .collect();
+    let total: f64 = left.iter().map(|(_, s)| s).sum();
+    if !(total > 0.0) {
+        return 0.0;
+    }
+    let coherence: Vec<Vec<f64>> = inputs
+        .iter()
+        .filter(|u| u.len() == n)
+        .map(|u| welch.coherence(after, u))
+        .collect();
+    left.iter()
+        .map(|&(j, s)| s * coherence.iter().map(|g| g[j]).fold(0.0, f64::max))
+        .sum::<f64>()
+        / total
+}
+
+/// Welch's averaged periodogram over Hann segments of `seg` samples, half overlapping.
+struct Welch {
+    seg: usize,
+    window: Vec<f64>,
+}
+
+impl Welch {
+    fn new(seg: usize) -> Welch {
+        let window = (0..seg)
+            .map(|k| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * k as f64 / seg as f64).cos())
+            .collect();
+        Welch { seg, window }
+    }
+
+    /// Segment spectra of `x` (mean removed, windowed).
+    fn segments(&self, x: &[f64]) -> Vec<Vec<realfft::num_complex::Complex64>> {
+        let m = x.iter().sum::<f64>() / x.len().max(1) as f64;
+        let fft = realfft::RealFftPlanner::<f64>::new().plan_fft_forward(self.seg);
+        (0..)
+            .map(|i| i * self.seg / 2)
+            .take_while(|s| s + self.seg <= x.len())
+            .map(|s| {
+                let mut buf: Vec<f64> = (0..self.seg)
+                    .map(|k| (x[s + k] - m) * self.window[k])
+                    .collect();
+                let mut spec = fft.make_output_vec();
+                let _ = fft.process(&mut buf, &mut spec);
+                spec
+            })
+            .collect()
+    }
+
+    /// Auto-spectrum of `x`, scaled so that its bins sum to the variance (Hann-window power
+    /// `Σw²` and the segment count divided out, interior bins holding both signs).
+    fn auto_spectrum(&self, x: &[f64]) -> Vec<f64> {
+        let sx = self.segments(x);
+        let u: f64 = self.window.iter().map(|w| w * w).sum();
+        let k = sx.len().max(1) as f64;
+        (0..=self.seg / 2)
+            .map(|j| {
+                let side = if j == 0 || 2 * j == self.seg {
+                    1.0
+                } else {
+                    2.0
+                };
+                side * sx.iter().map(|a| a[j].norm_sqr()).sum::<f64>() / (k * u * self.seg as f64)
+            })
+            .collect()
+    }
+
+    /// Magnitude-squared coherence of `x` and `y` per bin (0 where either has no power).
+    fn coherence(&self, x: &[f64], y: &[f64]) -> Vec<f64> {
+        let (sx, sy) = (self.segments(x), self.segments(y));
+        let bins = self.seg / 2 + 1;
+        (0..bins)
+            .map(|j| {
+                let (mut pxx, mut pyy) = (0.0, 0.0);
+                let mut pxy = realfft::num_complex::Complex64::new(0.0, 0.0);
+                for (a, b) in sx.iter().zip(&sy) {
+                    pxx += a[j].norm_sqr();
+                    pyy += b[j].norm_sqr();
+                    pxy += a[j] * b[j].conj();
+                }
+                if pxx > 0.0 && pyy > 0.0 {
+                    pxy.norm_sqr() / (pxx * pyy)
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    }
 }
 
 /// Periodogram of `r` (mean removed) over bins 0..=n/2, scaled so that the bins sum to its
@@ -1471,12 +1625,13 @@ fn structure_evidence(
     before: Option<&[f64]>,
     after: Option<&[f64]>,
     channel: usize,
+    inputs: &[&[f64]],
 ) -> ((f64, f64), Option<f64>) {
     let (b, a) = judged(before, after, channel);
     let sp = |v: Option<&[f64]>| v.map_or(0.0, |r| structured_power(r, LJUNG_BOX_LAGS));
     (
         (sp(b.as_deref()), sp(a.as_deref())),
-        share_removed(b.as_deref(), a.as_deref()),
+        share_removed(b.as_deref(), a.as_deref(), inputs),
     )
 }
 
@@ -1708,14 +1863,17 @@ pub(crate) mod tests {
             .all(|k| flagged[k]));
         // on another channel the bursts stay in: the ripple is a sliver of the autocovariance;
         // in its own band it is all of the structure
-        let ((p_before, p_after), _) = structure_evidence(Some(&before), Some(&after), 1);
+        let ((p_before, p_after), whole) = structure_evidence(Some(&before), Some(&after), 1, &[]);
         assert!(p_after > 0.5 * p_before);
-        let own_band = structure_explained(Some(&before), Some(&after), 1).unwrap();
-        assert!(own_band > 0.9, "{own_band}");
+        assert!(whole.unwrap() < MIN_STRUCTURE_EXPLAINED, "{whole:?}");
+        // the bursts are no response to the motion that drives the ripple
+        let motion: Vec<f64> = (0..n).map(|k| (k as f64 * 0.07).cos()).collect();
+        let (_, own_band) = structure_evidence(Some(&before), Some(&after), 1, &[&motion]);
+        assert!(own_band.unwrap() > 0.9, "{own_band:?}");
         // on the force channel the ripple is what is left once the bursts are out
         let quiet = structure_explained(Some(&before), Some(&after), 2).unwrap();
         assert!(quiet > 0.9, "{quiet}");
-        let ((q_before, q_after), share) = structure_evidence(Some(&before), Some(&after), 2);
+        let ((q_before, q_after), share) = structure_evidence(Some(&before), Some(&after), 2, &[]);
         assert_eq!(share, Some(quiet));
         assert!(q_after < 0.1 * q_before);
         // a white force residual has no bursts to take out
@@ -1734,7 +1892,7 @@ pub(crate) mod tests {
     }
 
     #[test]
-    fn an_effect_is_judged_on_the_structure_in_its_own_band() {
+    fn an_effect_is_judged_on_the_structure_in_its_own_band_unless_the_rest_is_driven() {
         // a real axis's force residual: friction's sign(v) square wave at 0.5 Hz beside the
         // position loop hunting at 48 Hz (100 Hz samples), white noise under both
         use rand::SeedableRng;
@@ -1744,22 +1902,51 @@ pub(crate) mod tests {
         let noise = Normal::new(0.0, 0.2).unwrap();
         let n = 3000;
         let white: Vec<f64> = (0..n).map(|_| noise.sample(&mut rng)).collect();
-        let hunt = |k: usize| 1.5 * (2.0 * PI * 48.0 * k as f64 / 100.0).sin();
+        // the hunting wanders in phase (a limit cycle, not locked to the motion)
+        let mut phase = 0.0;
+        let hunt: Vec<f64> = (0..n)
+            .map(|_| {
+                phase += 2.0 * PI * 0.48 + 0.3 * noise.sample(&mut rng);
+                1.5 * f64::sin(phase)
+            })
+            .collect();
         let square = |k: usize| if (k / 100) % 2 == 0 { 1.0 } else { -1.0 };
-        let before: Vec<f64> = (0..n).map(|k| white[k] + hunt(k) + square(k)).collect();
-        let after: Vec<f64> = (0..n).map(|k| white[k] + hunt(k)).collect();
-        let share = structure_explained(Some(&before), Some(&after), 1).unwrap();
+        let command: Vec<f64> = (0..n).map(|k| (PI * k as f64 / 100.0).sin()).collect();
+        let before: Vec<f64> = (0..n).map(|k| white[k] + hunt[k] + square(k)).collect();
+        let after: Vec<f64> = (0..n).map(|k| white[k] + hunt[k]).collect();
+        let judge = |b: &[f64], a: &[f64], inputs: &[&[f64]]| {
+            structure_evidence(Some(b), Some(a), 1, inputs).1.unwrap()
+        };
+        // over the whole band the square wave is a third of the structure: a sliver
+        assert!(judge(&before, &after, &[]) < MIN_STRUCTURE_EXPLAINED);
+        // in its own band it is all of it, and the hunting is no response to the command
+        let share = judge(&before, &after, &[&command]);
         assert!(share > 0.95, "{share}");
-        // without the band the square wave is 30 % of the structure: a sliver
-        let noise_var = 0.04;
-        let s = |r: &[f64]| r.iter().map(|x| x * x).sum::<f64>() / n as f64 - noise_var;
-        assert!(1.0 - s(&after) / s(&before) < MIN_STRUCTURE_EXPLAINED);
         // an effect that removes a fifth of the structure in its own band still fails
         let partial: Vec<f64> = (0..n)
-            .map(|k| white[k] + hunt(k) + 0.9 * square(k))
+            .map(|k| white[k] + hunt[k] + 0.9 * square(k))
             .collect();
-        let share = structure_explained(Some(&before), Some(&partial), 1).unwrap();
+        let share = judge(&before, &partial, &[&command]);
         assert!(share < MIN_STRUCTURE_EXPLAINED, "{share}");
+        // a 4.2 Hz ring the same command drives (a loose tip sensor's resonance the effect
+        // does not model) is the rest of one driven signature: the whole band decides
+        let ring: Vec<f64> = (0..n)
+            .map(|k| {
+                let t = (k % 100) as f64 / 100.0;
+                square(k) * 4.0 * (-1.5 * t).exp() * (2.0 * PI * 4.2 * t).sin()
+            })
+            .collect();
+        let driven_before: Vec<f64> = (0..n).map(|k| white[k] + ring[k] + square(k)).collect();
+        let driven_after: Vec<f64> = (0..n).map(|k| white[k] + ring[k]).collect();
+        let square_cmd: Vec<f64> = (0..n).map(square).collect();
+        let share = judge(&driven_before, &driven_after, &[&command, &square_cmd]);
+        let whole = judge(&driven_before, &driven_after, &[]);
+        assert_eq!(share, whole);
+        assert!(share < MIN_STRUCTURE_EXPLAINED, "{share}");
+        // judged against an input the ring does not answer to, it would have passed
+        let unrelated: Vec<f64> = (0..n).map(|_| noise.sample(&mut rng)).collect();
+        let share = judge(&driven_before, &driven_after, &[&unrelated]);
+        assert!(share > MIN_STRUCTURE_EXPLAINED && share > whole, "{share}");
     }
 
     #[test]
