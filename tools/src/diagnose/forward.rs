@@ -289,6 +289,15 @@ impl Ctx<'_> {
         Some(self.assess(set, ci, r, base))
     }
 
+    /// What drives channel `c` of the validation recording under model `r`: its command and
+    /// `r`'s prediction of the channel (the inputs [`driven_share`] judges coherence with).
+    fn driving<'a>(&'a self, r: &'a Reference, c: usize) -> Vec<&'a [f64]> {
+        let predicted = [&r.vpred.base_m, &r.vpred.tip_m, &r.vpred.force_n][c];
+        std::iter::once(self.validate.cmd_as_sampled())
+            .chain(predicted.as_deref())
+            .collect()
+    }
+
     /// Applies every guard ([`select::guard`] and the calibration-matter rules) to candidate
     /// `ci` (last of `set`), fitted as `r`, against the model `base` it extends.
     pub(crate) fn assess(
@@ -314,15 +323,11 @@ impl Ctx<'_> {
         let whiteness = (q_of(&base.vres[best_channel]), q_of(&r.vres[best_channel]));
         let significance = significance(cand, &f, off);
         let allowance = allowance(base, best_channel, k);
-        let predicted = [&r.vpred.base_m, &r.vpred.tip_m, &r.vpred.force_n][best_channel];
-        let inputs: Vec<&[f64]> = std::iter::once(self.validate.cmd_as_sampled())
-            .chain(predicted.as_deref())
-            .collect();
         let (structured, share) = structure_evidence(
             base.vres[best_channel].as_deref(),
             r.vres[best_channel].as_deref(),
             best_channel,
-            &inputs,
+            &self.driving(&r, best_channel),
         );
         let mut fails = guard(&Evidence {
             delta_bic,
