@@ -42,7 +42,13 @@
 //!    first-difference noise estimate of [`super::unexplained::difference_noise`] (the smaller
 //!    of the two residuals' estimates) — falls by at least [`MIN_STRUCTURE_EXPLAINED`] (most of
 //!    it). An effect that removes a sliver of a large structured residual is not what that
-//!    residual is; the residual is reported unexplained instead of being given its name. On
+//!    residual is; the residual is reported unexplained instead of being given its name. The
+//!    share is also taken in the effect's own band (the bins holding 90 % of the change it makes,
+//!    `forward::share_in_effect_band`) and the larger stands, when what the effect leaves outside
+//!    that band is no response to the motion (coherent with neither the command nor the model's
+//!    prediction, `forward::driven_share`): a drive's loop hunting near the Nyquist rate beside
+//!    friction on a real axis is another thing, reported unexplained; a loose sensor's ring
+//!    driven by every move is the rest of the same signature, and the whole band decides. On
 //!    `force_n` conditions 4 and 6 are judged outside the residual's bursts (samples beyond 6
 //!    robust σ, `forward::judged`): a drive's loop transient at an acceleration step, which the
 //!    samples do not resolve and no catalogue effect models, is not what a force effect must
