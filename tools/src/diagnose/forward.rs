@@ -10,11 +10,13 @@
 
 use super::effects::{Calib, Candidate, Transform};
 use super::fit::{self, channel_rss, residuals, FitResult, FORCE_CHANNEL};
+use super::rate::welch_power;
 use super::select::*;
 use super::sim::{Prediction, Prepared};
 use super::unexplained::LJUNG_BOX_CRITICAL;
 use super::{nrmse, stage, CandidateOutcome};
 use crate::effect::Effect;
+use crate::ident::frf::{welch, Frf, WelchOptions, Window};
 use crate::model::Rig;
 use crate::numeric::arx;
 use crate::numeric::stats::{innovation_variance, median};
@@ -1441,8 +1443,10 @@ fn share_in_effect_band(b: &[f64], a: &[f64], noise: f64, inputs: &[&[f64]]) -> 
         return None;
     }
     let d: Vec<f64> = b.iter().zip(a).map(|(x, y)| x - y).collect();
-    let (pb, pa, pd) = (power_bins(b), power_bins(a), power_bins(&d));
-    let total: f64 = pd.iter().sum();
+    // one Hann segment over the record, no padding (bin k at k/n cycles per sample): a
+    // component's power stays in a few bins
+    let (pb, pa, pd) = (welch_power(b, n), welch_power(a, n), welch_power(&d, n));
+    let total: f64 = pd.iter().skip(1).sum();
     if !(total > 0.0) {
         return None;
     }
@@ -1456,17 +1460,15 @@ fn share_in_effect_band(b: &[f64], a: &[f64], noise: f64, inputs: &[&[f64]]) -> 
         held += pd[k];
         band.push(k);
     }
-    // white noise of variance σ² puts c_k σ²/n in bin k (c_k = 2 inside, 1 at Nyquist)
-    let weight = |k: usize| if 2 * k == n { 1.0 } else { 2.0 };
-    let floor: f64 = band.iter().map(|&k| weight(k)).sum::<f64>() * noise / n as f64;
+    // white noise of variance σ² puts σ² Σw² = 3nσ²/8 in each bin of a Hann periodogram
+    let floor = 0.375 * n as f64 * noise * band.len() as f64;
     let sum = |p: &[f64]| band.iter().map(|&k| p[k]).sum::<f64>();
     let (sb, sa) = (sum(&pb) - floor, (sum(&pa) - floor).max(0.0));
     if !(sb > 3.0 * floor / (band.len() as f64).sqrt()) {
         return None;
     }
-    let mut in_band = vec![false; pd.len()];
-    band.iter().for_each(|&k| in_band[k] = true);
-    if driven_share(a, noise, &in_band, inputs) > MAX_DRIVEN_SHARE {
+    let band_hz: Vec<f64> = band.iter().map(|&k| k as f64 / n as f64).collect();
+    if driven_share(a, noise, &band_hz, inputs) > MAX_DRIVEN_SHARE {
         return None;
     }
     Some(1.0 - sa / sb)
@@ -1476,42 +1478,29 @@ fn share_in_effect_band(b: &[f64], a: &[f64], noise: f64, inputs: &[&[f64]]) -> 
 /// response to the inputs for the in-band judgement to apply ([`share_in_effect_band`]).
 pub const MAX_DRIVEN_SHARE: f64 = 0.5;
 
-/// The share of the structured power of `after` outside the bins `in_band` (of its length-n
-/// periodogram) that is coherent with one of `inputs` (same length): Σ γ²(f) S(f) / Σ S(f)
-/// over Welch frequencies (Hann segments of the largest power of two ≤ n/4, half overlapping;
-/// Welch 1967) outside the band, S the auto-spectrum above the white floor `noise`
-/// (variance), γ² the largest magnitude-squared coherence with an input (Bendat & Piersol,
-/// *Random Data*, 4th ed., §9.2.3; with K segments an incoherent pair reads ≈ 1/K). A
-/// response to the command — linear, or through the model's own prediction — is coherent; a
+/// The share of the structured power of `after` outside the effect's band (`band` frequencies
+/// in cycles per sample) that is coherent with one of `inputs` (same length): Σ γ²(f) S(f) /
+/// Σ S(f) over the Welch frequencies outside the band ([`crate::ident::frf::welch`]: Hann
+/// segments of the largest power of two ≤ n/4, half overlapping), S the auto-spectrum above the
+/// white floor `noise` (variance), γ² the largest ordinary coherence with an input (Bendat &
+/// Piersol, *Random Data*, 4th ed., §9.2.3; with K segments an incoherent pair reads ≈ 1/K).
+/// A response to the command — linear, or through the model's own prediction — is coherent; a
 /// drive's loop hunting, a sensor's drift or mains pickup is not. 0 when nothing structured
-/// is left outside the band or the residual is too short for two segments.
-fn driven_share(after: &[f64], noise: f64, in_band: &[bool], inputs: &[&[f64]]) -> f64 {
-    let n = after.len();
-    let quarter = n / 4;
+/// is left outside the band or the residual is too short for four segments.
+fn driven_share(after: &[f64], noise: f64, band: &[f64], inputs: &[&[f64]]) -> f64 {
+    let quarter = after.len() / 4;
     if quarter < 32 {
         return 0.0;
     }
     // the largest power of two ≤ n/4
     let seg = 1usize << (usize::BITS - 1 - quarter.leading_zeros());
-    let welch = Welch::new(seg);
-    let saa = welch.auto_spectrum(after);
-    let floor = noise / seg as f64;
-    let fine = in_band.len().saturating_sub(1).max(1) as f64;
-    let outside = |j: usize| {
-        // the fine bins this Welch bin spans (± half a bin)
-        let (lo, hi) = (
-            (j as f64 - 0.5) * 2.0 / seg as f64,
-            (j as f64 + 0.5) * 2.0 / seg as f64,
-        );
-        let (lo, hi) = (
-            (lo * fine).max(0.0) as usize,
-            ((hi * fine).ceil() as usize).min(in_band.len() - 1),
-        );
-        !(lo..=hi).any(|k| in_band[k])
+    let Some(own) = power_spectrum(after, after, Some(seg), Window::Hann) else {
+        return 0.0;
     };
-    let left: Vec<(usize, f64)> = (1..saa.len())
-        .filter(|&j| outside(j))
-        .map(|j| (j, (saa[j] - 2.0 * floor).max(0.0)))
+    let df = own.df_hz();
+    let left: Vec<(usize, f64)> = (1..own.syy.len())
+        .filter(|&j| !band.iter().any(|f| (f - own.freq_hz[j]).abs() <= 0.5 * df))
+        .map(|j| (j, (own.syy[j] - 2.0 * noise) * df))
         .filter(|(_, s)| *s > 0.0)
         .collect();
     let total: f64 = left.iter().map(|(_, s)| s).sum();
@@ -1520,8 +1509,8 @@ fn driven_share(after: &[f64], noise: f64, in_band: &[bool], inputs: &[&[f64]]) 
     }
     let coherence: Vec<Vec<f64>> = inputs
         .iter()
-        .filter(|u| u.len() == n)
-        .map(|u| welch.coherence(after, u))
+        .filter_map(|u| power_spectrum(u, after, Some(seg), Window::Hann))
+        .map(|f| f.coherence)
         .collect();
     left.iter()
         .map(|&(j, s)| s * coherence.iter().map(|g| g[j]).fold(0.0, f64::max))
@@ -1529,98 +1518,16 @@ fn driven_share(after: &[f64], noise: f64, in_band: &[bool], inputs: &[&[f64]]) 
         / total
 }
 
-/// Welch's averaged periodogram over Hann segments of `seg` samples, half overlapping.
-struct Welch {
-    seg: usize,
-    window: Vec<f64>,
-}
-
-impl Welch {
-    fn new(seg: usize) -> Welch {
-        let window = (0..seg)
-            .map(|k| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * k as f64 / seg as f64).cos())
-            .collect();
-        Welch { seg, window }
-    }
-
-    /// Segment spectra of `x` (mean removed, windowed).
-    fn segments(&self, x: &[f64]) -> Vec<Vec<realfft::num_complex::Complex64>> {
-        let m = x.iter().sum::<f64>() / x.len().max(1) as f64;
-        let fft = realfft::RealFftPlanner::<f64>::new().plan_fft_forward(self.seg);
-        (0..)
-            .map(|i| i * self.seg / 2)
-            .take_while(|s| s + self.seg <= x.len())
-            .map(|s| {
-                let mut buf: Vec<f64> = (0..self.seg)
-                    .map(|k| (x[s + k] - m) * self.window[k])
-                    .collect();
-                let mut spec = fft.make_output_vec();
-                let _ = fft.process(&mut buf, &mut spec);
-                spec
-            })
-            .collect()
-    }
-
-    /// Auto-spectrum of `x`, scaled so that its bins sum to the variance (Hann-window power
-    /// `Σw²` and the segment count divided out, interior bins holding both signs).
-    fn auto_spectrum(&self, x: &[f64]) -> Vec<f64> {
-        let sx = self.segments(x);
-        let u: f64 = self.window.iter().map(|w| w * w).sum();
-        let k = sx.len().max(1) as f64;
-        (0..=self.seg / 2)
-            .map(|j| {
-                let side = if j == 0 || 2 * j == self.seg {
-                    1.0
-                } else {
-                    2.0
-                };
-                side * sx.iter().map(|a| a[j].norm_sqr()).sum::<f64>() / (k * u * self.seg as f64)
-            })
-            .collect()
-    }
-
-    /// Magnitude-squared coherence of `x` and `y` per bin (0 where either has no power).
-    fn coherence(&self, x: &[f64], y: &[f64]) -> Vec<f64> {
-        let (sx, sy) = (self.segments(x), self.segments(y));
-        let bins = self.seg / 2 + 1;
-        (0..bins)
-            .map(|j| {
-                let (mut pxx, mut pyy) = (0.0, 0.0);
-                let mut pxy = realfft::num_complex::Complex64::new(0.0, 0.0);
-                for (a, b) in sx.iter().zip(&sy) {
-                    pxx += a[j].norm_sqr();
-                    pyy += b[j].norm_sqr();
-                    pxy += a[j] * b[j].conj();
-                }
-                if pxx > 0.0 && pyy > 0.0 {
-                    pxy.norm_sqr() / (pxx * pyy)
-                } else {
-                    0.0
-                }
-            })
-            .collect()
-    }
-}
-
-/// Periodogram of `r` (mean removed) over bins 0..=n/2, scaled so that the bins sum to its
-/// variance (Parseval; each interior bin holds both signs of its frequency).
-fn power_bins(r: &[f64]) -> Vec<f64> {
-    let n = r.len();
-    let m = r.iter().sum::<f64>() / n.max(1) as f64;
-    let mut buf: Vec<f64> = r.iter().map(|x| x - m).collect();
-    let fft = realfft::RealFftPlanner::<f64>::new().plan_fft_forward(n);
-    let mut spec = fft.make_output_vec();
-    if fft.process(&mut buf, &mut spec).is_err() {
-        return vec![0.0; n / 2 + 1];
-    }
-    let nn = (n * n) as f64;
-    spec.iter()
-        .enumerate()
-        .map(|(k, c)| {
-            let w = if k == 0 || 2 * k == n { 1.0 } else { 2.0 };
-            w * c.norm_sqr() / nn
-        })
-        .collect()
+/// Welch spectra of `y` over `x` (unit sample rate: frequencies in cycles per sample; mean
+/// removed; half-overlapping segments of `segment` samples, the whole record for `None`),
+/// `None` where the estimator refuses the pair (different lengths, too short, no energy).
+fn power_spectrum(x: &[f64], y: &[f64], segment: Option<usize>, window: Window) -> Option<Frf> {
+    let opts = WelchOptions {
+        nperseg: segment,
+        window,
+        ..WelchOptions::default()
+    };
+    welch(x, y, 1.0, &opts).ok()
 }
 
 /// Conditions 4 and 6 from one [`judged`] pass: the correlated power (Σ of squared
