@@ -16,6 +16,10 @@
 //! 3. **Residual statistics per channel** ([`residual_stats`]) of the validation residual before
 //!    and after the named effects: rms over the first-difference noise estimate, the structured
 //!    rms above that noise, Ljung–Box Q and the integrated autocorrelation time.
+//! 4. **Degrees of freedom** ([`effective_dof`]): a σ that rests on the disagreement of two fit
+//!    recordings is an estimate with one degree of freedom, and ±2σ of it covers 70 %, not
+//!    95 %; each 1-σ carries its Welch–Satterthwaite degrees of freedom and the report gives
+//!    the 95 % interval ± t₀.₉₇₅(ν) σ beside it (GUM, JCGM 100:2008 G.4).
 
 use super::effects::{Calib, Candidate};
 use super::fit::{self, FitResult, CHANNEL_NAMES};
@@ -351,6 +355,49 @@ pub fn add_spread_std(f: &mut FitResult, spread: &[f64]) {
     }
 }
 
+/// Effective degrees of freedom of every 1-σ of the final model (Welch–Satterthwaite, GUM
+/// JCGM 100:2008 eq. G.2b). `long_run`: the long-run σ (infinitely many degrees of freedom:
+/// thousands of batch means); `spread`: the recordings' disagreement ([`spread_std`], the
+/// standard error of a mean of `n_recordings` refits, `n_recordings − 1` degrees of freedom);
+/// `combined`: the final 1-σ (after [`add_spread_std`] and the model-form alternatives, each
+/// one refit, taken as exact). The disagreement counts only through its excess
+/// e² = spread² − long_run² (what the recordings disagree on beyond noise):
+/// ν = (n − 1) · combined⁴ / e⁴, infinite where the disagreement is within the noise. With
+/// two fit recordings a σ that rests on their disagreement has ν ≈ 1, and ±2σ of a t₁ covers
+/// only 70 %: the 95 % interval is ± t₀.₉₇₅(ν) σ ([`coverage_factor_95`]).
+pub fn effective_dof(
+    long_run: &[f64],
+    spread: &[f64],
+    n_recordings: usize,
+    combined: &[f64],
+) -> Vec<f64> {
+    (0..combined.len())
+        .map(|i| {
+            let (lr, u) = (long_run.get(i).copied().unwrap_or(0.0), combined[i]);
+            let sp = spread.get(i).copied().unwrap_or(0.0);
+            let excess = sp * sp - lr * lr;
+            if n_recordings < 2 || !(excess > 0.0) || !(u > 0.0) || !u.is_finite() {
+                f64::INFINITY
+            } else {
+                ((n_recordings - 1) as f64 * u.powi(4) / (excess * excess)).max(1.0)
+            }
+        })
+        .collect()
+}
+
+/// Coverage factor k of a two-sided 95 % interval ± k σ for a σ with `dof` effective degrees
+/// of freedom: the Student-t quantile t₀.₉₇₅(ν) (12.71 at ν = 1, 4.30 at 2, 2.23 at 10),
+/// 1.96 when ν is infinite or above 10⁶ (GUM JCGM 100:2008 G.3–G.4).
+pub fn coverage_factor_95(dof: f64) -> f64 {
+    use statrs::distribution::{ContinuousCDF, StudentsT};
+    if !(dof.is_finite() && dof < 1e6) {
+        return 1.959_963_984_540_054;
+    }
+    StudentsT::new(0.0, 1.0, dof.max(1.0))
+        .map(|t| t.inverse_cdf(0.975))
+        .unwrap_or(f64::NAN)
+}
+
 /// Adds the uncertainty of the base-motion assumption to the 1-σ of `f` (calibration + `set`,
 /// fitted to `data`): when `base_pos_m` is not recorded the carriage is assumed to follow its
 /// command exactly; `servo` (a loop of the catalogue, started at the identity: velocity
@@ -458,6 +505,9 @@ pub struct Honesty {
     pub stability: Vec<Stability>,
     /// Effect parameters fitted at (within 1 % of) a bound of their range: (effect, parameter).
     pub at_bound: Vec<(String, String)>,
+    /// Effective degrees of freedom of each 1-σ of the final model (calibration, then the
+    /// named effects; [`effective_dof`]); `null` in JSON where infinite.
+    pub degrees_of_freedom: Vec<f64>,
 }
 
 /// Effect parameters of `f` (calibration of `nc` parameters, then `set`) whose bounded
@@ -504,6 +554,21 @@ mod tests {
         let delay = param(crate::effect::Effect::SensorDelay, "sensor_delay_s");
         assert_eq!(look_alike_params(&calib, &[&tip, &delay]), vec![3]);
         assert!(look_alike_params(&calib, &[&tip]).is_empty());
+    }
+
+    #[test]
+    fn a_sigma_resting_on_two_recordings_disagreement_has_one_degree_of_freedom() {
+        // σ_lr 1, spread 10 (the σ is the spread): ν ≈ 1, k = t₀.₉₇₅(1) = 12.71; spread within
+        // the noise: ν infinite, k = 1.96; spread 2 × σ_lr: ν = 16/9 · … > 1
+        let nu = effective_dof(&[1.0, 1.0, 1.0], &[10.0, 0.5, 2.0], 2, &[10.0, 1.0, 2.0]);
+        assert!((nu[0] - 10f64.powi(4) / 99f64.powi(2)).abs() < 1e-12);
+        assert!(nu[1].is_infinite());
+        assert!((nu[2] - 16.0 / 9.0).abs() < 1e-12);
+        assert!((coverage_factor_95(1.0) - 12.706).abs() < 1e-3);
+        assert!((coverage_factor_95(2.0) - 4.303).abs() < 1e-3);
+        assert!((coverage_factor_95(f64::INFINITY) - 1.960).abs() < 1e-3);
+        // one recording: no disagreement measured
+        assert!(effective_dof(&[1.0], &[], 1, &[1.0])[0].is_infinite());
     }
 
     #[test]

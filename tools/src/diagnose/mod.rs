@@ -815,7 +815,9 @@ fn measure_final(
         budget.share(3),
     );
     budget.spend(used);
-    honesty::add_spread_std(&mut reference.fit, &honesty::spread_std(&refits.values));
+    let long_run = reference.fit.std.clone();
+    let spread = honesty::spread_std(&refits.values);
+    honesty::add_spread_std(&mut reference.fit, &spread);
     if !set.is_empty() {
         let share = budget.share(3);
         budget.spend(honesty::add_basis_std(
@@ -856,6 +858,12 @@ fn measure_final(
         after: honesty::residual_stats(&reference.vres),
         stability: refits.stability,
         at_bound: honesty::at_bound(set, &reference.fit, calib.len()),
+        degrees_of_freedom: honesty::effective_dof(
+            &long_run,
+            &spread,
+            refits.values.len(),
+            &reference.fit.std,
+        ),
     }
 }
 

@@ -253,6 +253,9 @@ pub struct Estimate {
     pub value: f64,
     /// Reported 1 σ (`None`: not identified / not reported).
     pub sigma: Option<f64>,
+    /// Reported half-width of the 95 % interval, ± t₀.₉₇₅(ν) σ (`None`: not reported).
+    #[serde(default)]
+    pub u95: Option<f64>,
 }
 
 /// One proof row (the elements of `proof.json`).
@@ -384,6 +387,7 @@ fn estimates(
                         truth: t,
                         value: x,
                         sigma: e["uncertainty"][k].as_f64(),
+                        u95: e["expanded_uncertainty_95"][k].as_f64(),
                     });
                 }
             }
@@ -404,6 +408,7 @@ fn estimates(
             truth: m - rig_mass_kg,
             value: x,
             sigma: s.is_finite().then_some(s),
+            u95: s.is_finite().then_some(1.96 * s),
         });
     }
     out
@@ -647,6 +652,10 @@ pub struct Coverage {
     pub no_sigma: usize,
     /// median(|z|)/0.6745, z = (estimate − truth)/σ: the observed scatter over the reported σ.
     pub z_scale: f64,
+    /// Estimates with a finite 95 % half-width U (± t₀.₉₇₅(ν) σ).
+    pub n_u95: usize,
+    /// Of those, |estimate − truth| ≤ U.
+    pub within_u95: usize,
 }
 
 impl Coverage {
@@ -667,6 +676,10 @@ pub fn coverage<'a>(est: impl IntoIterator<Item = &'a Estimate>) -> Coverage {
                 c.n += 1;
                 c.within_2sigma += usize::from(zi <= 2.0);
                 z.push(zi);
+                if let Some(u) = e.u95.filter(|u| u.is_finite()) {
+                    c.n_u95 += 1;
+                    c.within_u95 += usize::from((e.value - e.truth).abs() <= u);
+                }
             }
             _ => c.no_sigma += 1,
         }
@@ -907,17 +920,19 @@ pub fn summary_text(m: &Summary) -> String {
         m.unmodelled_tip_channel
     );
     s += &format!(
-        "coverage of ±2σ over {} correctly named effect cases (≈ 95 % if σ is honest; z scale = median|z|/0.6745, 1 if honest):\n",
+        "coverage of ±2σ over {} correctly named effect cases (≈ 95 % if σ is honest; z scale = median|z|/0.6745, 1 if honest), and of the reported 95 % interval ± t₀.₉₇₅(ν) σ:\n",
         m.coverage_cases
     );
     let line = |k: &str, c: &Coverage| {
         format!(
-            "  {k:<36} {:>3}/{:<3} = {:>5.1} %  z scale {:>7.2}  (no σ: {})\n",
+            "  {k:<36} {:>3}/{:<3} = {:>5.1} %  z scale {:>7.2}  (no σ: {})  95 % interval {:>3}/{:<3}\n",
             c.within_2sigma,
             c.n,
             100.0 * c.fraction(),
             c.z_scale,
-            c.no_sigma
+            c.no_sigma,
+            c.within_u95,
+            c.n_u95
         )
     };
     for (k, c) in &m.coverage {
@@ -984,6 +999,7 @@ mod tests {
             truth,
             value,
             sigma,
+            u95: sigma.map(|s| 1.96 * s),
         }
     }
 
@@ -1060,7 +1076,11 @@ mod tests {
         ];
         rows[4].estimates = vec![
             est("friction_n", 2.0, 2.1, Some(0.1)),
-            est("friction_n", 2.0, 2.4, Some(0.1)),
+            // a σ resting on two recordings' disagreement (ν = 1): ± 12.7 σ covers z = 4
+            Estimate {
+                u95: Some(1.27),
+                ..est("friction_n", 2.0, 2.4, Some(0.1))
+            },
             est("servo_bandwidth_hz", 40.0, 30.0, None),
         ];
         rows[5].estimates = vec![
@@ -1091,6 +1111,8 @@ mod tests {
         assert!((tm.z_scale - 1.5 / 0.6745).abs() < 1e-9);
         let fr = &s.coverage["friction_n"];
         assert_eq!((fr.n, fr.within_2sigma), (2, 1));
+        assert_eq!((fr.n_u95, fr.within_u95), (2, 2));
+        assert_eq!((tm.n_u95, tm.within_u95), (3, 2));
         assert!((fr.z_scale - 2.5 / 0.6745).abs() < 1e-9);
         assert_eq!(s.coverage["servo_bandwidth_hz"].no_sigma, 1);
         // all effect parameters: z = 0.5, 1.5, 3, 1, 4 → 3 of 5 within 2σ, median 1.5

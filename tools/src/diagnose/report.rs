@@ -65,6 +65,19 @@ pub fn parameters_at(
     (out, orientation)
 }
 
+/// Effective degrees of freedom ([`super::honesty::effective_dof`]) of the parameters
+/// [`parameters_at`] gives for the effect `id` at `off..off + len` of the final fit, in its
+/// order: a derived parameter takes the fewest of those it is made of; infinite where `dof`
+/// has no entry.
+pub fn dof_at(id: Effect, dof: &[f64], off: usize, len: usize) -> Vec<f64> {
+    let d = |i: usize| dof.get(off + i).copied().unwrap_or(f64::INFINITY);
+    match id {
+        Effect::CoggingRipple => vec![d(0).min(d(1)), d(2)],
+        Effect::CubicStiffness => vec![d(0).min(d(1)), d(1), d(0)],
+        _ => (0..len).map(d).collect(),
+    }
+}
+
 /// Effect parameters of a candidate outcome (its own fit).
 pub fn effect_parameters(o: &CandidateOutcome) -> (Vec<(String, f64, f64)>, Option<String>) {
     let len = o.fit.values.len() - o.param_offset;
@@ -91,6 +104,27 @@ pub fn final_effects(
             as_the_rig_shows(&mut p, f, s);
         }
         out.push((c.id, p, or, o));
+    }
+    out
+}
+
+/// Per selected effect (order of [`final_effects`]), the effective degrees of freedom of each
+/// of its reported parameters ([`dof_at`]; a coupled mount's two frequencies both those of
+/// the fitted one).
+pub fn final_dof(d: &Diagnosis) -> Vec<Vec<f64>> {
+    let dof = &d.honesty.degrees_of_freedom;
+    let mut off = d.calibration.names.len();
+    let mut out = Vec::new();
+    for c in &d.final_set {
+        let len = c.params.len();
+        let mut v = dof_at(c.id, dof, off, len);
+        if c.id == Effect::MountResonance && d.mount_resonance.is_some() {
+            if let Some(i) = c.params.iter().position(|q| q.name == "mount_frequency_hz") {
+                v.push(v[i]);
+            }
+        }
+        off += len;
+        out.push(v);
     }
     out
 }
@@ -144,14 +178,30 @@ fn effect_json(
     p: &[(String, f64, f64)],
     orient: &Option<String>,
     o: &CandidateOutcome,
+    dof: &[f64],
 ) -> (Value, Map<String, Value>, Map<String, Value>) {
     let mut pm = Map::new();
     let mut um = Map::new();
-    for (n, v, s) in p {
+    let (mut nu, mut u95) = (Map::new(), Map::new());
+    for (k, (n, v, s)) in p.iter().enumerate() {
         pm.insert(n.clone(), json!(v));
         um.insert(
             n.clone(),
             if s.is_finite() { json!(s) } else { Value::Null },
+        );
+        let dk = dof.get(k).copied().unwrap_or(f64::INFINITY);
+        nu.insert(
+            n.clone(),
+            if dk.is_finite() {
+                json!(dk)
+            } else {
+                Value::Null
+            },
+        );
+        let u = super::honesty::coverage_factor_95(dk) * s;
+        u95.insert(
+            n.clone(),
+            if u.is_finite() { json!(u) } else { Value::Null },
         );
     }
     if let Some(o) = orient {
@@ -166,6 +216,7 @@ fn effect_json(
     let c = o.best_channel;
     let e = json!({
         "effect": id, "words": o.words, "parameters": pm, "uncertainty": um,
+        "degrees_of_freedom": nu, "expanded_uncertainty_95": u95,
         "validation": {"channel": CHANNEL_NAMES[c], "nrmse_before": o.nrmse_before[c],
             "nrmse_after": o.val_nrmse[c], "reduction": o.reduction, "model_form_allowance": o.allowance,
             "delta_neg2loglik": o.delta_val},
@@ -245,8 +296,9 @@ pub fn to_json(d: &Diagnosis) -> Value {
     let mut params = Map::new();
     let mut unc = Map::new();
     let mut effects = Vec::new();
+    let dof = final_dof(d);
     for (i, (id, p, orient, o)) in final_effects(d).iter().enumerate() {
-        let (e, pm, um) = effect_json(d, *id, p, orient, o);
+        let (e, pm, um) = effect_json(d, *id, p, orient, o, &dof[i]);
         if i == 0 {
             (params, unc) = (pm, um);
         }
@@ -335,6 +387,7 @@ fn effects_words(d: &Diagnosis) -> String {
     let mut s = String::new();
     let (c, before, _) = validation_summary(d);
     let fe = final_effects(d);
+    let dof = final_dof(d);
     if fe.is_empty() {
         s += &format!(
             "\nDIAGNOSIS: none — no candidate earns its parameters (validation NRMSE {} {:.4})\n",
@@ -346,8 +399,16 @@ fn effects_words(d: &Diagnosis) -> String {
         if let Some(or) = orient {
             s += &format!("  orientation = {or}\n");
         }
-        for (n, v, sd) in p {
-            s += &format!("  {n} = {v:.5e} ± {sd:.2e}\n");
+        for (i, (n, v, sd)) in p.iter().enumerate() {
+            s += &format!("  {n} = {v:.5e} ± {sd:.2e}");
+            match dof[k].get(i) {
+                Some(&nu) if nu.is_finite() && sd.is_finite() => {
+                    let u = super::honesty::coverage_factor_95(nu) * sd;
+                    s +=
+                        &format!(" (95 %: ± {u:.2e}; ν = {nu:.1}: the recordings' disagreement)\n");
+                }
+                _ => s += "\n",
+            }
         }
         if *id == Effect::ServoLag {
             if let Some((rms, peak)) = following_error(d) {
