@@ -405,7 +405,7 @@ fn effects_words(d: &Diagnosis) -> String {
                 Some(&nu) if nu.is_finite() && sd.is_finite() => {
                     let u = super::honesty::coverage_factor_95(nu) * sd;
                     s +=
-                        &format!(" (95 %: ± {u:.2e}; ν = {nu:.1}: the recordings' disagreement)\n");
+                        &format!(" (95 % interval ± {u:.2e}: {nu:.1} degrees of freedom, the fit recordings disagree beyond noise)\n");
                 }
                 _ => s += "\n",
             }
