@@ -6,40 +6,79 @@ use super::{CandidateOutcome, Diagnosis};
 use crate::effect::Effect;
 use serde_json::{json, Map, Value};
 
-/// Parameters of the effect `id` whose values sit at `off..off + len` of a fit, as (JSON name
-/// with unit, value, σ); cogging sine/cosine become amplitude and pitch, gravity its
-/// orientation (from `words`).
+/// One reported parameter: JSON name with unit, value, 1-σ (NaN: not identified) and its
+/// effective degrees of freedom ([`super::honesty::effective_dof`]; infinite when none were
+/// measured).
+#[derive(Clone, Debug)]
+pub struct Reported {
+    /// JSON name with unit.
+    pub name: String,
+    /// Value (physical units).
+    pub value: f64,
+    /// 1-σ (physical units).
+    pub std: f64,
+    /// Effective degrees of freedom of `std`.
+    pub dof: f64,
+}
+
+impl Reported {
+    fn new(name: &str, value: f64, std: f64, dof: f64) -> Reported {
+        Reported {
+            name: name.to_string(),
+            value,
+            std,
+            dof,
+        }
+    }
+
+    /// Half-width of the 95 % interval, t₀.₉₇₅(ν) σ ([`super::honesty::coverage_factor_95`]).
+    pub fn u95(&self) -> f64 {
+        super::honesty::coverage_factor_95(self.dof) * self.std
+    }
+}
+
+/// Parameters of the effect `id` whose values sit at `off..off + len` of a fit, with the
+/// degrees of freedom `dof` of that fit's parameters (empty: none measured); cogging
+/// sine/cosine become amplitude and pitch (the fewer degrees of freedom of the two), gravity
+/// its orientation (from `words`).
 pub fn parameters_at(
     id: Effect,
     words: &str,
     fit: &super::fit::FitResult,
-    off: usize,
-    len: usize,
-) -> (Vec<(String, f64, f64)>, Option<String>) {
+    (off, len): (usize, usize),
+    dof: &[f64],
+) -> (Vec<Reported>, Option<String>) {
     let mut out = Vec::new();
     let names = &fit.names[off..off + len];
     let vals = &fit.values[off..off + len];
     let std = &fit.std[off..off + len];
+    let nu = |i: usize| dof.get(off + i).copied().unwrap_or(f64::INFINITY);
     if id == Effect::CoggingRipple {
         let (a, b) = (vals[0], vals[1]);
         let amp = a.hypot(b);
         let s = ((a * std[0]).powi(2) + (b * std[1]).powi(2)).sqrt() / amp.max(1e-300);
-        out.push(("cogging_amplitude_n".to_string(), amp, s));
-        out.push(("cogging_pitch_m".to_string(), vals[2], std[2]));
+        out.push(Reported::new(
+            "cogging_amplitude_n",
+            amp,
+            s,
+            nu(0).min(nu(1)),
+        ));
+        out.push(Reported::new("cogging_pitch_m", vals[2], std[2], nu(2)));
     } else if id == Effect::CubicStiffness {
         // the recordings determine c₃; k₃ = c₃ k_r⁴ inherits k_r, which the stiffness scale
         // largely absorbs (a long flat valley where the linearised σ means nothing): k₃ is
         // reported with its uncertainty null ("not identified"); see docs/diagnose.md
         let (kr, c3) = (vals[0], vals[1]);
-        out.push((
-            "cubic_root_stiffness_nm_per_rad3".to_string(),
+        out.push(Reported::new(
+            "cubic_root_stiffness_nm_per_rad3",
             c3 * kr.powi(4),
             f64::NAN,
+            f64::INFINITY,
         ));
-        out.push((names[1].to_string(), c3, std[1]));
-        out.push((names[0].to_string(), kr, std[0]));
+        out.push(Reported::new(names[1], c3, std[1], nu(1)));
+        out.push(Reported::new(names[0], kr, std[0], nu(0)));
     } else if id == Effect::SensorGain {
-        out.push(("sensor_gain".to_string(), 1.0 + vals[0], std[0]));
+        out.push(Reported::new("sensor_gain", 1.0 + vals[0], std[0], nu(0)));
     } else {
         for i in 0..names.len() {
             let v = if matches!(
@@ -50,7 +89,7 @@ pub fn parameters_at(
             } else {
                 vals[i]
             };
-            out.push((names[i].to_string(), v, std[i]));
+            out.push(Reported::new(names[i], v, std[i], nu(i)));
         }
     }
     let orientation = if id == Effect::GravityAxialLoad {
@@ -65,40 +104,28 @@ pub fn parameters_at(
     (out, orientation)
 }
 
-/// Effective degrees of freedom ([`super::honesty::effective_dof`]) of the parameters
-/// [`parameters_at`] gives for the effect `id` at `off..off + len` of the final fit, in its
-/// order: a derived parameter takes the fewest of those it is made of; infinite where `dof`
-/// has no entry.
-pub fn dof_at(id: Effect, dof: &[f64], off: usize, len: usize) -> Vec<f64> {
-    let d = |i: usize| dof.get(off + i).copied().unwrap_or(f64::INFINITY);
-    match id {
-        Effect::CoggingRipple => vec![d(0).min(d(1)), d(2)],
-        Effect::CubicStiffness => vec![d(0).min(d(1)), d(1), d(0)],
-        _ => (0..len).map(d).collect(),
-    }
-}
-
 /// Effect parameters of a candidate outcome (its own fit).
-pub fn effect_parameters(o: &CandidateOutcome) -> (Vec<(String, f64, f64)>, Option<String>) {
+pub fn effect_parameters(o: &CandidateOutcome) -> (Vec<Reported>, Option<String>) {
     let len = o.fit.values.len() - o.param_offset;
-    parameters_at(o.id, &o.words, &o.fit, o.param_offset, len)
+    parameters_at(o.id, &o.words, &o.fit, (o.param_offset, len), &[])
 }
 
 /// Every selected effect with its parameters from the final joint fit:
 /// (id, words, parameters, orientation, outcome when it was added).
 pub fn final_effects(
     d: &Diagnosis,
-) -> Vec<(
-    Effect,
-    Vec<(String, f64, f64)>,
-    Option<String>,
-    &CandidateOutcome,
-)> {
+) -> Vec<(Effect, Vec<Reported>, Option<String>, &CandidateOutcome)> {
     let mut off = d.calibration.names.len();
     let mut out = Vec::new();
     for (c, o) in d.final_set.iter().zip(&d.effects) {
         let len = c.params.len();
-        let (mut p, or) = parameters_at(c.id, c.words, &d.final_fit, off, len);
+        let (mut p, or) = parameters_at(
+            c.id,
+            c.words,
+            &d.final_fit,
+            (off, len),
+            &d.honesty.degrees_of_freedom,
+        );
         off += len;
         if let (Effect::MountResonance, Some((f, s))) = (c.id, d.mount_resonance) {
             as_the_rig_shows(&mut p, f, s);
@@ -108,39 +135,18 @@ pub fn final_effects(
     out
 }
 
-/// Per selected effect (order of [`final_effects`]), the effective degrees of freedom of each
-/// of its reported parameters ([`dof_at`]; a coupled mount's two frequencies both those of
-/// the fitted one).
-pub fn final_dof(d: &Diagnosis) -> Vec<Vec<f64>> {
-    let dof = &d.honesty.degrees_of_freedom;
-    let mut off = d.calibration.names.len();
-    let mut out = Vec::new();
-    for c in &d.final_set {
-        let len = c.params.len();
-        let mut v = dof_at(c.id, dof, off, len);
-        if c.id == Effect::MountResonance && d.mount_resonance.is_some() {
-            if let Some(i) = c.params.iter().position(|q| q.name == "mount_frequency_hz") {
-                v.push(v[i]);
-            }
-        }
-        off += len;
-        out.push(v);
-    }
-    out
-}
-
 /// A coupled mount's parameters `p` with `mount_frequency_hz` the resonance as the rig shows
-/// it (`f` ± `s` Hz, [`Diagnosis::mount_resonance`]); the fit's own frequency, the beam taken
-/// as a rigid mass on the mount, follows as `mount_rigid_beam_frequency_hz`.
-fn as_the_rig_shows(p: &mut Vec<(String, f64, f64)>, f: f64, s: f64) {
-    if let Some(i) = p.iter().position(|(n, ..)| n == "mount_frequency_hz") {
-        let (_, rigid, rigid_std) = p[i].clone();
-        p[i] = ("mount_frequency_hz".to_string(), f, s);
-        p.push((
-            "mount_rigid_beam_frequency_hz".to_string(),
-            rigid,
-            rigid_std,
-        ));
+/// it (`f` ± `s` Hz, [`Diagnosis::mount_resonance`], with the degrees of freedom of the fitted
+/// frequency it follows from); the fit's own frequency, the beam taken as a rigid mass on the
+/// mount, follows as `mount_rigid_beam_frequency_hz`.
+fn as_the_rig_shows(p: &mut Vec<Reported>, f: f64, s: f64) {
+    if let Some(i) = p.iter().position(|r| r.name == "mount_frequency_hz") {
+        let rigid = p[i].clone();
+        p[i] = Reported::new("mount_frequency_hz", f, s, rigid.dof);
+        p.push(Reported {
+            name: "mount_rigid_beam_frequency_hz".to_string(),
+            ..rigid
+        });
     }
 }
 
@@ -175,34 +181,18 @@ pub fn validation_summary(d: &Diagnosis) -> (usize, f64, f64) {
 fn effect_json(
     d: &Diagnosis,
     id: Effect,
-    p: &[(String, f64, f64)],
+    p: &[Reported],
     orient: &Option<String>,
     o: &CandidateOutcome,
-    dof: &[f64],
 ) -> (Value, Map<String, Value>, Map<String, Value>) {
-    let mut pm = Map::new();
-    let mut um = Map::new();
+    let finite_or_null = |x: f64| if x.is_finite() { json!(x) } else { Value::Null };
+    let (mut pm, mut um) = (Map::new(), Map::new());
     let (mut nu, mut u95) = (Map::new(), Map::new());
-    for (k, (n, v, s)) in p.iter().enumerate() {
-        pm.insert(n.clone(), json!(v));
-        um.insert(
-            n.clone(),
-            if s.is_finite() { json!(s) } else { Value::Null },
-        );
-        let dk = dof.get(k).copied().unwrap_or(f64::INFINITY);
-        nu.insert(
-            n.clone(),
-            if dk.is_finite() {
-                json!(dk)
-            } else {
-                Value::Null
-            },
-        );
-        let u = super::honesty::coverage_factor_95(dk) * s;
-        u95.insert(
-            n.clone(),
-            if u.is_finite() { json!(u) } else { Value::Null },
-        );
+    for r in p {
+        pm.insert(r.name.clone(), json!(r.value));
+        um.insert(r.name.clone(), finite_or_null(r.std));
+        nu.insert(r.name.clone(), finite_or_null(r.dof));
+        u95.insert(r.name.clone(), finite_or_null(r.u95()));
     }
     if let Some(o) = orient {
         pm.insert("orientation".into(), json!(o));
@@ -234,8 +224,8 @@ fn candidates_json(d: &Diagnosis) -> Vec<Value> {
         .map(|o| {
             let (p, orient) = effect_parameters(o);
             let mut pm = Map::new();
-            for (n, v, _) in p {
-                pm.insert(n, json!(v));
+            for r in p {
+                pm.insert(r.name, json!(r.value));
             }
             if let Some(o) = orient {
                 pm.insert("orientation".into(), json!(o));
@@ -296,9 +286,8 @@ pub fn to_json(d: &Diagnosis) -> Value {
     let mut params = Map::new();
     let mut unc = Map::new();
     let mut effects = Vec::new();
-    let dof = final_dof(d);
     for (i, (id, p, orient, o)) in final_effects(d).iter().enumerate() {
-        let (e, pm, um) = effect_json(d, *id, p, orient, o, &dof[i]);
+        let (e, pm, um) = effect_json(d, *id, p, orient, o);
         if i == 0 {
             (params, unc) = (pm, um);
         }
@@ -387,7 +376,6 @@ fn effects_words(d: &Diagnosis) -> String {
     let mut s = String::new();
     let (c, before, _) = validation_summary(d);
     let fe = final_effects(d);
-    let dof = final_dof(d);
     if fe.is_empty() {
         s += &format!(
             "\nDIAGNOSIS: none — no candidate earns its parameters (validation NRMSE {} {:.4})\n",
@@ -399,16 +387,16 @@ fn effects_words(d: &Diagnosis) -> String {
         if let Some(or) = orient {
             s += &format!("  orientation = {or}\n");
         }
-        for (i, (n, v, sd)) in p.iter().enumerate() {
-            s += &format!("  {n} = {v:.5e} ± {sd:.2e}");
-            match dof[k].get(i) {
-                Some(&nu) if nu.is_finite() && sd.is_finite() => {
-                    let u = super::honesty::coverage_factor_95(nu) * sd;
-                    s +=
-                        &format!(" (95 % interval ± {u:.2e}: {nu:.1} degrees of freedom, the fit recordings disagree beyond noise)\n");
-                }
-                _ => s += "\n",
+        for r in p {
+            s += &format!("  {} = {:.5e} ± {:.2e}", r.name, r.value, r.std);
+            if r.dof.is_finite() && r.std.is_finite() {
+                s += &format!(
+                    " (95 % interval ± {:.2e}: {:.1} degrees of freedom, the fit recordings disagree beyond noise)",
+                    r.u95(),
+                    r.dof
+                );
             }
+            s += "\n";
         }
         if *id == Effect::ServoLag {
             if let Some((rms, peak)) = following_error(d) {
