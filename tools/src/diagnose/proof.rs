@@ -408,7 +408,10 @@ fn estimates(
             truth: m - rig_mass_kg,
             value: x,
             sigma: s.is_finite().then_some(s),
-            u95: s.is_finite().then_some(1.96 * s),
+            // the final calibration's 95 % interval (its degrees of freedom); ±1.96σ else
+            u95: cal["expanded_uncertainty_95"]
+                .as_f64()
+                .or_else(|| s.is_finite().then_some(1.96 * s)),
         });
     }
     out
@@ -979,7 +982,8 @@ mod tests {
             "effects": [{"effect": "tip_mass", "parameters": {"tip_mass_kg": 0.011},
                          "uncertainty": {"tip_mass_kg": 0.001}}],
             "calibration": {"base_mass_delta_kg": {"value": 0.5, "std": 0.01}},
-            "final_calibration": {"base_mass_delta_kg": {"value": 0.11, "std": 0.02}},
+            "final_calibration": {"base_mass_delta_kg": {"value": 0.11, "std": 0.02,
+                                   "degrees_of_freedom": 1.0, "expanded_uncertainty_95": 0.254}},
         });
         let truth: BTreeMap<String, Value> = [
             ("tip_mass_kg".to_string(), Value::from(0.01)),
@@ -991,6 +995,13 @@ mod tests {
         let cal = e.iter().find(|e| e.kind.contains("calibration")).unwrap();
         assert_eq!((cal.value, cal.sigma), (0.11, Some(0.02)));
         assert!((cal.truth - 0.1).abs() < 1e-12);
+        // its 95 % interval is the one its degrees of freedom give, not ±1.96σ
+        assert_eq!(cal.u95, Some(0.254));
+        let mut j = j;
+        j["final_calibration"]["base_mass_delta_kg"]["expanded_uncertainty_95"] = Value::Null;
+        let e = estimates(&j, &["tip_mass"], &truth, 2.0);
+        let cal = e.iter().find(|e| e.kind.contains("calibration")).unwrap();
+        assert!((cal.u95.unwrap() - 1.96 * 0.02).abs() < 1e-12);
     }
 
     fn est(kind: &str, truth: f64, value: f64, sigma: Option<f64>) -> Estimate {

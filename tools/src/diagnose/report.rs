@@ -259,8 +259,11 @@ fn per_channel_json(d: &Diagnosis) -> Map<String, Value> {
 /// parameters), with its 1-σ (long-run, the recordings' disagreement, discretisation, the
 /// base-motion assumption): what the rig is once the named physics is in the model. The
 /// `calibration` entry is that of the nominal model, which may have absorbed the effects.
+/// Each identified parameter also carries its effective degrees of freedom (`null`: infinite)
+/// and the half-width of its 95 % interval, t₀.₉₇₅(ν) σ, as the effects' parameters do.
 /// Parameters the nominal calibration does not identify are `null`.
 fn final_calibration_json(d: &Diagnosis) -> Map<String, Value> {
+    let finite_or_null = |x: f64| if x.is_finite() { json!(x) } else { Value::Null };
     let mut out = Map::new();
     for (i, name) in d.calibration.names.iter().enumerate() {
         let identified = d
@@ -271,8 +274,14 @@ fn final_calibration_json(d: &Diagnosis) -> Map<String, Value> {
             .is_none();
         let (v, s) = (d.final_fit.values.get(i), d.final_fit.std.get(i));
         let entry = match (identified, v, s) {
-            (true, Some(v), Some(s)) => json!({"value": v, "std": s}),
-            _ => json!({"value": Value::Null, "std": Value::Null}),
+            (true, Some(&v), Some(&s)) => {
+                let dof = d.honesty.degrees_of_freedom.get(i).copied();
+                let r = Reported::new(name, v, s, dof.unwrap_or(f64::INFINITY));
+                json!({"value": v, "std": s, "degrees_of_freedom": finite_or_null(r.dof),
+                       "expanded_uncertainty_95": finite_or_null(r.u95())})
+            }
+            _ => json!({"value": Value::Null, "std": Value::Null,
+                        "degrees_of_freedom": Value::Null, "expanded_uncertainty_95": Value::Null}),
         };
         out.insert((*name).into(), entry);
     }
