@@ -1179,10 +1179,9 @@ pub fn predict(
         Some(_) => Some(fresh_cache(rig, p, dt, cache)?),
         None => None,
     };
-    // 1. servo: the carriage is pushed back by the beam it carries, so the loop is simulated
-    // coupled to the beam modes, whether or not the base is recorded (a measured base still
-    // drives the beam below; the loop's prediction is then the `base_pos_m` channel, whose
-    // following error holds the beam's reaction at its modes)
+    // 1. servo: the beam pushes the carriage back, so the loop is simulated coupled to its modes
+    // whether or not the base is recorded (a measured one still drives the beam below; the
+    // predicted `base_pos_m` then holds the beam's reaction in its following error)
     let law = ServoLaw::of(p);
     let y_servo = match &law {
         Some(law) => law.respond(&d.cmd_m, dt, c),
