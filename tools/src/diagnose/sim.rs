@@ -447,7 +447,7 @@ fn second_order(u: &[f64], dt: f64, omega: f64, zeta: f64, g_v: f64, g_a: f64) -
         y.push(u[k] + x[0]);
         x[1] -= g_a * (va - vb);
         let f = -g_v * 2.0 * zeta * omega * va;
-        x = phi * x + gam * f;
+        x = (phi * x + gam * f).map(at_rest);
     }
     y
 }
@@ -567,9 +567,27 @@ fn root_generator(
     a
 }
 
+/// A state or transition element below 1e-200 (SI units) is zero ([`at_rest`]): far below any
+/// sensor, far above the subnormal range (below 2.2e-308), where one floating-point operation
+/// costs about a hundred cycles. A mode that has rung down while the drive stands still (a
+/// heavily damped high mode, a few seconds) would otherwise spend the rest of the recording
+/// there: measured, half the run time of a 1000 Hz diagnosis (docs/diagnose.md, session 27).
+const FLUSH_TO_ZERO: f64 = 1e-200;
+
+/// `v`, or 0 when |v| < [`FLUSH_TO_ZERO`].
+#[inline]
+fn at_rest(v: f64) -> f64 {
+    if v.abs() < FLUSH_TO_ZERO {
+        0.0
+    } else {
+        v
+    }
+}
+
 /// One interval of a sampled state-space model: `z ← Φ z` (Φ `dim × dim`, `z` and the scratch
 /// `tmp` of length `dim`), without allocating. The sums run column by column as nalgebra's
-/// matrix–vector product does, so the result is the same to the bit.
+/// matrix–vector product does, so the result is the same to the bit, but for components held
+/// [`at_rest`].
 fn advance(phi: &nalgebra::DMatrix<f64>, z: &mut [f64], tmp: &mut [f64]) {
     let dim = z.len();
     let a = phi.as_slice();
@@ -580,7 +598,9 @@ fn advance(phi: &nalgebra::DMatrix<f64>, z: &mut [f64], tmp: &mut [f64]) {
             *t += c * zj;
         }
     }
-    z.copy_from_slice(tmp);
+    z.iter_mut()
+        .zip(tmp.iter())
+        .for_each(|(z, t)| *z = at_rest(*t));
 }
 
 /// exp(A·dt), or `None` for a generator far outside the band (largest element of A dt ≥
@@ -591,7 +611,7 @@ fn bounded_expm(a: nalgebra::DMatrix<f64>, dt: f64, limit: f64) -> Option<nalgeb
     if !(norm.is_finite() && norm < limit) {
         return None;
     }
-    let phi = ad.exp();
+    let phi = ad.exp().map(at_rest);
     phi.iter().all(|v| v.is_finite()).then_some(phi)
 }
 
@@ -818,7 +838,7 @@ fn first_order(r: &[f64], dt: f64, omega: f64, kv: f64) -> Vec<f64> {
         } else {
             0.0
         };
-        e = a * e - (1.0 - kv) * v * b;
+        e = at_rest(a * e - (1.0 - kv) * v * b);
     }
     y
 }
@@ -1539,49 +1559,133 @@ fn beam_response(
     c: &BeamCache,
 ) -> (Vec<f64>, Vec<f64>) {
     let n = root.len();
-    let nm = c.omega.len();
     let mount_mass = if p.mount.is_some() {
         p.mount_mass_kg
     } else {
         0.0
     };
-    let mut x = vec![Vector2::<f64>::zeros(); nm];
-    // modal velocities at the half-sample instant before the sample (at rest before the first)
-    let mut rate_before = vec![0.0; nm];
-    let mut w = Vec::with_capacity(n);
-    let mut force = vec![0.0; n];
-    let mut modal_f = vec![0.0; nm];
+    // the root's velocity step at each sample; after the last sample the root keeps its last
+    // velocity (a recording ends, the motion need not: a stop there would put a spurious −v/dt
+    // kick into the last force sample)
+    let dv: Vec<f64> = (0..n)
+        .map(|k| {
+            let vb = if k == 0 {
+                0.0
+            } else {
+                (root[k] - root[k - 1]) / dt
+            };
+            let va = if k + 1 < n {
+                (root[k + 1] - root[k]) / dt
+            } else {
+                vb
+            };
+            va - vb
+        })
+        .collect();
     let k3 = match p.root_stiffness_nm_per_rad {
         Some(_) => p.cubic_root_stiffness_nm_per_rad3,
         None => 0.0,
     };
+    let (w, beam_force) = if p.drag_kg_per_m2 > 0.0 || k3 != 0.0 {
+        nonlinear_modes(p, k3, &dv, dt, c)
+    } else {
+        let (w, momentum_step) = linear_modes(c, &dv);
+        (w, momentum_step.iter().map(|m| m / dt).collect())
+    };
+    let force = (0..n)
+        .map(|k| {
+            let acc = dv[k] / dt;
+            // the carriage itself moves with the drive, not with the mount
+            c.total_mass * acc
+                + beam_force[k]
+                + (c.base_mass - mount_mass) * (accel_at(drive, k, dt) - acc)
+        })
+        .collect();
+    (w, force)
+}
+
+/// Modes driven through at once in [`linear_modes`] (independent chains the processor overlaps).
+const MODE_LANES: usize = 4;
+
+/// The linear modes of [`beam_response`] (no drag, no cubic clamp) for the root's velocity
+/// steps `dv` (m/s, one per sample): the tip deflection `w` (m) and the modes' momentum change
+/// `Σ Γ_r (η̇_r(k+½) − η̇_r(k−½))` (kg m/s) per sample. Each mode is independent of the others,
+/// so [`MODE_LANES`] of them run side by side through the samples with their states in
+/// registers; the arithmetic per mode is that of [`nonlinear_modes`] without its impulses.
+fn linear_modes(c: &BeamCache, dv: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let n = dv.len();
+    let nm = c.omega.len();
+    let mut w = vec![0.0; n];
+    let mut momentum_step = vec![0.0; n];
+    for first in (0..nm).step_by(MODE_LANES) {
+        // padding lanes: identity transition, no participation, no tip deflection
+        let mut a = [[1.0, 0.0, 0.0, 1.0]; MODE_LANES];
+        let (mut g, mut t) = ([0.0; MODE_LANES], [0.0; MODE_LANES]);
+        for (j, r) in (first..nm.min(first + MODE_LANES)).enumerate() {
+            let m = &c.phi_half[r];
+            a[j] = [m[(0, 0)], m[(1, 0)], m[(0, 1)], m[(1, 1)]];
+            (g[j], t[j]) = (c.gamma[r], c.tip[r]);
+        }
+        let (mut x0, mut x1, mut rate_before) =
+            ([0.0; MODE_LANES], [0.0; MODE_LANES], [0.0; MODE_LANES]);
+        for k in 0..n {
+            let (mut tip, mut step) = (0.0, 0.0);
+            for j in 0..MODE_LANES {
+                tip += t[j] * x0[j];
+                x1[j] += -g[j] * dv[k];
+                let h0 = a[j][0] * x0[j] + a[j][2] * x1[j];
+                let h1 = a[j][1] * x0[j] + a[j][3] * x1[j];
+                step += g[j] * (h1 - rate_before[j]);
+                rate_before[j] = h1;
+                x0[j] = a[j][0] * h0 + a[j][2] * h1;
+                x1[j] = a[j][1] * h0 + a[j][3] * h1;
+            }
+            w[k] += tip;
+            momentum_step[k] += step;
+            // a mode rung down is held at rest before it reaches the subnormal range
+            if k % 64 == 0 {
+                x0.iter_mut()
+                    .chain(x1.iter_mut())
+                    .for_each(|v| *v = at_rest(*v));
+            }
+        }
+    }
+    (w, momentum_step)
+}
+
+/// The modes of [`beam_response`] with the distributed drag and the cubic clamp's moment
+/// (`k3`, N m/rad³), which couple them at every sample: the tip deflection (m) and the modes'
+/// force `Σ Γ_r Δη̇_r / dt − drag` (N) per sample.
+fn nonlinear_modes(
+    p: &Params,
+    k3: f64,
+    dv: &[f64],
+    dt: f64,
+    c: &BeamCache,
+) -> (Vec<f64>, Vec<f64>) {
+    let n = dv.len();
+    let nm = c.omega.len();
+    let mut x = vec![Vector2::<f64>::zeros(); nm];
+    // modal velocities at the half-sample instant before the sample (at rest before the first)
+    let mut rate_before = vec![0.0; nm];
+    let mut w = Vec::with_capacity(n);
+    let mut force = Vec::with_capacity(n);
+    let mut modal_f = vec![0.0; nm];
     let cap2 = cubic_cap2(
         k3,
         p.root_stiffness_nm_per_rad.unwrap_or(0.0),
         c.root_rot.iter().map(|s| s * s).sum(),
         dt,
     );
-    for k in 0..n {
-        let vb = if k == 0 {
-            0.0
-        } else {
-            (root[k] - root[k - 1]) / dt
-        };
-        // after the last sample the root keeps its last velocity (a recording ends, the motion
-        // need not: a stop there would put a spurious −v/dt kick into the last force sample)
-        let va = if k + 1 < n {
-            (root[k + 1] - root[k]) / dt
-        } else {
-            vb
-        };
-        let dv = va - vb;
-        let acc = dv / dt;
+    let mut vb = 0.0;
+    for &dv in dv {
         modal_f.iter_mut().for_each(|f| *f = 0.0);
         let drag_total = if p.drag_kg_per_m2 > 0.0 {
             drag_impulses(p.drag_kg_per_m2, vb, &x, c, &mut modal_f)
         } else {
             0.0
         };
+        vb += dv;
         if k3 != 0.0 {
             let theta: f64 = (0..nm).map(|r| c.root_rot[r] * x[r][0]).sum();
             let m3 = cubic_moment(k3, theta, cap2);
@@ -1589,7 +1693,7 @@ fn beam_response(
                 modal_f[r] -= c.root_rot[r] * m3;
             }
         }
-        let mut f = c.total_mass * acc - drag_total;
+        let mut f = -drag_total;
         let mut tip = 0.0;
         for r in 0..nm {
             tip += c.tip[r] * x[r][0];
@@ -1597,11 +1701,10 @@ fn beam_response(
             let half = c.phi_half[r] * x[r];
             f += c.gamma[r] * (half[1] - rate_before[r]) / dt;
             rate_before[r] = half[1];
-            x[r] = c.phi_half[r] * half;
+            x[r] = (c.phi_half[r] * half).map(at_rest);
         }
         w.push(tip);
-        // the carriage itself moves with the drive, not with the mount
-        force[k] = f + (c.base_mass - mount_mass) * (accel_at(drive, k, dt) - acc);
+        force.push(f);
     }
     (w, force)
 }
@@ -1937,6 +2040,52 @@ mod tests {
         let one = 1.0 / 6.0;
         let single = frequency_shift_beyond_scale_rel(&rig, &stiffer, &p0, one).unwrap();
         assert!((single - 1.1f64.sqrt().ln()).abs() < 1e-9, "{single}");
+    }
+
+    #[test]
+    fn a_rung_down_model_rests_at_exact_zero_never_subnormal() {
+        // heavily damped modes, a mount and a PID loop at 1 kHz: seconds after the move every
+        // state has decayed by far more than 10^308; held at rest below 1e-200, the deflection
+        // is exactly zero and no channel holds a subnormal number (each costs ~100 cycles)
+        // a 0.3 m strip: mode 1 at 10 Hz, rung down by 10^-300 within 10 s at ζ 0.95
+        let rig = Rig::from_toml_str(
+            "[beam]\nlength_m = 0.3\ndensity_kg_m3 = 8190.0\nyoungs_modulus_pa = 1.9e11\nstations = [ { x_m = 0.0, width_m = 0.025, thickness_m = 0.00115 }, { x_m = 0.3, width_m = 0.025, thickness_m = 0.00115 } ]\n[base]\nmass_kg = 2.5\n",
+        )
+        .unwrap();
+        let (y, _) = crate::model::trapezoid_reference(0.0, 0.05, 0.2, 2.0, 1000.0, 14.0).unwrap();
+        let mut rec = crate::recording::Recording::with_uniform_time(y.len(), 1000.0);
+        rec.base_cmd_m = Some(y.clone());
+        rec.tip_pos_m = Some(y.clone());
+        rec.force_n = Some(vec![0.0; y.len()]);
+        let d = Prepared::new("t", &rec).unwrap();
+        let damped = Params {
+            zeta_modes: Some(vec![0.9; 12]),
+            ..Params::default()
+        };
+        let mounted = Params {
+            mount: Some((40.0, 0.9)),
+            mount_mass_kg: 0.2,
+            servo: Some((20.0, 0.9)),
+            servo_order: 3,
+            servo_integral_ratio: 0.5,
+            ..damped.clone()
+        };
+        let filtered = Params {
+            mount: Some((40.0, 0.9)),
+            servo: Some((20.0, 0.9)),
+            servo_order: 1,
+            ..damped.clone()
+        };
+        for p in [&damped, &mounted, &filtered] {
+            let pred = predict(&rig, p, &d, &mut None).unwrap();
+            let (tip, force) = (pred.tip_m.unwrap(), pred.force_n.unwrap());
+            assert!(tip.iter().chain(&force).all(|v| !v.is_subnormal()), "{p:?}");
+        }
+        // the modes of the plain beam: exactly at rest, the tip exactly on the carriage
+        let pred = predict(&rig, &damped, &d, &mut None).unwrap();
+        let end = d.cmd_m.len() - 1;
+        assert_eq!(pred.tip_m.unwrap()[end], d.cmd_m[end]);
+        assert_eq!(pred.force_n.unwrap()[end], 0.0);
     }
 
     #[test]
