@@ -926,7 +926,11 @@ fn coupled_mount(
         }
         zv[yi] = y[kk];
         zv[vi] = v;
-        let p_after = momentum_half.iter().zip(&zv).map(|(a, b)| a * b).sum::<f64>();
+        let p_after = momentum_half
+            .iter()
+            .zip(&zv)
+            .map(|(a, b)| a * b)
+            .sum::<f64>();
         out.force.push((p_after - p_before) / dt);
         p_before = p_after;
         advance(&phi, &mut zv, &mut tmp);
@@ -1452,6 +1456,12 @@ fn fresh_cache<'c>(
 /// that ends mid-move says nothing of a stop; assuming one put a −v/dt spike of tens of N into
 /// the last force sample, which the force calibration then bent its mass and latency to).
 pub fn accel_at(y: &[f64], k: usize, dt: f64) -> f64 {
+    velocity_step(y, k, dt) / dt
+}
+
+/// The velocity step (m/s) at sample k of the piecewise-linear path through `y` ([`accel_at`]
+/// times dt): from rest before the first sample, none after the last.
+fn velocity_step(y: &[f64], k: usize, dt: f64) -> f64 {
     let n = y.len();
     let vb = if k == 0 { 0.0 } else { (y[k] - y[k - 1]) / dt };
     let va = if k + 1 < n {
@@ -1459,7 +1469,7 @@ pub fn accel_at(y: &[f64], k: usize, dt: f64) -> f64 {
     } else {
         vb
     };
-    (va - vb) / dt
+    va - vb
 }
 
 /// `force` (N) with the carriage's (`carriage_kg`) acceleration read from the cubic spline
@@ -1572,30 +1582,13 @@ fn beam_response(
     } else {
         0.0
     };
-    // the root's velocity step at each sample; after the last sample the root keeps its last
-    // velocity (a recording ends, the motion need not: a stop there would put a spurious −v/dt
-    // kick into the last force sample)
-    let dv: Vec<f64> = (0..n)
-        .map(|k| {
-            let vb = if k == 0 {
-                0.0
-            } else {
-                (root[k] - root[k - 1]) / dt
-            };
-            let va = if k + 1 < n {
-                (root[k + 1] - root[k]) / dt
-            } else {
-                vb
-            };
-            va - vb
-        })
-        .collect();
+    let dv: Vec<f64> = (0..n).map(|k| velocity_step(root, k, dt)).collect();
     let k3 = match p.root_stiffness_nm_per_rad {
         Some(_) => p.cubic_root_stiffness_nm_per_rad3,
         None => 0.0,
     };
     let (w, beam_force) = if p.drag_kg_per_m2 > 0.0 || k3 != 0.0 {
-        nonlinear_modes(p, k3, &dv, dt, c)
+        nonlinear_modes(p, k3, root, &dv, dt, c)
     } else {
         let (w, momentum_step) = linear_modes(c, &dv);
         (w, momentum_step.iter().map(|m| m / dt).collect())
@@ -1662,11 +1655,13 @@ fn linear_modes(c: &BeamCache, dv: &[f64]) -> (Vec<f64>, Vec<f64>) {
 }
 
 /// The modes of [`beam_response`] with the distributed drag and the cubic clamp's moment
-/// (`k3`, N m/rad³), which couple them at every sample: the tip deflection (m) and the modes'
-/// force `Σ Γ_r Δη̇_r / dt − drag` (N) per sample.
+/// (`k3`, N m/rad³), which couple them at every sample, for the root positions `root` (m) and
+/// their velocity steps `dv` (m/s): the tip deflection (m) and the modes' force
+/// `Σ Γ_r Δη̇_r / dt − drag` (N) per sample.
 fn nonlinear_modes(
     p: &Params,
     k3: f64,
+    root: &[f64],
     dv: &[f64],
     dt: f64,
     c: &BeamCache,
@@ -1685,15 +1680,19 @@ fn nonlinear_modes(
         c.root_rot.iter().map(|s| s * s).sum(),
         dt,
     );
-    let mut vb = 0.0;
-    for &dv in dv {
+    for (k, &dv) in dv.iter().enumerate() {
+        // the root's velocity over the interval before the sample
+        let vb = if k == 0 {
+            0.0
+        } else {
+            (root[k] - root[k - 1]) / dt
+        };
         modal_f.iter_mut().for_each(|f| *f = 0.0);
         let drag_total = if p.drag_kg_per_m2 > 0.0 {
             drag_impulses(p.drag_kg_per_m2, vb, &x, c, &mut modal_f)
         } else {
             0.0
         };
-        vb += dv;
         if k3 != 0.0 {
             let theta: f64 = (0..nm).map(|r| c.root_rot[r] * x[r][0]).sum();
             let m3 = cubic_moment(k3, theta, cap2);
