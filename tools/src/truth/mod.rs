@@ -499,22 +499,14 @@ impl Draft {
         modes.omega_rad_s.truncate(keep);
         modes.participation.truncate(keep);
         modes.node_w.truncate(keep);
-        // a mount's resonance as the rig shows it: the coupled mount + beam with the carriage
-        // held (what the diagnosis reports), besides the drawn rigid-beam frequency
-        if let Some(mt) = self.plant.mount {
-            let k = (pi2 * mt.freq_hz).powi(2) * (mt.mass_kg + modes.beam_mass_kg);
-            if let Some(f) = crate::model::mount::coupled_resonance_hz(
-                k,
-                mt.mass_kg,
-                modes.beam_mass_kg,
-                &modes.participation,
-                &modes.omega_rad_s,
-            ) {
-                self.put("mount_frequency_hz", f);
-                self.put("mount_rigid_beam_frequency_hz", mt.freq_hz);
-            }
-        }
+        let drawn = self.plant.mount;
         self.plant.beam = Some((modes, self.geo.length_m / self.beam.elements as f64));
+        // a mount's resonance as the rig shows it (the closed loop, what the diagnosis
+        // reports), besides the drawn rigid-beam frequency
+        if let (Some(mt), Some(f)) = (drawn, self.plant.mount_resonance_hz()) {
+            self.put("mount_frequency_hz", f);
+            self.put("mount_rigid_beam_frequency_hz", mt.freq_hz);
+        }
         Ok(())
     }
 
