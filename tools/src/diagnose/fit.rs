@@ -71,8 +71,7 @@ pub fn channel_rss(res: &[[Option<Vec<f64>>; 3]]) -> ([f64; 3], [usize; 3]) {
 /// ω1² is close to linear in the scale g (ω1² ≈ a g − b: stiffness against an axial load, a
 /// mass), so the root of ω1²(g) = ω1,plain² is found by the secant method from the
 /// fixed-point step g = ω1,plain²/ω1²(1). The fixed-point iteration alone diverges once the
-/// load takes more than half of the stiffness (b > a g/2: a beam standing upright at 0.4 of its
-/// buckling load, calibrated on f1 without the load, docs/diagnose.md, session 28). A scale at
+/// load takes more than half of the stiffness (b > a g/2; docs/diagnose.md, "Session 28"). A scale at
 /// which the extended model buckles is doubled until it stands (at most 6 times); after 12
 /// steps the last one is returned. `None` when a model cannot be built.
 pub fn f1_preserving_factor(rig: &Rig, p: &Params) -> Option<f64> {

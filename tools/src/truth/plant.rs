@@ -227,8 +227,8 @@ impl Plant {
     /// continuous loop; friction, cogging, drag and the cubic clamp off) whose mode has the
     /// largest share of its strain energy in the mount spring. The servo is a spring and
     /// damper of finite stiffness on the motor mass, so this is not the resonance with the
-    /// carriage held ([`crate::model::mount::coupled_resonance_hz`]): on held-out 395050 the
-    /// recorded force rings at 47.0 Hz where the held one is 48.0 Hz. `None` without a mount.
+    /// carriage held ([`crate::model::mount::coupled_resonance_hz`]; docs/diagnose.md,
+    /// "Session 28"). `None` without a mount.
     pub fn mount_resonance_hz(&self) -> Option<f64> {
         use nalgebra::{Complex, DMatrix, DVector};
         self.mount?;
