@@ -71,9 +71,9 @@ pub fn channel_rss(res: &[[Option<Vec<f64>>; 3]]) -> ([f64; 3], [usize; 3]) {
 /// ω1² is close to linear in the scale g (ω1² ≈ a g − b: stiffness against an axial load, a
 /// mass), so the root of ω1²(g) = ω1,plain² is found by the secant method from the
 /// fixed-point step g = ω1,plain²/ω1²(1). The fixed-point iteration alone diverges once the
-/// load takes more than half of the stiffness (b > a g/2; docs/diagnose.md, "Session 28"). A scale at
-/// which the extended model buckles is doubled until it stands (at most 6 times); after 12
-/// steps the last one is returned. `None` when a model cannot be built.
+/// load takes more than half of the stiffness (b > a g/2; docs/diagnose.md, "Session 28").
+/// A scale at which the extended model buckles is doubled until it stands (at most 6 times);
+/// after 12 steps the last one is returned. `None` when a model cannot be built.
 pub fn f1_preserving_factor(rig: &Rig, p: &Params) -> Option<f64> {
     use crate::model::{BeamModel, ModelOptions};
     let omega1_sq = |opts: &ModelOptions| -> Option<f64> {
