@@ -72,8 +72,8 @@ pub fn channel_rss(res: &[[Option<Vec<f64>>; 3]]) -> ([f64; 3], [usize; 3]) {
 /// mass), so the root of ω1²(g) = ω1,plain² is found by the secant method from the
 /// fixed-point step g = ω1,plain²/ω1²(1). The fixed-point iteration alone diverges once the
 /// load takes more than half of the stiffness (b > a g/2; docs/diagnose.md, "Session 28").
-/// A scale at which the extended model buckles is doubled until it stands (at most 6 times);
-/// after 12 steps the last one is returned. `None` when a model cannot be built.
+/// A start at which the extended model buckles is doubled until it stands (at most 6 times),
+/// a step onto one goes back halfway; after 12 steps the last one is returned. `None` when a model cannot be built.
 pub fn f1_preserving_factor(rig: &Rig, p: &Params) -> Option<f64> {
     use crate::model::{BeamModel, ModelOptions};
     let omega1_sq = |opts: &ModelOptions| -> Option<f64> {
@@ -113,7 +113,11 @@ pub fn f1_preserving_factor(rig: &Rig, p: &Params) -> Option<f64> {
     let mut e0 = e0?;
     let mut g1 = g0 * target / (e0 + target);
     for _ in 0..12 {
-        let e1 = extended(g1)?;
+        // a step onto a scale where the loaded beam buckles goes back halfway to the last one
+        let Some(e1) = extended(g1) else {
+            g1 = 0.5 * (g0 + g1);
+            continue;
+        };
         if e1.abs() <= 1e-12 * target {
             return Some(g1);
         }
