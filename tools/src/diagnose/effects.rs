@@ -731,6 +731,40 @@ pub fn sensor_side_of(cand: &Candidate) -> Option<(Candidate, Vec<usize>)> {
     ))
 }
 
+/// Largest position (fraction of the beam length) [`along_beam_of`] searches: beyond it a
+/// rotational spring turns too little of the beam to be told from a tip-sensor error.
+pub const SPRING_POSITION_MAX_REL: f64 = 0.9;
+
+/// The alternative placement of a root spring (`cand`: [`Effect::RootCompliance`]): the same
+/// rotational spring at a point along the beam of length `length_m`, `spring_position_m` in
+/// (0, [`SPRING_POSITION_MAX_REL`] l) ([`super::sim::Params::spring_position_m`], its last
+/// parameter): a local compliance such as a crack, a notch or
+/// a loose joint, which lowers each mode by its curvature *there* (Dimarogonas, Eng. Fract.
+/// Mech. 55, 1996), where a compliant clamp lowers each by its curvature at the root. Not a
+/// catalogue effect: the yardstick of the root spring's placement test. `None` for another
+/// effect or without a beam.
+pub fn along_beam_of(cand: &Candidate, length_m: f64) -> Option<Candidate> {
+    if cand.id != Effect::RootCompliance || !(length_m > 0.0) {
+        return None;
+    }
+    let hi = SPRING_POSITION_MAX_REL * length_m;
+    let position = def(
+        "spring_position_m",
+        Transform::Bounded(0.0, hi),
+        vec![0.3 * length_m],
+        0.01 * length_m,
+        false,
+    );
+    let mut params = cand.params.clone();
+    params.push(position);
+    Some(Candidate {
+        id: Effect::RootCompliance,
+        words: "a rotational spring along the beam (a local compliance: a crack, a notch, a loose joint)",
+        orientation: None,
+        params,
+    })
+}
+
 /// Applies a candidate's effect values (physical units, in `cand.params` order).
 pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
     if cand.orientation.is_some() {
@@ -776,7 +810,10 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
             };
         }
         Effect::TipMass => p.tip_mass_kg = get("tip_mass_kg").unwrap_or(0.0).abs(),
-        Effect::RootCompliance => p.root_stiffness_nm_per_rad = get("root_stiffness_nm_per_rad"),
+        Effect::RootCompliance => {
+            p.root_stiffness_nm_per_rad = get("root_stiffness_nm_per_rad");
+            p.spring_position_m = get("spring_position_m").unwrap_or(0.0);
+        }
         Effect::QuadraticDamping => {
             p.drag_kg_per_m2 = get("drag_coefficient_kg_per_m2").unwrap_or(0.0).abs()
         }
@@ -812,6 +849,46 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_root_spring_has_a_placement_along_the_beam_and_nothing_else_has() {
+        let root = Candidate {
+            id: Effect::RootCompliance,
+            words: "",
+            orientation: None,
+            params: vec![def(
+                "root_stiffness_nm_per_rad",
+                Transform::Log,
+                vec![10.0],
+                1.0,
+                false,
+            )],
+        };
+        let along = along_beam_of(&root, 0.8).unwrap();
+        assert_eq!(along.id, Effect::RootCompliance);
+        let pos = along.params.last().unwrap();
+        assert_eq!(pos.name, "spring_position_m");
+        assert!(
+            matches!(pos.transform, Transform::Bounded(lo, hi) if lo == 0.0 && (hi - 0.72).abs() < 1e-12)
+        );
+        let mut p = Params::default();
+        apply_effect(&along, &[25.0, 0.3], &mut p);
+        assert_eq!(
+            (p.root_stiffness_nm_per_rad, p.spring_position_m),
+            (Some(25.0), 0.3)
+        );
+        apply_effect(&root, &[25.0], &mut p);
+        assert_eq!(p.spring_position_m, 0.0);
+        assert!(along_beam_of(
+            &Candidate {
+                id: Effect::TipMass,
+                ..root.clone()
+            },
+            0.8
+        )
+        .is_none());
+        assert!(along_beam_of(&root, 0.0).is_none());
+    }
+
     use super::*;
 
     /// A rig file may list a damping ratio per mode (the way a modal test reports them): the

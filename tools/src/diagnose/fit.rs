@@ -95,6 +95,7 @@ pub fn f1_preserving_factor(rig: &Rig, p: &Params) -> Option<f64> {
             stiffness_scale: p.stiffness_scale * g,
             tip_mass_kg: p.tip_mass_kg,
             root_stiffness_nm_per_rad: p.root_stiffness_nm_per_rad,
+            spring_position_m: p.spring_position_m,
             axial_load: p.orientation,
             tip_load_shape: p.tip_load_shape(),
             ..Default::default()

@@ -69,7 +69,12 @@
 //!    `tip_pos_m` a massless mount and a loose tip sensor are the same linear filter (filters in
 //!    series commute) and neither changes `base_pos_m`; only `force_n` sees the beam root move.
 //!    Without that evidence the recordings cannot place the resonance and it is reported
-//!    unexplained, not named.
+//!    unexplained, not named;
+//! 9. **placed at the clamp** (recordings, `root_compliance`): the same rotational spring free
+//!    to sit anywhere along the beam nests the root spring; when it wins by the margins of
+//!    conditions 1–2 at a position whose 2 σ interval lies beyond the clamp's region, the
+//!    recordings reject the clamp as its place: a local compliance of the beam (a crack), outside
+//!    the catalogue, reported unexplained with its position (`forward::Ctx::compliance_placement`).
 //!
 //! Among those, the largest validation likelihood gain wins; if none passes, the answer is
 //! `none`. In `diagnose` forward selection applies the guard once per round against the model

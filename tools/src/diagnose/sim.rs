@@ -71,6 +71,10 @@ pub struct Params {
     pub tip_mass_kg: f64,
     /// Root rotational stiffness (N·m/rad).
     pub root_stiffness_nm_per_rad: Option<f64>,
+    /// Where that rotational spring sits (m from the clamp; 0 = the clamp,
+    /// [`ModelOptions::spring_position_m`]): not a catalogue effect, the alternative placement a
+    /// root spring is tested against (a local compliance along the beam: a crack).
+    pub spring_position_m: f64,
     /// Distributed quadratic drag (kg/m²: force per unit length = c |v| v).
     pub drag_kg_per_m2: f64,
     /// Tip sensor latency (s).
@@ -174,6 +178,7 @@ impl Default for Params {
             servo_force_lag_ratio: 0.0,
             tip_mass_kg: 0.0,
             root_stiffness_nm_per_rad: None,
+            spring_position_m: 0.0,
             drag_kg_per_m2: 0.0,
             sensor_delay_s: 0.0,
             sensor_gain_error: 0.0,
@@ -983,6 +988,7 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
         base_mass_delta_kg: p.base_mass_delta_kg,
         tip_mass_kg: p.tip_mass_kg,
         root_stiffness_nm_per_rad: p.root_stiffness_nm_per_rad,
+        spring_position_m: p.spring_position_m,
         axial_load: p.orientation,
         point_mass: None,
         damping_ratios: p.zeta,
@@ -1058,6 +1064,7 @@ fn structural_key(p: &Params, dt: f64) -> Vec<f64> {
         p.base_mass_delta_kg,
         p.tip_mass_kg,
         p.root_stiffness_nm_per_rad.unwrap_or(-1.0),
+        p.spring_position_m,
         match p.orientation {
             None => 0.0,
             Some(Orientation::Hanging) => 1.0,

@@ -2,9 +2,10 @@
 //! extensions the diagnosis needs, and the modal analysis (eq. 24).
 //!
 //! Generalised coordinates `[y, (θ), q_1 … q_n]`: base position y (m), optionally the rigid
-//! rotation θ (rad) of a compliant clamp (`root_stiffness_nm_per_rad`), and the modal
-//! amplitudes q_i of the basis ([`super::basis`]); the deflection is
-//! `w(x) = x·θ + Σ q_i φ_i(x)`.
+//! rotation θ (rad) of a compliant clamp (`root_stiffness_nm_per_rad`; or of the outer part
+//! about a hinge spring at x_h, `spring_position_m`), and the modal amplitudes q_i of the
+//! basis ([`super::basis`]); the deflection is `w(x) = (x − x_h)₊ θ + Σ q_i φ_i(x)` (x_h = 0
+//! at the clamp).
 //!
 //! Mass (eqs. 13, 17–19) and stiffness (eq. 20) by Gauss–Legendre quadrature over A(x), I(x),
 //! done once per beam and basis ([`BeamIntegrals`]): a model is assembled from those integrals
@@ -45,6 +46,12 @@ pub struct ModelOptions {
     pub tip_mass_kg: f64,
     /// Rotational spring at the clamp (N·m/rad); `None` = rigid clamp.
     pub root_stiffness_nm_per_rad: Option<f64>,
+    /// Where that rotational spring sits (m from the clamp, `0 ≤ x_h < l`): 0 is a compliant
+    /// clamp; x_h > 0 a hinge in the beam, the part beyond it turning rigidly about x_h,
+    /// `w = (x − x_h)₊ θ + Σ q_i φ_i` (a crack or a loose joint idealised as a rotational spring,
+    /// the local-flexibility model of Dimarogonas, Eng. Fract. Mech. 55, 1996). Not one of the
+    /// paper's terms: the alternative placement a root spring is tested against.
+    pub spring_position_m: f64,
     /// A lumped mass `(x_m, kg)` on the beam at distance x from the clamp (e.g. an
     /// accelerometer); `None` = none.
     pub point_mass: Option<(f64, f64)>,
@@ -68,6 +75,7 @@ impl Default for ModelOptions {
             base_mass_delta_kg: 0.0,
             tip_mass_kg: 0.0,
             root_stiffness_nm_per_rad: None,
+            spring_position_m: 0.0,
             point_mass: None,
             axial_load: None,
             damping_ratios: None,
@@ -137,6 +145,26 @@ pub fn quadrature(length_m: f64, intervals: usize) -> Vec<(f64, f64)> {
     pts
 }
 
+/// [`quadrature`] with a break at `break_m` (0 < break_m < l): the intervals shared between
+/// [0, break_m] and [break_m, l] in proportion (at least one each), so that a shape with a kink
+/// there ([`ModelOptions::spring_position_m`]) is integrated piecewise smooth. Without a break
+/// inside (0, l), [`quadrature`].
+pub fn quadrature_with_break(length_m: f64, intervals: usize, break_m: f64) -> Vec<(f64, f64)> {
+    if !(break_m > 0.0 && break_m < length_m) {
+        return quadrature(length_m, intervals);
+    }
+    let below =
+        ((intervals as f64 * break_m / length_m).round() as usize).clamp(1, intervals.max(2) - 1);
+    let above = intervals.max(2) - below;
+    let mut pts = quadrature(break_m, below);
+    pts.extend(
+        quadrature(length_m - break_m, above)
+            .into_iter()
+            .map(|(x, w)| (break_m + x, w)),
+    );
+    pts
+}
+
 /// Rayleigh coefficients (α1, α2) giving damping ratios ζ1, ζ2 at ω1, ω2 (rad/s), eq. (22):
 /// ζ_r = ½(α1/ω_r + α2 ω_r).
 pub fn rayleigh_coefficients(omega1: f64, zeta1: f64, omega2: f64, zeta2: f64) -> (f64, f64) {
@@ -156,6 +184,12 @@ fn check_options(opts: &ModelOptions, length_m: f64) -> Result<()> {
     if !(opts.stiffness_scale > 0.0) || !(opts.tip_mass_kg >= 0.0) {
         bail!("stiffness scale must be > 0 and tip mass >= 0");
     }
+    if !(0.0..length_m).contains(&opts.spring_position_m) {
+        bail!(
+            "rotational spring must sit on the beam (0..{length_m} m from the clamp); got {} m",
+            opts.spring_position_m
+        );
+    }
     let (pm_x, pm_kg) = opts.point_mass.unwrap_or((0.0, 0.0));
     if !(pm_kg >= 0.0) || !(0.0..=length_m).contains(&pm_x) {
         bail!(
@@ -165,12 +199,14 @@ fn check_options(opts: &ModelOptions, length_m: f64) -> Result<()> {
     Ok(())
 }
 
-/// The generalised coordinates' shape at a point: `[0 (y), (x if a root spring), φ_i,
-/// (ψ if the tip-load shape)]` for w, and their first and second derivatives.
+/// The generalised coordinates' shape at a point: `[0 (y), ((x − x_h)₊ if a rotational spring
+/// at x_h), φ_i, (ψ if the tip-load shape)]` for w, and their first and second derivatives.
 #[derive(Clone, Debug)]
 struct Shapes {
-    /// 1 with a root spring (the rigid rotation x is a coordinate), else 0.
+    /// 1 with a rotational spring (the rigid rotation about it is a coordinate), else 0.
     r: usize,
+    /// Where that spring sits (m from the clamp).
+    spring_m: f64,
     basis: Vec<BasisFn>,
     /// Beam length (m) when the tip-load shape ψ is the last coordinate.
     tip_shape_l: Option<f64>,
@@ -180,11 +216,12 @@ struct Shapes {
 }
 
 impl Shapes {
-    fn new(l: f64, n: usize, root_spring: bool, tip_shape: bool) -> Self {
-        let r = usize::from(root_spring);
+    fn new(l: f64, n: usize, root_spring: Option<f64>, tip_shape: bool) -> Self {
+        let r = usize::from(root_spring.is_some());
         let dim = 1 + r + n + usize::from(tip_shape);
         Shapes {
             r,
+            spring_m: root_spring.unwrap_or(0.0),
             basis: (1..=n).map(|i| BasisFn::new(i, l)).collect(),
             tip_shape_l: tip_shape.then_some(l),
             vals: vec![0.0; dim],
@@ -201,8 +238,9 @@ impl Shapes {
     fn at(&mut self, x: f64) {
         let r = self.r;
         if r == 1 {
-            self.vals[1] = x;
-            self.d1[1] = 1.0;
+            let beyond = x > self.spring_m;
+            self.vals[1] = if beyond { x - self.spring_m } else { 0.0 };
+            self.d1[1] = if beyond { 1.0 } else { 0.0 };
             self.d2[1] = 0.0;
         }
         for (i, b) in self.basis.iter().enumerate() {
@@ -244,7 +282,8 @@ impl Shapes {
 pub struct BeamIntegrals {
     beam: BeamSection,
     n_modes: usize,
-    root_spring: bool,
+    /// Where the rotational spring sits (m from the clamp); `None`: no spring coordinate.
+    root_spring: Option<f64>,
     tip_shape: bool,
     shapes: Shapes,
     pts: Vec<(f64, f64)>,
@@ -268,15 +307,16 @@ thread_local! {
 
 impl BeamIntegrals {
     /// Integrates the beam of `rig` on `n_modes` clamped–free functions, plus the rigid
-    /// rotation θ of a compliant clamp if `root_spring` and the tip-load shape ψ if
-    /// `tip_shape` ([`ModelOptions`]), by `40 + 20 n_modes` intervals of 5-point
-    /// Gauss–Legendre.
+    /// rotation θ about a rotational spring at `root_spring` (m from the clamp; 0 a compliant
+    /// clamp) if given and the tip-load shape ψ if `tip_shape` ([`ModelOptions`]), by
+    /// `40 + 20 n_modes` intervals of 5-point Gauss–Legendre (broken at the spring,
+    /// [`quadrature_with_break`]).
     ///
     /// Errors: no `[beam]`, an invalid profile, `n_modes` outside 1..=12.
     pub fn new(
         rig: &Rig,
         n_modes: usize,
-        root_spring: bool,
+        root_spring: Option<f64>,
         tip_shape: bool,
     ) -> Result<BeamIntegrals> {
         let beam = rig
@@ -290,7 +330,7 @@ impl BeamIntegrals {
         let (l, rho, e) = (beam.length_m, beam.density_kg_m3, beam.youngs_modulus_pa);
         let mut shapes = Shapes::new(l, n_modes, root_spring, tip_shape);
         let dim = shapes.dim();
-        let pts = quadrature(l, 40 + 20 * n_modes);
+        let pts = quadrature_with_break(l, 40 + 20 * n_modes, root_spring.unwrap_or(0.0));
         // the mass of each quadrature point's slice of beam (kg)
         let slice_kg: Vec<f64> = pts
             .iter()
@@ -343,7 +383,7 @@ impl BeamIntegrals {
     pub fn shared(
         rig: &Rig,
         n_modes: usize,
-        root_spring: bool,
+        root_spring: Option<f64>,
         tip_shape: bool,
     ) -> Result<std::rc::Rc<BeamIntegrals>> {
         let same = |b: &BeamIntegrals| {
@@ -408,7 +448,8 @@ impl BeamModel {
         let b = BeamIntegrals::shared(
             rig,
             opts.n_modes,
-            opts.root_stiffness_nm_per_rad.is_some(),
+            opts.root_stiffness_nm_per_rad
+                .map(|_| opts.spring_position_m),
             opts.tip_load_shape,
         )?;
         let (pm_x, pm_kg) = opts.point_mass.unwrap_or((0.0, 0.0));

@@ -105,40 +105,67 @@ pub struct Rig {
     pub sensors: Option<SensorSection>,
 }
 
-/// A(x) and I(x) of a beam, piecewise linear between stations.
+/// A(x) and I(x) of a beam. From `stations` (a rectangular section of width b and thickness
+/// h at each) the *dimensions* are linear in x between stations, as a machined or rolled taper
+/// is, and A = b h, I = b h³ / 12 follow from them (a thickness taper makes I a cubic in x;
+/// interpolating I itself linearly overstates it between the stations, by 1.4 % at the middle
+/// of a 15 % thickness taper, and the first natural frequency by about 0.5 %). From a
+/// tabulated `profile`, A and I are linear in x between its entries.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SectionProfile {
     /// Station positions (m), increasing from 0 to l.
     pub x_m: Vec<f64>,
-    /// Areas (m²).
+    /// Areas (m²) at the stations.
     pub area_m2: Vec<f64>,
-    /// Second moments (m⁴).
+    /// Second moments (m⁴) at the stations.
     pub inertia_m4: Vec<f64>,
+    /// Width and thickness (m) at the stations of a rectangular section (`None`: a tabulated
+    /// profile).
+    pub rectangle_m: Option<Vec<(f64, f64)>>,
 }
 
 impl SectionProfile {
-    fn interp(&self, v: &[f64], x: f64) -> f64 {
+    /// The segment holding `x` and the fraction of the way along it (clamped to the ends).
+    fn locate(&self, x: f64) -> (usize, f64) {
         let n = self.x_m.len();
         if x <= self.x_m[0] {
-            return v[0];
+            return (1, 0.0);
         }
         for k in 1..n {
             if x <= self.x_m[k] {
-                let a = (x - self.x_m[k - 1]) / (self.x_m[k] - self.x_m[k - 1]);
-                return v[k - 1] + a * (v[k] - v[k - 1]);
+                return (k, (x - self.x_m[k - 1]) / (self.x_m[k] - self.x_m[k - 1]));
             }
         }
-        v[n - 1]
+        (n - 1, 1.0)
+    }
+
+    fn interp(&self, v: &[f64], x: f64) -> f64 {
+        let (k, a) = self.locate(x);
+        v[k - 1] + a * (v[k] - v[k - 1])
+    }
+
+    /// Width and thickness (m) at `x` of a rectangular section, linear between stations.
+    fn rectangle_at(&self, x: f64) -> Option<(f64, f64)> {
+        let r = self.rectangle_m.as_ref()?;
+        let (k, a) = self.locate(x);
+        let lerp = |p: f64, q: f64| p + a * (q - p);
+        Some((lerp(r[k - 1].0, r[k].0), lerp(r[k - 1].1, r[k].1)))
     }
 
     /// A(x) (m²).
     pub fn area(&self, x: f64) -> f64 {
-        self.interp(&self.area_m2, x)
+        match self.rectangle_at(x) {
+            Some((b, h)) => b * h,
+            None => self.interp(&self.area_m2, x),
+        }
     }
 
     /// I(x) (m⁴).
     pub fn inertia(&self, x: f64) -> f64 {
-        self.interp(&self.inertia_m4, x)
+        match self.rectangle_at(x) {
+            Some((b, h)) => b * h * h * h / 12.0,
+            None => self.interp(&self.inertia_m4, x),
+        }
     }
 }
 
@@ -216,6 +243,12 @@ impl Rig {
                         .iter()
                         .map(|s| s.width_m * s.thickness_m.powi(3) / 12.0)
                         .collect(),
+                    rectangle_m: Some(
+                        b.stations
+                            .iter()
+                            .map(|s| (s.width_m, s.thickness_m))
+                            .collect(),
+                    ),
                 }
             }
             (true, false) => {
@@ -227,6 +260,7 @@ impl Rig {
                     x_m: b.profile.iter().map(|s| s.x_m).collect(),
                     area_m2: b.profile.iter().map(|s| s.area_m2).collect(),
                     inertia_m4: b.profile.iter().map(|s| s.inertia_m4).collect(),
+                    rectangle_m: None,
                 }
             }
             (true, true) => {
