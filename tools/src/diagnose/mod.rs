@@ -922,10 +922,14 @@ fn conclude(
         &reference.vpred,
         ctx.model_freqs,
     );
-    if let (Some(u), Some(o)) = (
-        unexplained.as_mut(),
-        rounds.last().and_then(|r| r.iter().find(|o| !o.passed)),
-    ) {
+    // the closest: one the recordings placed elsewhere (a resonance at the tip sensor, a
+    // spring along the beam) says most of what the residual is; else the best that failed
+    let closest = rounds.last().and_then(|r| {
+        r.iter()
+            .find(|o| !o.passed && o.unplaced.is_some())
+            .or_else(|| r.iter().find(|o| !o.passed))
+    });
+    if let (Some(u), Some(o)) = (unexplained.as_mut(), closest) {
         u.closest_catalogue_effect = Some(format!("{}: {}", o.id, o.reason));
     }
     let set: Vec<&Candidate> = final_set.iter().collect();
