@@ -1097,7 +1097,10 @@ fn drop_effect(
 /// The nested simpler form of chosen effect `k` — a linear root spring for a cubic clamp (the
 /// cubic term at zero) — with its outcome in the round of `rounds` that chose `k`: its
 /// catalogue index and that outcome. `None` for other effects, or when the simpler form was not
-/// fitted then.
+/// fitted then or did not pass the guard itself (a root spring within the model's accuracy,
+/// or placed along the beam, does not come back in through a cubic clamp whose cubic term the
+/// final model does not identify: second simulator, seed 3, case14, docs/diagnose.md,
+/// session 29).
 fn simpler_form(
     cands: &[Candidate],
     rounds: &[Vec<CandidateOutcome>],
@@ -1111,7 +1114,10 @@ fn simpler_form(
     let round = rounds
         .iter()
         .find(|r| r.iter().any(|o| o.cand_index == k && o.passed))?;
-    let o = round.iter().find(|o| o.cand_index == s)?.clone();
+    let o = round
+        .iter()
+        .find(|o| o.cand_index == s && o.passed)?
+        .clone();
     Some((s, o))
 }
 
@@ -1337,5 +1343,12 @@ mod tests {
         assert!(simpler_form(&cands, &rounds, 0).is_none());
         let alone = vec![vec![row(2, Effect::CubicStiffness, true)]];
         assert!(simpler_form(&cands, &alone, 2).is_none());
+        // nor one whose root spring failed the guard in that round (within the model's
+        // accuracy): the clamp is dropped, not replaced by it
+        let refused = vec![vec![
+            row(2, Effect::CubicStiffness, true),
+            row(1, Effect::RootCompliance, false),
+        ]];
+        assert!(simpler_form(&cands, &refused, 2).is_none());
     }
 }
