@@ -584,7 +584,6 @@ impl Ctx<'_> {
         let (k_at, d_pos) = (o.param_offset, set.last().and_then(|c| c.params.last()));
         let mut profile: Vec<(f64, nalgebra::DVector<f64>)> = Vec::new();
         let problem = self.fit_problem(set, o.fit.x.clone().push(0.0));
-        let octaves: Vec<f64> = (-4..=7).map(f64::from).collect();
         for tenth in 1..=8 {
             let rel = 0.1 * tenth as f64;
             let Some(d) = d_pos.filter(|_| rel < super::effects::SPRING_POSITION_MAX_REL) else {
@@ -597,41 +596,10 @@ impl Ctx<'_> {
                 y[k_at] = k0 + dk * std::f64::consts::LN_2;
                 problem.cost_at(&y)
             };
-            let costs: Vec<f64> = octaves.iter().map(|&o| at(o)).collect();
-            let Some(b) = (0..costs.len())
-                .filter(|&i| costs[i].is_finite())
-                .min_by(|&i, &j| costs[i].total_cmp(&costs[j]))
-            else {
-                continue;
-            };
-            // golden-section search between the best octave's neighbours: with long recordings
-            // the cost is narrow in k (the second mode's phase), an octave parabola misses it
-            let (mut lo, mut hi) = (
-                octaves[b.saturating_sub(1)],
-                octaves[(b + 1).min(octaves.len() - 1)],
-            );
-            let (mut best_dk, mut best_cost) = (octaves[b], costs[b]);
-            let r = 0.5 * (5f64.sqrt() - 1.0);
-            let (mut a, mut c) = (hi - r * (hi - lo), lo + r * (hi - lo));
-            let (mut fa, mut fc) = (at(a), at(c));
-            for _ in 0..GOLDEN_STEPS {
-                if fa < fc {
-                    (hi, c, fc) = (c, a, fa);
-                    a = hi - r * (hi - lo);
-                    fa = at(a);
-                } else {
-                    (lo, a, fa) = (a, c, fc);
-                    c = lo + r * (hi - lo);
-                    fc = at(c);
-                }
+            if let Some((cost, dk)) = octave_search(at) {
+                x[k_at] = k0 + dk * std::f64::consts::LN_2;
+                profile.push((cost, x));
             }
-            for (dk, f) in [(a, fa), (c, fc)] {
-                if f < best_cost {
-                    (best_dk, best_cost) = (dk, f);
-                }
-            }
-            x[k_at] = k0 + best_dk * std::f64::consts::LN_2;
-            profile.push((best_cost, x));
         }
         profile.sort_by(|a, b| a.0.total_cmp(&b.0));
         self.trace(format!(
@@ -642,7 +610,7 @@ impl Ctx<'_> {
                 .map(|(c, x)| (*c, x[x.len() - 1]))
                 .collect::<Vec<_>>()
         ));
-        let mut used = profile.len() * (octaves.len() + 2 + GOLDEN_STEPS);
+        let mut used = profile.len() * (OCTAVES.len() + 2 + GOLDEN_STEPS);
         let mut best: Option<FitResult> = None;
         let starts: Vec<_> = profile.into_iter().take(2).collect();
         for (_, x) in &starts {
@@ -955,6 +923,49 @@ fn fit_round(
 /// the clamp's own compliance: a clamp grips, and yields, over a length of a few per cent of a
 /// slender beam, so a spring the recordings place within it is a compliant clamp.
 pub const CLAMP_REGION_REL: f64 = 0.05;
+
+/// The octaves (log₂ of the stiffness against its energy-matched start) the stiffness search at
+/// each position of [`Ctx::fit_along_beam`] tries first.
+const OCTAVES: [f64; 12] = [
+    -4.0, -3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0,
+];
+
+/// The minimum of `cost` (of the octave offset) over [`OCTAVES`], refined by golden-section
+/// search between the best octave's neighbours ([`GOLDEN_STEPS`]): with long recordings the
+/// cost is narrow in the stiffness (the second mode's phase), which a parabola through the
+/// octaves misses. Returns the lowest cost seen and its offset; `None` if no octave gives a
+/// finite cost.
+fn octave_search(cost: impl Fn(f64) -> f64) -> Option<(f64, f64)> {
+    let costs: Vec<f64> = OCTAVES.iter().map(|&o| cost(o)).collect();
+    let b = (0..costs.len())
+        .filter(|&i| costs[i].is_finite())
+        .min_by(|&i, &j| costs[i].total_cmp(&costs[j]))?;
+    let (mut lo, mut hi) = (
+        OCTAVES[b.saturating_sub(1)],
+        OCTAVES[(b + 1).min(OCTAVES.len() - 1)],
+    );
+    let mut best = (costs[b], OCTAVES[b]);
+    let r = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut a, mut c) = (hi - r * (hi - lo), lo + r * (hi - lo));
+    let (mut fa, mut fc) = (cost(a), cost(c));
+    for _ in 0..GOLDEN_STEPS {
+        if fa < fc {
+            (hi, c, fc) = (c, a, fa);
+            a = hi - r * (hi - lo);
+            fa = cost(a);
+        } else {
+            (lo, a, fa) = (a, c, fc);
+            c = lo + r * (hi - lo);
+            fc = cost(c);
+        }
+    }
+    for (dk, f) in [(a, fa), (c, fc)] {
+        if f < best.0 {
+            best = (f, dk);
+        }
+    }
+    Some(best)
+}
 
 /// Golden-section steps of the stiffness search at each position of
 /// [`Ctx::fit_along_beam`]: the two-octave bracket narrowed to 0.618¹² × 2 ≈ 0.006 octave.

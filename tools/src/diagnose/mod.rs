@@ -922,14 +922,7 @@ fn conclude(
         &reference.vpred,
         ctx.model_freqs,
     );
-    // the closest: one the recordings placed elsewhere (a resonance at the tip sensor, a
-    // spring along the beam) says most of what the residual is; else the best that failed
-    let closest = rounds.last().and_then(|r| {
-        r.iter()
-            .find(|o| !o.passed && o.unplaced.is_some())
-            .or_else(|| r.iter().find(|o| !o.passed))
-    });
-    if let (Some(u), Some(o)) = (unexplained.as_mut(), closest) {
+    if let (Some(u), Some(o)) = (unexplained.as_mut(), closest_failed(&rounds)) {
         u.closest_catalogue_effect = Some(format!("{}: {}", o.id, o.reason));
     }
     let set: Vec<&Candidate> = final_set.iter().collect();
@@ -1092,6 +1085,16 @@ fn drop_effect(
         }
     }
     true
+}
+
+/// The catalogue effect closest to an unexplained residual: of the last round's failed
+/// candidates, one the recordings placed elsewhere (a resonance at the tip sensor, a spring
+/// along the beam: that says most of what the residual is), else the best that failed.
+fn closest_failed(rounds: &[Vec<CandidateOutcome>]) -> Option<&CandidateOutcome> {
+    let last = rounds.last()?;
+    last.iter()
+        .find(|o| !o.passed && o.unplaced.is_some())
+        .or_else(|| last.iter().find(|o| !o.passed))
 }
 
 /// The nested simpler form of chosen effect `k` — a linear root spring for a cubic clamp (the
