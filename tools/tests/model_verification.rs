@@ -111,6 +111,19 @@ fn fe_beam(width_root: f64, width_tip: f64, elements: usize) -> FeBeam {
     }
 }
 
+/// Prints the Galerkin frequencies `g` (Hz) against the FE ones `fe` mode by mode and asserts
+/// each relative difference is below `tol`.
+fn assert_agrees_with_fe(name: &str, g: &[f64], fe: &[f64], tol: f64) {
+    for (i, (g, fe)) in g.iter().zip(fe).enumerate() {
+        let rel = g / fe - 1.0;
+        println!(
+            "{name:>24}, mode {}: Galerkin {g:.5} Hz, FE {fe:.5} Hz, {rel:+.2e}",
+            i + 1
+        );
+        assert!(rel.abs() < tol, "{name}, mode {}: {rel:e}", i + 1);
+    }
+}
+
 /// The lowest `n` clamped-base natural frequencies (Hz) of `b`.
 fn fe_hz(b: &FeBeam, n: usize) -> Vec<f64> {
     b.modes(n)
@@ -459,17 +472,7 @@ fn structural_extensions_agree_with_the_finite_element_model() {
     ];
     for (name, mo, fe_b) in cases {
         let g = clamped_hz_opts(&r, ModelOptions { n_modes: 8, ..mo });
-        let fe = fe_hz(&fe_b, 3);
-        for i in 0..3 {
-            let rel = g[i] / fe[i] - 1.0;
-            println!(
-                "{name:>24}, mode {}: Galerkin {:.5} Hz, FE {:.5} Hz, {rel:+.2e}",
-                i + 1,
-                g[i],
-                fe[i]
-            );
-            assert!(rel.abs() < 5e-3, "{name}, mode {}: {rel:e}", i + 1);
-        }
+        assert_agrees_with_fe(name, &g, &fe_hz(&fe_b, 3), 5e-3);
     }
     // Free carriage (force-driven base): Galerkin (relative coordinates) vs FE (absolute).
     let m = BeamModel::new(
@@ -683,17 +686,7 @@ fn a_thickness_taper_is_linear_in_the_dimensions_between_stations() {
         },
         3,
     );
-    let g = clamped_hz(&r, 10);
-    for i in 0..3 {
-        let rel = g[i] / fe[i] - 1.0;
-        println!(
-            "thickness taper, mode {}: Galerkin {:.5} Hz, FE {:.5} Hz, rel. diff {rel:+.2e}",
-            i + 1,
-            g[i],
-            fe[i]
-        );
-        assert!(rel.abs() < 1e-5, "mode {}: {rel}", i + 1);
-    }
+    assert_agrees_with_fe("thickness taper", &clamped_hz(&r, 10), &fe, 1e-5);
     // the section between stations: I at the middle from the middle's dimensions
     let p = r.profile().unwrap();
     let (b, h) = (0.029, 0.001675);
