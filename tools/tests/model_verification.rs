@@ -6,6 +6,7 @@
 use beamtools::model::sim::{BaseMotionSim, ForceSim};
 use beamtools::model::{BeamModel, ModelOptions, Orientation, Rig};
 use beamtools::truth::fe::FeBeam;
+use beamtools::truth::unmodelled::cracked_modes;
 use nalgebra::{DMatrix, DVector, SymmetricEigen, Vector2};
 use std::f64::consts::PI;
 
@@ -736,23 +737,7 @@ fn a_rotational_spring_along_the_beam_is_a_cracked_element() {
     let x = (e as f64 + 0.5) * h;
     let ei = 1.9e11 * 0.025 * 0.00115f64.powi(3) / 12.0;
     let fe_beam = fe_beam(0.025, 0.025, elements);
-    let (mm, mut kk, rr) = fe_beam.assemble().unwrap();
-    let ke = [
-        [12.0, 6.0 * h, -12.0, 6.0 * h],
-        [6.0 * h, 4.0 * h * h, -6.0 * h, 2.0 * h * h],
-        [-12.0, -6.0 * h, 12.0, -6.0 * h],
-        [6.0 * h, 2.0 * h * h, -6.0 * h, 4.0 * h * h],
-    ];
-    // free DOFs [w1, θ1, …]: the element's DOFs (w_e, θ_e, w_e+1, θ_e+1) at 2e − 2 …
-    for p in 0..4 {
-        for q in 0..4 {
-            let (i, j) = (2 * e + p, 2 * e + q);
-            if i >= 2 && j >= 2 {
-                kk[(i - 2, j - 2)] -= loss * ei / (h * h * h) * ke[p][q];
-            }
-        }
-    }
-    let cracked: Vec<f64> = fe_beam.modes_of(&mm, &kk, &rr, 4).unwrap().omega_rad_s[..4]
+    let cracked: Vec<f64> = cracked_modes(&fe_beam, e, loss, 4).unwrap().omega_rad_s[..4]
         .iter()
         .map(|w| w / (2.0 * PI))
         .collect();

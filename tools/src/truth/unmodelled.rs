@@ -118,8 +118,9 @@ fn f_hz(m: &FeModes, r: usize) -> f64 {
     m.omega_rad_s[r] / (2.0 * std::f64::consts::PI)
 }
 
-/// Modes of `beam` with EI of element `e` multiplied by `1 − loss`.
-fn cracked_modes(beam: &FeBeam, e: usize, loss: f64, n_keep: usize) -> Result<FeModes> {
+/// Modes of `beam` with EI of element `e` multiplied by `1 − loss` (the cracked-element model;
+/// the lowest `n_keep`). Errors: as [`FeBeam::modes_of`].
+pub fn cracked_modes(beam: &FeBeam, e: usize, loss: f64, n_keep: usize) -> Result<FeModes> {
     let (m, mut k, r) = beam.assemble()?;
     let h = beam.length_m / beam.elements as f64;
     let ei = beam.youngs_modulus_pa * beam.section((e as f64 + 0.5) * h).1;
