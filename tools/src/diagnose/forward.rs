@@ -266,8 +266,8 @@ impl Ctx<'_> {
         (spread, used)
     }
 
-    /// Fits `set` (the effects chosen so far + candidate `ci`, last) jointly with the calibration
-    /// and applies every guard against `base`.
+    /// Fits `set` (the effects chosen so far + candidate `ci`, last) jointly with the calibration,
+    /// from `seeds` first ([`fit::fit_seeded`]), and applies every guard against `base`.
     pub(crate) fn evaluate(
         &self,
         set: &[&Candidate],
@@ -275,15 +275,17 @@ impl Ctx<'_> {
         base: &Reference,
         max_evaluations: usize,
         explore: bool,
+        seeds: &[nalgebra::DVector<f64>],
     ) -> Option<CandidateOutcome> {
         set.last()?;
-        let f = fit::fit(
+        let f = fit::fit_seeded(
             self.rig,
             self.fit_data,
             self.sigma,
             self.calib,
             set,
             Some(&base.fit.x),
+            seeds,
             max_evaluations,
             explore,
         );
@@ -674,7 +676,10 @@ impl Ctx<'_> {
                     super::sim::frequency_shift_beyond_scale_rel(self.rig, &p, &without, dt)?,
                 )
             }
-            _ => ("changes the tip readings", p.sensor_gain_error.abs()),
+            _ => (
+                "changes the tip readings (or their deflection from the carriage)",
+                p.sensor_gain_error.abs().max(p.deflection_gain_error.abs()),
+            ),
         };
         let accuracy = super::sim::BASIS_CONVERGENCE_REL;
         (size < accuracy).then(|| {
@@ -872,7 +877,9 @@ fn refresh_reference(
     reference.split = split;
 }
 
-/// Fits every candidate of `pool` on top of `chosen` and assesses it against `reference`.
+/// Fits every candidate of `pool` on top of `chosen` and assesses it against `reference`. A form
+/// that nests one fitted before it in the round (a coupled mount the massless one, a PID loop the
+/// plain one) starts first from that one's optimum ([`fit::nested_seed`]).
 #[allow(clippy::too_many_arguments)]
 fn fit_round(
     ctx: &Ctx,
@@ -907,7 +914,14 @@ fn fit_round(
             cands[ci].id,
             budget.total.saturating_sub(budget.spent)
         ));
-        if let Some(o) = ctx.evaluate(&set, ci, reference, share, round == 0) {
+        // a form that nests one fitted before in this round also starts from its optimum
+        let seeds: Vec<_> = outs
+            .iter()
+            .filter_map(|o: &CandidateOutcome| {
+                fit::nested_seed(&cands[o.cand_index], &o.fit.x, &cands[ci])
+            })
+            .collect();
+        if let Some(o) = ctx.evaluate(&set, ci, reference, share, round == 0, &seeds) {
             budget.spend(o.fit.evaluations);
             outs.push(o);
         }
