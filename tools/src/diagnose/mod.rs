@@ -8,6 +8,8 @@
 //! - [`locate`]: where/when/at which frequency the residual is structured;
 //! - [`saturation`]: samples a sensor held at its rail, left out of every residual;
 //! - [`select`]: BIC + validation + model-form allowance + whiteness + significance guard;
+//! - [`backward`]: after forward selection, each chosen effect must still earn its parameters
+//!   beside the others (backward elimination);
 //! - [`report`]: JSON, words, SVG plots; [`proof`]: the own-generator proof; [`honesty`]:
 //!   long-run 1-σ, parameter stability, residual statistics of the final model;
 //! - the commands (`diagnose`, `diagnose-proof`, `diagnose-lengths`) live in `crate::cli::diagnose`;
@@ -21,6 +23,7 @@
 //! ([`WORK_BUDGET_SAMPLE_EVALUATIONS`] divided by the fit recordings' samples), never on the
 //! clock, so the same recordings give the same answer on any machine.
 
+pub mod backward;
 pub mod effects;
 pub mod fit;
 mod forward;
@@ -766,6 +769,7 @@ fn diagnose_with(
     let vpred0 = nominal.vpred.clone();
     let mut sel = forward::select_forward(&ctx, &cands, nominal, &mut budget, progress, 2);
     lookalike::resolve(&ctx, &cands, &mut sel, &mut budget);
+    backward::eliminate(&ctx, &cands, &mut sel, &mut budget);
     let set: Vec<&Candidate> = sel.chosen.iter().map(|&k| &cands[k]).collect();
     let explained = check_explained(&ctx, &set, &sel, cal.best_nrmse)?;
     let earlier = Earlier {
