@@ -37,7 +37,7 @@ pub(crate) fn eliminate(ctx: &Ctx, cands: &[Candidate], sel: &mut Selection, bud
                 let id = sel.chosen.remove(p);
                 sel.outcomes.remove(p);
                 sel.reference = reference;
-                mark_dropped(sel, id, &words);
+                mark_dropped(&mut sel.rounds, id, &words);
                 for q in p..sel.chosen.len() {
                     let on = &sel.chosen[..=q];
                     if let Some(o) = same_set_outcomes(&sel.rounds, &original, on).next() {
@@ -141,12 +141,61 @@ fn same_set_outcomes<'a>(
         .filter(move |o| Some(o.cand_index) == last)
 }
 
-/// Marks the outcome of catalogue entry `id` that passed in its round as dropped, with `words`.
-fn mark_dropped(sel: &mut Selection, id: usize, words: &str) {
-    for o in sel.rounds.iter_mut().flatten() {
+/// Marks the outcome of catalogue entry `id` that passed in its round (of `rounds`) as
+/// dropped, with `words`.
+fn mark_dropped(rounds: &mut [Vec<CandidateOutcome>], id: usize, words: &str) {
+    for o in rounds.iter_mut().flatten() {
         if o.cand_index == id && o.passed {
             o.passed = false;
             o.reason = words.to_string();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::forward::tests::outcome;
+
+    fn at(cand_index: usize) -> CandidateOutcome {
+        let mut o = outcome(-100.0, true, "passes every guard");
+        o.cand_index = cand_index;
+        o
+    }
+
+    #[test]
+    fn a_refit_without_an_effect_starts_from_the_round_that_fitted_the_same_effects() {
+        // chosen [3, 7]: round 1 fitted 3 and 7 alone, round 2 fitted 7 on top of 3
+        let rounds = vec![vec![at(3), at(7), at(9)], vec![at(7), at(9)]];
+        let original = [3, 7];
+        let idx = |rest: &[usize]| -> Vec<usize> {
+            same_set_outcomes(&rounds, &original, rest)
+                .map(|o| o.cand_index)
+                .collect()
+        };
+        // without 3: 7 alone, from round 1; without 7: 3 alone, from round 1
+        assert_eq!(idx(&[7]), [7]);
+        assert_eq!(idx(&[3]), [3]);
+        // 3 then 9: round 2 fitted 9 on top of 3
+        assert_eq!(idx(&[3, 9]), [9]);
+        // 7 then 9 was never fitted (round 2 had 3 before it), nor anything of three effects
+        assert!(idx(&[7, 9]).is_empty());
+        assert!(idx(&[3, 7, 9]).is_empty());
+        assert!(idx(&[]).is_empty());
+    }
+
+    #[test]
+    fn a_dropped_effect_is_marked_failed_in_the_round_it_passed() {
+        let mut o = at(3);
+        o.passed = true;
+        let mut other = at(3);
+        other.passed = false;
+        other.reason = "ΔBIC +3 not < −10".into();
+        let mut rounds = vec![vec![o, at(7)], vec![other]];
+        mark_dropped(&mut rounds, 3, "dropped in the backward elimination: …");
+        assert!(!rounds[0][0].passed);
+        assert!(rounds[0][0].reason.starts_with("dropped"));
+        assert!(rounds[0][1].passed);
+        assert_eq!(rounds[1][0].reason, "ΔBIC +3 not < −10");
     }
 }
