@@ -5,9 +5,10 @@
 //! with the effective sample size of each candidate's own residual. An effect that absorbs
 //! part of another's signature can win the first round and stay chosen when the other comes in
 //! next, though the other alone does as well (second simulator, seed 3, case06: a 15.5 g tip
-//! mass; a camera scale on the deflection won round 1, Δ(−2 ln L) −7480 against the tip mass's
-//! −5780 at a smaller rms reduction, 90.1 % against 94.3 %; the tip mass came in second, and the
-//! pair left exactly the tip mass's own validation residual). So, as in stepwise regression
+//! mass; with a trial form of `sensor_gain` on the deflection only — session 30, not kept — the
+//! scale won round 1, Δ(−2 ln L) −7480 against the tip mass's −5780 at a smaller rms reduction,
+//! 90.1 % against 94.3 %; the tip mass came in second, and the pair left exactly the tip mass's
+//! own validation residual). So, as in stepwise regression
 //! (Efroymson 1960), once no candidate passes, each chosen effect in turn (the earliest first)
 //! is removed, the rest refitted from the final optimum, and the effect is kept only if the
 //! final model beats that refit by the margins of the guard's conditions 1 and 2
@@ -121,9 +122,9 @@ fn without(
 /// The outcomes of the rounds' fits whose effects were exactly `rest` (catalogue indices, in
 /// order): outcome o of round j was fitted with the effects `original` chose before round j,
 /// then o. The warm start from the final model keeps the dropped effect's share in the others'
-/// parameters (case06 above: the refit without the camera scale stayed at the joint model's
-/// 13.4 g, where the tip mass fitted alone in round 1 had found 14.7 g), so these optima start
-/// the refit too.
+/// parameters (case06 above: the refit without the scale stayed at the joint model's 13.4 g,
+/// where the tip mass fitted alone in round 1 had found 14.7 g), so these optima start the
+/// refit too.
 fn same_set_outcomes<'a>(
     rounds: &'a [Vec<CandidateOutcome>],
     original: &'a [usize],

@@ -676,10 +676,7 @@ impl Ctx<'_> {
                     super::sim::frequency_shift_beyond_scale_rel(self.rig, &p, &without, dt)?,
                 )
             }
-            _ => (
-                "changes the tip readings (or their deflection from the carriage)",
-                p.sensor_gain_error.abs().max(p.deflection_gain_error.abs()),
-            ),
+            _ => ("changes the tip readings", p.sensor_gain_error.abs()),
         };
         let accuracy = super::sim::BASIS_CONVERGENCE_REL;
         (size < accuracy).then(|| {

@@ -250,7 +250,6 @@ fn draw_sensors(rng: &mut StdRng, noise_scale: f64) -> Sensors {
             tip_quantum_m: if rng.gen_bool(0.5) { 1e-5 } else { 1e-4 },
             tip_delay_s: 0.0,
             tip_gain: 1.0,
-            tip_on_carriage: false,
             encoder_noise_m: log_uniform(rng, 2e-7, 2e-6),
             encoder_quantum_m: 1e-6,
             force_noise_n: log_uniform(rng, 0.01, 0.2),
@@ -459,19 +458,11 @@ impl Draft {
                 self.put("sensor_delay_s", tau);
             }
             Effect::SensorGain => {
-                // a camera calibration off by 2–8 % either way; the camera stands in the room
-                // (it scales the position) or rides on the carriage (it scales the deflection)
+                // a camera calibration off by 2–8 % either way
                 let g =
                     1.0 + rng.gen_range(0.02..0.08) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
                 self.plant.sensors.tip_gain = g;
-                self.plant.sensors.tip_on_carriage = rng.gen_bool(0.5);
                 self.put("sensor_gain", g);
-                let mount = if self.plant.sensors.tip_on_carriage {
-                    "on the carriage"
-                } else {
-                    "in the room"
-                };
-                self.truth.insert("tip_sensor".into(), mount.into());
             }
             _ => {
                 let pi2 = 2.0 * std::f64::consts::PI;
@@ -594,13 +585,6 @@ impl Draft {
         if let Some(s) = extra.sensed_tip(&run.tip_m, fine_dt) {
             run.tip_m = s;
         }
-        if plant.sensors.tip_on_carriage {
-            // the camera sees the deflection from the carriage, scaled by its gain
-            let g = plant.sensors.tip_gain;
-            for (t, y) in run.tip_m.iter_mut().zip(&run.y_motor_m) {
-                *t = y + g * (*t - y);
-            }
-        }
         let n = cmd.len() / FINE_STEPS;
         let mut rec = Recording::with_uniform_time(n, rate);
         let q = |v: f64, qn: f64| if qn > 0.0 { (v / qn).round() * qn } else { v };
@@ -670,13 +654,8 @@ impl Draft {
                     tip_m[i] * (1.0 - a) + tip_m[(i + 1).min(tip_m.len() - 1)] * a
                 };
                 let drift = extra.drift_m(i_rec, k as f64 / self.rate, duration_s);
-                let gain = if self.plant.sensors.tip_on_carriage {
-                    1.0
-                } else {
-                    self.plant.sensors.tip_gain
-                };
                 q(
-                    gain * v + drift + gauss(sensors.tip_noise_m),
+                    self.plant.sensors.tip_gain * v + drift + gauss(sensors.tip_noise_m),
                     sensors.tip_quantum_m,
                 )
             })
