@@ -34,7 +34,7 @@ pub(crate) fn eliminate(ctx: &Ctx, cands: &[Candidate], sel: &mut Selection, bud
     while sel.chosen.len() >= 2 && p < sel.chosen.len() {
         match without(ctx, cands, sel, &original, p, budget) {
             Some((reference, words)) => {
-                ctx.trace(format!("backward elimination: {words}"));
+                ctx.trace(words.clone());
                 let id = sel.chosen.remove(p);
                 sel.outcomes.remove(p);
                 sel.reference = reference;
@@ -84,7 +84,7 @@ fn without(
     let seeds: Vec<DVector<f64>> = same_set_outcomes(&sel.rounds, original, &rest)
         .map(|o| o.fit.x.clone())
         .collect();
-    let f = super::fit::fit_seeded(
+    let f = super::fit::fit(
         ctx.rig,
         ctx.fit_data,
         ctx.sigma,

@@ -470,36 +470,12 @@ pub struct FitResult {
 /// guards against the local minimum where a mismatched mode is damped out. Every start is
 /// bounded by the Levenberg–Marquardt patience (30 × (parameters + 1) evaluations) and by an
 /// equal share of what is left of `max_evaluations` model evaluations for all starts together
-/// (the best point seen is kept), so the result does not depend on the machine.
+/// (the best point seen is kept), so the result does not depend on the machine. `seeds` are
+/// whole starting points (representation, every parameter) put before the other starts after
+/// the scans, e.g. a nested form's optimum ([`nested_seed`]), because a small budget does not
+/// reach the last starts (successive halving); a seed of the wrong length is ignored.
 #[allow(clippy::too_many_arguments)]
 pub fn fit(
-    rig: &Rig,
-    data: &[Prepared],
-    sigma: [f64; 3],
-    calib: &Calib,
-    cands: &[&Candidate],
-    warm: Option<&DVector<f64>>,
-    max_evaluations: usize,
-    explore: bool,
-) -> FitResult {
-    fit_seeded(
-        rig,
-        data,
-        sigma,
-        calib,
-        cands,
-        warm,
-        &[],
-        max_evaluations,
-        explore,
-    )
-}
-
-/// [`fit`] with `seeds`: whole starting points (representation, every parameter) put before
-/// the other starts after the scans, e.g. a nested form's optimum ([`nested_seed`]); a small
-/// budget does not reach the last starts. A seed of the wrong length is ignored.
-#[allow(clippy::too_many_arguments)]
-pub fn fit_seeded(
     rig: &Rig,
     data: &[Prepared],
     sigma: [f64; 3],
@@ -1040,6 +1016,7 @@ ratios = [0.0074, 0.0074]
             &calib,
             &[],
             None,
+            &[],
             4000,
             true,
         );
@@ -1079,7 +1056,18 @@ ratios = [0.0074, 0.0074]
         let calib = tip_only_calibration(&rig);
         // (stiffness scale, damping ratio of mode 1) fitted
         let fitted = |d: Prepared| {
-            let v = fit(&rig, &[d], [1e-6, 1e-4, 0.1], &calib, &[], None, 4000, true).values;
+            let v = fit(
+                &rig,
+                &[d],
+                [1e-6, 1e-4, 0.1],
+                &calib,
+                &[],
+                None,
+                &[],
+                4000,
+                true,
+            )
+            .values;
             (v[0], v[1])
         };
         let mut as_signal = clipped.clone();

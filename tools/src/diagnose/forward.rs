@@ -130,6 +130,7 @@ impl Ctx<'_> {
             self.calib,
             set,
             warm,
+            &[],
             max_evaluations,
             false,
         )
@@ -236,6 +237,7 @@ impl Ctx<'_> {
                 self.calib,
                 set,
                 Some(&base.fit.x),
+                &[],
                 share,
                 false,
             );
@@ -267,7 +269,7 @@ impl Ctx<'_> {
     }
 
     /// Fits `set` (the effects chosen so far + candidate `ci`, last) jointly with the calibration,
-    /// from `seeds` first ([`fit::fit_seeded`]), and applies every guard against `base`.
+    /// from `seeds` first ([`fit::fit`]), and applies every guard against `base`.
     pub(crate) fn evaluate(
         &self,
         set: &[&Candidate],
@@ -278,7 +280,7 @@ impl Ctx<'_> {
         seeds: &[nalgebra::DVector<f64>],
     ) -> Option<CandidateOutcome> {
         set.last()?;
-        let f = fit::fit_seeded(
+        let f = fit::fit(
             self.rig,
             self.fit_data,
             self.sigma,

@@ -176,6 +176,7 @@ fn add_alternative_std(
         alt,
         set,
         Some(&f.x),
+        &[],
         max_evaluations,
         false,
     );
@@ -276,7 +277,7 @@ pub fn stability(
     let mut refits: Vec<(FitResult, Vec<f64>)> = Vec::new();
     for d in fit_data {
         let one = std::slice::from_ref(d);
-        let g = fit::fit(rig, one, sigma, calib, set, Some(&f.x), share, false);
+        let g = fit::fit(rig, one, sigma, calib, set, Some(&f.x), &[], share, false);
         used += g.evaluations;
         let (s, u) = long_run_std_repr(rig, one, sigma, calib, set, &g);
         used += u;
@@ -427,6 +428,7 @@ pub fn add_base_assumption_std(
         calib,
         &with,
         Some(&f.x),
+        &[],
         max_evaluations,
         false,
     );

@@ -394,6 +394,7 @@ fn calibrate(
         calib,
         &[],
         None,
+        &[],
         budget.share(4),
         true,
     );
@@ -418,6 +419,7 @@ fn calibrate(
         calib,
         &[],
         Some(&cal.x),
+        &[],
         budget.share(3),
         true,
     );
