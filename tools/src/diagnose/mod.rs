@@ -1134,7 +1134,7 @@ fn simpler_form(
 /// fit `f` ([`sim::mount_resonance_hz`]); the σ moves the mount's frequency and mass by their
 /// own 1 σ each and adds the changes in quadrature (NaN where one is not identified). `None`
 /// without a mount that carries the beam.
-fn mount_resonance(ctx: &Ctx, set: &[&Candidate], f: &FitResult) -> Option<(f64, f64)> {
+pub(crate) fn mount_resonance(ctx: &Ctx, set: &[&Candidate], f: &FitResult) -> Option<(f64, f64)> {
     let p = ctx.fit_problem(set, f.x.clone()).params_of(&f.x);
     let dt = ctx.fit_data.first()?.dt;
     let at = |q: &sim::Params| sim::mount_resonance_hz(ctx.rig, q, dt);
