@@ -118,6 +118,61 @@ pub fn add_basis_std(
     add_alternative_std(rig, data, sigma, &finer, set, f, max_evaluations)
 }
 
+/// Adds the **model-accuracy uncertainty** of a root spring to the 1-σ of `f` (calibration +
+/// `set`), a Type B term (GUM, JCGM 100:2008 4.3): the model states its in-band natural
+/// frequencies to [`super::sim::BASIS_CONVERGENCE_REL`] (relative), and a root spring is read
+/// from the *pattern* of those frequencies, the part one stiffness scale cannot absorb
+/// ([`super::sim::frequency_shift_beyond_scale_rel`]). With s the change of that pattern per
+/// unit change of ln k at the fitted k, a pattern error inside ± the stated accuracy a
+/// (uniform: 1 σ = a/√3, GUM 4.3.7) moves ln k by 1 σ = a/(√3 s), added in quadrature:
+/// σ_k² ← σ_k² + (k a / (√3 s))². A clamp much stiffer than the beam (k L/EI ≫ 1) changes
+/// the pattern little (small s), so its k rests on a few parts in 10⁴ of the frequencies, which another discretisation of the same beam (the rig's
+/// continuum, an FE model) does not share: held-out 437300, k 255.9 N·m/rad (k L/EI ≈ 14),
+/// tip alone, two modes in band: fitted 263.2 ± 0.26, 3 % off at 28 σ; now ± 9.1 (z 0.8).
+/// Nothing without a fitted `root_stiffness_nm_per_rad` (`root_compliance`,
+/// `cubic_stiffness`).
+pub fn add_model_accuracy_std(
+    rig: &Rig,
+    data: &[Prepared],
+    sigma: [f64; 3],
+    calib: &Calib,
+    set: &[&Candidate],
+    f: &mut FitResult,
+) {
+    let Some(i) = f
+        .names
+        .iter()
+        .position(|n| *n == "root_stiffness_nm_per_rad")
+    else {
+        return;
+    };
+    let Some(dt) = data.first().map(|d| d.dt) else {
+        return;
+    };
+    let p = fit::Problem::new(rig, data, sigma, calib, set, f.x.clone()).params_of(&f.x);
+    if let Some(rel) = root_spring_accuracy_rel(rig, &p, dt) {
+        // a σ that is not finite (not identified) stays so
+        let k = p.root_stiffness_nm_per_rad.unwrap_or(0.0);
+        f.std[i] = f.std[i].hypot(k * rel);
+    }
+}
+
+/// The relative 1-σ of the root spring of `p` that the model's stated accuracy gives
+/// ([`add_model_accuracy_std`]: a/(√3 s)) for recordings sampled every `dt` s; `None` without a
+/// root spring, a beam, or a pattern change (one stiffness scale absorbs all of it).
+pub fn root_spring_accuracy_rel(rig: &Rig, p: &super::sim::Params, dt: f64) -> Option<f64> {
+    const STEP: f64 = 0.05;
+    let k = p.root_stiffness_nm_per_rad.filter(|k| *k > 0.0)?;
+    let stiffer = super::sim::Params {
+        root_stiffness_nm_per_rad: Some(k * (1.0 + STEP)),
+        ..p.clone()
+    };
+    let shift = super::sim::frequency_shift_beyond_scale_rel(rig, &stiffer, p, dt)?;
+    let s = shift / (1.0 + STEP).ln();
+    // the stated accuracy a as a bound, uniformly distributed inside ±a: σ = a/√3 (GUM 4.3.7)
+    (s > 0.0 && s.is_finite()).then(|| super::sim::BASIS_CONVERGENCE_REL / 3f64.sqrt() / s)
+}
+
 /// Adds the **drive-interpolation uncertainty** to the 1-σ of `f` (calibration + `set`): the
 /// samples say nothing of the carriage's motion between them. The model takes the
 /// piecewise-linear path through the samples (or, at the recording's own rate, the
@@ -556,6 +611,29 @@ mod tests {
         let delay = param(crate::effect::Effect::SensorDelay, "sensor_delay_s");
         assert_eq!(look_alike_params(&calib, &[&tip, &delay]), vec![3]);
         assert!(look_alike_params(&calib, &[&tip]).is_empty());
+    }
+
+    #[test]
+    fn a_root_spring_much_stiffer_than_the_beam_rests_on_a_sliver_of_the_frequency_pattern() {
+        // uniform steel beam, EI/L = 20.5 N·m/rad; 1 kHz samples (several modes in band)
+        let rig = Rig::from_toml_str(
+            "[beam]\nlength_m = 0.9\ndensity_kg_m3 = 7850.0\nyoungs_modulus_pa = 2.0e11\nstations = [ { x_m = 0.0, width_m = 0.03, thickness_m = 0.0015 }, { x_m = 0.9, width_m = 0.03, thickness_m = 0.0015 } ]\n[base]\nmass_kg = 2.0\n",
+        )
+        .unwrap();
+        let rel = |k: f64| {
+            let p = crate::diagnose::sim::Params {
+                root_stiffness_nm_per_rad: Some(k),
+                ..Default::default()
+            };
+            root_spring_accuracy_rel(&rig, &p, 1e-3).unwrap()
+        };
+        let (soft, matched, stiff) = (rel(0.2), rel(20.0), rel(2e3));
+        // k L/EI = 0.01 and 1: the pattern moves by per cents per unit ln k, σ under 1 %
+        assert!(soft < 0.01 && matched < 0.01, "{soft} {matched}");
+        // k L/EI = 100: nearly clamped, the pattern barely moves, the σ is many times larger
+        assert!(stiff > 10.0 * matched, "{stiff} vs {matched}");
+        let none = crate::diagnose::sim::Params::default();
+        assert!(root_spring_accuracy_rel(&rig, &none, 1e-3).is_none());
     }
 
     #[test]

@@ -836,6 +836,7 @@ fn measure_final(
             share,
         ));
     }
+    honesty::add_model_accuracy_std(rig, fit_data, sigma, calib, set, &mut reference.fit);
     let share = budget.share(3);
     budget.spend(honesty::add_drive_interpolation_std(
         rig,
