@@ -824,42 +824,7 @@ fn measure_final(
     let long_run = reference.fit.std.clone();
     let spread = honesty::spread_std(&refits.values);
     honesty::add_spread_std(&mut reference.fit, &spread);
-    if !set.is_empty() {
-        let share = budget.share(3);
-        budget.spend(honesty::add_basis_std(
-            rig,
-            fit_data,
-            sigma,
-            calib,
-            set,
-            &mut reference.fit,
-            share,
-        ));
-    }
-    honesty::add_model_accuracy_std(rig, fit_data, sigma, calib, set, &mut reference.fit);
-    let share = budget.share(3);
-    budget.spend(honesty::add_drive_interpolation_std(
-        rig,
-        fit_data,
-        sigma,
-        calib,
-        set,
-        &mut reference.fit,
-        share,
-    ));
-    if let Some(servo) = honesty::identity_servo(cands, set, fit_data) {
-        let share = budget.share(2);
-        budget.spend(honesty::add_base_assumption_std(
-            rig,
-            fit_data,
-            sigma,
-            calib,
-            set,
-            &servo,
-            &mut reference.fit,
-            share,
-        ));
-    }
+    widen_for_model_form(ctx, cands, set, &mut reference.fit, budget);
     honesty::Honesty {
         nominal: honesty::residual_stats(&residuals(ctx.validate, &earlier.val_pred_nominal)),
         after: honesty::residual_stats(&reference.vres),
@@ -871,6 +836,36 @@ fn measure_final(
             refits.values.len(),
             &reference.fit.std,
         ),
+    }
+}
+
+/// Widens the 1-σ of the final model `f` (calibration + `set`) by what the model's form leaves
+/// open: the discretisation, the stated frequency accuracy for a root spring, the drive's
+/// reading between samples and, without `base_pos_m`, the base-motion assumption ([`honesty`]).
+fn widen_for_model_form(
+    ctx: &Ctx,
+    cands: &[Candidate],
+    set: &[&Candidate],
+    f: &mut FitResult,
+    budget: &mut Budget,
+) {
+    let (rig, fit_data, sigma, calib) = (ctx.rig, ctx.fit_data, ctx.sigma, ctx.calib);
+    if !set.is_empty() {
+        let share = budget.share(3);
+        budget.spend(honesty::add_basis_std(
+            rig, fit_data, sigma, calib, set, f, share,
+        ));
+    }
+    honesty::add_model_accuracy_std(rig, fit_data, sigma, calib, set, f);
+    let share = budget.share(3);
+    budget.spend(honesty::add_drive_interpolation_std(
+        rig, fit_data, sigma, calib, set, f, share,
+    ));
+    if let Some(servo) = honesty::identity_servo(cands, set, fit_data) {
+        let share = budget.share(2);
+        budget.spend(honesty::add_base_assumption_std(
+            rig, fit_data, sigma, calib, set, &servo, f, share,
+        ));
     }
 }
 
