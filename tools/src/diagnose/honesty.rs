@@ -126,9 +126,10 @@ pub fn add_basis_std(
 /// unit change of ln k at the fitted k, a pattern error inside ± the stated accuracy a
 /// (uniform: 1 σ = a/√3, GUM 4.3.7) moves ln k by 1 σ = a/(√3 s), added in quadrature:
 /// σ_k² ← σ_k² + (k a / (√3 s))². A clamp much stiffer than the beam (k L/EI ≫ 1) changes
-/// the pattern little (small s), so its k rests on a few parts in 10⁴ of the frequencies, which another discretisation of the same beam (the rig's
-/// continuum, an FE model) does not share: held-out 437300, k 255.9 N·m/rad (k L/EI ≈ 14),
-/// tip alone, two modes in band: fitted 263.2 ± 0.26, 3 % off at 28 σ; now ± 9.1 (z 0.8).
+/// the pattern little (small s), so its k rests on a few parts in 10⁴ of the frequencies,
+/// which another discretisation of the same beam (the rig's continuum, an FE model) does not
+/// share: held-out 437300, k 255.9 N·m/rad (k L/EI ≈ 14), tip alone, two modes in band:
+/// fitted 263.2 ± 0.26, 3 % off at 28 σ; now ± 9.1 (z 0.8).
 /// Nothing without a fitted `root_stiffness_nm_per_rad` (`root_compliance`,
 /// `cubic_stiffness`).
 pub fn add_model_accuracy_std(
