@@ -141,17 +141,20 @@ impl Effect {
                 p!("viscous_n_s_per_m", "viscous friction coefficient (N·s/m)"),
             ],
             Effect::ServoLag => &[
-                p!("servo_bandwidth_hz", "position-loop natural frequency (Hz)"),
+                p!(
+                    "servo_bandwidth_hz",
+                    "position-loop natural frequency √(K_p/M) (Hz)"
+                ),
                 p!("servo_damping_ratio", "position-loop damping ratio (1)"),
                 p!("servo_velocity_ff", "velocity feed-forward fraction (1)"),
                 p!("servo_acceleration_ff", "acceleration feed-forward fraction (1)"),
                 p!(
                     "servo_integral_ratio",
-                    "PID loop (order 3–4): integral pole / natural frequency (1)",
+                    "PID loop (order 3–4): integral pole / pole-pair frequency ω (1)",
                 ),
                 p!(
                     "servo_force_lag_ratio",
-                    "order-4 loop: drive-force lag time constant × natural frequency (1)",
+                    "order-4 loop: drive-force lag time constant × pole-pair frequency ω (1)",
                 ),
             ],
             Effect::TipMass => &[p!("tip_mass_kg", "lumped mass at the tip (kg)")],

@@ -775,11 +775,14 @@ impl Ctx<'_> {
     fn resonant_loop_at_mode(&self, cand: &Candidate, f: &FitResult, off: usize) -> Option<String> {
         let pos = |name: &str| cand.params.iter().position(|q| q.name == name);
         let (i, j) = (pos("servo_bandwidth_hz")?, pos("servo_damping_ratio")?);
-        let (fs, zs) = (f.values[off + i], f.values[off + j]);
+        let zs = f.values[off + j];
         if zs >= RESONANT_LOOP_ZETA {
             return None;
         }
-        let sd = f.std[off + i];
+        // the resonance is the pole pair ω = ω_n/√(1 + 2ζα) (sim::ServoLaw)
+        let alpha = pos("servo_integral_ratio").map_or(0.0, |k| f.values[off + k].max(0.0));
+        let to_pole = 1.0 / (1.0 + 2.0 * zs * alpha).sqrt();
+        let (fs, sd) = (f.values[off + i] * to_pole, f.std[off + i] * to_pole);
         let tol = 2.0 * if sd.is_finite() { sd } else { 0.0 } + zs * fs;
         let fr = self
             .model_freqs

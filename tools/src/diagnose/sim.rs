@@ -56,7 +56,8 @@ pub struct Params {
     pub friction_n: f64,
     /// Viscous friction (N·s/m).
     pub viscous_n_s_per_m: f64,
-    /// Servo bandwidth (Hz) and damping ratio.
+    /// Servo loop natural frequency √(K_p/M)/2π (Hz; K_p the loop's proportional gain, M the
+    /// carriage mass: [`ServoLaw::natural_frequency_rad_s`]) and damping ratio ζ.
     pub servo: Option<(f64, f64)>,
     /// Velocity and acceleration feed-forward fractions of the position loop (0 = plain lag).
     pub servo_ff: (f64, f64),
@@ -628,7 +629,9 @@ fn bounded_expm(a: nalgebra::DMatrix<f64>, dt: f64, limit: f64) -> Option<nalgeb
 /// - order 2: PD with feed-forward, poles `s² + 2ζωs + ω²` ([`second_order`], [`coupled_servo`]);
 /// - order 3: PID with feed-forward, `F/M = k_a r̈ + K_d (k_v ṙ − ẏ) + K_p (r − y) + K_i ∫(r − y)`
 ///   with the rigid closed-loop poles `(s² + 2ζωs + ω²)(s + αω)`: `K_d = (2ζ + α)ω`,
-///   `K_p = (1 + 2ζα)ω²`, `K_i = αω³` (α → 0 is the PD loop);
+///   `K_p = (1 + 2ζα)ω²`, `K_i = αω³` (α → 0 is the PD loop); the fitted bandwidth is the
+///   natural frequency ω_n = √K_p = ω√(1 + 2ζα) ([`ServoLaw::natural_frequency_rad_s`]), the
+///   quantity a PID tuned for a bandwidth sets, so α and ζ shape the loop without moving it;
 /// - order 4: the order-3 loop whose drive force follows its command through a first-order lag
 ///   of time constant β/ω (current loop, digital computation delay): `τ Ḟ = F_c − F`.
 ///
@@ -652,17 +655,39 @@ pub struct ServoLaw {
 }
 
 impl ServoLaw {
-    /// The law of `p` (`None` without a servo).
+    /// The law of `p` (`None` without a servo). `p.servo.0` is the loop's natural frequency
+    /// ω_n/2π = √(K_p/M)/2π (Hz, [`Params::servo`]); orders 3–4 place their poles at
+    /// ω = ω_n/√(1 + 2ζα), since K_p = (1 + 2ζα)ω².
     pub fn of(p: &Params) -> Option<ServoLaw> {
         let (f, z) = p.servo?;
+        let order = p.servo_order.clamp(1, 4);
+        let integral_ratio = p.servo_integral_ratio.max(0.0);
+        let stiffness_factor = if order >= 3 {
+            1.0 + 2.0 * z.max(0.0) * integral_ratio
+        } else {
+            1.0
+        };
         Some(ServoLaw {
-            order: p.servo_order.clamp(1, 4),
-            omega: 2.0 * std::f64::consts::PI * f,
+            order,
+            omega: 2.0 * std::f64::consts::PI * f / stiffness_factor.sqrt(),
             zeta: z,
             ff: p.servo_ff,
-            integral_ratio: p.servo_integral_ratio.max(0.0),
+            integral_ratio,
             force_lag_ratio: p.servo_force_lag_ratio.max(0.0),
         })
+    }
+
+    /// The loop's natural frequency ω_n = √(K_p/M) (rad/s): the proportional (stiffness) gain
+    /// per unit carriage mass, the `servo_bandwidth_hz` the report gives (× 1/2π). It is ω for
+    /// orders 1–2 and ω√(1 + 2ζα) for orders 3–4 (the struct's header). A parallel PID tuned
+    /// as K_p = Mω_b² has it at its design bandwidth ω_b whatever its integral and derivative
+    /// gains, which the pole pair ω alone does not (ω = ω_n/2.2 at α = 2.9, ζ 0.64).
+    pub fn natural_frequency_rad_s(&self) -> f64 {
+        if self.order >= 3 {
+            self.omega * (1.0 + 2.0 * self.zeta * self.integral_ratio).sqrt()
+        } else {
+            self.omega
+        }
     }
 
     /// Largest gain |Y/R(jω)| of the command → base transfer function for a rigid load
@@ -2310,6 +2335,55 @@ mod tests {
         assert!(gap(&base, &coupled) < 1e-15, "{}", gap(&base, &coupled));
         // the reaction is not a rounding matter: micrometres after a 50 mm move
         assert!(gap(&coupled, &rigid) > 1e-6, "{}", gap(&coupled, &rigid));
+    }
+
+    #[test]
+    fn the_fitted_bandwidth_is_the_proportional_natural_frequency_of_a_pid_tuned_for_it() {
+        // a parallel PID tuned for a 10 Hz bandwidth, per unit carriage mass (the independent
+        // simulators' tuning): K_p = ω_b², K_d = 1.4 ω_b, K_i = ω_b³/8
+        let wb = 2.0 * std::f64::consts::PI * 10.0;
+        let (kd, kp, ki) = (1.4 * wb, wb * wb, wb.powi(3) / 8.0);
+        // its rigid closed-loop poles (s² + 2ζωs + ω²)(s + p): p is the real root of
+        // s³ + K_d s² + K_p s + K_i, found by bisection on −s
+        let cubic = |p: f64| -p.powi(3) + kd * p * p - kp * p + ki;
+        let (mut lo, mut hi) = (0.0, kd);
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if cubic(lo).signum() == cubic(mid).signum() {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let p_real = 0.5 * (lo + hi);
+        let w = (ki / p_real).sqrt();
+        let zeta = (kd - p_real) / (2.0 * w);
+        let alpha = p_real / w;
+        assert!(zeta > 0.0 && alpha > 0.0);
+        for order in [3, 4] {
+            let params = Params {
+                servo: Some((10.0, zeta)),
+                servo_order: order,
+                servo_integral_ratio: alpha,
+                ..Params::default()
+            };
+            let law = ServoLaw::of(&params).unwrap();
+            // the law places its poles where the PID has them …
+            assert!((law.omega - w).abs() < 1e-9 * w, "{} vs {w}", law.omega);
+            // … and reports the bandwidth it was tuned for, not the pole pair
+            assert!((law.natural_frequency_rad_s() - wb).abs() < 1e-9 * wb);
+            assert!((w - wb).abs() > 0.05 * wb, "the pole pair differs: {w} vs {wb}");
+        }
+        // orders 1–2: the natural frequency is ω itself
+        let two = Params {
+            servo: Some((10.0, 0.7)),
+            servo_order: 2,
+            servo_integral_ratio: 2.0,
+            ..Params::default()
+        };
+        let law = ServoLaw::of(&two).unwrap();
+        assert_eq!(law.omega, law.natural_frequency_rad_s());
+        assert!((law.omega - wb).abs() < 1e-9 * wb);
     }
 
     #[test]

@@ -397,7 +397,11 @@ impl Draft {
                     velocity_bandwidth_hz: (4.0 * f).min(150.0),
                     feedforward: false,
                 };
-                self.put("servo_bandwidth_hz", f);
+                self.put("servo_position_gain_hz", f);
+                self.put(
+                    "servo_bandwidth_hz",
+                    self.plant.servo.natural_frequency_hz(),
+                );
             }
         }
     }

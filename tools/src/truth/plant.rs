@@ -106,6 +106,19 @@ pub struct Servo {
     pub feedforward: bool,
 }
 
+impl Servo {
+    /// The loop's natural frequency √(K_p/M)/2π (Hz), the diagnosis' `servo_bandwidth_hz`
+    /// (`diagnose::sim::ServoLaw::natural_frequency_rad_s`). With the gains of
+    /// `Plant::servo_gains` (velocity gain M ω_v, its integral M ω_v²/4, position gain ω_p)
+    /// the rigid closed loop has the characteristic polynomial
+    /// `M s³ + Mω_v s² + M(ω_v ω_p + ω_v²/4) s + M ω_v² ω_p/4`, whose proportional coefficient
+    /// gives ω_n² = ω_v ω_p + ω_v²/4 (2√2 ω_p at ω_v = 4ω_p).
+    pub fn natural_frequency_hz(&self) -> f64 {
+        let (fp, fv) = (self.position_bandwidth_hz, self.velocity_bandwidth_hz);
+        (fv * fp + 0.25 * fv * fv).sqrt()
+    }
+}
+
 /// Sensor models.
 #[derive(Clone, Copy, Debug)]
 pub struct Sensors {
