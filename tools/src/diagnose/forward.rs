@@ -1574,11 +1574,14 @@ pub(crate) fn sigmas_from_null(
 }
 
 /// The effect of the final model (`set` after `calib_len` calibration parameters, fitted as
-/// `f` with its honest 1 σ: long-run, split refits, discretisation, base assumption) whose
-/// 2 σ interval reaches "no effect" ([`sigmas_from_null`] below 2) — the recordings do not
+/// `f` with its honest 1 σ: long-run, split refits, discretisation, base assumption) that
+/// fails the guard's significance condition ([`super::select`] 5: ≥ [`MIN_SIGMAS`] σ from
+/// "no effect", [`sigmas_from_null`]) once judged with that honest σ — the recordings do not
 /// identify it, whatever it gained when it was chosen against the round's linearised σ — the
 /// least identified first: its index in `set` and the reason. `None`: every effect judged is
-/// identified.
+/// identified. Second simulator, seed 4, case17 (a null, 200 Hz): air drag chosen at 6 σ of
+/// the round, 2.2 honest σ from zero once the two fit recordings' disagreement was counted;
+/// the 2 σ bound this check had before let it through, a false alarm.
 pub(crate) fn unidentified_in_final(
     set: &[&Candidate],
     f: &FitResult,
@@ -1588,7 +1591,7 @@ pub(crate) fn unidentified_in_final(
     let mut worst: Option<(usize, f64)> = None;
     for (i, c) in set.iter().enumerate() {
         if let Some(z) = sigmas_from_null(c, &f.values, &f.std, off) {
-            if z < 2.0 && worst.is_none_or(|(_, w)| z < w) {
+            if z < MIN_SIGMAS && worst.is_none_or(|(_, w)| z < w) {
                 worst = Some((i, z));
             }
         }
@@ -1612,7 +1615,7 @@ pub(crate) fn unidentified_in_final(
     Some((
         i,
         format!(
-            "not identified in the final model: {} (honest 1 σ: long-run, split refits, discretisation) — {z:.1} σ from no effect, its 2 σ interval reaches it",
+            "not identified in the final model: {} (honest 1 σ: long-run, split refits, discretisation) — {z:.1} σ from no effect, fewer than {MIN_SIGMAS}",
             values.join(", ")
         ),
     ))
@@ -2222,7 +2225,7 @@ pub(crate) mod tests {
     }
 
     #[test]
-    fn an_effect_whose_honest_two_sigma_reaches_no_effect_is_not_identified() {
+    fn an_effect_within_three_honest_sigma_of_no_effect_is_not_identified() {
         // independent case07 (a null, tip only) cut to its first 60 %: a root spring
         // 101 ± 449 N·m/rad beside the rig's loop; a rigid clamp (k → ∞) is 0.2 σ away
         let root = candidate(
@@ -2261,13 +2264,17 @@ pub(crate) mod tests {
             vec![1e-3, 1.1, 0.02, 20.0, 0.1, 1.0],
         );
         assert!(unidentified_in_final(&set, &g, 1).is_none());
-        // a tip mass within 2 σ of zero is
+        // a tip mass within 2 σ of zero is, and so is one 2.5 σ from it (the selection's own
+        // significance bound, 3 σ, judged with the honest σ); 3.2 σ is identified
         let tip = candidate(Effect::TipMass, vec![param("tip_mass_kg", true)]);
-        let h = fit(vec![1.0, 101.0, 0.004], vec![1e-3, 20.0, 0.003]);
-        assert_eq!(
-            unidentified_in_final(&[&root, &tip], &h, 1).map(|(i, _)| i),
-            Some(1)
-        );
+        for (mass, expected) in [(0.004, Some(1)), (0.0075, Some(1)), (0.0096, None)] {
+            let h = fit(vec![1.0, 101.0, mass], vec![1e-3, 20.0, 0.003]);
+            assert_eq!(
+                unidentified_in_final(&[&root, &tip], &h, 1).map(|(i, _)| i),
+                expected,
+                "tip mass {mass} ± 0.003 kg"
+            );
+        }
         // an undefined σ is not judged
         assert_eq!(sigmas_from_null(&root, &[101.0], &[f64::NAN], 0), None);
         assert_eq!(
