@@ -603,25 +603,18 @@ fn sensor_gravity_mount_candidates(h: &StartHints) -> Vec<Candidate> {
             true,
         )],
     });
-    // a fixed camera's scale acts on the whole reading, one riding on the carriage (or set
-    // against a carriage reference) on the deflection only
-    for (name, words) in [
-        (
+    c.push(Candidate {
+        id: Effect::SensorGain,
+        words: "scale error of the tip sensor (e.g. camera calibration)",
+        orientation: None,
+        params: vec![def(
             "sensor_gain_error",
-            "scale error of the tip sensor (e.g. camera calibration)",
-        ),
-        (
-            "sensor_deflection_gain_error",
-            "scale error of the tip sensor's deflection reading (a camera set against the carriage)",
-        ),
-    ] {
-        c.push(Candidate {
-            id: Effect::SensorGain,
-            words,
-            orientation: None,
-            params: vec![def(name, Transform::Linear, vec![0.0], 0.01, true)],
-        });
-    }
+            Transform::Linear,
+            vec![0.0],
+            0.01,
+            true,
+        )],
+    });
     c.push(Candidate {
         id: Effect::GravityAxialLoad,
         words: "gravity axial load: the beam hangs (tension)",
@@ -826,12 +819,7 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
         }
         Effect::SensorDelay => p.sensor_delay_s = get("sensor_delay_s").unwrap_or(0.0),
         Effect::SensorGain => {
-            let on_deflection = get("sensor_deflection_gain_error");
-            p.sensor_gain_on_deflection = on_deflection.is_some();
-            p.sensor_gain_error = on_deflection
-                .or(get("sensor_gain_error"))
-                .unwrap_or(0.0)
-                .clamp(-0.5, 0.5)
+            p.sensor_gain_error = get("sensor_gain_error").unwrap_or(0.0).clamp(-0.5, 0.5)
         }
         Effect::Backlash => p.backlash_m = get("backlash_m").unwrap_or(0.0).abs(),
         Effect::CubicStiffness => {

@@ -30,8 +30,7 @@
 //! 5. carriage forces: `+ F_c sign(ẏ) + c_v ẏ` (`base_friction`, smoothed over 1 mm/s) and
 //!    `+ a sin(2πy/p) + b cos(2πy/p)` (`cogging_ripple`);
 //! 6. tip sensor latency τ: `tip(t − τ)` by linear interpolation (`sensor_delay`); tip sensor
-//!    scale g (camera calibration): `g · tip` (`sensor_gain`), or `root + g · (tip − root)` for a
-//!    camera that reads the deflection from the carriage (`sensor_gain_on_deflection`).
+//!    scale g (camera calibration): `g · tip` (`sensor_gain`).
 
 use crate::model::sim::mode_zoh;
 use crate::model::{BeamModel, ModelOptions, Orientation, Rig};
@@ -83,10 +82,6 @@ pub struct Params {
     pub sensor_delay_s: f64,
     /// Tip sensor scale error g − 1: the sensor reports (1 + g) × the absolute tip position.
     pub sensor_gain_error: f64,
-    /// The scale error acts on the tip's deflection from the carriage only (a camera riding on
-    /// the carriage, or one whose scale is set against a carriage reference), not on the whole
-    /// reading (a fixed camera's mm per pixel).
-    pub sensor_gain_on_deflection: bool,
     /// Gravity axial load.
     pub orientation: Option<Orientation>,
     /// Mount resonance (Hz, damping ratio): k = (2π f)² (m_mount + m_beam), as loaded rigidly.
@@ -188,7 +183,6 @@ impl Default for Params {
             drag_kg_per_m2: 0.0,
             sensor_delay_s: 0.0,
             sensor_gain_error: 0.0,
-            sensor_gain_on_deflection: false,
             orientation: None,
             mount: None,
             mount_mass_kg: 0.0,
@@ -1783,15 +1777,7 @@ fn drag_impulses(
 /// The tip sensor: absolute tip (root + deflection `w`), late by the sensor latency and scaled
 /// by its gain.
 fn tip_sensor(p: &Params, root: &[f64], w: &[f64], dt: f64) -> Vec<f64> {
-    let (deflection_gain, gain) = match p.sensor_gain_on_deflection {
-        true => (1.0 + p.sensor_gain_error, 0.0),
-        false => (1.0, p.sensor_gain_error),
-    };
-    let tip: Vec<f64> = root
-        .iter()
-        .zip(w)
-        .map(|(y, w)| y + deflection_gain * w)
-        .collect();
+    let tip: Vec<f64> = root.iter().zip(w).map(|(y, w)| y + w).collect();
     let tip = match p.tip_filter {
         Some((f, z)) => second_order(&tip, dt, 2.0 * std::f64::consts::PI * f, z, 0.0, 1.0),
         None => tip,
@@ -1801,8 +1787,10 @@ fn tip_sensor(p: &Params, root: &[f64], w: &[f64], dt: f64) -> Vec<f64> {
     } else {
         tip
     };
-    if gain != 0.0 {
-        tip.iter().map(|v| (1.0 + gain) * v).collect()
+    if p.sensor_gain_error != 0.0 {
+        tip.iter()
+            .map(|v| (1.0 + p.sensor_gain_error) * v)
+            .collect()
     } else {
         tip
     }
@@ -1840,28 +1828,6 @@ fn carriage_forces(p: &Params, drive: &[f64], mut force: Vec<f64>, dt: f64) -> V
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_camera_scale_acts_on_the_whole_reading_or_on_the_deflection_only() {
-        // root 100 mm, deflection ±10 mm, scale error +5 %: a fixed camera reads 1.05 × the
-        // absolute tip (5 mm off at rest), one set against the carriage 1.05 × the deflection
-        let root = [0.1, 0.1, 0.1];
-        let w = [0.01, -0.01, 0.0];
-        let fixed = Params {
-            sensor_gain_error: 0.05,
-            ..Params::default()
-        };
-        let riding = Params {
-            sensor_gain_on_deflection: true,
-            ..fixed.clone()
-        };
-        let a = tip_sensor(&fixed, &root, &w, 0.01);
-        let b = tip_sensor(&riding, &root, &w, 0.01);
-        for k in 0..3 {
-            assert!((a[k] - 1.05 * (root[k] + w[k])).abs() < 1e-15);
-            assert!((b[k] - (root[k] + 1.05 * w[k])).abs() < 1e-15);
-        }
-    }
 
     /// Position (m) at time t (s) of a move with acceleration `a` over [t0, t0 + ta], coasting,
     /// then −a over [t1, t1 + ta] (steps of acceleration between samples), and its velocity.
