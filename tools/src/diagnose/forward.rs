@@ -779,9 +779,9 @@ impl Ctx<'_> {
         if zs >= RESONANT_LOOP_ZETA {
             return None;
         }
-        // the resonance is the pole pair ω = ω_n/√(1 + 2ζα) (sim::ServoLaw)
-        let alpha = pos("servo_integral_ratio").map_or(0.0, |k| f.values[off + k].max(0.0));
-        let to_pole = 1.0 / (1.0 + 2.0 * zs * alpha).sqrt();
+        // the resonance is the pole pair, not the natural frequency (sim::ServoLaw)
+        let alpha = pos("servo_integral_ratio").map_or(0.0, |k| f.values[off + k]);
+        let to_pole = super::sim::pole_pair_ratio(zs, alpha);
         let (fs, sd) = (f.values[off + i] * to_pole, f.std[off + i] * to_pole);
         let tol = 2.0 * if sd.is_finite() { sd } else { 0.0 } + zs * fs;
         let fr = self

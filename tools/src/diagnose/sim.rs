@@ -623,6 +623,13 @@ fn bounded_expm(a: nalgebra::DMatrix<f64>, dt: f64, limit: f64) -> Option<nalgeb
     phi.iter().all(|v| v.is_finite()).then_some(phi)
 }
 
+/// ω/ω_n of a PID loop (orders 3–4 of [`ServoLaw`]): its pole pair ω over its natural frequency
+/// ω_n = √(K_p/M), 1/√(1 + 2ζα) for damping ratio ζ and integral ratio α (both taken ≥ 0);
+/// 1 at α = 0, the PD loop.
+pub fn pole_pair_ratio(zeta: f64, integral_ratio: f64) -> f64 {
+    1.0 / (1.0 + 2.0 * zeta.max(0.0) * integral_ratio.max(0.0)).sqrt()
+}
+
 /// A position loop of selectable order (the `servo_lag` candidate), as the command → base
 /// transfer function of a rigid carriage (and, coupled, with the beam pushing back):
 /// - order 1: a first-order lag with velocity feed-forward, `ẏ = k_v ṙ + ω (r − y)`;
@@ -662,14 +669,14 @@ impl ServoLaw {
         let (f, z) = p.servo?;
         let order = p.servo_order.clamp(1, 4);
         let integral_ratio = p.servo_integral_ratio.max(0.0);
-        let stiffness_factor = if order >= 3 {
-            1.0 + 2.0 * z.max(0.0) * integral_ratio
+        let to_pole = if order >= 3 {
+            pole_pair_ratio(z, integral_ratio)
         } else {
             1.0
         };
         Some(ServoLaw {
             order,
-            omega: 2.0 * std::f64::consts::PI * f / stiffness_factor.sqrt(),
+            omega: 2.0 * std::f64::consts::PI * f * to_pole,
             zeta: z,
             ff: p.servo_ff,
             integral_ratio,
@@ -684,7 +691,7 @@ impl ServoLaw {
     /// gains, which the pole pair ω alone does not (ω = ω_n/2.2 at α = 2.9, ζ 0.64).
     pub fn natural_frequency_rad_s(&self) -> f64 {
         if self.order >= 3 {
-            self.omega * (1.0 + 2.0 * self.zeta * self.integral_ratio).sqrt()
+            self.omega / pole_pair_ratio(self.zeta, self.integral_ratio)
         } else {
             self.omega
         }
