@@ -118,20 +118,28 @@ pub fn add_basis_std(
     add_alternative_std(rig, data, sigma, &finer, set, f, max_evaluations)
 }
 
-/// Adds the **model-accuracy uncertainty** of a root spring to the 1-σ of `f` (calibration +
-/// `set`), a Type B term (GUM, JCGM 100:2008 4.3): the model states its in-band natural
-/// frequencies to [`super::sim::BASIS_CONVERGENCE_REL`] (relative), and a root spring is read
-/// from the *pattern* of those frequencies, the part one stiffness scale cannot absorb
-/// ([`super::sim::frequency_shift_beyond_scale_rel`]). With s the change of that pattern per
-/// unit change of ln k at the fitted k, a pattern error inside ± the stated accuracy a
-/// (uniform: 1 σ = a/√3, GUM 4.3.7) moves ln k by 1 σ = a/(√3 s), added in quadrature:
-/// σ_k² ← σ_k² + (k a / (√3 s))². A clamp much stiffer than the beam (k L/EI ≫ 1) changes
-/// the pattern little (small s), so its k rests on a few parts in 10⁴ of the frequencies,
-/// which another discretisation of the same beam (the rig's continuum, an FE model) does not
-/// share: held-out 437300, k 255.9 N·m/rad (k L/EI ≈ 14), tip alone, two modes in band:
-/// fitted 263.2 ± 0.26, 3 % off at 28 σ; now ± 9.1 (z 0.8).
-/// Nothing without a fitted `root_stiffness_nm_per_rad` (`root_compliance`,
-/// `cubic_stiffness`).
+/// Adds the **model-accuracy uncertainty** of the parameters read from the pattern of the
+/// natural frequencies (a root spring, a tip mass) to the 1-σ of `f` (calibration + `set`), a
+/// Type B term (GUM, JCGM 100:2008 4.3): the model states its in-band natural frequencies to
+/// [`super::sim::BASIS_CONVERGENCE_REL`] (relative), and such a parameter is read from the
+/// *pattern* of those frequencies, the part one stiffness scale cannot absorb
+/// ([`super::sim::frequency_shift_beyond_scale_rel`]; the stiffness scale is calibrated beside
+/// it, so a shift common to every mode says nothing). With s the change of that pattern per
+/// unit change of ln θ at the fitted θ, a pattern error inside ± the stated accuracy a
+/// (uniform: 1 σ = a/√3, GUM 4.3.7) moves ln θ by 1 σ = a/(√3 s), added in quadrature:
+/// σ_θ² ← σ_θ² + (θ a / (√3 s))².
+/// - A clamp much stiffer than the beam (k L/EI ≫ 1) changes the pattern little (small s), so
+///   its k rests on a few parts in 10⁴ of the frequencies, which another discretisation of the
+///   same beam (the rig's continuum, an FE model) does not share: held-out 437300, k 255.9
+///   N·m/rad (k L/EI ≈ 14), tip alone, two modes in band: fitted 263.2 ± 0.26, 3 % off at
+///   28 σ; now ± 9.1 (z 0.8).
+/// - A tip mass lowers the low modes more than the high ones; a small one moves the pattern in
+///   proportion to its mass, so this term is an absolute floor of about a/(√3 ∂pattern/∂m):
+///   second simulator, seed 5, case00 (3.40 g, 50 Hz, three modes in band): fitted 3.332 g ±
+///   0.0045 g, z −15; the term is 1.3 % of the mass (± 0.045 g, z −1.6). It is conservative
+///   where the mode amplitudes carry the mass too.
+///
+/// Nothing for a parameter `f` does not fit.
 pub fn add_model_accuracy_std(
     rig: &Rig,
     data: &[Prepared],
@@ -140,38 +148,70 @@ pub fn add_model_accuracy_std(
     set: &[&Candidate],
     f: &mut FitResult,
 ) {
-    let Some(i) = f
-        .names
-        .iter()
-        .position(|n| *n == "root_stiffness_nm_per_rad")
-    else {
-        return;
-    };
     let Some(dt) = data.first().map(|d| d.dt) else {
         return;
     };
     let p = fit::Problem::new(rig, data, sigma, calib, set, f.x.clone()).params_of(&f.x);
-    if let Some(rel) = root_spring_accuracy_rel(rig, &p, dt) {
-        // a σ that is not finite (not identified) stays so
-        let k = p.root_stiffness_nm_per_rad.unwrap_or(0.0);
-        f.std[i] = f.std[i].hypot(k * rel);
+    let terms = [
+        (
+            "root_stiffness_nm_per_rad",
+            p.root_stiffness_nm_per_rad.unwrap_or(0.0),
+            root_spring_accuracy_rel(rig, &p, dt),
+        ),
+        (
+            "tip_mass_kg",
+            p.tip_mass_kg,
+            tip_mass_accuracy_rel(rig, &p, dt),
+        ),
+    ];
+    for (name, value, rel) in terms {
+        if let (Some(i), Some(rel)) = (f.names.iter().position(|n| *n == name), rel) {
+            // a σ that is not finite (not identified) stays so
+            f.std[i] = f.std[i].hypot(value * rel);
+        }
     }
+}
+
+/// The relative 1-σ of the tip mass of `p` that the model's stated accuracy gives
+/// ([`add_model_accuracy_std`]: a/(√3 s)) for recordings sampled every `dt` s; `None` without a
+/// tip mass, a beam, or a pattern change.
+pub fn tip_mass_accuracy_rel(rig: &Rig, p: &super::sim::Params, dt: f64) -> Option<f64> {
+    let m = p.tip_mass_kg;
+    (m > 0.0).then_some(())?;
+    let heavier = super::sim::Params {
+        tip_mass_kg: m * (1.0 + PATTERN_STEP),
+        ..p.clone()
+    };
+    pattern_accuracy_rel(rig, &heavier, p, dt)
+}
+
+/// Relative step of a parameter by which the pattern's slope s is measured.
+const PATTERN_STEP: f64 = 0.05;
+
+/// a/(√3 s) with s the pattern change from `p` to `stepped` (the parameter × (1 +
+/// [`PATTERN_STEP`])) per unit change of its logarithm; `None` when the pattern does not move.
+fn pattern_accuracy_rel(
+    rig: &Rig,
+    stepped: &super::sim::Params,
+    p: &super::sim::Params,
+    dt: f64,
+) -> Option<f64> {
+    let shift = super::sim::frequency_shift_beyond_scale_rel(rig, stepped, p, dt)?;
+    let s = shift / (1.0 + PATTERN_STEP).ln();
+    // the stated accuracy a as a bound, uniformly distributed inside ±a: σ = a/√3 (GUM 4.3.7)
+    (s > 0.0 && s.is_finite()).then(|| super::sim::BASIS_CONVERGENCE_REL / 3f64.sqrt() / s)
 }
 
 /// The relative 1-σ of the root spring of `p` that the model's stated accuracy gives
 /// ([`add_model_accuracy_std`]: a/(√3 s)) for recordings sampled every `dt` s; `None` without a
 /// root spring, a beam, or a pattern change (one stiffness scale absorbs all of it).
 pub fn root_spring_accuracy_rel(rig: &Rig, p: &super::sim::Params, dt: f64) -> Option<f64> {
-    const STEP: f64 = 0.05;
     let k = p.root_stiffness_nm_per_rad.filter(|k| *k > 0.0)?;
     let stiffer = super::sim::Params {
-        root_stiffness_nm_per_rad: Some(k * (1.0 + STEP)),
+        root_stiffness_nm_per_rad: Some(k * (1.0 + PATTERN_STEP)),
         ..p.clone()
     };
-    let shift = super::sim::frequency_shift_beyond_scale_rel(rig, &stiffer, p, dt)?;
-    let s = shift / (1.0 + STEP).ln();
-    // the stated accuracy a as a bound, uniformly distributed inside ±a: σ = a/√3 (GUM 4.3.7)
-    (s > 0.0 && s.is_finite()).then(|| super::sim::BASIS_CONVERGENCE_REL / 3f64.sqrt() / s)
+    pattern_accuracy_rel(rig, &stiffer, p, dt)
 }
 
 /// Adds the **drive-interpolation uncertainty** to the 1-σ of `f` (calibration + `set`): the
@@ -635,6 +675,32 @@ mod tests {
         assert!(stiff > 10.0 * matched, "{stiff} vs {matched}");
         let none = crate::diagnose::sim::Params::default();
         assert!(root_spring_accuracy_rel(&rig, &none, 1e-3).is_none());
+    }
+
+    #[test]
+    fn a_small_tip_mass_has_an_absolute_floor_from_the_frequency_pattern() {
+        // uniform steel beam of 318 g; 1 kHz samples (several modes in band)
+        let rig = Rig::from_toml_str(
+            "[beam]\nlength_m = 0.9\ndensity_kg_m3 = 7850.0\nyoungs_modulus_pa = 2.0e11\nstations = [ { x_m = 0.0, width_m = 0.03, thickness_m = 0.0015 }, { x_m = 0.9, width_m = 0.03, thickness_m = 0.0015 } ]\n[base]\nmass_kg = 2.0\n",
+        )
+        .unwrap();
+        let sigma_kg = |m: f64| {
+            let p = crate::diagnose::sim::Params {
+                tip_mass_kg: m,
+                ..Default::default()
+            };
+            m * tip_mass_accuracy_rel(&rig, &p, 1e-3).unwrap()
+        };
+        // 1 g and 2 g (0.3 % and 0.6 % of the beam): the pattern moves in proportion to the
+        // mass, so the 1 σ in kilograms is about the same, a fraction of a gram
+        let (one, two) = (sigma_kg(1e-3), sigma_kg(2e-3));
+        assert!(one > 0.0 && one < 1e-3, "{one}");
+        assert!((two / one - 1.0).abs() < 0.3, "{one} {two}");
+        // a heavy one (a third of the beam) is read to a few per cent of itself
+        let heavy = sigma_kg(0.1) / 0.1;
+        assert!(heavy < 0.05, "{heavy}");
+        let none = crate::diagnose::sim::Params::default();
+        assert!(tip_mass_accuracy_rel(&rig, &none, 1e-3).is_none());
     }
 
     #[test]
