@@ -698,7 +698,7 @@ impl Ctx<'_> {
     }
 
     /// The rotational spring along the beam (`set`, last [`super::effects::along_beam_of`])
-    /// fitted from the root spring's optimum `o`: a profile over the position at tenths of the
+    /// fitted from a root spring's optimum `root` (its stiffness at `k_at`): a profile over the position at tenths of the
     /// length `length_m`, the stiffness at each the best of a ladder of octaves (−4 … +7) around
     /// the one that keeps the root spring's share of the first mode's strain energy (a hinge at
     /// x_h stores M(x_h)²/2k; with the moment of a cantilever under a uniform load,

@@ -2379,7 +2379,10 @@ mod tests {
             assert!((law.omega - w).abs() < 1e-9 * w, "{} vs {w}", law.omega);
             // … and reports the bandwidth it was tuned for, not the pole pair
             assert!((law.natural_frequency_rad_s() - wb).abs() < 1e-9 * wb);
-            assert!((w - wb).abs() > 0.05 * wb, "the pole pair differs: {w} vs {wb}");
+            assert!(
+                (w - wb).abs() > 0.05 * wb,
+                "the pole pair differs: {w} vs {wb}"
+            );
         }
         // orders 1–2: the natural frequency is ω itself
         let two = Params {
