@@ -22,13 +22,7 @@ fn a_crack_is_not_a_heavily_damped_mount_at_a_model_mode() {
             ..Default::default()
         },
     );
-    let named: Vec<&str> = json["effects"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter_map(|e| e["effect"].as_str())
-        .filter(|n| *n != "servo_lag")
-        .collect();
+    let named = common::named_effects(&json);
     assert!(named.is_empty(), "named {named:?}");
     let u = &json["unexplained"];
     assert!(u.is_object(), "no unexplained report: {u}");
@@ -57,13 +51,7 @@ fn a_crack_is_not_an_axial_load_with_a_compliant_clamp() {
             ..Default::default()
         },
     );
-    let named: Vec<&str> = json["effects"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter_map(|e| e["effect"].as_str())
-        .filter(|n| *n != "servo_lag")
-        .collect();
+    let named = common::named_effects(&json);
     assert!(named.is_empty(), "named {named:?}");
     assert!(json["unexplained"].is_object(), "no unexplained report");
 }

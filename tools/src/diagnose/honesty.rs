@@ -654,13 +654,18 @@ mod tests {
         assert!(look_alike_params(&calib, &[&tip]).is_empty());
     }
 
+    /// A uniform steel beam of 0.9 m × 30 mm × 1.5 mm (318 g, EI/L = 20.5 N·m/rad).
+    fn uniform_steel_beam() -> Rig {
+        Rig::from_toml_str(
+            "[beam]\nlength_m = 0.9\ndensity_kg_m3 = 7850.0\nyoungs_modulus_pa = 2.0e11\nstations = [ { x_m = 0.0, width_m = 0.03, thickness_m = 0.0015 }, { x_m = 0.9, width_m = 0.03, thickness_m = 0.0015 } ]\n[base]\nmass_kg = 2.0\n",
+        )
+        .unwrap()
+    }
+
     #[test]
     fn a_root_spring_much_stiffer_than_the_beam_rests_on_a_sliver_of_the_frequency_pattern() {
         // uniform steel beam, EI/L = 20.5 N·m/rad; 1 kHz samples (several modes in band)
-        let rig = Rig::from_toml_str(
-            "[beam]\nlength_m = 0.9\ndensity_kg_m3 = 7850.0\nyoungs_modulus_pa = 2.0e11\nstations = [ { x_m = 0.0, width_m = 0.03, thickness_m = 0.0015 }, { x_m = 0.9, width_m = 0.03, thickness_m = 0.0015 } ]\n[base]\nmass_kg = 2.0\n",
-        )
-        .unwrap();
+        let rig = uniform_steel_beam();
         let rel = |k: f64| {
             let p = crate::diagnose::sim::Params {
                 root_stiffness_nm_per_rad: Some(k),
@@ -680,10 +685,7 @@ mod tests {
     #[test]
     fn a_small_tip_mass_has_an_absolute_floor_from_the_frequency_pattern() {
         // uniform steel beam of 318 g; 1 kHz samples (several modes in band)
-        let rig = Rig::from_toml_str(
-            "[beam]\nlength_m = 0.9\ndensity_kg_m3 = 7850.0\nyoungs_modulus_pa = 2.0e11\nstations = [ { x_m = 0.0, width_m = 0.03, thickness_m = 0.0015 }, { x_m = 0.9, width_m = 0.03, thickness_m = 0.0015 } ]\n[base]\nmass_kg = 2.0\n",
-        )
-        .unwrap();
+        let rig = uniform_steel_beam();
         let sigma_kg = |m: f64| {
             let p = crate::diagnose::sim::Params {
                 tip_mass_kg: m,
