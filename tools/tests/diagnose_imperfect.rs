@@ -109,6 +109,7 @@ fn imperfect_recordings_of_a_tip_mass_give_the_tip_mass_and_say_what_was_mended(
 }
 
 #[test]
+#[cfg_attr(not(feature = "slow-tests"), ignore = "slow tier: ./test.sh --full")]
 fn imperfect_recordings_of_a_null_name_nothing() {
     let (named, stderr) = diagnose_imperfect("none", 1003);
     assert!(named.is_empty(), "{named:?}\n{stderr}");
@@ -133,6 +134,7 @@ fn write_clipped(rec: &Recording, path: &Path, fraction: f64) {
 }
 
 #[test]
+#[cfg_attr(not(feature = "slow-tests"), ignore = "slow tier: ./test.sh --full")]
 fn a_tip_clipped_at_the_cameras_field_of_view_is_fitted_on_what_it_recorded() {
     // a clamp spring, the tip alone recorded by a camera that loses the marker beyond 80 % of
     // its largest excursion
@@ -162,6 +164,7 @@ fn write_reversed(rec: &Recording, path: &Path) {
 }
 
 #[test]
+#[cfg_attr(not(feature = "slow-tests"), ignore = "slow tier: ./test.sh --full")]
 fn sensors_mounted_the_other_way_round_are_named_and_read_the_right_way() {
     // carriage friction, seen on the force and the base; before `recording::orient` the
     // friction was still found on the force, but the reversed encoder stood as an

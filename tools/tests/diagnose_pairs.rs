@@ -52,6 +52,7 @@ fn friction_beside_a_tip_mass_is_named_too() {
 /// model *without* the ripple gave its 40 % force gain ΔBIC −1.1, and only the drag was named
 /// (`select` module docs, 1). Both are named, the ripple with its pitch.
 #[test]
+#[cfg_attr(not(feature = "slow-tests"), ignore = "slow tier: ./test.sh --full")]
 fn a_cogging_ripple_beside_drag_is_named_too() {
     let opts = TruthOptions {
         duration_s: 20.0,
@@ -86,6 +87,7 @@ fn a_cogging_ripple_beside_drag_is_named_too() {
 /// the recordings as another rig's before any effect was tried; the refusal now follows the
 /// selection, which finds the play (and says the nominal model alone explained nothing).
 #[test]
+#[cfg_attr(not(feature = "slow-tests"), ignore = "slow tier: ./test.sh --full")]
 fn a_play_the_nominal_model_explains_nothing_of_is_still_found() {
     let opts = TruthOptions {
         duration_s: 30.0,
@@ -119,6 +121,7 @@ fn a_play_the_nominal_model_explains_nothing_of_is_still_found() {
 /// for a pair, the play goes in on trial, the tip mass then passes every guard, and together
 /// they remove all of the structure: both are named.
 #[test]
+#[cfg_attr(not(feature = "slow-tests"), ignore = "slow tier: ./test.sh --full")]
 fn the_first_of_a_pair_that_leaves_the_seconds_share_is_named_with_it() {
     let opts = TruthOptions {
         duration_s: 30.0,

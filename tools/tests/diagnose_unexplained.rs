@@ -37,6 +37,7 @@ fn a_crack_is_not_a_heavily_damped_mount_at_a_model_mode() {
 }
 
 #[test]
+#[cfg_attr(not(feature = "slow-tests"), ignore = "slow tier: ./test.sh --full")]
 fn a_crack_is_not_an_axial_load_with_a_compliant_clamp() {
     // held-out 462000 (100 Hz, 30 s): a crack had been named a hanging beam with a compliant
     // clamp, a pair that reshapes the frequency pattern as the crack does; a rotational spring
