@@ -99,6 +99,7 @@ fn diagnose_case(
 }
 
 #[test]
+#[cfg_attr(not(feature = "slow-tests"), ignore = "slow tier: ./test.sh --full")]
 fn a_loose_tip_sensor_is_not_named_a_mount() {
     // tip and force recorded, no base_pos_m: the resonance is on the tip alone
     let (named, unexplained) = diagnose_case(
