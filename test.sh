@@ -2,7 +2,7 @@
 # The project's test command: the no_std core under std (host-tests/) and the host tools (tools/).
 # Each crate is built for the machine running cargo (their .cargo/config.toml sets host-tuple);
 # both are members of one host workspace (tools/Cargo.toml) with one lock file, tools/Cargo.lock.
-# Ends with one summary line over both crates: "tests: N passed, M failed".
+# Ends with one summary line over both crates: "tests: N passed, M failed, K ignored".
 # `./test.sh --full` also runs the slow tier (the tools' `slow-tests` feature: whole diagnoses
 # that each guard one past regression, listed as ignored otherwise).
 set -euo pipefail
