@@ -42,6 +42,15 @@ pub enum ClientError {
         /// The reply without `err `.
         reply: String,
     },
+    /// The board printed its boot banner (`# boot: …` then `ok boot`) in the middle of a
+    /// session: it restarted, so what it runs may no longer be what the host set.
+    #[error("the board restarted while answering `{command}` ({notes})")]
+    Restarted {
+        /// The command sent.
+        command: String,
+        /// The boot banner's notes, joined.
+        notes: String,
+    },
     /// A reply line is neither `# …`, `ok …` nor `err …`.
     #[error("malformed reply to `{command}`: `{line}` (expected `# …`, `ok …` or `err …`)")]
     Malformed {
@@ -81,6 +90,11 @@ pub struct BoardClient {
     port: Box<dyn SerialPort>,
     pending: Vec<u8>,
     timeout: Duration,
+    /// A reply has been read since the port was opened (a boot banner before the first
+    /// reply is the board starting late; after it, the board restarted).
+    answered: bool,
+    /// The notes of the last boot banner read (`# boot: …` lines, without `# `).
+    boot_notes: Vec<String>,
 }
 
 impl BoardClient {
@@ -97,9 +111,17 @@ impl BoardClient {
             port,
             pending: Vec::new(),
             timeout: Duration::from_secs(3),
+            answered: false,
+            boot_notes: Vec::new(),
         };
         c.drain(Duration::from_millis(100));
         Ok(c)
+    }
+
+    /// The notes of the boot banner read after the port was opened (empty if the banner came
+    /// before the opening drain, or not at all).
+    pub fn boot_notes(&self) -> &[String] {
+        &self.boot_notes
     }
 
     /// Sets how long to wait for a reply before declaring the board silent.
@@ -139,8 +161,11 @@ impl BoardClient {
         }
     }
 
-    /// Sends one command line and waits for its reply. Errors: an `err` reply (code and
-    /// message in the error), a malformed reply line, or no reply within the timeout.
+    /// Sends one command line and waits for its reply. A boot banner (`# boot: …`, `ok boot`)
+    /// read before the first reply is the board starting later than the opening drain waited:
+    /// it is set aside ([`Self::boot_notes`]) and the reply read after it. Errors: an `err`
+    /// reply (code and message in the error), a malformed reply line, a boot banner after the
+    /// first reply (the board restarted), or no reply within the timeout.
     pub fn command(&mut self, line: &str) -> Result<Reply, ClientError> {
         self.port
             .write_all(format!("{line}\n").as_bytes())
@@ -157,7 +182,19 @@ impl BoardClient {
                 })?;
             match ReplyLine::parse(&l) {
                 ReplyLine::Info(text) => info.push(text.to_string()),
-                ReplyLine::Ok(_) => return Ok(Reply { info, ok: l }),
+                ReplyLine::Ok("ok boot") if !line.starts_with("boot") => {
+                    if self.answered {
+                        return Err(ClientError::Restarted {
+                            command: line.to_string(),
+                            notes: info.join("; "),
+                        });
+                    }
+                    self.boot_notes = std::mem::take(&mut info);
+                }
+                ReplyLine::Ok(_) => {
+                    self.answered = true;
+                    return Ok(Reply { info, ok: l });
+                }
                 ReplyLine::Err(..) => {
                     return Err(ClientError::Refused {
                         command: line.to_string(),
@@ -173,5 +210,65 @@ impl BoardClient {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A board on a PTY that prints its boot banner `delay` after the port exists, then
+    /// answers each command line with `# info` and `ok <command>`, and after `restart_after`
+    /// replies prints the banner again before the next one.
+    fn late_board(delay: Duration, restart_after: usize) -> String {
+        let (mut master, slave) = serialport::TTYPort::pair().unwrap();
+        let path = slave.name().unwrap();
+        std::thread::spawn(move || {
+            let _keep = slave;
+            std::thread::sleep(delay);
+            let banner = b"# boot: no saved settings, using defaults\nok boot\n";
+            master.write_all(banner).unwrap();
+            master.set_timeout(Duration::from_millis(5)).unwrap();
+            let (mut got, mut buf, mut replies) = (Vec::new(), [0u8; 64], 0);
+            loop {
+                if let Ok(n) = master.read(&mut buf) {
+                    got.extend_from_slice(&buf[..n]);
+                }
+                while let Some(i) = got.iter().position(|&b| b == b'\n') {
+                    let cmd: Vec<u8> = got.drain(..=i).collect();
+                    let cmd = String::from_utf8_lossy(&cmd).trim().to_string();
+                    if replies == restart_after {
+                        master.write_all(banner).unwrap();
+                    }
+                    replies += 1;
+                    master
+                        .write_all(format!("# info\nok {cmd}\n").as_bytes())
+                        .unwrap();
+                }
+            }
+        });
+        path
+    }
+
+    /// A banner that comes after the opening drain is set aside, and the first command gets
+    /// its own reply (CI once saw `# boot: …` parsed as a `config` mode line).
+    #[test]
+    fn a_late_boot_banner_is_not_taken_for_the_first_reply() {
+        let mut c = BoardClient::open(&late_board(Duration::from_millis(400), usize::MAX)).unwrap();
+        let r = c.command("config").unwrap();
+        assert_eq!(r.ok, "ok config");
+        assert_eq!(r.info, vec!["info".to_string()]);
+        assert_eq!(c.boot_notes(), ["boot: no saved settings, using defaults"]);
+        assert_eq!(c.command("status").unwrap().ok, "ok status");
+    }
+
+    /// A banner between replies means the board restarted: an error that says so.
+    #[test]
+    fn a_boot_banner_after_a_reply_is_a_restart_error() {
+        let mut c = BoardClient::open(&late_board(Duration::ZERO, 1)).unwrap();
+        assert_eq!(c.command("status").unwrap().ok, "ok status");
+        let e = c.command("config").unwrap_err();
+        assert!(matches!(e, ClientError::Restarted { .. }), "{e}");
+        assert!(e.to_string().contains("restarted"), "{e}");
     }
 }
