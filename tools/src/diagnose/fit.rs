@@ -47,6 +47,28 @@ pub fn residuals(d: &Prepared, pred: &Prediction) -> [Option<Vec<f64>>; 3] {
     ]
 }
 
+/// Appends [`residuals`] of `d` under `pred`, channel after channel, each divided by its noise
+/// scale `sigma[c]`, to `out`: the same numbers as dividing the residuals, without the
+/// intermediate vectors (a fit builds this vector at every evaluation).
+pub fn extend_whitened(d: &Prepared, pred: &Prediction, sigma: [f64; 3], out: &mut Vec<f64>) {
+    let pairs = [
+        (&d.base_m, &pred.base_m),
+        (&d.tip_m, &pred.tip_m),
+        (&d.force_n, &pred.force_n),
+    ];
+    for (c, pair) in pairs.into_iter().enumerate() {
+        let (Some(a), Some(b)) = pair else {
+            continue;
+        };
+        let (start, s) = (out.len(), sigma[c]);
+        out.extend(a.iter().zip(b).map(|(x, y)| (x - y) / s));
+        let n = out.len() - start;
+        for &(r0, r1) in &d.rails[c].runs {
+            out[start + r0.min(n)..start + r1.min(n)].fill(0.0 / s);
+        }
+    }
+}
+
 /// Sum of squares and count per channel over several recordings.
 pub fn channel_rss(res: &[[Option<Vec<f64>>; 3]]) -> ([f64; 3], [usize; 3]) {
     let mut rss = [0.0; 3];
@@ -243,12 +265,7 @@ impl<'a> Problem<'a> {
             Some(preds) => {
                 let mut v = Vec::with_capacity(total);
                 for (d, pr) in self.data.iter().zip(&preds) {
-                    let r = residuals(d, pr);
-                    for c in 0..3 {
-                        if let Some(r) = &r[c] {
-                            v.extend(r.iter().map(|e| e / self.sigma[c]));
-                        }
-                    }
+                    extend_whitened(d, pr, self.sigma, &mut v);
                 }
                 if v.iter().all(|e| e.is_finite()) {
                     DVector::from_vec(v)

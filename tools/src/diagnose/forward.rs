@@ -34,10 +34,20 @@ pub const WORK_BUDGET_SAMPLE_EVALUATIONS: f64 = 2.0e8;
 /// Bounds of the resulting number of model evaluations of one diagnosis.
 pub const EVALUATION_BUDGET_RANGE: (usize, usize) = (2_000, 40_000);
 
-/// The model-evaluation budget of one diagnosis and what has been spent of it.
+/// The model-evaluation budget of one diagnosis and what has been spent of it: the evaluations
+/// the fits report ([`Budget::spend`]). Every sample the simulator runs on this thread is
+/// counted besides ([`super::sim::simulated_samples`], [`Budget::simulated`]) to show how much
+/// simulation happens outside the fits (validation predictions: measured at 1–2 % of the fits'
+/// own, docs/diagnose.md "Session 36").
 pub(crate) struct Budget {
+    /// Evaluations of the fit recordings the diagnosis may spend.
     pub(crate) total: usize,
+    /// Evaluations the fits reported.
     pub(crate) spent: usize,
+    /// Samples of one evaluation of the fit recordings.
+    fit_samples: u64,
+    /// [`super::sim::simulated_samples`] when the budget was made.
+    start: u64,
 }
 
 impl Budget {
@@ -48,7 +58,15 @@ impl Budget {
         Budget {
             total: total.clamp(lo, hi),
             spent: 0,
+            fit_samples: fit_samples.max(1) as u64,
+            start: super::sim::simulated_samples(),
         }
+    }
+
+    /// Everything simulated on this thread since the budget was made (fits, validation
+    /// predictions, refits), in evaluations of the fit recordings.
+    pub(crate) fn simulated(&self) -> usize {
+        ((super::sim::simulated_samples() - self.start) / self.fit_samples) as usize
     }
 
     /// An equal share of what is left for one of `parts` remaining fits (at least 1/200 of the

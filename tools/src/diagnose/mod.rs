@@ -137,8 +137,11 @@ pub struct Diagnosis {
     pub candidates: Vec<CandidateOutcome>,
     /// The validation recording (prepared).
     pub validate: Prepared,
-    /// Model evaluations in total.
+    /// Model evaluations the least-squares fits reported, in total.
     pub evaluations: usize,
+    /// Everything simulated (fits, validation predictions, refits), in evaluations of the fit
+    /// recordings: every simulated sample divided by the fit recordings' samples.
+    pub evaluations_simulated: usize,
     /// The Galerkin basis and its convergence for the modes inside the band (with a beam).
     pub basis: Option<sim::BasisChoice>,
     /// Band edge (Hz) of the recordings at their working rate (0.45 × the lowest).
@@ -949,6 +952,7 @@ fn conclude(
         candidates: outcomes,
         validate: ctx.validate.clone(),
         evaluations: budget.spent,
+        evaluations_simulated: budget.simulated(),
         basis: earlier.basis,
         band_edge_hz: earlier.band_edge_hz,
         effects: chosen_outcomes,

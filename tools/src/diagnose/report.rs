@@ -331,6 +331,7 @@ pub fn to_json(d: &Diagnosis) -> Value {
         "final_calibration": final_calibration_json(d),
         "location": serde_json::to_value(&d.location).unwrap_or(Value::Null),
         "model_evaluations": d.evaluations,
+        "model_evaluations_simulated": d.evaluations_simulated,
         "model": {
             "band_edge_hz": d.band_edge_hz,
             "working_rate_hz": d.working_rate.rate_hz,

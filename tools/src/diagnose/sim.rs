@@ -247,10 +247,16 @@ pub fn delayed(x: &[f64], delay_s: f64, dt: f64) -> Vec<f64> {
             } else if w.is_empty() {
                 at(k + shift)
             } else {
-                w.iter()
-                    .enumerate()
-                    .map(|(j, wj)| wj * at(k + shift + j as i64 - h + 1))
-                    .sum()
+                // the taps' first sample; inside the record, the same sum without the clamps
+                let first = k + shift - h + 1;
+                match x.get(first.max(0) as usize..(first + 2 * h).max(0) as usize) {
+                    Some(taps) if first >= 0 => w.iter().zip(taps).map(|(wj, xj)| wj * xj).sum(),
+                    _ => w
+                        .iter()
+                        .enumerate()
+                        .map(|(j, wj)| wj * at(first + j as i64))
+                        .sum(),
+                }
             }
         })
         .collect()
@@ -1234,6 +1240,18 @@ pub fn converged_basis(rig: &Rig, stiffness_scale: f64, band_edge_hz: f64) -> Re
     Ok(last.expect("at least one basis size"))
 }
 
+thread_local! {
+    /// Samples simulated by [`predict`] on this thread (every recording, every call).
+    static SIMULATED_SAMPLES: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// Samples [`predict`] has simulated on the calling thread so far: the work a diagnosis has
+/// done, counted in the budget's unit (one diagnosis runs on one thread,
+/// [`super::forward::Budget`]).
+pub fn simulated_samples() -> u64 {
+    SIMULATED_SAMPLES.with(|c| c.get())
+}
+
 /// Predicts the channels of `d` with parameters `p`. `cache` keeps the last structural model.
 ///
 /// Errors: a structural parameter set the model refuses (e.g. buckling), a rig without a beam
@@ -1245,6 +1263,7 @@ pub fn predict(
     cache: &mut Option<BeamCache>,
 ) -> Result<Prediction> {
     let dt = d.dt;
+    SIMULATED_SAMPLES.with(|n| n.set(n.get() + d.cmd_m.len() as u64));
     let mut out = Prediction::default();
     let c = match rig.beam {
         Some(_) => Some(fresh_cache(rig, p, dt, cache)?),
@@ -1254,20 +1273,14 @@ pub fn predict(
     // whether or not the base is recorded (a measured one still drives the beam below; the
     // predicted `base_pos_m` then holds the beam's reaction in its following error)
     let law = ServoLaw::of(p);
-    let y_servo = match &law {
-        Some(law) => law.respond(&d.cmd_m, dt, c),
-        None => d.cmd_m.clone(),
+    let y_servo: std::borrow::Cow<[f64]> = match &law {
+        Some(law) => std::borrow::Cow::Owned(law.respond(&d.cmd_m, dt, c)),
+        None => std::borrow::Cow::Borrowed(&d.cmd_m),
     };
-    if d.base_m.is_some() {
-        out.base_m = Some(match (&law, &d.cmd_identity_m) {
-            (None, Some(cmd)) => cmd.clone(),
-            _ => y_servo.clone(),
-        });
-    }
     // 2. drive: the measured base when recorded; emphasised for the dynamics, as sampled for
     // positions
-    let (drive, drive_pos) = drives(d, &law, &y_servo, p.smooth_drive, p.drive_reading);
-    let (drive, drive_pos): (&[f64], &[f64]) = (&drive, &drive_pos);
+    let drives = drives(d, &law, &y_servo, p.smooth_drive, p.drive_reading);
+    let (drive, drive_pos): (&[f64], &[f64]) = (&drives.0, &drives.1);
     // 3. backlash and mount between the drive and the beam root
     let (root, exact) = root_motion(p, drive, dt, c);
     // 4. beam, tip sensor and motor force (those of a coupled mount from its exact state
@@ -1312,6 +1325,15 @@ pub fn predict(
     if d.force_n.is_some() {
         let force = smooth_drive_of(p, rig, c, force, (drive, drive_pos), dt);
         out.force_n = Some(carriage_forces(p, drive_pos, force, dt));
+    }
+    // 6. the predicted base: the servo's output (the command itself without a servo), moved
+    // once the drives that may borrow it are done
+    drop(drives);
+    if d.base_m.is_some() {
+        out.base_m = Some(match (&law, &d.cmd_identity_m) {
+            (None, Some(cmd)) => cmd.clone(),
+            _ => y_servo.into_owned(),
+        });
     }
     if let (true, Some(c)) = (d.free_start, c) {
         add_free_response(d, c, p.mount, &mut out);
