@@ -1010,6 +1010,47 @@ ratios = [0.0074, 0.0074]
         calibration_defs(rig, &ch, 2, 6)
     }
 
+    /// The one-pass whitened vector is the per-channel residuals divided by σ, bit for bit, with
+    /// samples at a sensor's rail zero (a run past the end of a shorter prediction included).
+    #[test]
+    fn whitened_residuals_in_one_pass_equal_the_divided_residuals() {
+        let (rig, mut rec) = beam_and_moves(&[0.1, 0.06], 0.5, 3.0, 2.0);
+        // a tip that rings (the command's flat dwells would read as a sensor's rails)
+        let tip = rec.tip_pos_m.take().unwrap().into_iter().enumerate();
+        rec.tip_pos_m = Some(
+            tip.map(|(k, v)| v + 1e-3 * (0.37 * k as f64).sin())
+                .collect(),
+        );
+        let mut d = Prepared::new("t", &rec).unwrap();
+        let n = d.cmd_m.len();
+        d.base_m = Some(d.cmd_m.iter().map(|v| 1.01 * v).collect());
+        d.rails[1].runs = vec![(3, 40), (n - 5, n + 10)];
+        let mut pred = predict(&rig, &Params::default(), &d, &mut None).unwrap();
+        pred.tip_m.as_mut().unwrap().truncate(n - 2);
+        let sigma = [3e-6, 7e-5, 0.3];
+        let mut one_pass = Vec::new();
+        extend_whitened(&d, &pred, sigma, &mut one_pass);
+        let mut divided = Vec::new();
+        for (c, r) in residuals(&d, &pred).iter().enumerate() {
+            if let Some(r) = r {
+                divided.extend(r.iter().map(|e| e / sigma[c]));
+            }
+        }
+        assert!(d.tip_m.is_some() && d.base_m.is_some());
+        assert_eq!(one_pass.len(), divided.len());
+        assert!(one_pass
+            .iter()
+            .zip(&divided)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert_eq!(
+            one_pass[n + 3..n + 40]
+                .iter()
+                .filter(|v| **v == 0.0)
+                .count(),
+            37
+        );
+    }
+
     #[test]
     fn the_nominal_calibration_finds_a_stiffness_scale_far_from_the_rig_file() {
         // a beam 0.3 × as stiff as the rig file says (f1 45 % low: a heavy tip marker, a soft

@@ -1326,19 +1326,22 @@ pub fn predict(
         let force = smooth_drive_of(p, rig, c, force, (drive, drive_pos), dt);
         out.force_n = Some(carriage_forces(p, drive_pos, force, dt));
     }
-    // 6. the predicted base: the servo's output (the command itself without a servo), moved
-    // once the drives that may borrow it are done
+    // 6. the predicted base, once the drives that may borrow the servo's output are done
     drop(drives);
-    if d.base_m.is_some() {
-        out.base_m = Some(match (&law, &d.cmd_identity_m) {
-            (None, Some(cmd)) => cmd.clone(),
-            _ => y_servo.into_owned(),
-        });
-    }
+    out.base_m = (d.base_m.as_ref()).map(|_| predicted_base(d, law.is_some(), y_servo));
     if let (true, Some(c)) = (d.free_start, c) {
         add_free_response(d, c, p.mount, &mut out);
     }
     Ok(out)
+}
+
+/// The predicted `base_pos_m` of `d`: the servo's output `y_servo` (moved, not copied), or
+/// without a servo (`servo` false) the command as sampled.
+fn predicted_base(d: &Prepared, servo: bool, y_servo: std::borrow::Cow<[f64]>) -> Vec<f64> {
+    match (servo, &d.cmd_identity_m) {
+        (false, Some(cmd)) => cmd.clone(),
+        _ => y_servo.into_owned(),
+    }
 }
 
 /// Adds to the predicted tip and force of a recording that does not start at rest the free
