@@ -1328,20 +1328,21 @@ pub fn predict(
     }
     // 6. the predicted base, once the drives that may borrow the servo's output are done
     drop(drives);
-    out.base_m = (d.base_m.as_ref()).map(|_| predicted_base(d, law.is_some(), y_servo));
+    out.base_m = predicted_base(d, law.is_some(), y_servo);
     if let (true, Some(c)) = (d.free_start, c) {
         add_free_response(d, c, p.mount, &mut out);
     }
     Ok(out)
 }
 
-/// The predicted `base_pos_m` of `d`: the servo's output `y_servo` (moved, not copied), or
-/// without a servo (`servo` false) the command as sampled.
-fn predicted_base(d: &Prepared, servo: bool, y_servo: std::borrow::Cow<[f64]>) -> Vec<f64> {
-    match (servo, &d.cmd_identity_m) {
+/// The predicted `base_pos_m` of `d` (`None` when it is not recorded): the servo's output
+/// `y_servo` (moved, not copied), or without a servo (`servo` false) the command as sampled.
+fn predicted_base(d: &Prepared, servo: bool, y_servo: std::borrow::Cow<[f64]>) -> Option<Vec<f64>> {
+    d.base_m.as_ref()?;
+    Some(match (servo, &d.cmd_identity_m) {
         (false, Some(cmd)) => cmd.clone(),
         _ => y_servo.into_owned(),
-    }
+    })
 }
 
 /// Adds to the predicted tip and force of a recording that does not start at rest the free
