@@ -29,43 +29,57 @@ pub const FORCE_CHANNEL: usize = 2;
 /// Per-channel residuals (recording − prediction) of one recording; `None` where not recorded,
 /// zero at the samples held at a sensor's rail ([`Prepared::rails`]).
 pub fn residuals(d: &Prepared, pred: &Prediction) -> [Option<Vec<f64>>; 3] {
-    let diff = |a: &Option<Vec<f64>>, b: &Option<Vec<f64>>, c: usize| match (a, b) {
-        (Some(a), Some(b)) => {
-            let mut r: Vec<f64> = a.iter().zip(b).map(|(x, y)| x - y).collect();
-            let n = r.len();
-            for &(s, e) in &d.rails[c].runs {
-                r[s.min(n)..e.min(n)].fill(0.0);
-            }
-            Some(r)
-        }
-        _ => None,
-    };
-    [
-        diff(&d.base_m, &pred.base_m, 0),
-        diff(&d.tip_m, &pred.tip_m, 1),
-        diff(&d.force_n, &pred.force_n, 2),
-    ]
+    let pairs = channel_pairs(d, pred);
+    std::array::from_fn(|c| {
+        let (Some(a), Some(b)) = pairs[c] else {
+            return None;
+        };
+        let mut r = Vec::with_capacity(a.len().min(b.len()));
+        push_channel(a, b, &d.rails[c].runs, None, &mut r);
+        Some(r)
+    })
 }
 
 /// Appends [`residuals`] of `d` under `pred`, channel after channel, each divided by its noise
 /// scale `sigma[c]`, to `out`: the same numbers as dividing the residuals, without the
 /// intermediate vectors (a fit builds this vector at every evaluation).
 pub fn extend_whitened(d: &Prepared, pred: &Prediction, sigma: [f64; 3], out: &mut Vec<f64>) {
-    let pairs = [
-        (&d.base_m, &pred.base_m),
-        (&d.tip_m, &pred.tip_m),
-        (&d.force_n, &pred.force_n),
-    ];
-    for (c, pair) in pairs.into_iter().enumerate() {
-        let (Some(a), Some(b)) = pair else {
-            continue;
-        };
-        let (start, s) = (out.len(), sigma[c]);
-        out.extend(a.iter().zip(b).map(|(x, y)| (x - y) / s));
-        let n = out.len() - start;
-        for &(r0, r1) in &d.rails[c].runs {
-            out[start + r0.min(n)..start + r1.min(n)].fill(0.0 / s);
+    for (c, pair) in channel_pairs(d, pred).into_iter().enumerate() {
+        if let (Some(a), Some(b)) = pair {
+            push_channel(a, b, &d.rails[c].runs, Some(sigma[c]), out);
         }
+    }
+}
+
+/// Recorded and predicted base, tip and force of one recording, in that order.
+fn channel_pairs<'a>(
+    d: &'a Prepared,
+    pred: &'a Prediction,
+) -> [(Option<&'a Vec<f64>>, Option<&'a Vec<f64>>); 3] {
+    [
+        (d.base_m.as_ref(), pred.base_m.as_ref()),
+        (d.tip_m.as_ref(), pred.tip_m.as_ref()),
+        (d.force_n.as_ref(), pred.force_n.as_ref()),
+    ]
+}
+
+/// Appends recording − prediction of one channel (divided by `scale` when given) to `out`, 0
+/// on the samples of `rail_runs` (`[start, end)`, a sensor held at its rail).
+fn push_channel(
+    a: &[f64],
+    b: &[f64],
+    rail_runs: &[(usize, usize)],
+    scale: Option<f64>,
+    out: &mut Vec<f64>,
+) {
+    let start = out.len();
+    match scale {
+        Some(s) => out.extend(a.iter().zip(b).map(|(x, y)| (x - y) / s)),
+        None => out.extend(a.iter().zip(b).map(|(x, y)| x - y)),
+    }
+    let n = out.len() - start;
+    for &(r0, r1) in rail_runs {
+        out[start + r0.min(n)..start + r1.min(n)].fill(0.0);
     }
 }
 

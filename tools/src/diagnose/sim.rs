@@ -249,13 +249,12 @@ pub fn delayed(x: &[f64], delay_s: f64, dt: f64) -> Vec<f64> {
             } else {
                 // the taps' first sample; inside the record, the same sum without the clamps
                 let first = k + shift - h + 1;
-                match x.get(first.max(0) as usize..(first + 2 * h).max(0) as usize) {
-                    Some(taps) if first >= 0 => w.iter().zip(taps).map(|(wj, xj)| wj * xj).sum(),
-                    _ => w
-                        .iter()
-                        .enumerate()
-                        .map(|(j, wj)| wj * at(first + j as i64))
-                        .sum(),
+                if first >= 0 && first + 2 * h <= n as i64 {
+                    let taps = &x[first as usize..(first + 2 * h) as usize];
+                    w.iter().zip(taps).map(|(wj, xj)| wj * xj).sum()
+                } else {
+                    let taps = (0..2 * h).map(|j| at(first + j));
+                    w.iter().zip(taps).map(|(wj, xj)| wj * xj).sum()
                 }
             }
         })
