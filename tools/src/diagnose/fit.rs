@@ -10,6 +10,7 @@
 use super::effects::{apply_calibration, apply_effect, Calib, Candidate, ParamDef};
 use super::sim::{predict, BeamCache, Params, Prediction, Prepared};
 use crate::model::Rig;
+use crate::numeric::cores;
 use crate::numeric::lm::{self, LmOptions};
 use nalgebra::{DMatrix, DVector};
 use std::cell::RefCell;
@@ -217,6 +218,14 @@ impl<'a> Problem<'a> {
         self.whitened(x).norm_squared()
     }
 
+    /// [`Problem::cost_at`] at every point of `xs`, in order ([`Problem::whitened_batch`]).
+    pub fn costs_at(&self, xs: &[DVector<f64>]) -> Vec<f64> {
+        self.whitened_batch(xs)
+            .iter()
+            .map(|r| r.norm_squared())
+            .collect()
+    }
+
     /// All parameter definitions in vector order.
     pub fn defs(&self) -> Vec<&ParamDef> {
         self.calib
@@ -256,44 +265,134 @@ impl<'a> Problem<'a> {
     /// Predictions for every recording at `x` (`None` if the model refuses the parameters).
     pub fn predictions(&self, x: &DVector<f64>) -> Option<Vec<Prediction>> {
         let p = self.params_of(x);
-        let mut caches = self.caches.borrow_mut();
         *self.evaluations.borrow_mut() += 1;
-        self.data
-            .iter()
-            .zip(caches.iter_mut())
-            .map(|(d, c)| match predict(self.rig, &p, d, c) {
-                Ok(v) => Some(v),
-                Err(e) => {
-                    self.refuse(format!("prediction failed: {e:#}"));
-                    None
-                }
-            })
-            .collect()
+        self.each_recording(&p, |_, pr| pr)
+            .map_err(|why| self.refuse(why))
+            .ok()
     }
 
     /// Residuals of every recorded channel divided by the channel's noise scale σ (recording
     /// after recording); a constant 1e3 where the model refuses the parameters.
     pub fn whitened(&self, x: &DVector<f64>) -> DVector<f64> {
-        let total: usize = self.data.iter().map(|d| self.len_of(d)).sum();
-        match self.predictions(x) {
-            Some(preds) => {
-                let mut v = Vec::with_capacity(total);
-                for (d, pr) in self.data.iter().zip(&preds) {
-                    extend_whitened(d, pr, self.sigma, &mut v);
-                }
-                if v.iter().all(|e| e.is_finite()) {
-                    DVector::from_vec(v)
-                } else {
-                    self.refuse(format!(
-                        "non-finite residual: sigma {:?}, first at {:?} of {}",
-                        self.sigma,
-                        v.iter().position(|e| !e.is_finite()),
-                        v.len()
-                    ));
-                    DVector::from_element(total, 1e3)
-                }
+        let total: usize = self.data.iter().map(len_of).sum();
+        let p = self.params_of(x);
+        *self.evaluations.borrow_mut() += 1;
+        let sigma = self.sigma;
+        let parts = self.each_recording(&p, |d, pr| {
+            let mut v = Vec::with_capacity(len_of(d));
+            extend_whitened(d, &pr, sigma, &mut v);
+            v
+        });
+        let v = match parts {
+            Ok(parts) => parts.concat(),
+            Err(why) => {
+                self.refuse(why);
+                return DVector::from_element(total, 1e3);
             }
-            None => DVector::from_element(total, 1e3),
+        };
+        if v.iter().all(|e| e.is_finite()) {
+            return DVector::from_vec(v);
+        }
+        self.refuse(format!(
+            "non-finite residual: sigma {:?}, first at {:?} of {}",
+            self.sigma,
+            v.iter().position(|e| !e.is_finite()),
+            v.len()
+        ));
+        DVector::from_element(total, 1e3)
+    }
+
+    /// `then` of every recording's prediction at `p`, in recording order, or why the model
+    /// refused the first recording it refuses: what one after the other gives (no recording
+    /// after a refused one is counted as simulated). With a spare core
+    /// ([`crate::numeric::cores`]) the later half of the recordings is simulated beside, each
+    /// with its own structural cache.
+    fn each_recording<T: Send>(
+        &self,
+        p: &Params,
+        then: impl Fn(&Prepared, Prediction) -> T + Sync,
+    ) -> std::result::Result<Vec<T>, String> {
+        let rig = self.rig;
+        let run = |data: &[Prepared], caches: &mut [Option<BeamCache>]| {
+            data.iter()
+                .zip(caches.iter_mut())
+                .map(|(d, c)| match predict(rig, p, d, c) {
+                    Ok(pr) => Ok(then(d, pr)),
+                    Err(e) => Err(format!("prediction failed: {e:#}")),
+                })
+                .collect::<std::result::Result<Vec<T>, String>>()
+        };
+        let mut caches = self.caches.borrow_mut();
+        let core = if self.data.len() >= 2 {
+            cores::take()
+        } else {
+            None
+        };
+        let Some(_core) = core else {
+            return run(self.data, &mut caches);
+        };
+        let k = self.data.len().div_ceil(2);
+        let (d1, d2) = self.data.split_at(k);
+        let (c1, c2) = caches.split_at_mut(k);
+        let (first, second) = std::thread::scope(|s| {
+            let other = s.spawn(|| {
+                let start = super::sim::simulated_samples();
+                let r = run(d2, c2);
+                (r, super::sim::simulated_samples() - start)
+            });
+            (run(d1, c1), other.join())
+        });
+        let (second, simulated) = second.unwrap_or_else(|e| std::panic::resume_unwind(e));
+        let mut out = first?;
+        super::sim::add_simulated_samples(simulated);
+        out.extend(second?);
+        Ok(out)
+    }
+
+    /// Whitened residuals at every point of `xs`, in order: what [`Problem::whitened`] gives one
+    /// after the other, to the bit. With a spare core ([`crate::numeric::cores`]) the second
+    /// half runs beside on a copy of this problem (its own structural caches, which only save
+    /// work), whose refusals and evaluations then join this one's after the first half's: the
+    /// order one after the other gives them.
+    pub fn whitened_batch(&self, xs: &[DVector<f64>]) -> Vec<DVector<f64>> {
+        let core = if xs.len() >= 2 { cores::take() } else { None };
+        let Some(_core) = core else {
+            return xs.iter().map(|x| self.whitened(x)).collect();
+        };
+        let (first, second) = xs.split_at(xs.len().div_ceil(2));
+        let fork = self.fork();
+        let (mut mine, theirs) = std::thread::scope(|s| {
+            let other = s.spawn(move || {
+                let start = super::sim::simulated_samples();
+                let v: Vec<DVector<f64>> = second.iter().map(|x| fork.whitened(x)).collect();
+                (v, fork, super::sim::simulated_samples() - start)
+            });
+            let mine: Vec<DVector<f64>> = first.iter().map(|x| self.whitened(x)).collect();
+            (mine, other.join())
+        });
+        let (theirs, fork, simulated) = theirs.unwrap_or_else(|e| std::panic::resume_unwind(e));
+        super::sim::add_simulated_samples(simulated);
+        *self.evaluations.borrow_mut() += fork.evaluations.into_inner();
+        for why in fork.refusals.into_inner() {
+            self.refuse(why);
+        }
+        mine.extend(theirs);
+        mine
+    }
+
+    /// A copy of this problem that shares its recordings and definitions, with the structural
+    /// caches as they are now, no evaluations and no refusals.
+    fn fork(&self) -> Problem<'a> {
+        Problem {
+            rig: self.rig,
+            data: self.data,
+            sigma: self.sigma,
+            calib: self.calib,
+            cands: self.cands.clone(),
+            x: self.x.clone(),
+            caches: RefCell::new(self.caches.borrow().clone()),
+            evaluations: RefCell::new(0),
+            refusals: RefCell::new(Vec::new()),
         }
     }
 
@@ -303,13 +402,6 @@ impl<'a> Problem<'a> {
         if r.len() < MAX_REFUSALS {
             r.push(why);
         }
-    }
-
-    fn len_of(&self, d: &Prepared) -> usize {
-        let n = d.cmd_m.len();
-        n * (usize::from(d.base_m.is_some())
-            + usize::from(d.tip_m.is_some())
-            + usize::from(d.force_n.is_some()))
     }
 
     /// Per parameter, whether it has no effect at and around `x`: a modal damping ratio beyond
@@ -350,7 +442,8 @@ impl Problem<'_> {
     pub fn jacobian_at(&self, x: &DVector<f64>) -> DMatrix<f64> {
         let r0 = self.whitened(x);
         let opts = LmOptions::new(self.steps());
-        lm::fd_jacobian(&|y: &DVector<f64>| Some(self.whitened(y)), x, &r0, &opts)
+        let batch = |xs: &[DVector<f64>]| self.whitened_batch(xs).into_iter().map(Some).collect();
+        lm::fd_jacobian_batched(&batch, x, &r0, &opts)
             .expect("whitened residuals are always defined")
     }
 }
@@ -396,11 +489,15 @@ fn stiffness_scan(
     let mut best = (f64::INFINITY, x.clone());
     let points = scan_points(cands);
     let half = (points / 2) as f64;
-    for k in 0..points {
-        x[is] = centre + (k as f64 - half) * 0.05;
-        let c = problem.cost_at(&x);
+    let xs: Vec<DVector<f64>> = (0..points)
+        .map(|k| {
+            x[is] = centre + (k as f64 - half) * 0.05;
+            x.clone()
+        })
+        .collect();
+    for (c, x) in problem.costs_at(&xs).into_iter().zip(xs) {
         if c < best.0 {
-            best = (c, x.clone());
+            best = (c, x);
         }
     }
     Some(best.1)
@@ -430,14 +527,19 @@ fn scan_starts(
             continue;
         }
         let problem = Problem::new(rig, data, sigma, calib, cands, starts[0].clone());
-        let mut costs: Vec<(f64, f64)> = d
+        let xs: Vec<DVector<f64>> = d
             .scan
             .iter()
             .map(|&v| {
                 let mut x = starts[0].clone();
                 x[i] = d.repr(v);
-                (problem.cost_at(&x), v)
+                x
             })
+            .collect();
+        let mut costs: Vec<(f64, f64)> = problem
+            .costs_at(&xs)
+            .into_iter()
+            .zip(d.scan.iter().copied())
             .filter(|(c, _)| c.is_finite())
             .collect();
         used += d.scan.len();
@@ -662,6 +764,14 @@ fn start_grid(
     distinct
 }
 
+/// Residuals of one recording: its samples × recorded channels.
+fn len_of(d: &Prepared) -> usize {
+    let n = d.cmd_m.len();
+    n * (usize::from(d.base_m.is_some())
+        + usize::from(d.tip_m.is_some())
+        + usize::from(d.force_n.is_some()))
+}
+
 /// The best of several least-squares starts.
 struct StartsRun {
     cost: f64,
@@ -697,7 +807,11 @@ fn run_starts<'a>(
             ..LmOptions::new(pb.steps())
         };
         let residual = |x: &DVector<f64>| (Instant::now() < safety_net).then(|| pb.whitened(x));
-        let mut out = lm::minimize(&residual, x0.clone(), &opts);
+        let batch = |xs: &[DVector<f64>]| match Instant::now() < safety_net {
+            true => pb.whitened_batch(xs).into_iter().map(Some).collect(),
+            false => vec![None; xs.len()],
+        };
+        let mut out = lm::minimize_batched(&residual, &batch, x0.clone(), &opts);
         if out.converged && !(out.cost < c0) && share > out.evaluations + 2 * (x0.len() + 1) {
             let central = LmOptions {
                 max_evaluations: share - out.evaluations,
@@ -705,7 +819,7 @@ fn run_starts<'a>(
                 ..opts.clone()
             };
             let used = out.evaluations;
-            out = lm::minimize(&residual, x0.clone(), &central);
+            out = lm::minimize_batched(&residual, &batch, x0.clone(), &central);
             out.evaluations += used;
         }
         let (cost, x) = if out.cost.is_finite() {
@@ -1063,6 +1177,54 @@ ratios = [0.0074, 0.0074]
                 .count(),
             37
         );
+    }
+
+    #[test]
+    fn residuals_side_by_side_are_those_one_after_the_other() {
+        // three recordings (the later half simulated beside when a core is free) and a batch of
+        // points (half of them evaluated beside): the same bits, evaluations and simulated
+        // samples as one point and one recording after the other
+        let data: Vec<Prepared> = [0.1, 0.06, 0.12]
+            .iter()
+            .map(|&s| {
+                let (_, mut rec) = beam_and_moves(&[s, 0.6 * s], 0.5, 3.0, 1.0);
+                // a tip that rings (flat dwells would read as a sensor's rails)
+                let tip = rec.tip_pos_m.take().unwrap().into_iter().enumerate();
+                rec.tip_pos_m = Some(tip.map(|(k, v)| v + s * (0.37 * k as f64).sin()).collect());
+                Prepared::new("t", &rec).unwrap()
+            })
+            .collect();
+        let (rig, _) = beam_and_moves(&[0.1], 0.5, 3.0, 1.0);
+        let calib = tip_only_calibration(&rig);
+        let x0 = DVector::from_iterator(
+            calib.defs.len(),
+            calib.defs.iter().map(|d| d.repr(d.starts[0])),
+        );
+        let xs: Vec<DVector<f64>> = (0..5)
+            .map(|k| {
+                let mut x = x0.clone();
+                x[0] += 0.02 * k as f64;
+                x
+            })
+            .collect();
+        let sigma = [1e-6, 1e-4, 0.1];
+        let one_by_one = Problem::new(&rig, &data, sigma, &calib, &[], x0.clone());
+        let start = super::super::sim::simulated_samples();
+        let expected: Vec<DVector<f64>> = xs.iter().map(|x| one_by_one.whitened(x)).collect();
+        let simulated = super::super::sim::simulated_samples() - start;
+        let batched = Problem::new(&rig, &data, sigma, &calib, &[], x0);
+        let start = super::super::sim::simulated_samples();
+        let got = batched.whitened_batch(&xs);
+        assert_eq!(super::super::sim::simulated_samples() - start, simulated);
+        assert_eq!(*batched.evaluations.borrow(), xs.len());
+        let bits = |v: &[DVector<f64>]| {
+            v.iter()
+                .flat_map(|r| r.iter().map(|e| e.to_bits()))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&got), bits(&expected));
+        assert_eq!(got.len(), 5);
+        assert!(got[0].len() > 3 * 100 && got[0] != got[4]);
     }
 
     #[test]

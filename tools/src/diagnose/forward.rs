@@ -718,10 +718,16 @@ impl Ctx<'_> {
         let k_at = o.param_offset;
         let problem = self.fit_problem(set, o.fit.x.clone());
         let k0 = o.fit.x[k_at];
-        let at = |dk: f64| {
-            let mut y = o.fit.x.clone();
-            y[k_at] = k0 + dk * std::f64::consts::LN_2;
-            problem.cost_at(&y)
+        let at = |dks: &[f64]| {
+            let ys: Vec<_> = dks
+                .iter()
+                .map(|dk| {
+                    let mut y = o.fit.x.clone();
+                    y[k_at] = k0 + dk * std::f64::consts::LN_2;
+                    y
+                })
+                .collect();
+            problem.costs_at(&ys)
         };
         let mut used = OCTAVES.len() + 2 + GOLDEN_STEPS;
         let Some((_, dk)) = octave_search(at) else {
@@ -770,10 +776,16 @@ impl Ctx<'_> {
             };
             let mut x = root.x.clone().push(d.repr(rel * length_m));
             let k0 = x[k_at] + 4.0 * (1.0 - rel).ln();
-            let at = |dk: f64| {
-                let mut y = x.clone();
-                y[k_at] = k0 + dk * std::f64::consts::LN_2;
-                problem.cost_at(&y)
+            let at = |dks: &[f64]| {
+                let ys: Vec<_> = dks
+                    .iter()
+                    .map(|dk| {
+                        let mut y = x.clone();
+                        y[k_at] = k0 + dk * std::f64::consts::LN_2;
+                        y
+                    })
+                    .collect();
+                problem.costs_at(&ys)
             };
             if let Some((cost, dk)) = octave_search(at) {
                 x[k_at] = k0 + dk * std::f64::consts::LN_2;
@@ -1159,10 +1171,12 @@ const OCTAVES: [f64; 12] = [
 /// The minimum of `cost` (of the octave offset) over [`OCTAVES`], refined by golden-section
 /// search between the best octave's neighbours ([`GOLDEN_STEPS`]): with long recordings the
 /// cost is narrow in the stiffness (the second mode's phase), which a parabola through the
-/// octaves misses. Returns the lowest cost seen and its offset; `None` if no octave gives a
-/// finite cost.
-fn octave_search(cost: impl Fn(f64) -> f64) -> Option<(f64, f64)> {
-    let costs: Vec<f64> = OCTAVES.iter().map(|&o| cost(o)).collect();
+/// octaves misses. `costs_at` gives the cost at every offset of a slice (the octaves are asked
+/// for together, so they may be evaluated side by side, [`super::fit::Problem::costs_at`]).
+/// Returns the lowest cost seen and its offset; `None` if no octave gives a finite cost.
+fn octave_search(costs_at: impl Fn(&[f64]) -> Vec<f64>) -> Option<(f64, f64)> {
+    let cost = |o: f64| costs_at(&[o])[0];
+    let costs: Vec<f64> = costs_at(&OCTAVES);
     let b = (0..costs.len())
         .filter(|&i| costs[i].is_finite())
         .min_by(|&i, &j| costs[i].total_cmp(&costs[j]))?;
@@ -1173,7 +1187,10 @@ fn octave_search(cost: impl Fn(f64) -> f64) -> Option<(f64, f64)> {
     let mut best = (costs[b], OCTAVES[b]);
     let r = 0.5 * (5f64.sqrt() - 1.0);
     let (mut a, mut c) = (hi - r * (hi - lo), lo + r * (hi - lo));
-    let (mut fa, mut fc) = (cost(a), cost(c));
+    let (mut fa, mut fc) = match costs_at(&[a, c])[..] {
+        [fa, fc] => (fa, fc),
+        _ => unreachable!("one cost per offset"),
+    };
     for _ in 0..GOLDEN_STEPS {
         if fa < fc {
             (hi, c, fc) = (c, a, fa);

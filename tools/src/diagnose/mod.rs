@@ -641,7 +641,7 @@ pub fn diagnose(
         d.assumptions.extend(saturated);
         return Ok(d);
     }
-    // both readings of the drive between samples, side by side (a diagnosis runs on one core)
+    // both readings of the drive between samples, side by side
     progress.note(
         "the drive between samples is read both ways (piecewise linear, smooth); the recordings choose",
     );
@@ -649,6 +649,8 @@ pub fn diagnose(
         calib: su.calib.with_reading(sim::DriveReading::FourthOrder),
         ..su.clone()
     };
+    // the second reading takes the spare core, so the Jacobians of both run on their own
+    let _core = crate::numeric::cores::take();
     let (linear, smooth) = std::thread::scope(|s| {
         let other = s.spawn(|| {
             diagnose_with(

@@ -1245,10 +1245,16 @@ thread_local! {
 }
 
 /// Samples [`predict`] has simulated on the calling thread so far: the work a diagnosis has
-/// done, counted in the budget's unit (one diagnosis runs on one thread,
-/// [`super::forward::Budget`]).
+/// done, counted in the budget's unit (one diagnosis runs on one thread and counts what a
+/// helper thread simulated for it, [`add_simulated_samples`]; [`super::forward::Budget`]).
 pub fn simulated_samples() -> u64 {
     SIMULATED_SAMPLES.with(|c| c.get())
+}
+
+/// Counts `n` samples simulated for the calling thread by a helper thread
+/// ([`super::fit::Problem::whitened_batch`]).
+pub fn add_simulated_samples(n: u64) {
+    SIMULATED_SAMPLES.with(|c| c.set(c.get() + n));
 }
 
 /// Predicts the channels of `d` with parameters `p`. `cache` keeps the last structural model.

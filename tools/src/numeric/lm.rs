@@ -121,6 +121,8 @@ struct Adapter<'f, F> {
     f: &'f F,
     /// Analytic Jacobian; finite differences of `opts` when `None`.
     jac: Option<JacobianFn<'f>>,
+    /// Evaluates a finite-difference Jacobian's points at once when given.
+    batch: Option<BatchFn<'f>>,
     opts: &'f LmOptions,
     x: DVector<f64>,
     evaluations: Cell<usize>,
@@ -179,20 +181,75 @@ impl<F: Fn(&DVector<f64>) -> Option<DVector<f64>>> LeastSquaresProblem<f64, Dyn,
             return jac(&self.x);
         }
         let x = self.x.clone();
-        fd_jacobian(&|y: &DVector<f64>| self.eval(y), &x, &r0, self.opts)
+        match self.batch {
+            Some(batch) => self.batched_jacobian(batch, &x, &r0),
+            None => fd_jacobian(&|y: &DVector<f64>| self.eval(y), &x, &r0, self.opts),
+        }
     }
 }
 
-/// Finite-difference Jacobian of `f` at `x` (residual `r0` there), steps and scheme of `opts`;
-/// a step that would leave the bounds is taken the other way; the columns of `opts.inert`
-/// parameters are zero, not evaluated. `None` if an evaluation fails.
-pub fn fd_jacobian(
-    f: &dyn Fn(&DVector<f64>) -> Option<DVector<f64>>,
-    x: &DVector<f64>,
-    r0: &DVector<f64>,
-    opts: &LmOptions,
-) -> Option<DMatrix<f64>> {
-    let mut j = DMatrix::zeros(r0.len(), x.len());
+impl<F: Fn(&DVector<f64>) -> Option<DVector<f64>>> Adapter<'_, F> {
+    /// The finite-difference Jacobian with its points evaluated by one call of `batch`, counted
+    /// as one after the other would count them; one after the other when the budget ends
+    /// inside it (so where it stops is the same).
+    fn batched_jacobian(
+        &self,
+        batch: BatchFn<'_>,
+        x: &DVector<f64>,
+        r0: &DVector<f64>,
+    ) -> Option<DMatrix<f64>> {
+        let before = self.evaluations.get();
+        if before + fd_point_count(x.len(), self.opts) > self.opts.max_evaluations {
+            return fd_jacobian(&|y: &DVector<f64>| self.eval(y), x, r0, self.opts);
+        }
+        let checked = |xs: &[DVector<f64>]| -> Vec<Option<DVector<f64>>> {
+            let projected: Vec<DVector<f64>> =
+                xs.iter().map(|x| project(x, &self.opts.bounds)).collect();
+            batch(&projected)
+                .into_iter()
+                .map(|r| r.filter(|r| r.iter().all(|v| v.is_finite())))
+                .collect()
+        };
+        match fd_jacobian_batched(&checked, x, r0, self.opts) {
+            Ok(j) => {
+                self.evaluations
+                    .set(before + fd_point_count(x.len(), self.opts));
+                Some(j)
+            }
+            Err(used) => {
+                self.evaluations.set(before + used);
+                None
+            }
+        }
+    }
+}
+
+/// Evaluations of one finite-difference Jacobian over `n` parameters ([`fd_columns`]).
+fn fd_point_count(n: usize, opts: &LmOptions) -> usize {
+    let per_column = match opts.difference {
+        Difference::Forward => 1,
+        Difference::Central => 2,
+    };
+    per_column
+        * (0..n)
+            .filter(|&i| !opts.inert.get(i).copied().unwrap_or(false))
+            .count()
+}
+
+/// The evaluations one column of a finite-difference Jacobian needs ([`fd_columns`]).
+struct FdColumn {
+    /// Column of the Jacobian.
+    index: usize,
+    /// x + h e_i, and for central differences x − h e_i after it.
+    points: Vec<DVector<f64>>,
+    /// Divisor of the difference: h (forward) or 2h (central).
+    step: f64,
+}
+
+/// The columns a finite-difference Jacobian at `x` evaluates, in order: every column not marked
+/// inert; a step that would leave the bounds is taken the other way.
+fn fd_columns(x: &DVector<f64>, opts: &LmOptions) -> Vec<FdColumn> {
+    let mut columns = Vec::new();
     for i in 0..x.len() {
         if opts.inert.get(i).copied().unwrap_or(false) {
             continue;
@@ -205,21 +262,82 @@ pub fn fd_jacobian(
         }
         let mut xp = x.clone();
         xp[i] += h;
-        // written straight into the column: the same (r₊ − r₀) / h, without the temporaries
-        let (plus, minus, step) = match opts.difference {
-            Difference::Forward => (f(&xp)?, None, h),
+        let (points, step) = match opts.difference {
+            Difference::Forward => (vec![xp], h),
             Difference::Central => {
                 let mut xm = x.clone();
                 xm[i] -= h;
-                (f(&xp)?, Some(f(&xm)?), 2.0 * h)
+                (vec![xp, xm], 2.0 * h)
             }
         };
-        let base = minus.as_ref().unwrap_or(r0);
-        for ((jk, p), b) in j.column_mut(i).iter_mut().zip(plus.iter()).zip(base.iter()) {
-            *jk = (p - b) / step;
-        }
+        columns.push(FdColumn {
+            index: i,
+            points,
+            step,
+        });
+    }
+    columns
+}
+
+/// Writes (r₊ − r₀)/h (forward) or (r₊ − r₋)/2h (central) into column `c` of `j`, from the
+/// residuals at the column's points in order.
+fn write_column(j: &mut DMatrix<f64>, c: &FdColumn, values: &[DVector<f64>], r0: &DVector<f64>) {
+    let base = values.get(1).unwrap_or(r0);
+    for ((jk, p), b) in j
+        .column_mut(c.index)
+        .iter_mut()
+        .zip(values[0].iter())
+        .zip(base.iter())
+    {
+        *jk = (p - b) / c.step;
+    }
+}
+
+/// Finite-difference Jacobian of `f` at `x` (residual `r0` there), steps and scheme of `opts`;
+/// a step that would leave the bounds is taken the other way; the columns of `opts.inert`
+/// parameters are zero, not evaluated. `None` if an evaluation fails (none is made after it).
+pub fn fd_jacobian(
+    f: &dyn Fn(&DVector<f64>) -> Option<DVector<f64>>,
+    x: &DVector<f64>,
+    r0: &DVector<f64>,
+    opts: &LmOptions,
+) -> Option<DMatrix<f64>> {
+    let mut j = DMatrix::zeros(r0.len(), x.len());
+    for c in fd_columns(x, opts) {
+        let values = c.points.iter().map(f).collect::<Option<Vec<_>>>()?;
+        write_column(&mut j, &c, &values, r0);
     }
     Some(j)
+}
+
+/// Residuals at several points at once, in order (`None` where one cannot be evaluated): the
+/// caller may spread them over threads. Its results must be those of the residual closure at
+/// the same points.
+pub type BatchFn<'f> = &'f dyn Fn(&[DVector<f64>]) -> Vec<Option<DVector<f64>>>;
+
+/// [`fd_jacobian`] with every point evaluated by one call of `batch` (which may spread them over
+/// threads): the same Jacobian. `None` if an evaluation fails, with the number of evaluations
+/// one after the other would have made up to and including the first failure.
+pub fn fd_jacobian_batched(
+    batch: BatchFn<'_>,
+    x: &DVector<f64>,
+    r0: &DVector<f64>,
+    opts: &LmOptions,
+) -> Result<DMatrix<f64>, usize> {
+    let columns = fd_columns(x, opts);
+    let points: Vec<DVector<f64>> = columns.iter().flat_map(|c| c.points.clone()).collect();
+    let mut values = batch(&points).into_iter();
+    let mut j = DMatrix::zeros(r0.len(), x.len());
+    let mut used: usize = 0;
+    for c in &columns {
+        let mut v = Vec::with_capacity(c.points.len());
+        for _ in &c.points {
+            used += 1;
+            v.push(values.next().flatten().ok_or(used)?);
+        }
+        write_column(&mut j, c, &v, r0);
+    }
+    Ok(j)
 }
 
 /// Minimises Σ r(x)² from `x0` (module docs). The closure is called with parameters projected
@@ -229,7 +347,22 @@ pub fn minimize<F>(f: &F, x0: DVector<f64>, opts: &LmOptions) -> LmOutcome
 where
     F: Fn(&DVector<f64>) -> Option<DVector<f64>>,
 {
-    minimize_inner(f, None, x0, opts)
+    minimize_inner(f, None, None, x0, opts)
+}
+
+/// [`minimize`] whose finite-difference Jacobians evaluate their points with one call of
+/// `batch` (e.g. spread over threads). `batch` must give what `f` gives at the same points; the
+/// minimisation, its evaluation count and its result are then those of [`minimize`].
+pub fn minimize_batched<F>(
+    f: &F,
+    batch: BatchFn<'_>,
+    x0: DVector<f64>,
+    opts: &LmOptions,
+) -> LmOutcome
+where
+    F: Fn(&DVector<f64>) -> Option<DVector<f64>>,
+{
+    minimize_inner(f, None, Some(batch), x0, opts)
 }
 
 /// [`minimize`] with an analytic Jacobian `jac` instead of finite differences (`opts.steps` and
@@ -243,12 +376,13 @@ pub fn minimize_with_jacobian<F>(
 where
     F: Fn(&DVector<f64>) -> Option<DVector<f64>>,
 {
-    minimize_inner(f, Some(jac), x0, opts)
+    minimize_inner(f, Some(jac), None, x0, opts)
 }
 
 fn minimize_inner<F>(
     f: &F,
     jac: Option<JacobianFn<'_>>,
+    batch: Option<BatchFn<'_>>,
     x0: DVector<f64>,
     opts: &LmOptions,
 ) -> LmOutcome
@@ -259,6 +393,7 @@ where
     let adapter = Adapter {
         f,
         jac,
+        batch,
         opts,
         x: x0.clone(),
         evaluations: Cell::new(0),
@@ -533,6 +668,66 @@ mod tests {
         let r0 = f(&plain.x).unwrap();
         let j = fd_jacobian(&f, &plain.x, &r0, &opts).unwrap();
         assert_eq!(j.column(1).norm(), 0.0);
+    }
+
+    #[test]
+    fn a_batched_jacobian_gives_the_same_minimisation_to_the_bit() {
+        // exp(−k t) + c, 3 parameters, bounded; the batch evaluates its points on two threads,
+        // the second half first, and must change nothing: not the path, not the count, not
+        // where a budget that ends inside a Jacobian stops
+        let t: Vec<f64> = (0..40).map(|i| 0.1 * i as f64).collect();
+        let y: Vec<f64> = t.iter().map(|t| 1.7 * (-0.8 * t).exp() + 0.3).collect();
+        let f = |x: &DVector<f64>| {
+            Some(DVector::from_iterator(
+                t.len(),
+                t.iter()
+                    .zip(&y)
+                    .map(|(t, y)| x[0] * (-x[1] * t).exp() + x[2] - y),
+            ))
+        };
+        let batch = |xs: &[DVector<f64>]| -> Vec<Option<DVector<f64>>> {
+            let (a, b) = xs.split_at(xs.len() / 2);
+            std::thread::scope(|s| {
+                let later = s.spawn(|| b.iter().map(f).collect::<Vec<_>>());
+                let mut out: Vec<_> = a.iter().map(f).collect();
+                out.extend(later.join().unwrap());
+                out
+            })
+        };
+        let x0 = DVector::from_vec(vec![1.0, 0.3, 0.0]);
+        for difference in [Difference::Forward, Difference::Central] {
+            for max_evaluations in [usize::MAX, 23, 24, 25] {
+                let opts = LmOptions {
+                    difference,
+                    max_evaluations,
+                    bounds: Some((vec![0.0, 0.0, -1.0], vec![5.0, 0.81, 1.0])),
+                    ..LmOptions::new(vec![1e-6; 3])
+                };
+                let plain = minimize(&f, x0.clone(), &opts);
+                let batched = minimize_batched(&f, &batch, x0.clone(), &opts);
+                let bits = |v: &DVector<f64>| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(
+                    bits(&plain.x),
+                    bits(&batched.x),
+                    "{difference:?} {max_evaluations}"
+                );
+                assert_eq!(plain.cost.to_bits(), batched.cost.to_bits());
+                assert_eq!(plain.evaluations, batched.evaluations);
+                assert_eq!(plain.termination, batched.termination);
+            }
+        }
+        // a point that cannot be evaluated counts as one after the other would count it
+        let refuse_second = |xs: &[DVector<f64>]| -> Vec<Option<DVector<f64>>> {
+            xs.iter()
+                .enumerate()
+                .map(|(i, x)| (i != 1).then(|| f(x).unwrap()))
+                .collect()
+        };
+        let r0 = f(&x0).unwrap();
+        let opts = LmOptions::new(vec![1e-6; 3]);
+        assert_eq!(fd_jacobian_batched(&refuse_second, &x0, &r0, &opts), Err(2));
+        let j = fd_jacobian(&f, &x0, &r0, &opts).unwrap();
+        assert_eq!(fd_jacobian_batched(&batch, &x0, &r0, &opts), Ok(j));
     }
 
     #[test]

@@ -3,10 +3,12 @@
 //! - [`lm`]: the one Levenberg–Marquardt adapter (residual closure, bounds, finite-difference
 //!   Jacobian, a deterministic evaluation budget, covariance at the optimum) over the
 //!   `levenberg-marquardt` crate;
+//! - [`cores`]: the machine's spare cores, lent to work that can run beside its thread;
 //! - [`stats`]: likelihood, information criterion and whiteness statistics;
 //! - [`arx`]: a physics-free linear correction of a residual (least squares on lagged inputs),
 //!   the yardstick of the diagnosis' model-form allowance.
 
 pub mod arx;
+pub mod cores;
 pub mod lm;
 pub mod stats;
