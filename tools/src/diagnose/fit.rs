@@ -334,15 +334,7 @@ impl<'a> Problem<'a> {
         let k = self.data.len().div_ceil(2);
         let (d1, d2) = self.data.split_at(k);
         let (c1, c2) = caches.split_at_mut(k);
-        let (first, second) = std::thread::scope(|s| {
-            let other = s.spawn(|| {
-                let start = super::sim::simulated_samples();
-                let r = run(d2, c2);
-                (r, super::sim::simulated_samples() - start)
-            });
-            (run(d1, c1), other.join())
-        });
-        let (second, simulated) = second.unwrap_or_else(|e| std::panic::resume_unwind(e));
+        let (first, second, simulated) = beside(|| run(d1, c1), || run(d2, c2));
         let mut out = first?;
         super::sim::add_simulated_samples(simulated);
         out.extend(second?);
@@ -361,16 +353,13 @@ impl<'a> Problem<'a> {
         };
         let (first, second) = xs.split_at(xs.len().div_ceil(2));
         let fork = self.fork();
-        let (mut mine, theirs) = std::thread::scope(|s| {
-            let other = s.spawn(move || {
-                let start = super::sim::simulated_samples();
+        let (mut mine, (theirs, fork), simulated) = beside(
+            || first.iter().map(|x| self.whitened(x)).collect::<Vec<_>>(),
+            move || {
                 let v: Vec<DVector<f64>> = second.iter().map(|x| fork.whitened(x)).collect();
-                (v, fork, super::sim::simulated_samples() - start)
-            });
-            let mine: Vec<DVector<f64>> = first.iter().map(|x| self.whitened(x)).collect();
-            (mine, other.join())
-        });
-        let (theirs, fork, simulated) = theirs.unwrap_or_else(|e| std::panic::resume_unwind(e));
+                (v, fork)
+            },
+        );
         super::sim::add_simulated_samples(simulated);
         *self.evaluations.borrow_mut() += fork.evaluations.into_inner();
         for why in fork.refusals.into_inner() {
@@ -762,6 +751,22 @@ fn start_grid(
         }
     }
     distinct
+}
+
+/// `here()` on the calling thread and `there()` on a thread beside it, at once; also the
+/// samples `there` simulated ([`super::sim::simulated_samples`] counts per thread; the caller
+/// decides what of it to count as its own). A panic beside is resumed here.
+fn beside<A, B: Send>(here: impl FnOnce() -> A, there: impl FnOnce() -> B + Send) -> (A, B, u64) {
+    let (a, b) = std::thread::scope(|s| {
+        let other = s.spawn(|| {
+            let start = super::sim::simulated_samples();
+            let b = there();
+            (b, super::sim::simulated_samples() - start)
+        });
+        (here(), other.join())
+    });
+    let (b, simulated) = b.unwrap_or_else(|e| std::panic::resume_unwind(e));
+    (a, b, simulated)
 }
 
 /// Residuals of one recording: its samples × recorded channels.

@@ -199,7 +199,11 @@ impl<F: Fn(&DVector<f64>) -> Option<DVector<f64>>> Adapter<'_, F> {
         r0: &DVector<f64>,
     ) -> Option<DMatrix<f64>> {
         let before = self.evaluations.get();
-        if before + fd_point_count(x.len(), self.opts) > self.opts.max_evaluations {
+        let needed: usize = fd_columns(x, self.opts)
+            .iter()
+            .map(|c| c.points.len())
+            .sum();
+        if before + needed > self.opts.max_evaluations {
             return fd_jacobian(&|y: &DVector<f64>| self.eval(y), x, r0, self.opts);
         }
         let checked = |xs: &[DVector<f64>]| -> Vec<Option<DVector<f64>>> {
@@ -212,8 +216,7 @@ impl<F: Fn(&DVector<f64>) -> Option<DVector<f64>>> Adapter<'_, F> {
         };
         match fd_jacobian_batched(&checked, x, r0, self.opts) {
             Ok(j) => {
-                self.evaluations
-                    .set(before + fd_point_count(x.len(), self.opts));
+                self.evaluations.set(before + needed);
                 Some(j)
             }
             Err(used) => {
@@ -222,18 +225,6 @@ impl<F: Fn(&DVector<f64>) -> Option<DVector<f64>>> Adapter<'_, F> {
             }
         }
     }
-}
-
-/// Evaluations of one finite-difference Jacobian over `n` parameters ([`fd_columns`]).
-fn fd_point_count(n: usize, opts: &LmOptions) -> usize {
-    let per_column = match opts.difference {
-        Difference::Forward => 1,
-        Difference::Central => 2,
-    };
-    per_column
-        * (0..n)
-            .filter(|&i| !opts.inert.get(i).copied().unwrap_or(false))
-            .count()
 }
 
 /// The evaluations one column of a finite-difference Jacobian needs ([`fd_columns`]).
