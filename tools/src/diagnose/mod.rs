@@ -125,6 +125,10 @@ pub struct Diagnosis {
     /// ([`effects::calibration_unidentified`]; `None`: identified). Reported in place of its
     /// value.
     pub calibration_unidentified: Vec<Option<String>>,
+    /// The same judgement of the calibration refitted with the named effects (the first
+    /// parameters of `final_fit`): a damping ratio the joint fit drives out of the applied
+    /// range is reported as not identified, not as a number.
+    pub final_calibration_unidentified: Vec<Option<String>>,
     /// Channel noise scales σ used for whitening.
     pub sigma: [f64; 3],
     /// Location of the discrepancy.
@@ -942,6 +946,7 @@ fn conclude(
     let drive_reading = ReadingChoice::of(ctx, &reference);
     Diagnosis {
         calibration_unidentified: unidentified_calibration(ctx.calib, &cal),
+        final_calibration_unidentified: unidentified_calibration(ctx.calib, &reference.fit),
         effect: chosen
             .first()
             .map_or_else(|| "none".to_string(), |&k| cands[k].id.to_string()),

@@ -261,31 +261,46 @@ fn per_channel_json(d: &Diagnosis) -> Map<String, Value> {
 /// `calibration` entry is that of the nominal model, which may have absorbed the effects.
 /// Each identified parameter also carries its effective degrees of freedom (`null`: infinite)
 /// and the half-width of its 95 % interval, t₀.₉₇₅(ν) σ, as the effects' parameters do.
-/// Parameters the nominal calibration does not identify are `null`.
+/// A parameter that either the nominal or the final fit does not identify
+/// ([`super::effects::calibration_unidentified`]) has `null` values, `identified: false` and
+/// the reason (the final fit's first): e.g. a damping ratio the joint fit drove out of the
+/// range the model applies.
 fn final_calibration_json(d: &Diagnosis) -> Map<String, Value> {
     let finite_or_null = |x: f64| if x.is_finite() { json!(x) } else { Value::Null };
     let mut out = Map::new();
     for (i, name) in d.calibration.names.iter().enumerate() {
-        let identified = d
-            .calibration_unidentified
-            .get(i)
-            .cloned()
-            .flatten()
-            .is_none();
-        let (v, s) = (d.final_fit.values.get(i), d.final_fit.std.get(i));
-        let entry = match (identified, v, s) {
-            (true, Some(&v), Some(&s)) => {
+        let entry = match (final_calibration_at(d, i), final_calibration_unidentified(d, i)) {
+            (Some((v, s)), None) => {
                 let dof = d.honesty.degrees_of_freedom.get(i).copied();
                 let r = Reported::new(name, v, s, dof.unwrap_or(f64::INFINITY));
-                json!({"value": v, "std": s, "degrees_of_freedom": finite_or_null(r.dof),
+                json!({"value": v, "std": s, "identified": true,
+                       "degrees_of_freedom": finite_or_null(r.dof),
                        "expanded_uncertainty_95": finite_or_null(r.u95())})
             }
-            _ => json!({"value": Value::Null, "std": Value::Null,
+            (_, reason) => json!({"value": Value::Null, "std": Value::Null, "identified": false,
+                        "reason": reason.unwrap_or_else(|| "not in the final model".into()),
                         "degrees_of_freedom": Value::Null, "expanded_uncertainty_95": Value::Null}),
         };
         out.insert((*name).into(), entry);
     }
     out
+}
+
+/// Value and 1 σ of calibration parameter `i` (nominal order) in the final fit, looked up by
+/// name.
+fn final_calibration_at(d: &Diagnosis, i: usize) -> Option<(f64, f64)> {
+    let name = d.calibration.names.get(i)?;
+    let k = d.final_fit.names.iter().position(|n| n == name)?;
+    Some((*d.final_fit.values.get(k)?, *d.final_fit.std.get(k)?))
+}
+
+/// Why calibration parameter `i` is not identified in the final model (the final fit's
+/// reason first, then the nominal fit's); `None` when both identify it.
+fn final_calibration_unidentified(d: &Diagnosis, i: usize) -> Option<String> {
+    let reason = |v: &[Option<String>]| v.get(i).cloned().flatten();
+    reason(&d.final_calibration_unidentified).or_else(|| {
+        reason(&d.calibration_unidentified).map(|r| format!("in the nominal calibration: {r}"))
+    })
 }
 
 /// The JSON report (`effect`, `parameters`, `validation`, `candidates` as the issue specifies,
@@ -398,8 +413,12 @@ fn effects_words(d: &Diagnosis) -> String {
             s += &format!("  orientation = {or}\n");
         }
         for r in p {
+            if !r.std.is_finite() {
+                s += &format!("  {} = {:.5e} ({})\n", r.name, r.value, undefined_std(d, *id, r));
+                continue;
+            }
             s += &format!("  {} = {:.5e} ± {:.2e}", r.name, r.value, r.std);
-            if r.dof.is_finite() && r.std.is_finite() {
+            if r.dof.is_finite() {
                 s += &format!(
                     " (95 % interval ± {:.2e}: {:.1} degrees of freedom, the fit recordings disagree beyond noise)",
                     r.u95(),
@@ -430,6 +449,34 @@ fn effects_words(d: &Diagnosis) -> String {
         if let Some(l) = &o.look_alike {
             s += &format!("  {}\n", l.words);
         }
+    }
+    if !fe.is_empty() {
+        s += &final_calibration_words(d);
+    }
+    s
+}
+
+/// Why effect parameter `r` of `id` has no 1 σ, in words.
+fn undefined_std(d: &Diagnosis, id: Effect, r: &Reported) -> &'static str {
+    let eid = id.to_string();
+    if d.honesty.at_bound.iter().any(|(e, p)| *e == eid && *p == r.name) {
+        "at the end of its search range, 1 σ undefined: the recordings ask for no more of it"
+    } else {
+        "1 σ undefined: the recordings do not determine it"
+    }
+}
+
+/// The calibration refitted with the named effects, in words (see [`final_calibration_json`]).
+fn final_calibration_words(d: &Diagnosis) -> String {
+    let mut s = String::from("Calibration refitted with the named effects:\n");
+    for (i, name) in d.calibration.names.iter().enumerate() {
+        s += &match (final_calibration_at(d, i), final_calibration_unidentified(d, i)) {
+            (Some((v, sd)), None) => format!("  {name} = {v:.5} ± {sd:.2e}\n"),
+            (_, reason) => format!(
+                "  {name} = not identified ({})\n",
+                reason.unwrap_or_else(|| "not in the final model".into())
+            ),
+        };
     }
     s
 }
