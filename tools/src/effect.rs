@@ -153,10 +153,6 @@ impl Effect {
                     "PID loop (order 3–4): integral pole / pole-pair frequency ω (1)",
                 ),
                 p!(
-                    "servo_setpoint_weight",
-                    "PID loop (order 3–4): proportional setpoint weight b, K_p (b r − y) (1)",
-                ),
-                p!(
                     "servo_force_lag_ratio",
                     "order-4 loop: drive-force lag time constant × pole-pair frequency ω (1)",
                 ),
@@ -398,7 +394,6 @@ mod tests {
             "_kg_per_m2",
             "_ratio",
             "_ff",
-            "_weight",
             "_per_nm3",
             "sensor_gain",
         ];

@@ -311,8 +311,8 @@ pub fn apply_calibration(calib: &Calib, values: &[f64], p: &mut Params) {
 
 /// The `servo_lag` candidate of one order of the command → base transfer function
 /// ([`super::sim::ServoLaw`]) with velocity and acceleration feed-forward, for recordings at
-/// `rate_hz`: order 1 (bandwidth, k_v), 2 (+ damping ratio, k_a), 3 (+ integral pole ratio α
-/// and proportional setpoint weight b), 4 (+ drive-force lag ratio β).
+/// `rate_hz`: order 1 (bandwidth, k_v), 2 (+ damping ratio, k_a), 3 (+ integral pole ratio α),
+/// 4 (+ drive-force lag ratio β).
 pub fn servo_candidate(order: usize, rate_hz: f64) -> Candidate {
     let f0 = rate_hz;
     let mut params = vec![def(
@@ -352,14 +352,6 @@ pub fn servo_candidate(order: usize, rate_hz: f64) -> Candidate {
             "servo_integral_ratio",
             Transform::Bounded(0.0, 3.0),
             vec![0.3],
-            1.0,
-            false,
-        ));
-        // 1 the parallel PID; a cascade without velocity feed-forward is 0.5–0.9
-        params.push(def(
-            "servo_setpoint_weight",
-            Transform::Bounded(0.0, 1.5),
-            vec![1.0],
             1.0,
             false,
         ));
@@ -817,7 +809,6 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
             );
             p.servo_integral_ratio = get("servo_integral_ratio").unwrap_or(0.0);
             p.servo_force_lag_ratio = get("servo_force_lag_ratio").unwrap_or(0.0);
-            p.servo_setpoint_weight = get("servo_setpoint_weight").unwrap_or(1.0);
             p.servo_order = if get("servo_force_lag_ratio").is_some() {
                 4
             } else if get("servo_integral_ratio").is_some() {

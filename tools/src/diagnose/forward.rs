@@ -1733,17 +1733,11 @@ pub(crate) fn split_change(rho: f64) -> f64 {
 }
 
 /// The model-form allowance of channel `c` for `k` parameters: what the physics-free correction
-/// earns on `base`'s validation residual, or its split-refit spread if larger. When no set of
-/// `k` columns can be solved (the dictionary has rank below k: on `base_pos_m`, a model without
-/// a loop predicts the base as the command, so the predicted base and the command are the same
-/// columns), a correction of k parameters is one of fewer: the largest solvable size stands.
-/// Before session 38 it counted 0, and a loop form of five parameters or more escaped the
-/// allowance its smaller forms were held to (real axis LinA: order 3 passed at 34.5 % where
-/// order 2, the same fit, was held to 36.1 %).
+/// earns on `base`'s validation residual, or its split-refit spread if larger.
 pub(crate) fn allowance(base: &Reference, c: usize, k: usize) -> f64 {
     base.generic[c]
         .as_ref()
-        .and_then(|(fit_ne, val_ne)| arx::best_correction_of_size(fit_ne, val_ne, k))
+        .and_then(|(fit_ne, val_ne)| arx::best_correction(fit_ne, val_ne, k))
         .map_or(0.0, |g| g.val_reduction())
         .max(base.split[c])
 }

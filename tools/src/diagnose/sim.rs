@@ -68,9 +68,6 @@ pub struct Params {
     pub servo_integral_ratio: f64,
     /// Drive-force lag of an order-4 loop (current loop, digital delay): time constant β/ω_s.
     pub servo_force_lag_ratio: f64,
-    /// Proportional setpoint weight b of a PID loop (order ≥ 3): its proportional term acts on
-    /// `b r − y` ([`ServoLaw`]; 1 the parallel PID).
-    pub servo_setpoint_weight: f64,
     /// Tip mass (kg).
     pub tip_mass_kg: f64,
     /// Root rotational stiffness (N·m/rad).
@@ -180,7 +177,6 @@ impl Default for Params {
             servo_order: 2,
             servo_integral_ratio: 0.0,
             servo_force_lag_ratio: 0.0,
-            servo_setpoint_weight: 1.0,
             tip_mass_kg: 0.0,
             root_stiffness_nm_per_rad: None,
             spring_position_m: 0.0,
@@ -643,16 +639,11 @@ pub fn pole_pair_ratio(zeta: f64, integral_ratio: f64) -> f64 {
 /// transfer function of a rigid carriage (and, coupled, with the beam pushing back):
 /// - order 1: a first-order lag with velocity feed-forward, `ẏ = k_v ṙ + ω (r − y)`;
 /// - order 2: PD with feed-forward, poles `s² + 2ζωs + ω²` ([`second_order`], [`coupled_servo`]);
-/// - order 3: PID with feed-forward and a proportional setpoint weight b,
-///   `F/M = k_a r̈ + K_d (k_v ṙ − ẏ) + K_p (b r − y) + K_i ∫(r − y)`
+/// - order 3: PID with feed-forward, `F/M = k_a r̈ + K_d (k_v ṙ − ẏ) + K_p (r − y) + K_i ∫(r − y)`
 ///   with the rigid closed-loop poles `(s² + 2ζωs + ω²)(s + αω)`: `K_d = (2ζ + α)ω`,
 ///   `K_p = (1 + 2ζα)ω²`, `K_i = αω³` (α → 0 is the PD loop); the fitted bandwidth is the
 ///   natural frequency ω_n = √K_p = ω√(1 + 2ζα) ([`ServoLaw::natural_frequency_rad_s`]), the
-///   quantity a PID tuned for a bandwidth sets, so α and ζ shape the loop without moving it.
-///   b = 1 is the parallel PID; b < 1 is the two-degree-of-freedom PID (Åström & Hägglund,
-///   *Advanced PID Control*, 2006, §3.4) and with it the cascade most drives run, a P position
-///   loop around a PI velocity loop of bandwidth ω_v: without velocity feed-forward its
-///   integral acts on −y but not on r, which is b = 1 − ω_v²/(4 K_p) of this form;
+///   quantity a PID tuned for a bandwidth sets, so α and ζ shape the loop without moving it;
 /// - order 4: the order-3 loop whose drive force follows its command through a first-order lag
 ///   of time constant β/ω (current loop, digital computation delay): `τ Ḟ = F_c − F`.
 ///
@@ -673,8 +664,6 @@ pub struct ServoLaw {
     pub integral_ratio: f64,
     /// β (order 4).
     pub force_lag_ratio: f64,
-    /// Proportional setpoint weight b (orders ≥ 3; 1 below).
-    pub setpoint_weight: f64,
 }
 
 impl ServoLaw {
@@ -697,11 +686,6 @@ impl ServoLaw {
             ff: p.servo_ff,
             integral_ratio,
             force_lag_ratio: p.servo_force_lag_ratio.max(0.0),
-            setpoint_weight: if order >= 3 {
-                p.servo_setpoint_weight
-            } else {
-                1.0
-            },
         })
     }
 
@@ -720,8 +704,8 @@ impl ServoLaw {
 
     /// Largest gain |Y/R(jω)| of the command → base transfer function for a rigid load
     /// (the struct's header; order 1 `(k_v s + ω)/(s + ω)`, orders 2–4
-    /// `(k_a s³ + K_d k_v s² + b K_p s + K_i) / (τ s⁴ + s³ + K_d s² + K_p s + K_i)` with K_i = 0,
-    /// b = 1 and τ = 0 below order 3 and 4), over 0.01–100 × ω on a log grid of 801 points. A tuned loop
+    /// `(k_a s³ + K_d k_v s² + K_p s + K_i) / (τ s⁴ + s³ + K_d s² + K_p s + K_i)` with K_i = 0 and
+    /// τ = 0 below order 3 and 4), over 0.01–100 × ω on a log grid of 801 points. A tuned loop
     /// peaks at 1–1.3; the plain second-order loop at ζ 0.3 at 1.75.
     pub fn peak_gain(&self) -> f64 {
         use nalgebra::Complex;
@@ -751,7 +735,7 @@ impl ServoLaw {
                 let h = if self.order == 1 {
                     (s * kv + w) / (s + w)
                 } else {
-                    (s * s * s * ka + s * s * (kd * kv) + s * (kp * self.setpoint_weight) + ki)
+                    (s * s * s * ka + s * s * (kd * kv) + s * kp + ki)
                         / (s * s * s * s * tau + s * s * s + s * s * kd + s * kp + ki)
                 };
                 h.norm()
@@ -854,7 +838,7 @@ impl ServoLaw {
         uc[0] = -kp;
         uc[1] = -kd;
         uc[ii] = ki;
-        uc[ri] = kp * self.setpoint_weight;
+        uc[ri] = kp;
         uc[vi] = kd * self.ff.0;
         let mut acc_row = vec![0.0; dim];
         if lag {
@@ -2050,83 +2034,6 @@ mod tests {
         assert!((same - 1.0).abs() < 1e-12, "{same}");
     }
 
-    /// The cascade most drives run (P position loop ω_p around a PI velocity loop ω_v with its
-    /// integral at ω_v/4, no feed-forward: the truth generator's loop, `truth::plant::Servo`)
-    /// is the order-3 form with b = ω_v ω_p / ω_n²: the same command → base response to
-    /// integration accuracy. With b = 1 (the parallel PID) it is not.
-    #[test]
-    fn the_cascade_without_feed_forward_is_the_pid_with_a_setpoint_weight() {
-        let pi2 = 2.0 * std::f64::consts::PI;
-        let (wp, wv) = (pi2 * 20.0, pi2 * 50.0);
-        // closed loop s³ + a2 s² + a1 s + a0 of the rigid cascade
-        let (a2, a1, a0) = (wv, wv * wp + 0.25 * wv * wv, 0.25 * wv * wv * wp);
-        // its real pole −αω by Newton, then the pair s² + c1 s + c0
-        let mut p = -a0 / a1;
-        for _ in 0..60 {
-            p -= (((p + a2) * p + a1) * p + a0) / ((3.0 * p + 2.0 * a2) * p + a1);
-        }
-        let (c1, c0) = (a2 + p, -a0 / p);
-        let omega = c0.sqrt();
-        let law = |b| ServoLaw {
-            order: 3,
-            omega,
-            zeta: c1 / (2.0 * omega),
-            ff: (0.0, 0.0),
-            integral_ratio: -p / omega,
-            force_lag_ratio: 0.0,
-            setpoint_weight: b,
-        };
-        assert!(
-            ((1.0 + 2.0 * law(1.0).zeta * law(1.0).integral_ratio) * omega * omega / a1 - 1.0)
-                .abs()
-                < 1e-9
-        );
-        // a 1 cm S-curve move and back, at 1 kHz
-        let dt = 1e-3;
-        let r: Vec<f64> = (0..800)
-            .map(|k| {
-                let t = k as f64 * dt;
-                let s = |t: f64| (t.clamp(0.0, 0.2) / 0.2 * std::f64::consts::PI).cos();
-                0.005 * (s(t - 0.1) - s(t - 0.5))
-            })
-            .collect();
-        // the cascade, r piecewise linear, RK4 at dt/50: state (y, ẏ, ∫ velocity error)
-        let f = |x: [f64; 3], r: f64| {
-            let ev = wp * (r - x[0]) - x[1];
-            [x[1], wv * ev + 0.25 * wv * wv * x[2], ev]
-        };
-        let (mut x, h) = ([0.0; 3], dt / 50.0);
-        let mut want = Vec::new();
-        for k in 0..r.len() {
-            want.push(x[0]);
-            let rn = *r.get(k + 1).unwrap_or(&r[k]);
-            for i in 0..50 {
-                let at = |u: f64| r[k] + (rn - r[k]) * u;
-                let u0 = i as f64 / 50.0;
-                let add = |a: [f64; 3], d: [f64; 3], c: f64| {
-                    [a[0] + c * d[0], a[1] + c * d[1], a[2] + c * d[2]]
-                };
-                let k1 = f(x, at(u0));
-                let k2 = f(add(x, k1, 0.5 * h), at(u0 + 0.01));
-                let k3 = f(add(x, k2, 0.5 * h), at(u0 + 0.01));
-                let k4 = f(add(x, k3, h), at(u0 + 0.02));
-                for j in 0..3 {
-                    x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
-                }
-            }
-        }
-        let err = |b: f64| {
-            let y = law(b).respond(&r, dt, None);
-            y.iter()
-                .zip(&want)
-                .map(|(a, w)| (a - w).abs())
-                .fold(0.0, f64::max)
-        };
-        let b = wv * wp / a1;
-        assert!(err(b) < 1e-9, "cascade as b = {b:.3}: {:.2e} m", err(b));
-        assert!(err(1.0) > 1e-5, "the parallel PID: {:.2e} m", err(1.0));
-    }
-
     #[test]
     fn a_loops_peak_gain_is_its_resonance() {
         let law = |order, zeta, ff, integral_ratio, force_lag_ratio| ServoLaw {
@@ -2136,7 +2043,6 @@ mod tests {
             ff,
             integral_ratio,
             force_lag_ratio,
-            setpoint_weight: 1.0,
         };
         // the plain second-order loop: 1 / (2ζ√(1 − ζ²)) at ζ = 0.3
         let z = 0.3f64;
@@ -2537,7 +2443,6 @@ mod tests {
             ff: (0.9, 0.5),
             integral_ratio: al,
             force_lag_ratio: be,
-            setpoint_weight: 1.0,
         };
         let maxdiff = |a: &[f64], b: &[f64]| {
             a.iter()

@@ -402,7 +402,6 @@ impl Draft {
                     "servo_bandwidth_hz",
                     self.plant.servo.natural_frequency_hz(),
                 );
-                self.put("servo_setpoint_weight", self.plant.servo.setpoint_weight());
             }
         }
     }

@@ -117,19 +117,6 @@ impl Servo {
         let (fp, fv) = (self.position_bandwidth_hz, self.velocity_bandwidth_hz);
         (fv * fp + 0.25 * fv * fv).sqrt()
     }
-
-    /// The cascade as the diagnosis' PID form states it, its proportional setpoint weight b
-    /// (`diagnose::sim::ServoLaw`, `servo_setpoint_weight`): the loop's proportional term
-    /// `K_p (b r − y)` with K_p = M ω_n². With velocity feed-forward the velocity integral acts
-    /// on `ω_p(r − y) + ṙ − ẏ`, whose `ṙ − ẏ` integrates to r − y: b = 1; without, it acts on
-    /// −y alone: b = ω_v ω_p / ω_n² (0.62 at ω_v = 2.5 ω_p).
-    pub fn setpoint_weight(&self) -> f64 {
-        if self.feedforward {
-            return 1.0;
-        }
-        let (fp, fv) = (self.position_bandwidth_hz, self.velocity_bandwidth_hz);
-        fv * fp / self.natural_frequency_hz().powi(2)
-    }
 }
 
 /// Sensor models.
