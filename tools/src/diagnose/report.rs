@@ -269,7 +269,10 @@ fn final_calibration_json(d: &Diagnosis) -> Map<String, Value> {
     let finite_or_null = |x: f64| if x.is_finite() { json!(x) } else { Value::Null };
     let mut out = Map::new();
     for (i, name) in d.calibration.names.iter().enumerate() {
-        let entry = match (final_calibration_at(d, i), final_calibration_unidentified(d, i)) {
+        let entry = match (
+            final_calibration_at(d, i),
+            final_calibration_unidentified(d, i),
+        ) {
             (Some((v, s)), None) => {
                 let dof = d.honesty.degrees_of_freedom.get(i).copied();
                 let r = Reported::new(name, v, s, dof.unwrap_or(f64::INFINITY));
@@ -414,7 +417,12 @@ fn effects_words(d: &Diagnosis) -> String {
         }
         for r in p {
             if !r.std.is_finite() {
-                s += &format!("  {} = {:.5e} ({})\n", r.name, r.value, undefined_std(d, *id, r));
+                s += &format!(
+                    "  {} = {:.5e} ({})\n",
+                    r.name,
+                    r.value,
+                    undefined_std(d, *id, r)
+                );
                 continue;
             }
             s += &format!("  {} = {:.5e} ± {:.2e}", r.name, r.value, r.std);
@@ -459,7 +467,11 @@ fn effects_words(d: &Diagnosis) -> String {
 /// Why effect parameter `r` of `id` has no 1 σ, in words.
 fn undefined_std(d: &Diagnosis, id: Effect, r: &Reported) -> &'static str {
     let eid = id.to_string();
-    if d.honesty.at_bound.iter().any(|(e, p)| *e == eid && *p == r.name) {
+    if d.honesty
+        .at_bound
+        .iter()
+        .any(|(e, p)| *e == eid && *p == r.name)
+    {
         "at the end of its search range, 1 σ undefined: the recordings ask for no more of it"
     } else {
         "1 σ undefined: the recordings do not determine it"
@@ -470,7 +482,10 @@ fn undefined_std(d: &Diagnosis, id: Effect, r: &Reported) -> &'static str {
 fn final_calibration_words(d: &Diagnosis) -> String {
     let mut s = String::from("Calibration refitted with the named effects:\n");
     for (i, name) in d.calibration.names.iter().enumerate() {
-        s += &match (final_calibration_at(d, i), final_calibration_unidentified(d, i)) {
+        s += &match (
+            final_calibration_at(d, i),
+            final_calibration_unidentified(d, i),
+        ) {
             (Some((v, sd)), None) => format!("  {name} = {v:.5} ± {sd:.2e}\n"),
             (_, reason) => format!(
                 "  {name} = not identified ({})\n",
