@@ -50,28 +50,47 @@ fn a_mode_the_recordings_do_not_excite_has_no_reported_damping() {
             ..Default::default()
         },
     );
-    let cal = json["calibration"].as_object().expect("calibration object");
-    let mut unidentified = 0;
-    for (name, e) in cal {
-        if e["identified"] == serde_json::Value::Bool(false) {
-            assert!(e["value"].is_null() && e["std"].is_null(), "{name}: {e}");
-            assert!(e["reason"].as_str().is_some_and(|r| !r.is_empty()), "{e}");
-            unidentified += 1;
-            continue;
-        }
-        let (v, s) = (e["value"].as_f64(), e["std"].as_f64());
-        let (Some(v), Some(s)) = (v, s) else {
-            panic!("{name}: a number without a finite value and 1 σ: {e}");
-        };
-        assert!(s > 0.0, "{name}: {e}");
-        if name.starts_with("zeta_mode") {
-            assert!((1e-5..=0.5).contains(&v) && 2.0 * s < v, "{name}: {e}");
-        }
+    // the nominal calibration and the one refitted with the named effects follow one rule
+    // (the final one is judged on its own fit: session 38's README case reported ζ 6.8e123)
+    for key in ["calibration", "final_calibration"] {
+        let cal = json[key].as_object().expect("calibration object");
+        let unidentified = cal
+            .iter()
+            .filter(|(name, e)| !reported_as_identified(key, name, e))
+            .count();
+        assert!(
+            unidentified > 0,
+            "every mode identified at 1000 Hz? {key} {cal:?}"
+        );
     }
-    assert!(
-        unidentified > 0,
-        "every mode identified at 1000 Hz? {cal:?}"
-    );
+}
+
+/// Whether calibration entry `e` of `key` is identified; panics unless it is either a finite
+/// value with a positive 1 σ (a damping ratio inside the applied range, 2 σ from zero) or
+/// `identified: false` with null values and a reason.
+fn reported_as_identified(key: &str, name: &str, e: &serde_json::Value) -> bool {
+    if e["identified"] == serde_json::Value::Bool(false) {
+        assert!(
+            e["value"].is_null() && e["std"].is_null(),
+            "{key} {name}: {e}"
+        );
+        assert!(
+            e["reason"].as_str().is_some_and(|r| !r.is_empty()),
+            "{key} {e}"
+        );
+        return false;
+    }
+    let (Some(v), Some(s)) = (e["value"].as_f64(), e["std"].as_f64()) else {
+        panic!("{key} {name}: a number without a finite value and 1 σ: {e}");
+    };
+    assert!(s > 0.0, "{key} {name}: {e}");
+    if name.starts_with("zeta_mode") {
+        assert!(
+            (1e-5..=0.5).contains(&v) && 2.0 * s < v,
+            "{key} {name}: {e}"
+        );
+    }
+    true
 }
 
 /// The final calibration's carriage-mass correction of a diagnosed truth case (value, 1 σ) and
