@@ -269,24 +269,33 @@ fn final_calibration_json(d: &Diagnosis) -> Map<String, Value> {
     let finite_or_null = |x: f64| if x.is_finite() { json!(x) } else { Value::Null };
     let mut out = Map::new();
     for (i, name) in d.calibration.names.iter().enumerate() {
-        let entry = match (
-            final_calibration_at(d, i),
-            final_calibration_unidentified(d, i),
-        ) {
-            (Some((v, s)), None) => {
+        let entry = match final_calibration_entry(d, i) {
+            Ok((v, s)) => {
                 let dof = d.honesty.degrees_of_freedom.get(i).copied();
                 let r = Reported::new(name, v, s, dof.unwrap_or(f64::INFINITY));
                 json!({"value": v, "std": s, "identified": true,
                        "degrees_of_freedom": finite_or_null(r.dof),
                        "expanded_uncertainty_95": finite_or_null(r.u95())})
             }
-            (_, reason) => json!({"value": Value::Null, "std": Value::Null, "identified": false,
-                        "reason": reason.unwrap_or_else(|| "not in the final model".into()),
+            Err(reason) => json!({"value": Value::Null, "std": Value::Null, "identified": false,
+                        "reason": reason,
                         "degrees_of_freedom": Value::Null, "expanded_uncertainty_95": Value::Null}),
         };
         out.insert((*name).into(), entry);
     }
     out
+}
+
+/// Value and 1 σ of calibration parameter `i` (nominal order) in the final model, or why it is
+/// not identified there.
+fn final_calibration_entry(d: &Diagnosis, i: usize) -> Result<(f64, f64), String> {
+    match (
+        final_calibration_at(d, i),
+        final_calibration_unidentified(d, i),
+    ) {
+        (Some(vs), None) => Ok(vs),
+        (_, reason) => Err(reason.unwrap_or_else(|| "not in the final model".into())),
+    }
 }
 
 /// Value and 1 σ of calibration parameter `i` (nominal order) in the final fit, looked up by
@@ -482,15 +491,9 @@ fn undefined_std(d: &Diagnosis, id: Effect, r: &Reported) -> &'static str {
 fn final_calibration_words(d: &Diagnosis) -> String {
     let mut s = String::from("Calibration refitted with the named effects:\n");
     for (i, name) in d.calibration.names.iter().enumerate() {
-        s += &match (
-            final_calibration_at(d, i),
-            final_calibration_unidentified(d, i),
-        ) {
-            (Some((v, sd)), None) => format!("  {name} = {v:.5} ± {sd:.2e}\n"),
-            (_, reason) => format!(
-                "  {name} = not identified ({})\n",
-                reason.unwrap_or_else(|| "not in the final model".into())
-            ),
+        s += &match final_calibration_entry(d, i) {
+            Ok((v, sd)) => format!("  {name} = {v:.5} ± {sd:.2e}\n"),
+            Err(reason) => format!("  {name} = not identified ({reason})\n"),
         };
     }
     s
