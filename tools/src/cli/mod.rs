@@ -5,6 +5,7 @@
 //! calls the library, and shows what came back. Nothing under `tools/src` outside this module and
 //! `main.rs` imports it (checked by `tests/layout.rs`).
 
+mod allocator;
 pub mod board;
 pub mod diagnose;
 pub mod ident;
@@ -68,6 +69,7 @@ pub enum Command {
 /// Runs one command: one arm per command (keep one line per arm where possible, append new
 /// arms at the end, so that merges stay trivial).
 pub fn run(command: Command) -> Result<()> {
+    allocator::keep_freed_memory();
     match command {
         Command::Tune(a) => tune::tune(a).map(|_| ()),
         Command::Vboard(a) => board::vboard(a),

@@ -278,13 +278,25 @@ impl<'a> Problem<'a> {
         let p = self.params_of(x);
         *self.evaluations.borrow_mut() += 1;
         let sigma = self.sigma;
+        // the first recording's vector has room for all, so only the later ones are copied
+        let first = self.data.first();
         let parts = self.each_recording(&p, |d, pr| {
-            let mut v = Vec::with_capacity(len_of(d));
+            let room = if first.is_some_and(|f| std::ptr::eq(f, d)) {
+                total
+            } else {
+                len_of(d)
+            };
+            let mut v = Vec::with_capacity(room);
             extend_whitened(d, &pr, sigma, &mut v);
             v
         });
         let v = match parts {
-            Ok(parts) => parts.concat(),
+            Ok(parts) => {
+                let mut parts = parts.into_iter();
+                let mut v = parts.next().unwrap_or_default();
+                parts.for_each(|p| v.extend_from_slice(&p));
+                v
+            }
             Err(why) => {
                 self.refuse(why);
                 return DVector::from_element(total, 1e3);

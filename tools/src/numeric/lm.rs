@@ -10,6 +10,21 @@
 //! never on the machine or its load. The lowest cost seen is returned (the minimiser may end on
 //! a trial point when the budget runs out).
 //!
+//! **The crate sees the problem compressed to n + 1 rows.** Its trust-region step depends on the
+//! residuals only through ‖r‖, JᵀJ and Jᵀr. So the adapter hands it r̃ = (‖r‖, 0, …, 0) and,
+//! for the Jacobian, the upper-triangular factor of the thin QR of the m × (n + 1) matrix
+//! [r | J] = Q R (R's first row sign-fixed so that R₀₀ = ‖r‖): J̃ = R's last n columns, and
+//! then J̃ᵀJ̃ = JᵀJ, J̃ᵀr̃ = Jᵀr and ‖r̃‖ = ‖r‖ exactly in exact arithmetic. It is the same
+//! minimisation, step for step, up to rounding. R is accumulated over blocks of
+//! [`QR_BLOCK_ROWS`] rows, each block stacked under the R so far and factored by nalgebra's
+//! Householder QR (the sequential form of TSQR: Demmel, Grigori, Hoemmen & Langou, SIAM J. Sci.
+//! Comput. 34 (2012); MINPACK's `lmstr` accumulates R a row at a time for the same reason:
+//! Moré, Garbow & Hillstrom, *User Guide for MINPACK-1*, 1980, §2). A finite-difference
+//! Jacobian is never stored whole: each block of its rows is formed from the evaluated points.
+//! Why: with 10⁵–10⁶ residuals the crate's pivoted QR of the whole tall Jacobian, the
+//! Jacobian's own allocation and its column writes were a third of a diagnosis's run time
+//! (docs/diagnose.md, "Session 39").
+//!
 //! At the optimum [`covariance`] gives `(JᵀJ)⁻¹` (eigen-decomposition; a direction the data do
 //! not determine gives NaN, "not identified") and [`std_errors`] the linearised 1-σ
 //! `sqrt(s² (JᵀJ)⁻¹_ii)` with `s² = cost / (m − n)` (e.g. Seber & Wild 2003, §5.1).
@@ -127,7 +142,7 @@ struct Adapter<'f, F> {
     x: DVector<f64>,
     evaluations: Cell<usize>,
     spent: Cell<bool>,
-    /// Residual at `x` (the crate asks for the Jacobian right after the residual).
+    /// The whole residual at `x` (the crate asks for the Jacobian right after the residual).
     last: RefCell<Option<(DVector<f64>, DVector<f64>)>>,
     best: RefCell<Option<(f64, DVector<f64>)>>,
 }
@@ -141,6 +156,23 @@ impl<F: Fn(&DVector<f64>) -> Option<DVector<f64>>> Adapter<'_, F> {
         self.evaluations.set(self.evaluations.get() + 1);
         let r = (self.f)(&project(x, &self.opts.bounds))?;
         r.iter().all(|v| v.is_finite()).then_some(r)
+    }
+
+    /// Evaluates the residual at `x` unless it is held already; `None` where it cannot be.
+    fn evaluate_current(&self) -> Option<()> {
+        if let Some((x, _)) = self.last.borrow().as_ref() {
+            if *x == self.x {
+                return Some(());
+            }
+        }
+        let r = self.eval(&self.x)?;
+        let c = r.norm_squared();
+        let mut b = self.best.borrow_mut();
+        if b.as_ref().map_or(true, |(bc, _)| c < *bc) {
+            *b = Some((c, self.x.clone()));
+        }
+        *self.last.borrow_mut() = Some((self.x.clone(), r));
+        Some(())
     }
 }
 
@@ -159,52 +191,51 @@ impl<F: Fn(&DVector<f64>) -> Option<DVector<f64>>> LeastSquaresProblem<f64, Dyn,
         self.x.clone()
     }
 
+    /// r̃ = (‖r‖, 0, …, 0), n + 1 long (module docs); empty for an empty residual.
     fn residuals(&self) -> Option<DVector<f64>> {
-        if let Some((x, r)) = self.last.borrow().as_ref() {
-            if *x == self.x {
-                return Some(r.clone());
-            }
-        }
-        let r = self.eval(&self.x)?;
-        let c = r.norm_squared();
-        let mut b = self.best.borrow_mut();
-        if b.as_ref().map_or(true, |(bc, _)| c < *bc) {
-            *b = Some((c, self.x.clone()));
-        }
-        *self.last.borrow_mut() = Some((self.x.clone(), r.clone()));
-        Some(r)
+        self.evaluate_current()?;
+        let last = self.last.borrow();
+        let r = &last.as_ref()?.1;
+        let rows = compressed_rows(r.len(), self.x.len());
+        Some(DVector::from_fn(
+            rows,
+            |i, _| if i == 0 { r.norm() } else { 0.0 },
+        ))
     }
 
+    /// J̃: the last n columns of R in [r | J] = Q R (module docs).
     fn jacobian(&self) -> Option<DMatrix<f64>> {
-        let r0 = self.residuals()?;
-        if let Some(jac) = self.jac {
-            return jac(&self.x);
-        }
+        self.evaluate_current()?;
+        let last = self.last.borrow();
+        let r0 = &last.as_ref()?.1;
         let x = self.x.clone();
-        match self.batch {
-            Some(batch) => self.batched_jacobian(batch, &x, &r0),
-            None => fd_jacobian(&|y: &DVector<f64>| self.eval(y), &x, &r0, self.opts),
+        if let Some(jac) = self.jac {
+            let j = jac(&x)?;
+            let m = j.nrows();
+            return Some(compressed_jacobian(r0, x.len(), &|c, rows, out| {
+                out.copy_from_slice(&j.as_slice()[c * m + rows.start..c * m + rows.end])
+            }));
         }
+        let points = match self.batch {
+            Some(batch) => self.batched_points(batch, &x)?,
+            None => fd_points(&|y: &DVector<f64>| self.eval(y), &x, self.opts)?,
+        };
+        Some(points.compressed(r0, x.len()))
     }
 }
 
 impl<F: Fn(&DVector<f64>) -> Option<DVector<f64>>> Adapter<'_, F> {
-    /// The finite-difference Jacobian with its points evaluated by one call of `batch`, counted
-    /// as one after the other would count them; one after the other when the budget ends
-    /// inside it (so where it stops is the same).
-    fn batched_jacobian(
-        &self,
-        batch: BatchFn<'_>,
-        x: &DVector<f64>,
-        r0: &DVector<f64>,
-    ) -> Option<DMatrix<f64>> {
+    /// The finite-difference Jacobian's points evaluated by one call of `batch`, counted as one
+    /// after the other would count them; one after the other when the budget ends inside it (so
+    /// where it stops is the same).
+    fn batched_points(&self, batch: BatchFn<'_>, x: &DVector<f64>) -> Option<FdPoints> {
         let before = self.evaluations.get();
         let needed: usize = fd_columns(x, self.opts)
             .iter()
             .map(|c| c.points.len())
             .sum();
         if before + needed > self.opts.max_evaluations {
-            return fd_jacobian(&|y: &DVector<f64>| self.eval(y), x, r0, self.opts);
+            return fd_points(&|y: &DVector<f64>| self.eval(y), x, self.opts);
         }
         let checked = |xs: &[DVector<f64>]| -> Vec<Option<DVector<f64>>> {
             let projected: Vec<DVector<f64>> =
@@ -214,10 +245,10 @@ impl<F: Fn(&DVector<f64>) -> Option<DVector<f64>>> Adapter<'_, F> {
                 .map(|r| r.filter(|r| r.iter().all(|v| v.is_finite())))
                 .collect()
         };
-        match fd_jacobian_batched(&checked, x, r0, self.opts) {
-            Ok(j) => {
+        match fd_points_batched(&checked, x, self.opts) {
+            Ok(p) => {
                 self.evaluations.set(before + needed);
-                Some(j)
+                Some(p)
             }
             Err(used) => {
                 self.evaluations.set(before + used);
@@ -225,6 +256,62 @@ impl<F: Fn(&DVector<f64>) -> Option<DVector<f64>>> Adapter<'_, F> {
             }
         }
     }
+}
+
+/// Rows the crate sees for m residuals and n parameters: n + 1, or none for no residuals.
+fn compressed_rows(m: usize, n: usize) -> usize {
+    if m == 0 {
+        0
+    } else {
+        n + 1
+    }
+}
+
+/// Rows per block of the accumulated QR (module docs): a block of [r | J] with up to 16
+/// parameters stays within a core's L2 cache (2048 × 17 × 8 B ≈ 280 kB).
+pub const QR_BLOCK_ROWS: usize = 2048;
+
+/// J̃ (n + 1 × n) of the module docs for the residual `r0` (m) and a Jacobian given by
+/// `fill(c, rows, out)`, which writes the rows `rows` of its column c into `out`. R is
+/// accumulated block by block: the R so far stacked over the next [`QR_BLOCK_ROWS`] rows of
+/// [r | J], factored by Householder QR. Its first row is negated where R₀₀ < 0, so that
+/// R₀₀ = ‖r‖ as r̃ states. Empty (0 × n) for an empty residual.
+fn compressed_jacobian(
+    r0: &DVector<f64>,
+    n: usize,
+    fill: &dyn Fn(usize, std::ops::Range<usize>, &mut [f64]),
+) -> DMatrix<f64> {
+    let (m, k) = (r0.len(), n + 1);
+    let mut r = DMatrix::<f64>::zeros(0, k);
+    for start in (0..m).step_by(QR_BLOCK_ROWS) {
+        let rows = start..(start + QR_BLOCK_ROWS).min(m);
+        let top = r.nrows();
+        let mut stack = DMatrix::<f64>::zeros(top + rows.len(), k);
+        stack.rows_mut(0, top).copy_from(&r);
+        let height = stack.nrows();
+        for c in 0..k {
+            let out = &mut stack.as_mut_slice()[c * height + top..(c + 1) * height];
+            if c == 0 {
+                out.copy_from_slice(&r0.as_slice()[rows.clone()]);
+            } else {
+                fill(c - 1, rows.clone(), out);
+            }
+        }
+        r = stack.qr().unpack_r();
+    }
+    let mut j = DMatrix::<f64>::zeros(compressed_rows(m, n), n);
+    let flip = if r.nrows() > 0 && r[(0, 0)] < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    for i in 0..r.nrows() {
+        let sign = if i == 0 { flip } else { 1.0 };
+        for c in 0..n {
+            j[(i, c)] = sign * r[(i, c + 1)];
+        }
+    }
+    j
 }
 
 /// The evaluations one column of a finite-difference Jacobian needs ([`fd_columns`]).
@@ -270,18 +357,68 @@ fn fd_columns(x: &DVector<f64>, opts: &LmOptions) -> Vec<FdColumn> {
     columns
 }
 
-/// Writes (r₊ − r₀)/h (forward) or (r₊ − r₋)/2h (central) into column `c` of `j`, from the
-/// residuals at the column's points in order.
-fn write_column(j: &mut DMatrix<f64>, c: &FdColumn, values: &[DVector<f64>], r0: &DVector<f64>) {
+/// The evaluated points of a finite-difference Jacobian: `values[i]` are the residuals at the
+/// points of `columns[i]`, in order.
+struct FdPoints {
+    columns: Vec<FdColumn>,
+    values: Vec<Vec<DVector<f64>>>,
+}
+
+impl FdPoints {
+    /// The dense m × n Jacobian at a point with residual `r0`: (r₊ − r₀)/h (forward) or
+    /// (r₊ − r₋)/2h (central) per evaluated column, zero for the others.
+    fn dense(&self, r0: &DVector<f64>, n: usize) -> DMatrix<f64> {
+        let m = r0.len();
+        let mut j = DMatrix::zeros(m, n);
+        for (c, v) in self.columns.iter().zip(&self.values) {
+            let out = &mut j.as_mut_slice()[c.index * m..(c.index + 1) * m];
+            write_rows(c, v, r0, 0..m, out);
+        }
+        j
+    }
+
+    /// [`compressed_jacobian`] of these points, the Jacobian formed a block of rows at a time.
+    fn compressed(&self, r0: &DVector<f64>, n: usize) -> DMatrix<f64> {
+        let mut of_parameter = vec![None; n];
+        for (i, c) in self.columns.iter().enumerate() {
+            of_parameter[c.index] = Some(i);
+        }
+        compressed_jacobian(r0, n, &|p, rows, out| match of_parameter[p] {
+            Some(i) => write_rows(&self.columns[i], &self.values[i], r0, rows, out),
+            None => out.fill(0.0),
+        })
+    }
+}
+
+/// Writes the rows `rows` of column `c` of the Jacobian into `out`: (r₊ − r₀)/h (forward) or
+/// (r₊ − r₋)/2h (central), from the residuals at the column's points in order.
+fn write_rows(
+    c: &FdColumn,
+    values: &[DVector<f64>],
+    r0: &DVector<f64>,
+    rows: std::ops::Range<usize>,
+    out: &mut [f64],
+) {
     let base = values.get(1).unwrap_or(r0);
-    for ((jk, p), b) in j
-        .column_mut(c.index)
-        .iter_mut()
-        .zip(values[0].iter())
-        .zip(base.iter())
-    {
+    let (p, b) = (&values[0].as_slice()[rows.clone()], &base.as_slice()[rows]);
+    for ((jk, p), b) in out.iter_mut().zip(p).zip(b) {
         *jk = (p - b) / c.step;
     }
+}
+
+/// The points of a finite-difference Jacobian at `x`, evaluated one after the other by `f`;
+/// `None` if an evaluation fails (none is made after it).
+fn fd_points(
+    f: &dyn Fn(&DVector<f64>) -> Option<DVector<f64>>,
+    x: &DVector<f64>,
+    opts: &LmOptions,
+) -> Option<FdPoints> {
+    let columns = fd_columns(x, opts);
+    let mut values = Vec::with_capacity(columns.len());
+    for c in &columns {
+        values.push(c.points.iter().map(f).collect::<Option<Vec<_>>>()?);
+    }
+    Some(FdPoints { columns, values })
 }
 
 /// Finite-difference Jacobian of `f` at `x` (residual `r0` there), steps and scheme of `opts`;
@@ -293,18 +430,37 @@ pub fn fd_jacobian(
     r0: &DVector<f64>,
     opts: &LmOptions,
 ) -> Option<DMatrix<f64>> {
-    let mut j = DMatrix::zeros(r0.len(), x.len());
-    for c in fd_columns(x, opts) {
-        let values = c.points.iter().map(f).collect::<Option<Vec<_>>>()?;
-        write_column(&mut j, &c, &values, r0);
-    }
-    Some(j)
+    Some(fd_points(f, x, opts)?.dense(r0, x.len()))
 }
 
 /// Residuals at several points at once, in order (`None` where one cannot be evaluated): the
 /// caller may spread them over threads. Its results must be those of the residual closure at
 /// the same points.
 pub type BatchFn<'f> = &'f dyn Fn(&[DVector<f64>]) -> Vec<Option<DVector<f64>>>;
+
+/// [`fd_points`] with every point evaluated by one call of `batch`. `Err` if an evaluation
+/// fails, with the number of evaluations one after the other would have made up to and
+/// including the first failure.
+fn fd_points_batched(
+    batch: BatchFn<'_>,
+    x: &DVector<f64>,
+    opts: &LmOptions,
+) -> Result<FdPoints, usize> {
+    let columns = fd_columns(x, opts);
+    let points: Vec<DVector<f64>> = columns.iter().flat_map(|c| c.points.clone()).collect();
+    let mut results = batch(&points).into_iter();
+    let mut values = Vec::with_capacity(columns.len());
+    let mut used: usize = 0;
+    for c in &columns {
+        let mut v = Vec::with_capacity(c.points.len());
+        for _ in &c.points {
+            used += 1;
+            v.push(results.next().flatten().ok_or(used)?);
+        }
+        values.push(v);
+    }
+    Ok(FdPoints { columns, values })
+}
 
 /// [`fd_jacobian`] with every point evaluated by one call of `batch` (which may spread them over
 /// threads): the same Jacobian. `None` if an evaluation fails, with the number of evaluations
@@ -315,20 +471,7 @@ pub fn fd_jacobian_batched(
     r0: &DVector<f64>,
     opts: &LmOptions,
 ) -> Result<DMatrix<f64>, usize> {
-    let columns = fd_columns(x, opts);
-    let points: Vec<DVector<f64>> = columns.iter().flat_map(|c| c.points.clone()).collect();
-    let mut values = batch(&points).into_iter();
-    let mut j = DMatrix::zeros(r0.len(), x.len());
-    let mut used: usize = 0;
-    for c in &columns {
-        let mut v = Vec::with_capacity(c.points.len());
-        for _ in &c.points {
-            used += 1;
-            v.push(values.next().flatten().ok_or(used)?);
-        }
-        write_column(&mut j, c, &v, r0);
-    }
-    Ok(j)
+    Ok(fd_points_batched(batch, x, opts)?.dense(r0, x.len()))
 }
 
 /// Minimises Σ r(x)² from `x0` (module docs). The closure is called with parameters projected
@@ -719,6 +862,63 @@ mod tests {
         assert_eq!(fd_jacobian_batched(&refuse_second, &x0, &r0, &opts), Err(2));
         let j = fd_jacobian(&f, &x0, &r0, &opts).unwrap();
         assert_eq!(fd_jacobian_batched(&batch, &x0, &r0, &opts), Ok(j));
+    }
+
+    /// The crate's view (module docs): J̃ᵀJ̃ = JᵀJ and J̃ᵀr̃ = Jᵀr with r̃ = (‖r‖, 0, …), over
+    /// several blocks of rows, with a zero column and whatever the sign of R₀₀.
+    #[test]
+    fn the_compressed_jacobian_keeps_the_normal_equations() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        for (m, scale) in [
+            (2 * QR_BLOCK_ROWS + 37, 1.0),
+            (5, -1.0),
+            (QR_BLOCK_ROWS, 1e-6),
+        ] {
+            let r = DVector::from_fn(m, |_, _| scale * rng.gen_range(-1.0..1.0));
+            let mut j = DMatrix::from_fn(m, 4, |i, c| (i as f64 * 0.01 * (c + 1) as f64).sin());
+            j.column_mut(2).fill(0.0);
+            j.column_mut(3).add_scalar_mut(rng.gen_range(-1.0..1.0));
+            let jt = compressed_jacobian(&r, 4, &|c, rows, out| {
+                out.copy_from_slice(&j.as_slice()[c * m + rows.start..c * m + rows.end])
+            });
+            assert_eq!(jt.shape(), (5, 4));
+            let rt = DVector::from_fn(5, |i, _| if i == 0 { r.norm() } else { 0.0 });
+            let (g, gt) = (j.transpose() * &j, jt.transpose() * &jt);
+            let (b, bt) = (j.transpose() * &r, jt.transpose() * &rt);
+            assert!((&g - &gt).amax() <= 1e-12 * g.amax(), "{m}: {g} {gt}");
+            assert!(
+                (&b - &bt).amax() <= 1e-12 * b.amax().max(1e-300),
+                "{m}: {b} {bt}"
+            );
+            assert_eq!(jt.column(2).amax(), 0.0);
+        }
+        assert_eq!(
+            compressed_jacobian(&DVector::zeros(0), 3, &|_, _, _| ()).shape(),
+            (0, 3)
+        );
+    }
+
+    /// A linear least-squares problem of 10⁴ residuals (five blocks): the minimiser lands on the
+    /// solution of the normal equations.
+    #[test]
+    fn a_tall_linear_problem_reaches_its_least_squares_solution() {
+        let m = 10_000;
+        let a = DMatrix::from_fn(m, 3, |i, c| ((i * (c + 2)) as f64 * 1e-3).cos() + c as f64);
+        let y = DVector::from_fn(m, |i, _| (i as f64 * 7e-4).sin());
+        let f = |x: &DVector<f64>| Some(&a * x - &y);
+        let out = minimize(&f, DVector::zeros(3), &LmOptions::new(vec![1e-6; 3]));
+        let exact = (a.transpose() * &a)
+            .cholesky()
+            .unwrap()
+            .solve(&(a.transpose() * &y));
+        assert!((&out.x - &exact).amax() < 1e-6, "{} vs {exact}", out.x);
+        let best = (&a * &exact - &y).norm_squared();
+        assert!(
+            (out.cost - best).abs() <= 1e-9 * best,
+            "{} vs {best}",
+            out.cost
+        );
     }
 
     #[test]
