@@ -6,7 +6,7 @@
 //! again, zeroed by the kernel: measured, 617 000 minor page faults and 11 % of the run time of
 //! the README's run-time command (docs/diagnose.md, "Session 39"). Keeping freed memory in the
 //! process (an `mmap` threshold at glibc's ceiling of 32 MiB, a trim threshold of 1 GiB) takes
-//! it to 47 000 faults and changes no number: the same arithmetic on the same values.
+//! it to 41 000 faults and changes no number: the same arithmetic on the same values.
 //! `mallopt(3)`; other C libraries are left as they are.
 
 /// Keeps freed blocks in the process (module docs). Call once, before the work starts.

@@ -22,7 +22,7 @@
 //! Moré, Garbow & Hillstrom, *User Guide for MINPACK-1*, 1980, §2). A finite-difference
 //! Jacobian is never stored whole: each block of its rows is formed from the evaluated points.
 //! Why: with 10⁵–10⁶ residuals the crate's pivoted QR of the whole tall Jacobian, the
-//! Jacobian's own allocation and its column writes were a third of a diagnosis's run time
+//! Jacobian's own allocation and its column writes were a quarter of a diagnosis's run time
 //! (docs/diagnose.md, "Session 39").
 //!
 //! At the optimum [`covariance`] gives `(JᵀJ)⁻¹` (eigen-decomposition; a direction the data do
