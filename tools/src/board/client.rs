@@ -217,27 +217,29 @@ impl BoardClient {
 mod tests {
     use super::*;
 
-    /// A board on a PTY that prints its boot banner `delay` after the port exists, then
-    /// answers each command line with `# info` and `ok <command>`, and after `restart_after`
-    /// replies prints the banner again before the next one.
-    fn late_board(delay: Duration, restart_after: usize) -> String {
+    /// A board on a PTY that answers each command line with `# info` and `ok <command>`, and
+    /// prints its boot banner just before reply number `banner_before_reply` (0: the board
+    /// started after the opening drain; 1 or more: it restarted between replies). The banner
+    /// is tied to a command, not to a clock, so a loaded machine cannot move it into the
+    /// opening drain (CI once saw the 400 ms timed banner arrive during the drain).
+    fn late_board(banner_before_reply: usize) -> String {
         let (mut master, slave) = serialport::TTYPort::pair().unwrap();
         let path = slave.name().unwrap();
         std::thread::spawn(move || {
             let _keep = slave;
-            std::thread::sleep(delay);
             let banner = b"# boot: no saved settings, using defaults\nok boot\n";
-            master.write_all(banner).unwrap();
             master.set_timeout(Duration::from_millis(5)).unwrap();
             let (mut got, mut buf, mut replies) = (Vec::new(), [0u8; 64], 0);
             loop {
-                if let Ok(n) = master.read(&mut buf) {
-                    got.extend_from_slice(&buf[..n]);
+                match master.read(&mut buf) {
+                    Ok(n) => got.extend_from_slice(&buf[..n]),
+                    Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+                    Err(_) => return,
                 }
                 while let Some(i) = got.iter().position(|&b| b == b'\n') {
                     let cmd: Vec<u8> = got.drain(..=i).collect();
                     let cmd = String::from_utf8_lossy(&cmd).trim().to_string();
-                    if replies == restart_after {
+                    if replies == banner_before_reply {
                         master.write_all(banner).unwrap();
                     }
                     replies += 1;
@@ -254,7 +256,8 @@ mod tests {
     /// its own reply (CI once saw `# boot: …` parsed as a `config` mode line).
     #[test]
     fn a_late_boot_banner_is_not_taken_for_the_first_reply() {
-        let mut c = BoardClient::open(&late_board(Duration::from_millis(400), usize::MAX)).unwrap();
+        let mut c = BoardClient::open(&late_board(0)).unwrap();
+        c.set_timeout(Duration::from_secs(30));
         let r = c.command("config").unwrap();
         assert_eq!(r.ok, "ok config");
         assert_eq!(r.info, vec!["info".to_string()]);
@@ -265,7 +268,8 @@ mod tests {
     /// A banner between replies means the board restarted: an error that says so.
     #[test]
     fn a_boot_banner_after_a_reply_is_a_restart_error() {
-        let mut c = BoardClient::open(&late_board(Duration::ZERO, 1)).unwrap();
+        let mut c = BoardClient::open(&late_board(1)).unwrap();
+        c.set_timeout(Duration::from_secs(30));
         assert_eq!(c.command("status").unwrap().ok, "ok status");
         let e = c.command("config").unwrap_err();
         assert!(matches!(e, ClientError::Restarted { .. }), "{e}");
