@@ -172,6 +172,14 @@ pub fn best_correction(fit: &Normal, val: &Normal, k: usize) -> Option<Correctio
     best
 }
 
+/// The correction of `k` parameters: [`best_correction`] with `k` columns, or, where no `k`
+/// columns can be solved (the dictionary's rank is below k: two of its signals the same), the
+/// best of the largest size that can, since a correction of k parameters with dependent columns
+/// is one of fewer. `None` for k = 0 or when no column can be solved.
+pub fn best_correction_of_size(fit: &Normal, val: &Normal, k: usize) -> Option<Correction> {
+    (1..=k).rev().find_map(|j| best_correction(fit, val, j))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -195,6 +203,33 @@ mod tests {
         };
         assert!(reduction(&[]) > 0.999);
         assert!(reduction(&[(1, 1)]) < 0.9, "{}", reduction(&[(1, 1)]));
+    }
+
+    /// Two signals of the dictionary the same (a prediction equal to the command): no five of
+    /// its six columns can be solved, and a correction of five parameters is the best of three.
+    #[test]
+    fn a_correction_larger_than_the_dictionarys_rank_is_one_of_fewer() {
+        let n = 1500;
+        let sig = |f: f64, k: usize| (2.0 * std::f64::consts::PI * f * k as f64 / 100.0).sin();
+        let u: Vec<f64> = (0..n).map(|k| sig(0.37, k) + 0.2 * sig(2.9, k)).collect();
+        let r: Vec<f64> = diff(&u)
+            .iter()
+            .zip(&u)
+            .map(|(d, x)| 0.3 * d - 0.1 * x)
+            .collect();
+        let phi = dictionary(&[&u, &u], &[]);
+        let (mut f, mut v) = (Normal::new(phi.len()), Normal::new(phi.len()));
+        f.add(&r, &phi);
+        v.add(&r, &phi);
+        assert!(best_correction(&f, &v, 5).is_none());
+        let three = best_correction(&f, &v, 3).unwrap().val_reduction();
+        let five = best_correction_of_size(&f, &v, 5).unwrap();
+        assert_eq!(five.columns.len(), 3);
+        assert!(
+            three > 0.99 && five.val_reduction() == three,
+            "{three} {five:?}"
+        );
+        assert!(best_correction_of_size(&f, &v, 0).is_none());
     }
 
     /// A residual that is a small lag of the prediction (r = −τ ẏ) is found on the fit data
