@@ -839,6 +839,7 @@ fn measure_final(
         after: honesty::residual_stats(&reference.vres),
         stability: refits.stability,
         at_bound: honesty::at_bound(set, &reference.fit, calib.len()),
+        beyond_band: Vec::new(),
         degrees_of_freedom: honesty::effective_dof(
             &long_run,
             &spread,
@@ -992,7 +993,8 @@ fn fit_bic(reference: &forward::Reference) -> f64 {
 /// The honest measurements of the final model ([`measure_final`]), after dropping, one at a
 /// time, every effect they show the recordings do not identify
 /// ([`forward::unidentified_in_final`], [`drop_effect`]); `cal` and `sel.reference` carry the
-/// honest 1 σ on return.
+/// honest 1 σ on return, a loop's frequency beyond the recordings' band without one
+/// ([`honesty::beyond_band`], after the identification check, which it does not change).
 fn identified_final(
     ctx: &Ctx,
     cands: &[Candidate],
@@ -1018,7 +1020,10 @@ fn identified_final(
             _ => {
                 *cal = cal_h;
                 sel.reference = reference_h;
-                return h;
+                let rate_hz = ctx.fit_data.iter().map(|d| 1.0 / d.dt).fold(0.0, f64::max);
+                let fit = &mut sel.reference.fit;
+                let beyond_band = honesty::beyond_band(&set, fit, ctx.calib.len(), rate_hz);
+                return honesty::Honesty { beyond_band, ..h };
             }
         }
     }

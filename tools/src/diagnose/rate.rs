@@ -75,7 +75,7 @@ pub const LOST_POWER: f64 = 0.1;
 /// Quantile of a channel's spectral bins taken as its noise floor.
 pub const FLOOR_QUANTILE: f64 = 0.1;
 /// Fraction of the working rate up to which the decimation filter passes (the band edge).
-const PASS_EDGE: f64 = 0.45;
+pub const PASS_EDGE: f64 = 0.45;
 /// Kaiser β for 80 dB stop-band attenuation (0.1102 (A − 8.7)).
 const KAISER_BETA: f64 = 7.857;
 

@@ -477,6 +477,13 @@ fn effects_words(d: &Diagnosis) -> String {
 fn undefined_std(d: &Diagnosis, id: Effect, r: &Reported) -> &'static str {
     let eid = id.to_string();
     if d.honesty
+        .beyond_band
+        .iter()
+        .any(|(e, p, _)| *e == eid && *p == r.name)
+    {
+        "beyond the recordings' band: a lower bound, 1 σ undefined (the loop's resonance lies outside what was recorded)"
+    } else if d
+        .honesty
         .at_bound
         .iter()
         .any(|(e, p)| *e == eid && *p == r.name)
