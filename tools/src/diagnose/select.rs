@@ -24,7 +24,10 @@
 //!    k-term linear filter of the model's prediction and the base motion — on `force_n` without
 //!    the carriage velocity, which is not model-form freedom but viscous friction, a catalogue
 //!    effect: a yardstick made of the candidate's own physics can never be beaten by it, see
-//!    `forward::FORCE_WITHOUT`; for a length series
+//!    `forward::FORCE_WITHOUT`; on `base_pos_m` of a model without a loop without the
+//!    command's derivatives, a lag of the command being a position loop's physics,
+//!    `forward::BASE_WITHOUT_LOOP`; a correction larger than the dictionary's rank counts as
+//!    the largest solvable one; for a length series
 //!    the best k-term smooth trend of the relative frequency error in the length); for
 //!    recordings also at least the *split-refit spread*: how much the validation rms residual
 //!    changes when the model so far is refitted to one fit recording alone (the smallest such
