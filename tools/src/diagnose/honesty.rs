@@ -699,8 +699,7 @@ mod tests {
     #[test]
     fn a_loop_beyond_the_recordings_band_is_a_lower_bound() {
         let servo = crate::diagnose::effects::servo_candidate(2, 100.0);
-        let tip = crate::diagnose::effects::servo_candidate(1, 100.0);
-        let mut tip = tip;
+        let mut tip = crate::diagnose::effects::servo_candidate(1, 100.0);
         tip.id = crate::effect::Effect::TipMass;
         tip.params.truncate(1);
         tip.params[0].name = "tip_mass_kg";
