@@ -486,17 +486,27 @@ fn servo_candidates(rate_hz: f64) -> Vec<Candidate> {
 /// Structural changes of the beam and its clamp: tip mass, root compliance, cubic clamp.
 fn structural_candidates(h: &StartHints) -> Vec<Candidate> {
     let mut c = Vec::new();
+    // the mass is scanned from 0.5 % of the beam's to the beam's own (f1 held by the stiffness
+    // scale, [`super::fit::f1_preserving_factor`]): a start at 3 % moves only a few LM steps
+    // in a 500 Hz budget, and the calibration has already damped the shifted f2 out
+    // (second simulator seed 4, case00: friction + a tip mass of 11 % of the beam's, fitted
+    // at 3.2 % from the one start and dropped as 1.5 σ from none)
+    let mut mass = def(
+        "tip_mass_kg",
+        Transform::Linear,
+        vec![0.03 * h.beam_mass_kg],
+        0.05 * h.beam_mass_kg,
+        true,
+    );
+    mass.scan = [0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0]
+        .iter()
+        .map(|r| r * h.beam_mass_kg)
+        .collect();
     c.push(Candidate {
         id: Effect::TipMass,
         words: "a lumped mass at the tip (marker, sensor)",
         orientation: None,
-        params: vec![def(
-            "tip_mass_kg",
-            Transform::Linear,
-            vec![0.03 * h.beam_mass_kg],
-            0.05 * h.beam_mass_kg,
-            true,
-        )],
+        params: vec![mass],
     });
     // the stiffness is scanned from a clamp as soft as the beam (k L/EI = 1) to one 1000 × as
     // stiff (next to rigid, the model so far): the fit starts where the recordings point, and
