@@ -547,7 +547,7 @@ fn scan_starts(
                 tags.push((v, *reset));
             }
         }
-        let mut costs: Vec<(f64, (f64, bool))> = problem
+        let costs: Vec<(f64, (f64, bool))> = problem
             .costs_at(&xs)
             .into_iter()
             .zip(tags)
