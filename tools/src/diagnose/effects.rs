@@ -483,9 +483,9 @@ fn servo_candidates(rate_hz: f64) -> Vec<Candidate> {
     c
 }
 
-/// Structural changes of the beam and its clamp: tip mass, root compliance, cubic clamp.
-fn structural_candidates(h: &StartHints) -> Vec<Candidate> {
-    let mut c = Vec::new();
+/// The tip-mass candidate: one parameter, `tip_mass_kg`, started at 3 % of the beam's mass and
+/// scanned over 0.5–100 % of it.
+fn tip_mass_candidate(h: &StartHints) -> Candidate {
     // the mass is scanned from 0.5 % of the beam's to the beam's own (f1 held by the stiffness
     // scale, [`super::fit::f1_preserving_factor`]): a start at 3 % moves only a few LM steps
     // in a 500 Hz budget, and the calibration has already damped the shifted f2 out
@@ -502,12 +502,17 @@ fn structural_candidates(h: &StartHints) -> Vec<Candidate> {
         .iter()
         .map(|r| r * h.beam_mass_kg)
         .collect();
-    c.push(Candidate {
+    Candidate {
         id: Effect::TipMass,
         words: "a lumped mass at the tip (marker, sensor)",
         orientation: None,
         params: vec![mass],
-    });
+    }
+}
+
+/// Structural changes of the beam and its clamp: tip mass, root compliance, cubic clamp.
+fn structural_candidates(h: &StartHints) -> Vec<Candidate> {
+    let mut c = vec![tip_mass_candidate(h)];
     // the stiffness is scanned from a clamp as soft as the beam (k L/EI = 1) to one 1000 × as
     // stiff (next to rigid, the model so far): the fit starts where the recordings point, and
     // on recordings of a rigid clamp from the model so far rather than beyond a ridge of worse
