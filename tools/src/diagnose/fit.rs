@@ -479,7 +479,7 @@ fn stiffness_scan(
     x0: &DVector<f64>,
 ) -> Option<DVector<f64>> {
     let is = defs.iter().position(|d| d.name == "stiffness_scale")?;
-    let mut x = with_rig_damping(defs, x0);
+    let mut x = with_rig_damping(defs, x0, false);
     let problem = Problem::new(rig, data, sigma, calib, cands, x.clone());
     let centre = x[is];
     let mut best = (f64::INFINITY, x.clone());
@@ -530,7 +530,7 @@ fn scan_starts(
         if d.scan.is_empty() {
             continue;
         }
-        let rig_damping = with_rig_damping_above_f1(defs, &starts[0]);
+        let rig_damping = with_rig_damping(defs, &starts[0], true);
         let variants: Vec<(bool, &DVector<f64>)> = if rig_damping == starts[0] {
             vec![(false, &starts[0])]
         } else {
@@ -565,7 +565,7 @@ fn scan_starts(
             let is_grid = start_values.iter().any(|v| (s[i] - v).abs() < 1e-12);
             for &(p, reset) in &picks {
                 let mut x = if reset && is_grid {
-                    with_rig_damping_above_f1(defs, s)
+                    with_rig_damping(defs, s, true)
                 } else {
                     s.clone()
                 };
@@ -604,25 +604,13 @@ fn scan_picks(mut costs: Vec<(f64, (f64, bool))>, two_readings: bool) -> Vec<(f6
     picks
 }
 
-/// `x` with the damping ratio of every mode above the first at its first start (the rig's, or
-/// the one the rig lists for that mode): the modes a change along the path that keeps f1
-/// moves ([`f1_preserving_factor`]).
-fn with_rig_damping_above_f1(defs: &[&ParamDef], x: &DVector<f64>) -> DVector<f64> {
+/// `x` with the modes' damping ratios at their first start (the rig's, or the one the rig lists
+/// for that mode): every mode's, or with `above_f1` those of the modes above the first, which a
+/// change along the path that keeps f1 moves ([`f1_preserving_factor`]).
+fn with_rig_damping(defs: &[&ParamDef], x: &DVector<f64>, above_f1: bool) -> DVector<f64> {
     let mut x = x.clone();
     for (i, d) in defs.iter().enumerate() {
-        if d.name.starts_with("zeta") && d.name != "zeta_mode1" {
-            x[i] = d.repr(d.starts[0]);
-        }
-    }
-    x
-}
-
-/// `x` with every mode's damping ratio at its first start (the rig's, or the one the rig
-/// lists for that mode).
-fn with_rig_damping(defs: &[&ParamDef], x: &DVector<f64>) -> DVector<f64> {
-    let mut x = x.clone();
-    for (i, d) in defs.iter().enumerate() {
-        if d.name.starts_with("zeta") {
+        if d.name.starts_with("zeta") && !(above_f1 && d.name == "zeta_mode1") {
             x[i] = d.repr(d.starts[0]);
         }
     }

@@ -2337,9 +2337,6 @@ pub(crate) mod tests {
     use crate::diagnose::effects::servo_candidate;
     use nalgebra::DVector;
 
-    /// A following error that is a lag of the command (a position loop, y = r − τ ṙ) is the
-    /// loop's physics: the base yardstick of a model without a loop (predicted base = command)
-    /// earns nothing on it at any size, the whole dictionary (a model with a loop) all of it.
     #[test]
     fn a_newcomer_is_refitted_from_the_better_optimum_of_what_was_chosen_with_its_own_values() {
         let joint = nalgebra::DVector::from_vec(vec![0.7, 0.01, 0.065, 0.0028, 1.6, -6.4]);
@@ -2348,6 +2345,9 @@ pub(crate) mod tests {
         assert_eq!(x.as_slice(), [0.69, 0.009, 0.008, 0.0098, 1.6, -6.4]);
     }
 
+    /// A following error that is a lag of the command (a position loop, y = r − τ ṙ) is the
+    /// loop's physics: the base yardstick of a model without a loop (predicted base = command)
+    /// earns nothing on it at any size, the whole dictionary (a model with a loop) all of it.
     #[test]
     fn a_lag_of_the_command_is_no_allowance_for_a_model_without_a_loop() {
         let sig = |f: f64, k: usize| (2.0 * std::f64::consts::PI * f * k as f64 / 500.0).sin();
