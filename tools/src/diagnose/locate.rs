@@ -235,7 +235,10 @@ impl Gathered {
             self.amp.extend(signal.iter().map(|x| (x - mean).abs()));
         }
         let (f, m) = amplitude_spectrum(&r, 1.0 / d.dt);
-        for (fk, mk) in peaks(&f, &m, 0.2, 0.45 / d.dt).into_iter().take(4) {
+        for (fk, mk) in peaks(&f, &m, 0.2, super::sim::band_edge_hz(d.dt))
+            .into_iter()
+            .take(4)
+        {
             self.spectra.push((fk, mk));
         }
         self.r.extend(r);

@@ -1114,10 +1114,11 @@ fn structural_key(p: &Params, dt: f64) -> Vec<f64> {
     key
 }
 
-/// The band edge (Hz) of a recording sampled every `dt` s: 0.45 × the sample rate (90 % of
-/// Nyquist). Modes below it are in the model with their own damping ratio.
+/// The band edge (Hz) of a recording sampled every `dt` s: [`super::rate::PASS_EDGE`] (0.45) ×
+/// the sample rate (90 % of Nyquist), the working band's pass edge. Modes below it are in the
+/// model with their own damping ratio.
 pub fn band_edge_hz(dt: f64) -> f64 {
-    0.45 / dt
+    super::rate::PASS_EDGE / dt
 }
 
 /// The model's stated accuracy of its in-band natural frequencies (relative): [`converged_basis`]
