@@ -967,7 +967,7 @@ fn successive_halving(
 }
 
 #[cfg(test)]
-pub(crate) mod tests {
+mod tests {
     use super::*;
 
     #[test]
@@ -1186,7 +1186,7 @@ ratios = [0.0074, 0.0074]
     /// A 0.9 m steel strip on a 2.5 kg carriage, and a 100 Hz recording of moves out to each of
     /// `strokes_m` and back (trapezoids of `speed` m/s, `accel` m/s², `dwell_s` at each end)
     /// whose tip channel is a placeholder (the command) for the test to fill.
-    pub(crate) fn beam_and_moves(
+    fn beam_and_moves(
         strokes_m: &[f64],
         speed: f64,
         accel: f64,
@@ -1213,7 +1213,7 @@ ratios = [0.0074, 0.0074]
 
     /// The calibration of a recording of the command and the tip alone (two damping ratios, six
     /// basis functions).
-    pub(crate) fn tip_only_calibration(rig: &Rig) -> crate::diagnose::effects::Calib {
+    fn tip_only_calibration(rig: &Rig) -> crate::diagnose::effects::Calib {
         let ch = Channels {
             base: false,
             tip: true,

@@ -227,19 +227,9 @@ pub fn root_spring_accuracy_rel(rig: &Rig, p: &super::sim::Params, dt: f64) -> O
 /// most `max_evaluations`) with it and each parameter's change is added in quadrature. It is what
 /// the carriage mass absorbs from motion near the Nyquist rate, and what a tip mass absorbs
 /// from the beam's forcing at its second mode (docs/diagnose.md, session 15): a bias shared by
-/// every recording, which neither the long-run σ nor the recordings' disagreement sees.
-///
-/// The two readings compete, and the recordings weigh them: the alternative is the rig's
-/// truth with its posterior probability w = 1 / (1 + exp(Δ/2)) (Bayesian model averaging,
-/// Hoeting et al. 1999, Statist. Sci. 14(4) eq. 1–2, equal priors), Δ the long-run
-/// likelihood-ratio statistic of the alternative against the chosen reading
-/// ([`long_run_neg2ll_rise`]; both have the same parameters, so it is their BIC difference), and
-/// the reported value is off by the change d with that probability:
-/// σ² ← σ² + w d² (at Δ = 0, half the square of the change). Second simulator, seed 6, case08
-/// (a root spring, 100 Hz): the piecewise-linear refit lost the spring (k 24.2 → 57.5 N·m/rad)
-/// at a fit worse than the model without any spring; it set the spring's 1 σ to ±33 and the
-/// spring was dropped as not identified. Nothing without a recorded force or a tip recorded at
-/// its own rate. Returns the model evaluations used.
+/// every recording, which neither the long-run σ nor the recordings' disagreement sees. Nothing
+/// without a recorded force or a tip recorded at its own rate. Returns the model evaluations
+/// used.
 pub fn add_drive_interpolation_std(
     rig: &Rig,
     data: &[Prepared],
@@ -260,59 +250,7 @@ pub fn add_drive_interpolation_std(
         },
         DriveReading::FourthOrder => calib.with_reading(DriveReading::PiecewiseLinear),
     };
-    let g = refit_alternative(rig, data, sigma, &other, set, f, max_evaluations);
-    let rise = long_run_neg2ll_rise(
-        data,
-        &fit::Problem::new(rig, data, sigma, calib, set, f.x.clone()),
-        &f.x,
-        &fit::Problem::new(rig, data, sigma, &other, set, g.x.clone()),
-        &g.x,
-    );
-    // a refit that cannot be simulated says nothing of the reading (weight 0)
-    let weight = rise.map_or(0.0, |d| 1.0 / (1.0 + (d / 2.0).min(700.0).exp()));
-    add_change_std(f, &g, weight);
-    g.evaluations
-}
-
-/// Δ(−2 ln L) of model `b` at `xb` against model `a` at `xa` on recordings `data` (those both
-/// problems hold), with each
-/// channel's noise profiled out and its samples counted as independent only once per
-/// integrated autocorrelation time of `a`'s residual (the long-run likelihood, as the long-run
-/// 1-σ counts them): Σ_c (n_c / τ_c) ln(RSS_b,c / RSS_a,c). Positive: `b` fits worse. `None`
-/// when either cannot be simulated.
-pub fn long_run_neg2ll_rise(
-    data: &[Prepared],
-    a: &fit::Problem,
-    xa: &DVector<f64>,
-    b: &fit::Problem,
-    xb: &DVector<f64>,
-) -> Option<f64> {
-    let (pa, pb) = (a.predictions(xa)?, b.predictions(xb)?);
-    let ra: Vec<_> = data
-        .iter()
-        .zip(&pa)
-        .map(|(d, p)| fit::residuals(d, p))
-        .collect();
-    let rb: Vec<_> = data
-        .iter()
-        .zip(&pb)
-        .map(|(d, p)| fit::residuals(d, p))
-        .collect();
-    let (rss_a, n) = fit::channel_rss(&ra);
-    let (rss_b, _) = fit::channel_rss(&rb);
-    let mut rise = 0.0;
-    for c in 0..3 {
-        if n[c] == 0 || !(rss_a[c] > 0.0) {
-            continue;
-        }
-        let n_eff: f64 = ra
-            .iter()
-            .filter_map(|r| r[c].as_deref())
-            .map(|r| r.len() as f64 / autocorrelation_time(r, MAX_LAG).max(1.0))
-            .sum();
-        rise += n_eff * (rss_b[c] / rss_a[c]).ln();
-    }
-    rise.is_finite().then_some(rise)
+    add_alternative_std(rig, data, sigma, &other, set, f, max_evaluations)
 }
 
 /// Refits `f` (calibration + `set`) warm with the model-form alternative `alt` and adds each
@@ -327,23 +265,7 @@ fn add_alternative_std(
     f: &mut FitResult,
     max_evaluations: usize,
 ) -> usize {
-    let g = refit_alternative(rig, data, sigma, alt, set, f, max_evaluations);
-    add_change_std(f, &g, 1.0);
-    g.evaluations
-}
-
-/// `f` (calibration + `set`) refitted warm with the model-form alternative `alt` (at most
-/// `max_evaluations`).
-fn refit_alternative(
-    rig: &Rig,
-    data: &[Prepared],
-    sigma: [f64; 3],
-    alt: &Calib,
-    set: &[&Candidate],
-    f: &FitResult,
-    max_evaluations: usize,
-) -> FitResult {
-    fit::fit(
+    let g = fit::fit(
         rig,
         data,
         sigma,
@@ -353,18 +275,14 @@ fn refit_alternative(
         &[],
         max_evaluations,
         false,
-    )
-}
-
-/// σ² ← σ² + `weight` (θ_g − θ_f)² for every parameter of `f` that `g` refitted; a σ that is
-/// not finite (not identified) stays so.
-fn add_change_std(f: &mut FitResult, g: &FitResult, weight: f64) {
+    );
     for i in 0..f.std.len().min(g.values.len()) {
         let d = g.values[i] - f.values[i];
         if d.is_finite() && f.std[i].is_finite() {
-            f.std[i] = f.std[i].hypot(weight.sqrt() * d);
+            f.std[i] = f.std[i].hypot(d);
         }
     }
+    g.evaluations
 }
 
 /// Residual statistics of one channel (module docs, 3).
@@ -752,66 +670,6 @@ pub fn at_bound(set: &[&Candidate], f: &FitResult, nc: usize) -> Vec<(String, St
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The long-run likelihood ratio is 0 for the same model and point, grows with a misfit
-    /// (a 2 % stiffer beam against the one that made the recording), and counts a residual
-    /// that is white once per sample: n ln(RSS_b / RSS_a).
-    #[test]
-    fn the_long_run_likelihood_ratio_charges_a_worse_fit_of_the_same_recordings() {
-        use crate::diagnose::fit::tests::{beam_and_moves, tip_only_calibration};
-        use crate::diagnose::sim::{predict, Params};
-        let (rig, mut rec) = beam_and_moves(&[0.1, 0.06], 0.5, 3.0, 1.0);
-        // a tip that rings (the command's flat dwells would read as a sensor's rails)
-        let tip = rec.tip_pos_m.take().unwrap().into_iter().enumerate();
-        rec.tip_pos_m = Some(
-            tip.map(|(k, v)| v + 0.01 * (0.37 * k as f64).sin())
-                .collect(),
-        );
-        let mut d = Prepared::new("t", &rec).unwrap();
-        let truth = Params {
-            n_basis: 6,
-            ..Default::default()
-        };
-        let tip = predict(&rig, &truth, &d, &mut None).unwrap().tip_m.unwrap();
-        // white noise of 10 µm (a fixed pseudo-random sequence)
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut noise = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state as f64 / u64::MAX as f64 - 0.5) * 2e-5 * 3f64.sqrt()
-        };
-        d.tip_m = Some(tip.iter().map(|t| t + noise()).collect());
-        let data = [d];
-        let calib = tip_only_calibration(&rig);
-        let at = |scale: f64| {
-            DVector::from_iterator(
-                calib.defs.len(),
-                calib.defs.iter().map(|p| {
-                    let v = if p.name == "stiffness_scale" {
-                        scale
-                    } else {
-                        p.starts[0]
-                    };
-                    p.repr(v)
-                }),
-            )
-        };
-        let problem = |x: &DVector<f64>| {
-            fit::Problem::new(&rig, &data, [1e-6, 1e-5, 0.1], &calib, &[], x.clone())
-        };
-        let (x1, x2) = (at(1.0), at(1.02));
-        let rise = |xa: &DVector<f64>, xb: &DVector<f64>| {
-            long_run_neg2ll_rise(&data, &problem(xa), xa, &problem(xb), xb).unwrap()
-        };
-        assert_eq!(rise(&x1, &x1), 0.0);
-        let worse = rise(&x1, &x2);
-        assert!(worse > 100.0, "{worse}");
-        // the misfit's own residual is coloured: counted once per autocorrelation time, the
-        // better fit measured from the worse one gains less than the worse one lost
-        let better = rise(&x2, &x1);
-        assert!(better < 0.0 && -better < worse, "{better} {worse}");
-    }
 
     #[test]
     fn the_base_assumption_leaves_a_latency_its_look_alike_to_the_lookalike_check() {
