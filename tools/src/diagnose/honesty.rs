@@ -98,7 +98,8 @@ pub fn long_run_std(
 /// frequencies move by < 1e-3 with one more function ([`super::sim::converged_basis`]); a
 /// parameter fixed by frequency *ratios* (a tip mass, a root spring) inherits that error as a
 /// bias the residual does not show (it stays white), so the statistical σ alone cannot cover
-/// it. Returns the model evaluations used (0 when the basis is at its largest, 12).
+/// it. Returns the model evaluations used (0 when the basis is at its largest, 12) and the
+/// refit's values ([`Alternative`]).
 pub fn add_basis_std(
     rig: &Rig,
     data: &[Prepared],
@@ -107,9 +108,9 @@ pub fn add_basis_std(
     set: &[&Candidate],
     f: &mut FitResult,
     max_evaluations: usize,
-) -> usize {
+) -> Alternative {
     if rig.beam.is_none() || calib.n_basis >= 12 {
-        return 0;
+        return Alternative::none();
     }
     let finer = Calib {
         n_basis: calib.n_basis + 1,
@@ -229,7 +230,7 @@ pub fn root_spring_accuracy_rel(rig: &Rig, p: &super::sim::Params, dt: f64) -> O
 /// from the beam's forcing at its second mode (docs/diagnose.md, session 15): a bias shared by
 /// every recording, which neither the long-run σ nor the recordings' disagreement sees. Nothing
 /// without a recorded force or a tip recorded at its own rate. Returns the model evaluations
-/// used.
+/// used and the refit's values ([`Alternative`]).
 pub fn add_drive_interpolation_std(
     rig: &Rig,
     data: &[Prepared],
@@ -238,10 +239,10 @@ pub fn add_drive_interpolation_std(
     set: &[&Candidate],
     f: &mut FitResult,
     max_evaluations: usize,
-) -> usize {
+) -> Alternative {
     let own_rate_tip = |d: &Prepared| d.tip_m.is_some() && d.cmd_identity_m.is_none();
     if !data.iter().any(|d| d.force_n.is_some() || own_rate_tip(d)) {
-        return 0;
+        return Alternative::none();
     }
     let other = match calib.drive_reading {
         DriveReading::PiecewiseLinear => Calib {
@@ -253,9 +254,31 @@ pub fn add_drive_interpolation_std(
     add_alternative_std(rig, data, sigma, &other, set, f, max_evaluations)
 }
 
+/// A model-form alternative's refit of the final model: the model evaluations it used and its
+/// parameters' physical values (calibration, then effects; `None` when there was none or it
+/// says nothing). The significance test of the final model asks every effect to stand clear
+/// of "no effect" at these values too ([`super::forward::unidentified_in_final`]): the form
+/// may move an effect's size, but an effect that is there is there whichever form holds.
+pub struct Alternative {
+    /// Model evaluations used.
+    pub evaluations: usize,
+    /// The refit's physical values.
+    pub values: Option<Vec<f64>>,
+}
+
+impl Alternative {
+    /// No refit.
+    pub fn none() -> Alternative {
+        Alternative {
+            evaluations: 0,
+            values: None,
+        }
+    }
+}
+
 /// Refits `f` (calibration + `set`) warm with the model-form alternative `alt` and adds each
 /// parameter's change to its 1-σ in quadrature, σ² ← σ² + (θ_alt − θ)². Returns the model
-/// evaluations used.
+/// evaluations used and the refit's values.
 fn add_alternative_std(
     rig: &Rig,
     data: &[Prepared],
@@ -264,7 +287,7 @@ fn add_alternative_std(
     set: &[&Candidate],
     f: &mut FitResult,
     max_evaluations: usize,
-) -> usize {
+) -> Alternative {
     let g = fit::fit(
         rig,
         data,
@@ -282,7 +305,10 @@ fn add_alternative_std(
             f.std[i] = f.std[i].hypot(d);
         }
     }
-    g.evaluations
+    Alternative {
+        evaluations: g.evaluations,
+        values: Some(g.values),
+    }
 }
 
 /// Residual statistics of one channel (module docs, 3).
@@ -503,7 +529,8 @@ pub fn coverage_factor_95(dof: f64) -> f64 {
 /// recordings fix only together with the drive's motion (a mount seen on the tip alone, which
 /// a lag of the carriage also explains) moves; one independent of it does not. The parameters
 /// of an effect whose look-alike is the loop itself are left alone ([`look_alike_params`]).
-/// Returns the model evaluations used.
+/// Returns the model evaluations used and the refit's values of the parameters of `f`, the
+/// look-alike's left at `f`'s ([`Alternative`]).
 #[allow(clippy::too_many_arguments)]
 pub fn add_base_assumption_std(
     rig: &Rig,
@@ -514,7 +541,7 @@ pub fn add_base_assumption_std(
     servo: &Candidate,
     f: &mut FitResult,
     max_evaluations: usize,
-) -> usize {
+) -> Alternative {
     let mut with: Vec<&Candidate> = set.to_vec();
     with.push(servo);
     let g = fit::fit(
@@ -530,16 +557,24 @@ pub fn add_base_assumption_std(
     );
     // a refit that ended worse than the identity start did not converge: no information
     if !(g.cost <= f.cost * (1.0 + 1e-9)) {
-        return g.evaluations;
+        return Alternative {
+            evaluations: g.evaluations,
+            values: None,
+        };
     }
     let own = look_alike_params(calib, set);
+    let mut values = f.values.clone();
     for i in 0..f.std.len().min(g.values.len()) {
         let d = g.values[i] - f.values[i];
         if d.is_finite() && f.std[i].is_finite() && !own.contains(&i) {
             f.std[i] = f.std[i].hypot(d);
+            values[i] = g.values[i];
         }
     }
-    g.evaluations
+    Alternative {
+        evaluations: g.evaluations,
+        values: Some(values),
+    }
 }
 
 /// Indices (in the vector of `calib` + `set`) of the parameters of every effect of `set` whose

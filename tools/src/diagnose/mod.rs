@@ -800,7 +800,8 @@ fn diagnose_with(
 /// linearised σ), raised to the recordings' disagreement and widened by the discretisation
 /// and, without `base_pos_m`, the base-motion assumption ([`honesty`]); the stability of every
 /// effect's parameters between the fit recordings, and the residual statistics before and
-/// after.
+/// after; and what the significance test of the final model reads
+/// ([`forward::NullEvidence`]).
 fn measure_final(
     ctx: &Ctx,
     cands: &[Candidate],
@@ -809,7 +810,7 @@ fn measure_final(
     reference: &mut forward::Reference,
     earlier: &Earlier,
     budget: &mut Budget,
-) -> honesty::Honesty {
+) -> (honesty::Honesty, forward::NullEvidence) {
     let (rig, fit_data, sigma, calib) = (ctx.rig, ctx.fit_data, ctx.sigma, ctx.calib);
     budget.spend(honesty::long_run_std(rig, fit_data, sigma, calib, &[], cal));
     budget.spend(honesty::long_run_std(
@@ -833,8 +834,21 @@ fn measure_final(
     let long_run = reference.fit.std.clone();
     let spread = honesty::spread_std(&refits.values);
     honesty::add_spread_std(&mut reference.fit, &spread);
-    widen_for_model_form(ctx, cands, set, &mut reference.fit, budget);
-    honesty::Honesty {
+    let mut recordings = reference.fit.clone();
+    honesty::add_model_accuracy_std(
+        ctx.rig,
+        ctx.fit_data,
+        ctx.sigma,
+        ctx.calib,
+        set,
+        &mut recordings,
+    );
+    let alternatives = widen_for_model_form(ctx, cands, set, &mut reference.fit, budget);
+    let evidence = forward::NullEvidence {
+        std: recordings.std,
+        alternatives,
+    };
+    let h = honesty::Honesty {
         nominal: honesty::residual_stats(&residuals(ctx.validate, &earlier.val_pred_nominal)),
         after: honesty::residual_stats(&reference.vres),
         stability: refits.stability,
@@ -846,37 +860,43 @@ fn measure_final(
             refits.values.len(),
             &reference.fit.std,
         ),
-    }
+    };
+    (h, evidence)
 }
 
 /// Widens the 1-σ of the final model `f` (calibration + `set`) by what the model's form leaves
 /// open: the discretisation, the stated frequency accuracy for a root spring, the drive's
 /// reading between samples and, without `base_pos_m`, the base-motion assumption ([`honesty`]).
+/// Returns the values of every alternative's refit ([`honesty::Alternative`]).
 fn widen_for_model_form(
     ctx: &Ctx,
     cands: &[Candidate],
     set: &[&Candidate],
     f: &mut FitResult,
     budget: &mut Budget,
-) {
+) -> Vec<Vec<f64>> {
     let (rig, fit_data, sigma, calib) = (ctx.rig, ctx.fit_data, ctx.sigma, ctx.calib);
+    let mut alternatives = Vec::new();
+    let mut keep = |alt: honesty::Alternative, budget: &mut Budget| {
+        budget.spend(alt.evaluations);
+        alternatives.extend(alt.values);
+    };
     if !set.is_empty() {
         let share = budget.share(3);
-        budget.spend(honesty::add_basis_std(
-            rig, fit_data, sigma, calib, set, f, share,
-        ));
+        let alt = honesty::add_basis_std(rig, fit_data, sigma, calib, set, f, share);
+        keep(alt, budget);
     }
     honesty::add_model_accuracy_std(rig, fit_data, sigma, calib, set, f);
     let share = budget.share(3);
-    budget.spend(honesty::add_drive_interpolation_std(
-        rig, fit_data, sigma, calib, set, f, share,
-    ));
+    let alt = honesty::add_drive_interpolation_std(rig, fit_data, sigma, calib, set, f, share);
+    keep(alt, budget);
     if let Some(servo) = honesty::identity_servo(cands, set, fit_data) {
         let share = budget.share(2);
-        budget.spend(honesty::add_base_assumption_std(
-            rig, fit_data, sigma, calib, set, &servo, f, share,
-        ));
+        let alt =
+            honesty::add_base_assumption_std(rig, fit_data, sigma, calib, set, &servo, f, share);
+        keep(alt, budget);
     }
+    alternatives
 }
 
 /// What the steps before selection found, carried into the [`Diagnosis`].
@@ -1006,7 +1026,7 @@ fn identified_final(
     loop {
         let set: Vec<&Candidate> = sel.chosen.iter().map(|&k| &cands[k]).collect();
         let (mut cal_h, mut reference_h) = (cal.clone(), sel.reference.clone());
-        let h = measure_final(
+        let (h, evidence) = measure_final(
             ctx,
             cands,
             &set,
@@ -1015,7 +1035,7 @@ fn identified_final(
             earlier,
             budget,
         );
-        match forward::unidentified_in_final(&set, &reference_h.fit, ctx.calib.len()) {
+        match forward::unidentified_in_final(&set, &reference_h.fit, &evidence, ctx.calib.len()) {
             Some((i, why)) if drop_effect(ctx, cands, sel, i, &why, budget) => {}
             _ => {
                 *cal = cal_h;
