@@ -20,6 +20,11 @@
 //!    recordings is an estimate with one degree of freedom, and ±2σ of it covers 70 %, not
 //!    95 %; each 1-σ carries its Welch–Satterthwaite degrees of freedom and the report gives
 //!    the 95 % interval ± t₀.₉₇₅(ν) σ beside it (GUM, JCGM 100:2008 G.4).
+//! 5. **Model-form alternatives** ([`Alternative`]): each refit's values (one basis function
+//!    more, the other reading of the drive, the base-motion assumption) are kept beside the
+//!    σ they widen. Whether an effect is there is asked at each of them with the σ the
+//!    recordings give ([`super::forward::unidentified_in_final`]); how large it is carries
+//!    their changes.
 
 use super::effects::{Calib, Candidate};
 use super::fit::{self, FitResult, CHANNEL_NAMES};
