@@ -2624,6 +2624,19 @@ pub(crate) mod tests {
         }
     }
 
+    /// A final model's fit with these physical values and 1 σ (nothing else filled in).
+    fn fit(values: Vec<f64>, std: Vec<f64>) -> FitResult {
+        FitResult {
+            x: DVector::from_vec(values.clone()),
+            names: vec![""; values.len()],
+            values,
+            std,
+            cost: 0.0,
+            evaluations: 0,
+            trace: vec![],
+        }
+    }
+
     fn candidate(id: Effect, params: Vec<crate::diagnose::effects::ParamDef>) -> Candidate {
         Candidate {
             id,
@@ -2646,15 +2659,6 @@ pub(crate) mod tests {
             Effect::BaseFriction,
             vec![param("friction_n", true), param("viscous_n_s_per_m", true)],
         );
-        let fit = |values: Vec<f64>, std: Vec<f64>| FitResult {
-            x: DVector::from_vec(values.clone()),
-            names: vec![""; values.len()],
-            values,
-            std,
-            cost: 0.0,
-            evaluations: 0,
-            trace: vec![],
-        };
         // one calibration parameter, then the loop (no null: not judged), the spring, friction
         let set = [&servo, &root, &friction];
         let f = fit(
@@ -2710,15 +2714,6 @@ pub(crate) mod tests {
             vec![param("root_stiffness_nm_per_rad", false)],
         );
         let tip = candidate(Effect::TipMass, vec![param("tip_mass_kg", true)]);
-        let fit = |values: Vec<f64>, std: Vec<f64>| FitResult {
-            x: DVector::from_vec(values.clone()),
-            names: vec![""; values.len()],
-            values,
-            std,
-            cost: 0.0,
-            evaluations: 0,
-            trace: vec![],
-        };
         // case08's numbers:
         // a spring of 24.2 ± 1.55 N·m/rad that the other reading puts at 57.5 is 6.6 σ from a
         // rigid clamp there (in compliance); one that an alternative takes to 200 is 1.9 σ
