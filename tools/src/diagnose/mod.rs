@@ -834,20 +834,12 @@ fn measure_final(
     let long_run = reference.fit.std.clone();
     let spread = honesty::spread_std(&refits.values);
     honesty::add_spread_std(&mut reference.fit, &spread);
-    let mut recordings = reference.fit.clone();
-    honesty::add_model_accuracy_std(
-        ctx.rig,
-        ctx.fit_data,
-        ctx.sigma,
-        ctx.calib,
-        set,
-        &mut recordings,
-    );
+    // the model's stated accuracy (Type B) belongs to what the recordings give; the
+    // alternatives' changes (added in quadrature after it) do not
+    honesty::add_model_accuracy_std(rig, fit_data, sigma, calib, set, &mut reference.fit);
+    let std = reference.fit.std.clone();
     let alternatives = widen_for_model_form(ctx, cands, set, &mut reference.fit, budget);
-    let evidence = forward::NullEvidence {
-        std: recordings.std,
-        alternatives,
-    };
+    let evidence = forward::NullEvidence { std, alternatives };
     let h = honesty::Honesty {
         nominal: honesty::residual_stats(&residuals(ctx.validate, &earlier.val_pred_nominal)),
         after: honesty::residual_stats(&reference.vres),
@@ -865,9 +857,9 @@ fn measure_final(
 }
 
 /// Widens the 1-σ of the final model `f` (calibration + `set`) by what the model's form leaves
-/// open: the discretisation, the stated frequency accuracy for a root spring, the drive's
-/// reading between samples and, without `base_pos_m`, the base-motion assumption ([`honesty`]).
-/// Returns the values of every alternative's refit ([`honesty::Alternative`]).
+/// open: the discretisation, the drive's reading between samples and, without `base_pos_m`,
+/// the base-motion assumption ([`honesty`]). Returns the values of every alternative's refit
+/// ([`honesty::Alternative`]).
 fn widen_for_model_form(
     ctx: &Ctx,
     cands: &[Candidate],
@@ -886,7 +878,6 @@ fn widen_for_model_form(
         let alt = honesty::add_basis_std(rig, fit_data, sigma, calib, set, f, share);
         keep(alt, budget);
     }
-    honesty::add_model_accuracy_std(rig, fit_data, sigma, calib, set, f);
     let share = budget.share(3);
     let alt = honesty::add_drive_interpolation_std(rig, fit_data, sigma, calib, set, f, share);
     keep(alt, budget);
