@@ -511,7 +511,7 @@ fn tip_mass_candidate(h: &StartHints) -> Candidate {
 }
 
 /// Structural changes of the beam and its clamp: tip mass, root compliance, cubic clamp.
-fn structural_candidates(h: &StartHints) -> Vec<Candidate> {
+pub(crate) fn structural_candidates(h: &StartHints) -> Vec<Candidate> {
     let mut c = vec![tip_mass_candidate(h)];
     // the stiffness is scanned from a clamp as soft as the beam (k L/EI = 1) to one 1000 × as
     // stiff (next to rigid, the model so far): the fit starts where the recordings point, and

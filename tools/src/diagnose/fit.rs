@@ -748,6 +748,34 @@ pub fn nested_seed(
     Some(DVector::from_vec(x))
 }
 
+/// The starting point a form `smaller` takes from the optimum `larger_x` (representation:
+/// calibration, the effects chosen before, then `larger`'s parameters) of another candidate
+/// whose leading parameters are `smaller`'s (same names, same order; any effect): `larger`'s
+/// point with its extra parameters dropped. A cubic clamp holds a root spring, and its
+/// two-parameter fit can reach the spring that the root spring's own search missed (second
+/// simulator seed 8, case13: k_r 44.9 N·m/rad at 500 Hz; the clamp's fit ended at 44.0, the
+/// spring's at 1.2·10⁷, a rigid clamp, after its scan had pointed to the stiff end). The point
+/// is the smaller form's only if the extra parameters were at their null: the caller keeps it
+/// when its cost is lower. `None` when the names do not lead or the lengths disagree.
+pub fn reduced_seed(
+    larger: &Candidate,
+    larger_x: &DVector<f64>,
+    smaller: &Candidate,
+) -> Option<DVector<f64>> {
+    let (ns, nl) = (smaller.params.len(), larger.params.len());
+    let leads = ns > 0
+        && ns < nl
+        && smaller
+            .params
+            .iter()
+            .zip(&larger.params)
+            .all(|(a, b)| a.name == b.name);
+    if !leads || larger_x.len() < nl {
+        return None;
+    }
+    Some(larger_x.rows(0, larger_x.len() - (nl - ns)).into_owned())
+}
+
 /// The starting points of a fit: every combination of the parameters' start values (at most
 /// 6), the calibration part overwritten by `warm`; with `fresh_damping`, one more from the
 /// rig's damping ratios (the warm calibration may have "explained" a mismatched mode by
@@ -1011,6 +1039,49 @@ mod tests {
         let x2 = DVector::from_element(2 + two.params.len(), 0.3);
         let s3 = nested_seed(&two, &x2, &three).expect("order 3 adds the integral action");
         assert_eq!(s3.len(), 2 + three.params.len());
+    }
+
+    #[test]
+    fn a_root_spring_restarts_from_the_cubic_clamps_optimum_without_its_cubic_term() {
+        use super::super::effects::{mount_candidate, structural_candidates, StartHints};
+        use crate::effect::Effect;
+        let h = StartHints {
+            beam_mass_kg: 0.2,
+            ei_over_l: 1.7,
+            f2_hz: 6.7,
+            rate_hz: 500.0,
+            peak_deflection_m: 0.02,
+            friction: (0.0, 0.0),
+            cogging: (0.0, 0.0, 0.01),
+            cogging_pitches_m: vec![],
+            speed_m_s: 0.1,
+            zeta1: 0.01,
+            length_m: 1.08,
+            carriage_mass_kg: 3.0,
+            mode_freqs_hz: vec![1.3, 6.7, 17.7],
+        };
+        let structural = structural_candidates(&h);
+        let pick = |e: Effect| structural.iter().find(|c| c.id == e).expect("in the catalogue");
+        let (spring, cubic) = (pick(Effect::RootCompliance), pick(Effect::CubicStiffness));
+        // calibration (3), then the cubic clamp at k_r 44 N·m/rad, c₃ 1e-5
+        let x = DVector::from_vec(vec![
+            -0.1,
+            -4.5,
+            -3.8,
+            cubic.params[0].repr(44.0),
+            cubic.params[1].repr(1e-5),
+        ]);
+        let seed = reduced_seed(cubic, &x, spring).expect("the clamp's spring leads");
+        assert_eq!(seed.len(), 4);
+        assert_eq!(seed.rows(0, 4), x.rows(0, 4));
+        assert!((spring.params[0].value(seed[3]) - 44.0).abs() < 1e-9);
+        // not from the smaller to the larger, not between parameters of other names
+        assert!(reduced_seed(spring, &seed, cubic).is_none());
+        let (massless, coupled) = (mount_candidate(&h, false), mount_candidate(&h, true));
+        assert!(reduced_seed(cubic, &x, &massless).is_none());
+        let xm = DVector::from_element(3 + coupled.params.len(), 0.2);
+        let sm = reduced_seed(&coupled, &xm, &massless).expect("the mass is the extra one");
+        assert_eq!(sm.len(), 3 + massless.params.len());
     }
 
     #[test]

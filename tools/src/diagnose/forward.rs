@@ -1152,11 +1152,60 @@ fn fit_round(
             outs.push(o);
         }
     }
+    refit_from_larger_forms(ctx, cands, chosen, &mut outs, reference, budget);
     outs.sort_by(|a, b| a.delta_val.total_cmp(&b.delta_val));
     super::keep_lowest_bic_form(&mut outs);
     place_resonances(ctx, cands, chosen, &mut outs, budget);
     place_compliances(ctx, cands, chosen, &mut outs, budget);
     outs
+}
+
+/// Every outcome of a round whose parameters lead a candidate's fitted with a lower cost (a
+/// root spring inside a cubic clamp, [`fit::reduced_seed`]) is refitted from that optimum with
+/// the extra parameters dropped, when the point is better than its own fit there; the refit
+/// replaces the outcome if it ends lower. A nested model is never worse than the larger one
+/// with its extra parameters at their null, so a smaller form left above that point was
+/// stopped by its search, not by the recordings.
+fn refit_from_larger_forms(
+    ctx: &Ctx,
+    cands: &[Candidate],
+    chosen: &[usize],
+    outs: &mut [CandidateOutcome],
+    reference: &Reference,
+    budget: &mut Budget,
+) {
+    for i in 0..outs.len() {
+        let ci = outs[i].cand_index;
+        let set: Vec<&Candidate> = set_of(cands, chosen)
+            .into_iter()
+            .chain(std::iter::once(&cands[ci]))
+            .collect();
+        let larger = outs.iter().filter(|o| o.fit.cost < outs[i].fit.cost);
+        let seeds: Vec<_> = larger
+            .filter_map(|o| fit::reduced_seed(&cands[o.cand_index], &o.fit.x, &cands[ci]))
+            .collect();
+        let costs = ctx.fit_problem(&set, outs[i].fit.x.clone()).costs_at(&seeds);
+        budget.spend(seeds.len());
+        let Some((_, seed)) = costs
+            .into_iter()
+            .zip(seeds)
+            .filter(|(c, _)| *c < outs[i].fit.cost)
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+        else {
+            continue;
+        };
+        let share = budget.share(outs.len() - i + 1);
+        if let Some(o) = ctx.evaluate(&set, ci, reference, share, false, &[seed]) {
+            budget.spend(o.fit.evaluations);
+            ctx.trace(format!(
+                "{}: refitted from a larger form's optimum, cost {:.6e} → {:.6e}",
+                o.id, outs[i].fit.cost, o.fit.cost
+            ));
+            if o.fit.cost < outs[i].fit.cost {
+                outs[i] = o;
+            }
+        }
+    }
 }
 
 /// The part of the beam next to the clamp (fraction of its length) where a rotational spring is
