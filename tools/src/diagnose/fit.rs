@@ -1061,7 +1061,12 @@ mod tests {
             mode_freqs_hz: vec![1.3, 6.7, 17.7],
         };
         let structural = structural_candidates(&h);
-        let pick = |e: Effect| structural.iter().find(|c| c.id == e).expect("in the catalogue");
+        let pick = |e: Effect| {
+            structural
+                .iter()
+                .find(|c| c.id == e)
+                .expect("in the catalogue")
+        };
         let (spring, cubic) = (pick(Effect::RootCompliance), pick(Effect::CubicStiffness));
         // calibration (3), then the cubic clamp at k_r 44 N·m/rad, c₃ 1e-5
         let x = DVector::from_vec(vec![

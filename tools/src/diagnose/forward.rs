@@ -1184,7 +1184,9 @@ fn refit_from_larger_forms(
         let seeds: Vec<_> = larger
             .filter_map(|o| fit::reduced_seed(&cands[o.cand_index], &o.fit.x, &cands[ci]))
             .collect();
-        let costs = ctx.fit_problem(&set, outs[i].fit.x.clone()).costs_at(&seeds);
+        let costs = ctx
+            .fit_problem(&set, outs[i].fit.x.clone())
+            .costs_at(&seeds);
         budget.spend(seeds.len());
         let Some((_, seed)) = costs
             .into_iter()
