@@ -435,7 +435,7 @@ fn effects_words(d: &Diagnosis) -> String {
                 continue;
             }
             s += &format!("  {} = {:.5e} ± {:.2e}", r.name, r.value, r.std);
-            if r.dof.is_finite() {
+            if super::honesty::dof_is_finite(r.dof) {
                 s += &format!(
                     " (95 % interval ± {:.2e}: {:.1} degrees of freedom, the fit recordings disagree beyond noise)",
                     r.u95(),
