@@ -732,15 +732,8 @@ pub fn nested_seed(
     smaller_x: &DVector<f64>,
     larger: &Candidate,
 ) -> Option<DVector<f64>> {
-    let (ns, nl) = (smaller.params.len(), larger.params.len());
-    let nests = smaller.id == larger.id
-        && ns < nl
-        && smaller
-            .params
-            .iter()
-            .zip(&larger.params)
-            .all(|(a, b)| a.name == b.name);
-    if !nests || smaller_x.len() < ns {
+    let ns = smaller.params.len();
+    if smaller.id != larger.id || !leads(smaller, larger) || smaller_x.len() < ns {
         return None;
     }
     let mut x: Vec<f64> = smaller_x.iter().copied().collect();
@@ -763,17 +756,21 @@ pub fn reduced_seed(
     smaller: &Candidate,
 ) -> Option<DVector<f64>> {
     let (ns, nl) = (smaller.params.len(), larger.params.len());
-    let leads = ns > 0
-        && ns < nl
+    if ns == 0 || !leads(smaller, larger) || larger_x.len() < nl {
+        return None;
+    }
+    Some(larger_x.rows(0, larger_x.len() - (nl - ns)).into_owned())
+}
+
+/// Whether `smaller`'s parameters are the leading ones of `larger`'s, which has more (same
+/// names, same order): the nesting [`nested_seed`] and [`reduced_seed`] move between.
+fn leads(smaller: &Candidate, larger: &Candidate) -> bool {
+    smaller.params.len() < larger.params.len()
         && smaller
             .params
             .iter()
             .zip(&larger.params)
-            .all(|(a, b)| a.name == b.name);
-    if !leads || larger_x.len() < nl {
-        return None;
-    }
-    Some(larger_x.rows(0, larger_x.len() - (nl - ns)).into_owned())
+            .all(|(a, b)| a.name == b.name)
 }
 
 /// The starting points of a fit: every combination of the parameters' start values (at most
