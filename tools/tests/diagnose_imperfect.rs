@@ -88,8 +88,8 @@ fn thirty_seconds(base_and_force: bool) -> TruthOptions {
 /// `servo_lag`, stderr).
 fn diagnose_imperfect(effect: &str, seed: u64) -> (Vec<String>, String) {
     let case = generate(effect, seed, &thirty_seconds(true)).unwrap();
-    let dir = std::env::temp_dir().join(format!("beamtool-imperfect-{effect}-{seed}"));
-    diagnose_written(&case, &dir, write_imperfect)
+    let tmp = tempfile::tempdir().unwrap();
+    diagnose_written(&case, tmp.path(), write_imperfect)
 }
 
 #[test]
@@ -139,8 +139,8 @@ fn a_tip_clipped_at_the_cameras_field_of_view_is_fitted_on_what_it_recorded() {
     // a clamp spring, the tip alone recorded by a camera that loses the marker beyond 80 % of
     // its largest excursion
     let case = generate("root_compliance", 1300, &thirty_seconds(false)).unwrap();
-    let dir = std::env::temp_dir().join("beamtool-clipped-root_compliance-1300");
-    let (named, stderr) = diagnose_written(&case, &dir, |r, p| write_clipped(r, p, 0.8));
+    let tmp = tempfile::tempdir().unwrap();
+    let (named, stderr) = diagnose_written(&case, tmp.path(), |r, p| write_clipped(r, p, 0.8));
     assert!(stderr.contains("held at its sensor's rail"), "{stderr}");
     assert_eq!(named, ["root_compliance"], "{stderr}");
 }
@@ -170,8 +170,8 @@ fn sensors_mounted_the_other_way_round_are_named_and_read_the_right_way() {
     // friction was still found on the force, but the reversed encoder stood as an
     // unexplained `base_pos_m` residual of validation NRMSE 2.09
     let case = generate("base_friction", 1001, &thirty_seconds(true)).unwrap();
-    let dir = std::env::temp_dir().join("beamtool-reversed-base_friction-1001");
-    let (named, stderr) = diagnose_written(&case, &dir, write_reversed);
+    let tmp = tempfile::tempdir().unwrap();
+    let (named, stderr) = diagnose_written(&case, tmp.path(), write_reversed);
     for note in [
         "base_pos_m moves against base_cmd_m",
         "tip_pos_m moves against base_pos_m",
@@ -181,7 +181,8 @@ fn sensors_mounted_the_other_way_round_are_named_and_read_the_right_way() {
     }
     assert_eq!(named, ["base_friction"], "{stderr}");
     let j: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("out.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("out.json")).unwrap())
+            .unwrap();
     let base = &j["validation"]["per_channel"]["base_pos_m"]["nrmse_after"];
     assert!(
         base.as_f64().unwrap() < 0.01,

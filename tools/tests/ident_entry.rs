@@ -18,10 +18,11 @@ fn model() -> BeamModel {
     BeamModel::new(&rig, &ModelOptions::default()).unwrap()
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("ident-entry-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+/// A path `name` in a fresh directory, removed when the returned guard is dropped.
+fn tmp(name: &str) -> (tempfile::TempDir, PathBuf) {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join(name);
+    (d, p)
 }
 
 /// Every identified mode is within 1 % of a true mode (no spurious mode), and the first
@@ -67,7 +68,7 @@ fn tunes_generated_recording_has_only_physical_modes() {
     let m = model();
     let tr = truth(&m).unwrap().clamped;
     let rig = Rig::from_toml_file("../rigs/paper.toml").unwrap();
-    let p = tmp("generated-recording.csv");
+    let (_dir, p) = tmp("generated-recording.csv");
     beamtools::tune::generate_recording(&rig, &p).unwrap();
     let id = identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap();
     assert_eq!(id.path, IdentPath::RingDown, "{}", id.reason);
@@ -240,7 +241,7 @@ fn write_npy(
 #[test]
 fn recording_formats_and_messages() {
     let (t, x) = decay_6hz(200.0, 15.0);
-    let p = tmp("f32.npy");
+    let (_dir, p) = tmp("f32.npy");
     write_npy(&p, "<f4", 4, &t, &x, |v| (v as f32).to_le_bytes().to_vec());
     let id = identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap();
     assert!(
@@ -249,7 +250,7 @@ fn recording_formats_and_messages() {
         id.modes
     );
     // int16: time in ms (integers), signal in µm: refused with the ms hint.
-    let p = tmp("i16.npy");
+    let (_dir, p) = tmp("i16.npy");
     let ti: Vec<f64> = t.iter().map(|v| (v * 1000.0).round()).collect();
     let xi: Vec<f64> = x.iter().map(|v| (v * 1e6).round()).collect();
     write_npy(&p, "<i2", 2, &ti[..3000], &xi[..3000], |v| {
@@ -261,7 +262,7 @@ fn recording_formats_and_messages() {
     );
     assert!(e.contains("milliseconds"), "{e}");
     // CSV with time_ms: recognised.
-    let p = tmp("ms.csv");
+    let (_dir, p) = tmp("ms.csv");
     let mut s = String::from("time_ms,tip_pos_m\n");
     for (a, b) in t.iter().zip(&x) {
         s += &format!("{},{}\n", a * 1000.0, b);
@@ -355,7 +356,7 @@ fn blank_cells_in_a_csv_are_filled_and_reported() {
         };
         csv.push_str(&format!("{t},{v}\n"));
     }
-    let p = tmp("decay-with-blanks.csv");
+    let (_dir, p) = tmp("decay-with-blanks.csv");
     std::fs::write(&p, csv).unwrap();
     let id = identify_file(&p, &IdentifyOptions::default(), &mut no_progress()).unwrap();
     check(&id, &[(6.0, 0.005)], 1, 0.002, 0.10);

@@ -135,8 +135,8 @@ fn real_aluminium_free_decays() {
 
 #[test]
 fn recording_csv_errors_name_row_and_column() {
-    let dir = std::env::temp_dir().join(format!("beamshaper-csv-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
     let p = dir.join("bad.csv");
     std::fs::write(&p, "time_s,tip_pos_m\n0,0\n0.01,abc\n").unwrap();
     let e = format!("{:#}", Recording::read_csv(&p).unwrap_err());
@@ -210,8 +210,8 @@ fn real_steel_impact_spectrum() {
 #[test]
 fn bad_lvm_is_a_clear_error() {
     use beamtools::ident::magspec::read_lvm;
-    let dir = std::env::temp_dir().join(format!("beamshaper-lvm-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
     let head = "LabVIEW Measurement\t\n***End_of_Header***\t\nDelta_X\t0.5\t\n***End_of_Header***\t\t\nX_Value\tAcceleration\tComment\n";
     let good: String = (0..40)
         .map(|k| format!("{}\t-80.0\n", 0.5 * k as f64))

@@ -3,11 +3,11 @@
 
 use std::process::Command;
 
-fn beamtool(args: &[&str]) -> std::process::Output {
-    let dir = std::env::temp_dir();
+/// Runs the binary with `args` from `dir` (a directory outside the checkout).
+fn beamtool(dir: &std::path::Path, args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_beamtool"))
         .args(args)
-        .current_dir(&dir)
+        .current_dir(dir)
         .env_remove("RUST_BACKTRACE")
         .output()
         .unwrap()
@@ -15,7 +15,9 @@ fn beamtool(args: &[&str]) -> std::process::Output {
 
 #[test]
 fn commands_run_from_any_directory_and_fail_with_plain_messages() {
-    let m = beamtool(&["modes"]);
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let m = beamtool(dir, &["modes"]);
     assert!(m.status.success(), "{}", String::from_utf8_lossy(&m.stderr));
     let rec = std::fs::read_dir("../../shared/data/real/aluminium-cantilever")
         .unwrap()
@@ -24,16 +26,20 @@ fn commands_run_from_any_directory_and_fail_with_plain_messages() {
         .unwrap();
     let rec = std::fs::canonicalize(rec).unwrap();
     let rec = rec.to_str().unwrap();
-    let t = beamtool(&[
-        "tune",
-        rec,
-        "--move-mm",
-        "-50",
-        "--port",
-        "/dev/does-not-exist",
-        "--out",
-        "/tmp/beamtool-cli-test",
-    ]);
+    let out = dir.join("out");
+    let t = beamtool(
+        dir,
+        &[
+            "tune",
+            rec,
+            "--move-mm",
+            "-50",
+            "--port",
+            "/dev/does-not-exist",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+    );
     let err = String::from_utf8_lossy(&t.stderr);
     assert_eq!(t.status.code(), Some(1), "{err}");
     assert!(
@@ -44,7 +50,7 @@ fn commands_run_from_any_directory_and_fail_with_plain_messages() {
         !err.contains("Error {") && !err.contains("backtrace") && !err.contains("Os {"),
         "{err}"
     );
-    let n = beamtool(&["tune", "--tolerance-pct", "nan"]);
+    let n = beamtool(dir, &["tune", "--tolerance-pct", "nan"]);
     assert!(!n.status.success());
     assert!(String::from_utf8_lossy(&n.stderr).contains("not a finite number"));
 }

@@ -23,11 +23,12 @@ fn real(prefix: &str) -> PathBuf {
         .unwrap()
 }
 
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("beamshaper-test-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh directory, removed when the returned guard is dropped (also when the test fails).
+fn tmpdir(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("beamshaper-test-{name}-"))
+        .tempdir()
+        .unwrap()
 }
 
 fn json(out: &Path) -> serde_json::Value {
@@ -63,7 +64,8 @@ fn board_with_unsaved_change(dir: &Path, camera: Option<&Path>) -> (String, Path
 
 #[test]
 fn default_run_sweeps_on_the_board_identifies_from_the_camera_and_saves_after_the_measured_check() {
-    let out = tmpdir("tune");
+    let tmp = tmpdir("tune");
+    let out = tmp.path().to_path_buf();
     let outcome = tune(TuneArgs::new(None, &out)).unwrap();
     assert!(outcome.passed);
     let r = json(&out);
@@ -107,7 +109,8 @@ fn default_run_sweeps_on_the_board_identifies_from_the_camera_and_saves_after_th
 #[test]
 fn a_failed_verification_exits_with_an_error_saves_nothing_and_restores_the_running_configuration()
 {
-    let dir = tmpdir("fail");
+    let tmp = tmpdir("fail");
+    let dir = tmp.path().to_path_buf();
     let camera = dir.join("camera.csv");
     let (port, flash, saved_before) = board_with_unsaved_change(&dir, Some(&camera));
     let running_before = config_lines(&port);
@@ -141,7 +144,8 @@ fn a_failed_verification_exits_with_an_error_saves_nothing_and_restores_the_runn
 #[test]
 fn the_real_aluminium_decays_pass_the_model_free_check() {
     for (len, f_lo, f_hi) in [("40cm", 9.3, 9.5), ("50cm", 5.9, 6.2), ("60cm", 4.1, 4.4)] {
-        let out = tmpdir(&format!("real-{len}"));
+        let tmp = tmpdir(&format!("real-{len}"));
+        let out = tmp.path().to_path_buf();
         tune(TuneArgs::new(Some(real(len)), &out)).unwrap();
         let r = json(&out);
         let f1 = r["modes"][0]["freq_hz"].as_f64().unwrap();
@@ -155,7 +159,8 @@ fn the_real_aluminium_decays_pass_the_model_free_check() {
 
 #[test]
 fn an_unreachable_board_is_a_clear_error_and_arguments_are_checked_first() {
-    let out = tmpdir("unreachable");
+    let tmp = tmpdir("unreachable");
+    let out = tmp.path().to_path_buf();
     let mut a = TuneArgs::new(Some(real("50cm")), &out);
     a.port = Some("/dev/does-not-exist".into());
     let err = format!("{:#}", tune(a.clone()).err().unwrap());
@@ -202,7 +207,8 @@ fn faulty_board(flash: PathBuf, good_lines: usize, garbage: bool) -> String {
 
 #[test]
 fn a_silent_board_is_a_clear_error_and_nothing_moves() {
-    let dir = tmpdir("silent");
+    let tmp = tmpdir("silent");
+    let dir = tmp.path().to_path_buf();
     let port = faulty_board(dir.join("flash.bin"), 0, false);
     let mut a = TuneArgs::new(Some(real("50cm")), &dir);
     a.port = Some(port);
@@ -212,7 +218,8 @@ fn a_silent_board_is_a_clear_error_and_nothing_moves() {
 
 #[test]
 fn a_malformed_reply_while_programming_is_a_clear_error_and_the_flash_is_unchanged() {
-    let dir = tmpdir("malformed");
+    let tmp = tmpdir("malformed");
+    let dir = tmp.path().to_path_buf();
     let flash = dir.join("flash.bin");
     let mut boot = String::new();
     let mut b = VirtualBoard::boot(Some(flash.clone()), &mut boot);
@@ -247,7 +254,8 @@ fn options_accept_negative_numbers_refuse_non_finite_and_impossible_values() {
     assert_eq!(p(&["--move-mm", "-50"]).unwrap().a.move_mm, -50.0);
     assert!(p(&["--tolerance-pct", "nan"]).is_err());
     assert!(p(&["--speed-mm-s", "inf"]).is_err());
-    let out = tmpdir("opts");
+    let tmp = tmpdir("opts");
+    let out = tmp.path().to_path_buf();
     for bad in [
         ["--move-mm", "0"],
         ["--speed-mm-s", "0"],
@@ -277,7 +285,8 @@ fn tune_succeeds_on_a_sweep_and_on_a_dithering_move_with_ring_down() {
     let rig = Rig::from_toml_str(DEFAULT_RIG_TOML).unwrap();
     let m = BeamModel::new(&rig, &ModelOptions::default()).unwrap();
     let tr = truth(&m).unwrap().clamped;
-    let dir = tmpdir("tune-user-recordings");
+    let tmp = tmpdir("tune-user-recordings");
+    let dir = tmp.path().to_path_buf();
     let sweep = simulate_sweep(
         &m,
         &SweepSpec::paper(SweepKind::Exponential, 3.0),

@@ -284,9 +284,8 @@ mod flash_tests {
     /// `load` refuses it with `err version:`, and `save` replaces it with a readable record.
     #[test]
     fn an_old_format_record_boots_with_defaults_and_the_console_says_so() {
-        let dir = std::env::temp_dir().join(format!("vboard-v1-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let flash = dir.join("flash.bin");
+        let dir = tempfile::tempdir().unwrap();
+        let flash = dir.path().join("flash.bin");
         // Magic, version 1, then a body; the CRC-32/ISO-HDLC of it all (valid).
         let mut v1 = b"BSH\x01".to_vec();
         v1.extend_from_slice(&[0u8; 40]);
@@ -313,7 +312,6 @@ mod flash_tests {
         );
         assert!(b.receive(b"save\n").contains("ok save"));
         assert!(load_flash(&flash).unwrap().unwrap().modes[0].is_some());
-        let _ = std::fs::remove_dir_all(&dir);
     }
 }
 

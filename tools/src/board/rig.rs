@@ -296,7 +296,8 @@ mod tests {
     #[test]
     fn sensor_parameters_out_of_range_are_refused() {
         let rig = Rig::from_toml_str(crate::tune::DEFAULT_RIG_TOML).unwrap();
-        let log = std::env::temp_dir().join(format!("rig-test-{}.csv", std::process::id()));
+        let dir = tempfile::tempdir().unwrap();
+        let log = dir.path().join("rig-test.csv");
         let mut s = RigSensors::camera(&rig);
         s.sample_rate_hz = 2000.0;
         let e = VirtualRig::new(&rig, s, 1000.0, &log).err().unwrap();

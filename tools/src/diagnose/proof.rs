@@ -1165,16 +1165,14 @@ mod tests {
         e.error = Some("panic: x".into());
         e.nrmse = (f64::NAN, f64::NAN, String::new());
         let rows = vec![row("tip_mass", Group::Single, "tip_mass", false, true), e];
-        let dir = std::env::temp_dir().join(format!("proof-json-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join("proof.json");
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("proof.json");
         std::fs::write(&p, serde_json::to_string(&rows).unwrap()).unwrap();
         let back = read_rows(&[p.clone(), p]).unwrap();
         assert_eq!(back.len(), 4);
         assert!(back[1].nrmse.0.is_nan() && back[1].error.is_some());
         let s = score(&back);
         assert_eq!((s.singles, s.errors.len()), ((2, 2), 2));
-        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]

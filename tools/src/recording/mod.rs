@@ -788,8 +788,8 @@ mod tests {
 
     #[test]
     fn semicolons_with_decimal_commas_and_tabs_read_as_commas_do() {
-        let dir = std::env::temp_dir().join(format!("beamtools-delimiters-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
         let comma = "# logger v2; 100 Hz\ntime_s,base_cmd_m,tip_pos_m\n0,0,0.001\n0.01,0.5,-0.25\n";
         let files = [
             ("comma.csv", comma.to_string()),
@@ -820,8 +820,8 @@ mod tests {
 
     #[test]
     fn positions_in_millimetres_and_times_in_milliseconds_are_read_in_si_units() {
-        let dir = std::env::temp_dir().join(format!("beamtools-units-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
         let si = dir.join("si.csv");
         std::fs::write(
             &si,
