@@ -1734,14 +1734,17 @@ fn showed_evidence_last_round(sel: &Selection, i: usize) -> bool {
         .is_some_and(|outs| outs.iter().any(|o| o.cand_index == i && showed_evidence(o)))
 }
 
-/// Whether outcome `o` passed the likelihood conditions of the guard (1–3 of
-/// [`super::select`]: ΔBIC, validation likelihood, a gain beyond the model-form allowance),
-/// whatever the others said. The conditions on what is left — the structure it accounts for,
-/// a parameter at a search limit — are worth judging again against the augmented model: an
-/// effect beside a larger one removes only part of a residual the larger one dominates, and
-/// its fit, pulled by that residual, may stop at a limit of its range.
+/// Whether outcome `o` passed, or passed the likelihood conditions of the guard (1–2 of
+/// [`super::select`]: ΔBIC on the fit recordings, Δ(−2 ln L) on the validation recording),
+/// whatever the others said. The other conditions are worth judging again against the
+/// augmented model: an effect beside a larger one removes only part of a residual the larger
+/// one dominates, and its fit, pulled by that residual, may stop at a limit of its range. So is
+/// the model-form allowance (condition 3): it is measured on the model so far, and while a
+/// larger effect is missing it is large. Measured: second simulator, seed 9, case20 (a 31 g tip
+/// mass and an 11.3 ms camera latency at 200 Hz): the latency gained 23.3 % against an
+/// allowance of 26.1 % beside the missing tip mass, and 97.7 % against 0.8 % once it was added.
 fn showed_evidence(o: &CandidateOutcome) -> bool {
-    o.passed || (super::lookalike::has_evidence(o) && o.reduction > o.allowance.max(0.0))
+    o.passed || super::lookalike::has_evidence(o)
 }
 
 /// Adds `outs[s]` to the selection; false when the augmented model cannot be simulated (the
@@ -2842,9 +2845,14 @@ pub(crate) mod tests {
             false,
             "ΔBIC -5.0 not < −10"
         )));
+        // within the allowance of the model so far: judged again against the augmented model
         let mut within_allowance = outcome(-473.8, false, "does not beat the allowance");
         within_allowance.allowance = 0.6;
-        assert!(!showed_evidence(&within_allowance));
+        assert!(showed_evidence(&within_allowance));
+        // likelihood evidence on the fit recordings alone: not refitted
+        let mut fit_only = outcome(-473.8, false, "validation Δ(−2lnL) +8 not < −10");
+        fit_only.delta_val = 8.0;
+        assert!(!showed_evidence(&fit_only));
     }
 
     #[test]
