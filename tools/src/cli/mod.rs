@@ -130,7 +130,9 @@ pub fn print_notes(path: &std::path::Path, notes: &[String]) {
 }
 
 /// The commands' default `--rig ../rigs/paper.toml` is relative to `tools/`. From any other
-/// directory: the `rigs/paper.toml` beside the binary (its checkout), else the built-in copy.
+/// directory: the `rigs/paper.toml` beside the binary (its checkout), else the built-in copy,
+/// written once to one file in the temporary directory (replaced atomically when its content
+/// differs, so concurrent runs never read a half-written file and runs leave no file each).
 pub fn default_rig(rig: &mut PathBuf) -> Result<()> {
     if rig.as_path() != std::path::Path::new("../rigs/paper.toml") || rig.exists() {
         return Ok(());
@@ -143,10 +145,14 @@ pub fn default_rig(rig: &mut PathBuf) -> Result<()> {
     *rig = match beside {
         Some(p) => p,
         None => {
-            let p =
-                std::env::temp_dir().join(format!("beamtool-paper-{}.toml", std::process::id()));
-            std::fs::write(&p, crate::tune::DEFAULT_RIG_TOML)
-                .with_context(|| format!("cannot write the built-in rig to {}", p.display()))?;
+            let p = std::env::temp_dir().join("beamtool-built-in-paper-rig.toml");
+            let current = std::fs::read_to_string(&p).ok();
+            if current.as_deref() != Some(crate::tune::DEFAULT_RIG_TOML) {
+                let part = p.with_extension(format!("toml.{}", std::process::id()));
+                std::fs::write(&part, crate::tune::DEFAULT_RIG_TOML)
+                    .and_then(|()| std::fs::rename(&part, &p))
+                    .with_context(|| format!("cannot write the built-in rig to {}", p.display()))?;
+            }
             p
         }
     };
