@@ -1964,7 +1964,9 @@ pub(crate) struct NullEvidence {
 /// **and at the value of every model-form alternative** (`evidence.alternatives`) — the
 /// recordings do not identify it, whatever it gained when it was chosen against the round's
 /// linearised σ — the least identified first: its index in `set` and the reason. `None`: every
-/// effect judged is identified.
+/// effect judged is identified. An effect whose parameter is non-negative by physics and fitted
+/// below zero ([`impossible_sign`]) is not identified whatever its distance from zero, and comes
+/// first.
 /// - Second simulator, seed 4, case17 (a null, 200 Hz): air drag chosen at 6 σ of the round,
 ///   2.2 σ from zero once the two fit recordings' disagreement was counted; the 2 σ bound this
 ///   check had before let it through, a false alarm.
@@ -1988,7 +1990,7 @@ pub(crate) fn unidentified_in_final(
             return Some((
                 i,
                 format!(
-                    "{} = {:.3e} ± {:.2e} in the final model: negative, physically impossible (the joint refit moved it there; it stands for another effect's share)",
+                    "{} = {:.3e} ± {:.2e} in the final model: negative, physically impossible: what it fits is a share of another effect's residual, not this physics",
                     p.name,
                     f.values[off + j],
                     evidence.std[off + j]
