@@ -8,11 +8,12 @@ with feed-forward (ZOH force), integrated with fixed-step RK4 at 4 kHz (for a li
 step is applied as its exact transition matrix, which is the same arithmetic).
 
 Usage (Python 3.11, numpy, scipy):
-    python3 bench/second_sim.py make --out /tmp/second_sim --seed 1 [--cases N] [--only 3,7]
+    python3 bench/second_sim.py make --out /tmp/second_sim --seed 1 [--cases N] [--only 3,7] [--plan pairs]
         writes OUT/hidden_gen/caseNN/{rig.toml,sweep.csv,moves.csv,validation.csv} and
         OUT/hidden_gen/key.json ({"effects", "effect", "parameters", "physics"?, "dropped", "tier",
         "imperfect", "true_f_hz", ...} per case). Default plan of 24: 6 nulls, 8 singles,
         3 at the detection limit, 4 pairs, 3 outside the catalogue (case order shuffled by seed).
+        --plan pairs: N pairs of the nine catalogue effects (all 36 pairs drawn from), a third imperfect.
     python3 bench/second_sim.py score BEAMTOOL --set /tmp/second_sim [--only case03,case07]
         [--timeout 300] [--jobs 1]
         runs `BEAMTOOL diagnose --rig --fit sweep.csv --fit moves.csv --validate validation.csv
@@ -482,9 +483,20 @@ def make_case(seed, idx, spec, outdir):
     if physics: key["physics"] = physics
     return key
 
+NINE = CATALOGUE[:9]                                           # the independent set's catalogue
+
+def pairs_plan(rng, n):
+    """n pairs drawn without repetition from all 36 pairs of the nine catalogue effects, a third of
+    them with a channel dropped or another imperfection (the hidden set's "pairs of effects")."""
+    combos = [(a, b) for i, a in enumerate(NINE) for b in NINE[i + 1:]]
+    imps = [[], [], ["drop_both"], ["drop_force"], ["dropped_frames"], ["noise3"]]
+    return [("pair", list(combos[i]), list(imps[rng.integers(len(imps))]))
+            for i in rng.permutation(len(combos))[:n]]
+
 def cmd_make(a):
     out = os.path.join(a.out, "hidden_gen"); os.makedirs(out, exist_ok=True)
-    plan = default_plan(np.random.default_rng(a.seed), a.cases)
+    rng = np.random.default_rng(a.seed)
+    plan = pairs_plan(rng, a.cases) if a.plan == "pairs" else default_plan(rng, a.cases)
     kp = os.path.join(out, "key.json")
     key = json.load(open(kp)) if a.only and os.path.exists(kp) else {}
     only = {int(x) for x in a.only.split(",")} if a.only else None
@@ -588,6 +600,8 @@ def main():
     sp = ap.add_subparsers(dest="cmd", required=True)
     m = sp.add_parser("make"); m.add_argument("--out", default="/tmp/second_sim"); m.add_argument("--seed", type=int, default=1)
     m.add_argument("--cases", type=int, default=24); m.add_argument("--only", default=None, help="case indices, e.g. 3,7")
+    m.add_argument("--plan", choices=["default", "pairs"], default="default",
+                   help="pairs: every case a pair of the nine catalogue effects of the independent set")
     s = sp.add_parser("score"); s.add_argument("beamtool"); s.add_argument("--set", default="/tmp/second_sim")
     s.add_argument("--only"); s.add_argument("--timeout", type=float, default=300); s.add_argument("--jobs", type=int, default=1)
     sp.add_parser("check")
