@@ -463,12 +463,68 @@ fn second_order(u: &[f64], dt: f64, omega: f64, zeta: f64, g_v: f64, g_a: f64) -
     y
 }
 
+/// Velocity over which Coulomb friction is smoothed (m/s): `F_c tanh(v / v_s)`, in the force
+/// channel and inside the position loop alike.
+const FRICTION_SMOOTHING_M_S: f64 = 1e-3;
+
+/// Forces on the carriage besides the drive's and the beam's, which the motor supplies and a
+/// position loop must overcome (`base_friction`, `cogging_ripple`): Coulomb friction
+/// `F_c tanh(v / 1 mm/s)`, viscous `c_v v`, cogging `a sin(2πy/p) + b cos(2πy/p)` (N; y in m,
+/// v in m/s). Inside a loop of finite stiffness they leave a following error: a Coulomb force
+/// over K_p = M ω_n² is a step of F_c / K_p at every reversal, which the integral action then
+/// removes (Ellis, *Control System Design Guide*, 4th ed., ch. 17, disturbance response).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CarriageLoad {
+    /// Coulomb friction (N).
+    pub friction_n: f64,
+    /// Viscous friction (N·s/m).
+    pub viscous_n_s_per_m: f64,
+    /// Cogging: sine and cosine amplitudes (N) and pitch (m).
+    pub cogging: Option<(f64, f64, f64)>,
+}
+
+impl CarriageLoad {
+    /// The load of `p`; `None` when it has neither friction nor cogging.
+    pub fn of(p: &Params) -> Option<CarriageLoad> {
+        let load = CarriageLoad {
+            friction_n: p.friction_n,
+            viscous_n_s_per_m: p.viscous_n_s_per_m,
+            cogging: p.cogging,
+        };
+        (load != CarriageLoad::default()).then_some(load)
+    }
+
+    /// The force the motor spends on the load (N) at carriage position `y_m` and velocity
+    /// `v_m_s`.
+    pub fn force_n(&self, y_m: f64, v_m_s: f64) -> f64 {
+        let mut f = self.friction_n * (v_m_s / FRICTION_SMOOTHING_M_S).tanh()
+            + self.viscous_n_s_per_m * v_m_s;
+        if let Some((a, b, pitch)) = self.cogging {
+            let (s, co) = (2.0 * std::f64::consts::PI * y_m / pitch).sin_cos();
+            f += a * s + b * co;
+        }
+        f
+    }
+
+    /// Steps per sample interval `dt` (1–32) over which the load, held constant in each, acts on
+    /// a carriage of effective mass `m_eff_kg` without ringing: the smoothed friction is a
+    /// damper of rate λ = (F_c / v_s + |c_v|) / m, and a held damper decays without overshoot
+    /// for λh ≤ 1.
+    fn substeps(&self, m_eff_kg: f64, dt: f64) -> usize {
+        let rate = (self.friction_n.abs() / FRICTION_SMOOTHING_M_S + self.viscous_n_s_per_m.abs())
+            / m_eff_kg.max(1e-9);
+        ((rate * dt).ceil() as usize).clamp(1, 32)
+    }
+}
+
 /// Carriage position under a position loop that carries the beam: the loop force
 /// `F = M [k_a r̈ + 2ζω (k_v ṙ − ẏ) + ω² (r − y)]` (M the total moving mass the drive is tuned
 /// for) acts on the carriage, which the beam modes push back (eq. 5 in modal form):
 /// `(M − ΣΓ²) ÿ = F + Σ Γ_r (2ζ_rω_r η̇_r + ω_r² η_r)`, `η̈_r + 2ζ_rω_r η̇_r + ω_r² η_r = −Γ_r ÿ`.
 /// For a rigid load this is the uncoupled loop of [`second_order`]. Exact for a piecewise-linear
-/// command (r̈ as kicks at the samples): one matrix exponential per parameter set.
+/// command (r̈ as kicks at the samples): one matrix exponential per parameter set. A carriage
+/// `load` (friction, cogging) acts on the carriage as `− F_load(y, ẏ)`, held over
+/// [`CarriageLoad::substeps`] steps of each interval.
 fn coupled_servo(
     r: &[f64],
     dt: f64,
@@ -476,6 +532,7 @@ fn coupled_servo(
     zeta: f64,
     ff: (f64, f64),
     c: &BeamCache,
+    load: Option<&CarriageLoad>,
 ) -> Vec<f64> {
     let n = r.len();
     let nm = c.omega.len();
@@ -483,16 +540,21 @@ fn coupled_servo(
     let sum_g2: f64 = c.gamma.iter().map(|g| g * g).sum();
     let m_eff = (m_tot - sum_g2).max(1e-9 * m_tot);
     let (kv, ka) = ff;
-    // z = [y, ẏ, (η_j, η̇_j)…, r, ṙ]; within a sample interval r is linear (ṙ constant), so the
-    // interval map is exactly exp(A dt)
-    let dim = 4 + 2 * nm;
+    // z = [y, ẏ, (η_j, η̇_j)…, F_load?, r, ṙ]; within a sample interval r is linear (ṙ
+    // constant), so the interval map is exactly exp(A dt)
+    let dim = 4 + 2 * nm + usize::from(load.is_some());
     let (ri, vi) = (dim - 2, dim - 1);
+    let li = load.map(|_| 2 + 2 * nm);
     let mut acc_row = vec![0.0; dim];
     acc_row[0] = -m_tot * omega * omega / m_eff;
     acc_row[1] = -m_tot * 2.0 * zeta * omega / m_eff;
     acc_row[ri] = m_tot * omega * omega / m_eff;
     acc_row[vi] = m_tot * 2.0 * zeta * omega * kv / m_eff;
-    let Some(phi) = root_transition(&mut acc_row, m_eff, c, dt) else {
+    if let Some(li) = li {
+        acc_row[li] = -1.0 / m_eff;
+    }
+    let steps = load.map_or(1, |l| l.substeps(m_eff, dt));
+    let Some(phi) = root_transition(&mut acc_row, m_eff, c, dt / steps as f64) else {
         return vec![f64::NAN; n];
     };
     let (mut zv, mut tmp) = (vec![0.0; dim], vec![0.0; dim]);
@@ -515,13 +577,31 @@ fn coupled_servo(
         v_prev = v;
         zv[ri] = r[k];
         zv[vi] = v;
-        advance(&phi, &mut zv, &mut tmp);
+        advance_loaded(&phi, &mut zv, &mut tmp, load.zip(li), steps);
         if !zv[0].is_finite() {
             y.extend(std::iter::repeat(f64::NAN).take(n - y.len()));
             break;
         }
     }
     y
+}
+
+/// One sample interval of a loop simulation in `steps` steps of `phi`, the carriage load (if
+/// any, with its state index) set from the carriage's position `z[0]` and velocity `z[1]` at the
+/// start of each.
+fn advance_loaded(
+    phi: &nalgebra::DMatrix<f64>,
+    z: &mut [f64],
+    tmp: &mut [f64],
+    load: Option<(&CarriageLoad, usize)>,
+    steps: usize,
+) {
+    for _ in 0..steps {
+        if let Some((l, li)) = load {
+            z[li] = l.force_n(z[0], z[1]);
+        }
+        advance(phi, z, tmp);
+    }
 }
 
 /// One sample interval's transition matrix exp(A·dt) of a beam root driven through a coupled
@@ -745,8 +825,16 @@ impl ServoLaw {
 
     /// Base position for the command `r` sampled every `dt` s (piecewise linear between
     /// samples), coupled to the beam of `c` when given (the loop force then acts on the
-    /// carriage, eq. 5 in modal form), else for a rigid load.
-    pub fn respond(&self, r: &[f64], dt: f64, c: Option<&BeamCache>) -> Vec<f64> {
+    /// carriage, eq. 5 in modal form), else for a rigid load. With a beam, orders 2–4 carry the
+    /// carriage `load` as well (friction and cogging the loop must overcome, [`CarriageLoad`]);
+    /// order 1 has no mass to load.
+    pub fn respond(
+        &self,
+        r: &[f64],
+        dt: f64,
+        c: Option<&BeamCache>,
+        load: Option<&CarriageLoad>,
+    ) -> Vec<f64> {
         match (self.order, c) {
             (1, _) => first_order(r, dt, self.omega, self.ff.0),
             (2, None) => second_order(
@@ -757,21 +845,29 @@ impl ServoLaw {
                 1.0 - self.ff.0,
                 1.0 - self.ff.1,
             ),
-            (2, Some(c)) => coupled_servo(r, dt, self.omega, self.zeta, self.ff, c),
-            _ => self.pid(r, dt, c),
+            (2, Some(c)) => coupled_servo(r, dt, self.omega, self.zeta, self.ff, c, load),
+            _ => self.pid(r, dt, c, load.filter(|_| c.is_some())),
         }
     }
 
-    /// Orders 3–4 (state space, exact per sample by one matrix exponential).
-    fn pid(&self, r: &[f64], dt: f64, c: Option<&BeamCache>) -> Vec<f64> {
+    /// Orders 3–4 (state space, exact per sample by one matrix exponential; with a carriage
+    /// `load`, [`CarriageLoad::substeps`] exponentials of the shorter step).
+    fn pid(
+        &self,
+        r: &[f64],
+        dt: f64,
+        c: Option<&BeamCache>,
+        load: Option<&CarriageLoad>,
+    ) -> Vec<f64> {
         let n = r.len();
         let nm = c.map_or(0, |c| c.omega.len());
-        let Some((phi, g, tau)) = self.pid_transition(dt, c) else {
+        let Some((phi, g, tau, steps)) = self.pid_transition(dt, c, load) else {
             return vec![f64::NAN; n];
         };
         let lag = tau > 0.0;
         let dim = phi.nrows();
         let (fi, ri, vi) = (3 + 2 * nm, dim - 2, dim - 1);
+        let li = load.map(|_| dim - 3);
         let gamma: &[f64] = c.map_or(&[], |c| &c.gamma);
         let (mut zv, mut tmp) = (vec![0.0; dim], vec![0.0; dim]);
         zv[0] = r[0];
@@ -798,7 +894,7 @@ impl ServoLaw {
             v_prev = v;
             zv[ri] = r[k];
             zv[vi] = v;
-            advance(&phi, &mut zv, &mut tmp);
+            advance_loaded(&phi, &mut zv, &mut tmp, load.zip(li), steps);
             if !zv[0].is_finite() {
                 y.extend(std::iter::repeat(f64::NAN).take(n - y.len()));
                 break;
@@ -807,14 +903,16 @@ impl ServoLaw {
         y
     }
 
-    /// exp(A dt) of the order-3/4 loop (state `[y, ẏ, (η_j, η̇_j)…, ∫(r − y), F?, r, ṙ]`), the
-    /// ratio g = M / (M − ΣΓ²) of the force on the carriage to its acceleration per unit
-    /// moving mass, and the drive lag τ (0 without). `None` for a generator out of bounds.
+    /// exp(A h) of the order-3/4 loop (state `[y, ẏ, (η_j, η̇_j)…, ∫(r − y), F?, F_load?, r,
+    /// ṙ]`, h = dt / steps), the ratio g = M / (M − ΣΓ²) of the force on the carriage to its
+    /// acceleration per unit moving mass, the drive lag τ (0 without) and the steps per sample
+    /// ([`CarriageLoad::substeps`], 1 without a load). `None` for a generator out of bounds.
     fn pid_transition(
         &self,
         dt: f64,
         c: Option<&BeamCache>,
-    ) -> Option<(nalgebra::DMatrix<f64>, f64, f64)> {
+        load: Option<&CarriageLoad>,
+    ) -> Option<(nalgebra::DMatrix<f64>, f64, f64, usize)> {
         let nm = c.map_or(0, |c| c.omega.len());
         let (m_tot, sum_g2) = c.map_or((1.0, 0.0), |c| {
             (c.total_mass, c.gamma.iter().map(|g| g * g).sum())
@@ -831,7 +929,7 @@ impl ServoLaw {
         let tau = if lag { self.force_lag_ratio / w } else { 0.0 };
         let ii = 2 + 2 * nm;
         let fi = ii + 1;
-        let dim = ii + 1 + usize::from(lag) + 2;
+        let dim = ii + 1 + usize::from(lag) + usize::from(load.is_some()) + 2;
         let (ri, vi) = (dim - 2, dim - 1);
         // the commanded force per unit moving mass (without the r̈ feed-forward impulses)
         let mut uc = vec![0.0; dim];
@@ -848,6 +946,9 @@ impl ServoLaw {
                 acc_row[i] = g * uc[i];
             }
         }
+        if load.is_some() {
+            acc_row[dim - 3] = -1.0 / m_eff;
+        }
         let mut a = root_generator(&mut acc_row, m_eff, c);
         a[(ii, 0)] = -1.0;
         a[(ii, ri)] = 1.0;
@@ -857,9 +958,10 @@ impl ServoLaw {
             }
             a[(fi, fi)] -= 1.0 / tau;
         }
+        let steps = load.map_or(1, |l| l.substeps(m_eff, dt));
         // the drive-force row scales as ω³/β (m/s² per state unit): a larger element bound than
         // the root transition's, still finite
-        bounded_expm(a, dt, 1e10).map(|phi| (phi, g, tau))
+        bounded_expm(a, dt / steps as f64, 1e10).map(|phi| (phi, g, tau, steps))
     }
 }
 
@@ -1277,10 +1379,13 @@ pub fn predict(
     };
     // 1. servo: the beam pushes the carriage back, so the loop is simulated coupled to its modes
     // whether or not the base is recorded (a measured one still drives the beam below; the
-    // predicted `base_pos_m` then holds the beam's reaction in its following error)
+    // predicted `base_pos_m` then holds the beam's reaction in its following error), and so
+    // do friction and cogging, which the loop must overcome
     let law = ServoLaw::of(p);
     let y_servo: std::borrow::Cow<[f64]> = match &law {
-        Some(law) => std::borrow::Cow::Owned(law.respond(&d.cmd_m, dt, c)),
+        Some(law) => {
+            std::borrow::Cow::Owned(law.respond(&d.cmd_m, dt, c, CarriageLoad::of(p).as_ref()))
+        }
         None => std::borrow::Cow::Borrowed(&d.cmd_m),
     };
     // 2. drive: the measured base when recorded; emphasised for the dynamics, as sampled for
@@ -1839,7 +1944,7 @@ fn tip_sensor(p: &Params, root: &[f64], w: &[f64], dt: f64) -> Vec<f64> {
 /// applies the force channel's latency.
 fn carriage_forces(p: &Params, drive: &[f64], mut force: Vec<f64>, dt: f64) -> Vec<f64> {
     let n = drive.len();
-    if p.friction_n != 0.0 || p.viscous_n_s_per_m != 0.0 {
+    if let Some(load) = CarriageLoad::of(p) {
         for k in 0..n {
             let v = if k + 1 < n {
                 (drive[k + 1] - drive[k.saturating_sub(1)])
@@ -1847,14 +1952,7 @@ fn carriage_forces(p: &Params, drive: &[f64], mut force: Vec<f64>, dt: f64) -> V
             } else {
                 0.0
             };
-            force[k] += p.friction_n * (v / 1e-3).tanh() + p.viscous_n_s_per_m * v;
-        }
-    }
-    if let Some((a, b, pitch)) = p.cogging {
-        let kw = 2.0 * std::f64::consts::PI / pitch;
-        for k in 0..n {
-            let (s, co) = (kw * drive[k]).sin_cos();
-            force[k] += a * s + b * co;
+            force[k] += load.force_n(drive[k], v);
         }
     }
     if p.force_delay_s != 0.0 {
@@ -2325,7 +2423,7 @@ mod tests {
         let p = Params::default();
         let c = beam_cache(&rig, &p, d.dt).unwrap();
         let w = 2.0 * std::f64::consts::PI * 40.0;
-        let y = coupled_servo(&d.cmd_m, d.dt, w, 0.7, (1.0, 1.0), &c);
+        let y = coupled_servo(&d.cmd_m, d.dt, w, 0.7, (1.0, 1.0), &c, None);
         let e = y
             .iter()
             .zip(&d.cmd_m)
@@ -2363,8 +2461,8 @@ mod tests {
         let base = out.base_m.expect("a predicted base");
         let c = beam_cache(&rig, &p, d.dt).unwrap();
         let law = ServoLaw::of(&p).unwrap();
-        let coupled = law.respond(&d.cmd_m, d.dt, Some(&c));
-        let rigid = law.respond(&d.cmd_m, d.dt, None);
+        let coupled = law.respond(&d.cmd_m, d.dt, Some(&c), None);
+        let rigid = law.respond(&d.cmd_m, d.dt, None, None);
         let gap = |a: &[f64], b: &[f64]| {
             a.iter()
                 .zip(b)
@@ -2452,17 +2550,17 @@ mod tests {
                 .fold(0.0, f64::max)
         };
         for cc in [None, Some(&c)] {
-            let y2 = law(2, 0.0, 0.0).respond(&d.cmd_m, d.dt, cc);
-            let y3 = law(3, 1e-6, 0.0).respond(&d.cmd_m, d.dt, cc);
+            let y2 = law(2, 0.0, 0.0).respond(&d.cmd_m, d.dt, cc, None);
+            let y3 = law(3, 1e-6, 0.0).respond(&d.cmd_m, d.dt, cc, None);
             assert!(maxdiff(&y2, &y3) < 1e-7, "{}", maxdiff(&y2, &y3));
-            let y3 = law(3, 0.5, 0.0).respond(&d.cmd_m, d.dt, cc);
-            let y4 = law(4, 0.5, 1e-4).respond(&d.cmd_m, d.dt, cc);
-            let y4b = law(4, 0.5, 0.2).respond(&d.cmd_m, d.dt, cc);
+            let y3 = law(3, 0.5, 0.0).respond(&d.cmd_m, d.dt, cc, None);
+            let y4 = law(4, 0.5, 1e-4).respond(&d.cmd_m, d.dt, cc, None);
+            let y4b = law(4, 0.5, 0.2).respond(&d.cmd_m, d.dt, cc, None);
             assert!(y4b.iter().all(|v| v.is_finite()));
             assert!(maxdiff(&y3, &y4) < 1e-5, "{}", maxdiff(&y3, &y4));
             assert!(maxdiff(&y3, &y4b) > 1e-6);
         }
-        let y1 = law(1, 0.0, 0.0).respond(&d.cmd_m, d.dt, None);
+        let y1 = law(1, 0.0, 0.0).respond(&d.cmd_m, d.dt, None, None);
         let lag = y1
             .iter()
             .zip(&d.cmd_m)
