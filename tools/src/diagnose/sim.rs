@@ -494,6 +494,17 @@ impl CarriageLoad {
         (load != CarriageLoad::default()).then_some(load)
     }
 
+    /// The load divided by the moving mass `mass_kg`: its force per unit mass (N/kg), what a
+    /// loop simulated per unit mass (a rig without a beam) carries.
+    pub fn per_unit_mass(&self, mass_kg: f64) -> CarriageLoad {
+        let m = mass_kg.max(1e-9);
+        CarriageLoad {
+            friction_n: self.friction_n / m,
+            viscous_n_s_per_m: self.viscous_n_s_per_m / m,
+            cogging: self.cogging.map(|(a, b, pitch)| (a / m, b / m, pitch)),
+        }
+    }
+
     /// The force the motor spends on the load (N) at carriage position `y_m` and velocity
     /// `v_m_s`.
     pub fn force_n(&self, y_m: f64, v_m_s: f64) -> f64 {
@@ -904,8 +915,9 @@ impl ServoLaw {
 
     /// Base position for the command `r` sampled every `dt` s (piecewise linear between
     /// samples), coupled to the beam of `c` when given (the loop force then acts on the
-    /// carriage, eq. 5 in modal form), else for a rigid load. With a beam, orders 2–4 carry the
-    /// carriage `load` as well (friction and cogging the loop must overcome, [`CarriageLoad`]);
+    /// carriage, eq. 5 in modal form), else for a rigid load. Orders 2–4 carry the carriage
+    /// `load` as well (friction and cogging the loop must overcome, [`CarriageLoad`]): in N
+    /// with a beam, per unit moving mass (N/kg, [`CarriageLoad::per_unit_mass`]) without;
     /// order 1 has no mass to load.
     pub fn respond(
         &self,
@@ -914,9 +926,9 @@ impl ServoLaw {
         c: Option<&BeamCache>,
         load: Option<&CarriageLoad>,
     ) -> Vec<f64> {
-        match (self.order, c) {
-            (1, _) => first_order(r, dt, self.omega, self.ff.0),
-            (2, None) => second_order(
+        match (self.order, c, load) {
+            (1, _, _) => first_order(r, dt, self.omega, self.ff.0),
+            (2, None, None) => second_order(
                 r,
                 dt,
                 self.omega,
@@ -924,8 +936,9 @@ impl ServoLaw {
                 1.0 - self.ff.0,
                 1.0 - self.ff.1,
             ),
-            (2, Some(c)) => coupled_servo(r, dt, self.omega, self.zeta, self.ff, c, load),
-            _ => self.pid(r, dt, c, load.filter(|_| c.is_some())),
+            (2, Some(c), _) => coupled_servo(r, dt, self.omega, self.zeta, self.ff, c, load),
+            // a loaded rigid PD loop is the PID loop without integral action
+            _ => self.pid(r, dt, c, load),
         }
     }
 
@@ -1476,7 +1489,11 @@ pub fn predict(
     let law = ServoLaw::of(p);
     let y_servo: std::borrow::Cow<[f64]> = match &law {
         Some(law) => {
-            std::borrow::Cow::Owned(law.respond(&d.cmd_m, dt, c, CarriageLoad::of(p).as_ref()))
+            let load = CarriageLoad::of(p).map(|l| match c {
+                Some(_) => l,
+                None => l.per_unit_mass(rig.base.mass_kg + p.base_mass_delta_kg),
+            });
+            std::borrow::Cow::Owned(law.respond(&d.cmd_m, dt, c, load.as_ref()))
         }
         None => std::borrow::Cow::Borrowed(&d.cmd_m),
     };
