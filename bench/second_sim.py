@@ -8,7 +8,7 @@ with feed-forward (ZOH force), integrated with fixed-step RK4 at 4 kHz (for a li
 step is applied as its exact transition matrix, which is the same arithmetic).
 
 Usage (Python 3.11, numpy, scipy):
-    python3 bench/second_sim.py make --out /tmp/second_sim --seed 1 [--cases N] [--only 3,7] [--plan pairs]
+    python3 bench/second_sim.py make --out /tmp/second_sim --seed 1 [--cases N] [--only 3,7] [--plan pairs] [--rate 100]
         writes OUT/hidden_gen/caseNN/{rig.toml,sweep.csv,moves.csv,validation.csv} and
         OUT/hidden_gen/key.json ({"effects", "effect", "parameters", "physics"?, "dropped", "tier",
         "imperfect", "true_f_hz", ...} per case). Default plan of 24: 6 nulls, 8 singles,
@@ -497,6 +497,8 @@ def cmd_make(a):
     out = os.path.join(a.out, "hidden_gen"); os.makedirs(out, exist_ok=True)
     rng = np.random.default_rng(a.seed)
     plan = pairs_plan(rng, a.cases) if a.plan == "pairs" else default_plan(rng, a.cases)
+    if a.rate:                                                 # one sample rate for every case
+        plan = [(t, w, [i for i in imp if not i.startswith("rate")] + [f"rate{a.rate}"]) for t, w, imp in plan]
     kp = os.path.join(out, "key.json")
     key = json.load(open(kp)) if a.only and os.path.exists(kp) else {}
     only = {int(x) for x in a.only.split(",")} if a.only else None
@@ -602,6 +604,7 @@ def main():
     m.add_argument("--cases", type=int, default=24); m.add_argument("--only", default=None, help="case indices, e.g. 3,7")
     m.add_argument("--plan", choices=["default", "pairs"], default="default",
                    help="pairs: every case a pair of the nine catalogue effects of the independent set")
+    m.add_argument("--rate", type=int, default=None, help="sample rate (Hz) of every case, e.g. 100 as the independent set")
     s = sp.add_parser("score"); s.add_argument("beamtool"); s.add_argument("--set", default="/tmp/second_sim")
     s.add_argument("--only"); s.add_argument("--timeout", type=float, default=300); s.add_argument("--jobs", type=int, default=1)
     sp.add_parser("check")
