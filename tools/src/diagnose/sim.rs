@@ -9,7 +9,8 @@
 //!    k_v = k_a = 0 is a plain 2nd-order lag, PID with velocity/acceleration feed-forward has
 //!    fractions near 1); order 3 adds the integral action of a PID loop, order 4 a lag of the
 //!    drive force, order 1 is a first-order lag; orders 2–4 are simulated with the beam's
-//!    reaction on the carriage (eq. 5 in modal form, [`coupled_servo`]); predicted `base_pos_m`;
+//!    reaction on the carriage (eq. 5 in modal form, [`coupled_servo`]) and with the carriage
+//!    forces of step 5, which the loop must overcome ([`CarriageLoad`]); predicted `base_pos_m`;
 //! 2. the beam is driven by the *measured* base position when recorded (so carriage effects do
 //!    not leak into the tip channel), else by the predicted one;
 //! 3. backlash: a dead band of total width b between the carriage and the beam root, as the
