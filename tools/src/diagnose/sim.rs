@@ -1489,13 +1489,7 @@ pub fn predict(
     // do friction and cogging, which the loop must overcome
     let law = ServoLaw::of(p);
     let y_servo: std::borrow::Cow<[f64]> = match &law {
-        Some(law) => {
-            let load = CarriageLoad::of(p).map(|l| match c {
-                Some(_) => l,
-                None => l.per_unit_mass(rig.base.mass_kg + p.base_mass_delta_kg),
-            });
-            std::borrow::Cow::Owned(law.respond(&d.cmd_m, dt, c, load.as_ref()))
-        }
+        Some(law) => std::borrow::Cow::Owned(loaded_servo(rig, p, d, c, law)),
         None => std::borrow::Cow::Borrowed(&d.cmd_m),
     };
     // 2. drive: the measured base when recorded; emphasised for the dynamics, as sampled for
@@ -1554,6 +1548,22 @@ pub fn predict(
         add_free_response(d, c, p.mount, &mut out);
     }
     Ok(out)
+}
+
+/// The base position of `d` under the position loop `law` of `p`, carrying the carriage load of
+/// `p` ([`CarriageLoad`]: in N with the beam of `c`, per unit moving mass without one).
+fn loaded_servo(
+    rig: &Rig,
+    p: &Params,
+    d: &Prepared,
+    c: Option<&BeamCache>,
+    law: &ServoLaw,
+) -> Vec<f64> {
+    let load = CarriageLoad::of(p).map(|l| match c {
+        Some(_) => l,
+        None => l.per_unit_mass(rig.base.mass_kg + p.base_mass_delta_kg),
+    });
+    law.respond(&d.cmd_m, d.dt, c, load.as_ref())
 }
 
 /// The predicted `base_pos_m` of `d` (`None` when it is not recorded): the servo's output
@@ -2549,44 +2559,60 @@ mod tests {
         assert!(diff > 1e-7 && diff < e.max(1e-6) * 10.0, "{diff} {e}");
     }
 
-    #[test]
-    fn friction_on_the_carriage_leaves_a_following_error_of_its_force_over_the_loop_stiffness() {
-        // a PD or PID loop with full feed-forward holds the carriage against a Coulomb force F_c
-        // with its proportional gain K_p: while the carriage moves the friction adds a lag of F_c / K_p
-        // (second simulator pairs seed 11, case10: a 9.2 Hz loop beside 1.68 N of friction left
-        // 54 × the noise in `base_pos_m`, correlated −0.61 with the sign of the velocity, and
-        // the loop was not named); it neither rings at the samples nor outlasts the move
-        let rig = rig();
-        let d = Prepared::new("t", &move_rec()).unwrap();
-        let c = beam_cache(&rig, &Params::default(), d.dt).unwrap();
-        let w = 2.0 * std::f64::consts::PI * 10.0;
+    /// A 10 Hz loop of `order` (2: PD, 3: PID with integral ratio 0.2), ζ 0.7, full
+    /// feed-forward, and 2 N of Coulomb friction.
+    fn loop_and_friction(order: usize) -> (ServoLaw, CarriageLoad) {
+        let law = ServoLaw {
+            order,
+            omega: 2.0 * std::f64::consts::PI * 10.0,
+            zeta: 0.7,
+            ff: (1.0, 1.0),
+            integral_ratio: if order == 3 { 0.2 } else { 0.0 },
+            force_lag_ratio: 0.0,
+        };
         let friction = CarriageLoad {
             friction_n: 2.0,
             ..CarriageLoad::default()
         };
+        (law, friction)
+    }
+
+    /// The friction's lag of the loaded loop behind the free one on `d`, and the step F_c / K_p
+    /// (K_p = M (1 + 2ζα) ω², [`ServoLaw`]).
+    fn friction_lag(
+        law: &ServoLaw,
+        load: &CarriageLoad,
+        d: &Prepared,
+        c: &BeamCache,
+    ) -> (Vec<f64>, f64) {
+        let free = law.respond(&d.cmd_m, d.dt, Some(c), None);
+        let held = law.respond(&d.cmd_m, d.dt, Some(c), Some(load));
+        let lag = held.iter().zip(&free).map(|(a, b)| a - b).collect();
+        let k_p = c.total_mass * (1.0 + 2.0 * law.zeta * law.integral_ratio) * law.omega.powi(2);
+        (lag, load.friction_n / k_p)
+    }
+
+    #[test]
+    fn friction_on_the_carriage_leaves_a_following_error_of_its_force_over_the_loop_stiffness() {
+        // a PD or PID loop with full feed-forward holds the carriage against a Coulomb force F_c
+        // with its proportional gain K_p: while the carriage moves the friction adds a lag of
+        // F_c / K_p (second simulator pairs seed 11, case10: a 9.2 Hz loop beside 1.68 N of
+        // friction left 54 × the noise in `base_pos_m`, correlated −0.61 with the sign of the
+        // velocity, and the loop was not named); it neither rings at the samples nor outlasts
+        // the move
+        let rig = rig();
+        let d = Prepared::new("t", &move_rec()).unwrap();
+        let c = beam_cache(&rig, &Params::default(), d.dt).unwrap();
         for order in [2, 3] {
-            let law = ServoLaw {
-                order,
-                omega: w,
-                zeta: 0.7,
-                ff: (1.0, 1.0),
-                integral_ratio: if order == 3 { 0.2 } else { 0.0 },
-                force_lag_ratio: 0.0,
-            };
-            let free = law.respond(&d.cmd_m, d.dt, Some(&c), None);
-            let held = law.respond(&d.cmd_m, d.dt, Some(&c), Some(&friction));
-            let lag: Vec<f64> = held.iter().zip(&free).map(|(a, b)| a - b).collect();
-            // K_p = M (1 + 2ζα) ω² (the order-3 loop's integral ratio α; [`ServoLaw`])
-            let k_p = c.total_mass * (1.0 + 2.0 * 0.7 * law.integral_ratio) * w * w;
-            let step = 2.0 / k_p;
+            let (law, friction) = loop_and_friction(order);
+            let (lag, step) = friction_lag(&law, &friction, &d, &c);
             let most = lag.iter().cloned().fold(0.0, f64::min);
             assert!(
                 (-most / step - 1.0).abs() < 0.2,
                 "order {order}: {most} against {step}"
             );
             // after the move (over by 0.4 s; from 2.5 s), no sample-to-sample ringing above 1 % of
-            // the step
-            // and nothing beyond the step
+            // the step and nothing beyond the step
             let after = &lag[250..];
             assert!(
                 after.iter().all(|e| e.abs() <= 1.01 * step),
@@ -2598,49 +2624,40 @@ mod tests {
                 .fold(0.0, f64::max);
             assert!(rough < 0.01 * step, "order {order}: {rough} against {step}");
         }
+        // without friction or cogging there is no load
+        assert_eq!(CarriageLoad::of(&Params::default()), None);
+    }
+
+    #[test]
+    fn the_loaded_loop_at_100_hz_lags_as_the_same_command_stepped_at_1000_hz() {
         // the interval maps (damped at rest, held while moving, substeps between) against the
-        // same command stepped at ten times the rate, where a held force is accurate: the lags
-        // agree to 5 % of the step
-        let fine_rec = {
-            let coarse = &d.cmd_m;
-            let n = 10 * (coarse.len() - 1) + 1;
-            let cmd: Vec<f64> = (0..n)
-                .map(|k| {
-                    let (i, f) = (k / 10, (k % 10) as f64 / 10.0);
-                    let next = coarse.get(i + 1).copied().unwrap_or(coarse[i]);
-                    coarse[i] * (1.0 - f) + next * f
-                })
-                .collect();
-            let mut r = crate::recording::Recording::with_uniform_time(n, 1000.0);
-            r.base_cmd_m = Some(cmd.clone());
-            r.tip_pos_m = Some(cmd);
-            r
-        };
+        // same piecewise-linear command stepped at ten times the rate, where a held force is
+        // accurate: the lags agree to 5 % of the step F_c / K_p
+        let rig = rig();
+        let d = Prepared::new("t", &move_rec()).unwrap();
+        let c = beam_cache(&rig, &Params::default(), d.dt).unwrap();
+        let n = 10 * (d.cmd_m.len() - 1) + 1;
+        let cmd: Vec<f64> = (0..n)
+            .map(|k| {
+                let (i, f) = (k / 10, (k % 10) as f64 / 10.0);
+                let next = d.cmd_m.get(i + 1).copied().unwrap_or(d.cmd_m[i]);
+                d.cmd_m[i] * (1.0 - f) + next * f
+            })
+            .collect();
+        let mut fine_rec = crate::recording::Recording::with_uniform_time(n, 1000.0);
+        fine_rec.base_cmd_m = Some(cmd.clone());
+        fine_rec.tip_pos_m = Some(cmd);
         let fd = Prepared::new("fine", &fine_rec).unwrap();
         let fc = beam_cache(&rig, &Params::default(), fd.dt).unwrap();
-        let law = ServoLaw {
-            order: 3,
-            omega: w,
-            zeta: 0.7,
-            ff: (1.0, 1.0),
-            integral_ratio: 0.2,
-            force_lag_ratio: 0.0,
-        };
-        let lag_at = |d: &Prepared, c: &BeamCache| -> Vec<f64> {
-            let free = law.respond(&d.cmd_m, d.dt, Some(c), None);
-            let held = law.respond(&d.cmd_m, d.dt, Some(c), Some(&friction));
-            held.iter().zip(&free).map(|(a, b)| a - b).collect()
-        };
-        let (coarse, fine) = (lag_at(&d, &c), lag_at(&fd, &fc));
-        let step = 2.0 / (c.total_mass * (1.0 + 2.0 * 0.7 * 0.2) * w * w);
+        let (law, friction) = loop_and_friction(3);
+        let (coarse, step) = friction_lag(&law, &friction, &d, &c);
+        let (fine, _) = friction_lag(&law, &friction, &fd, &fc);
         let worst = coarse
             .iter()
             .enumerate()
             .map(|(k, e)| (e - fine[10 * k]).abs())
             .fold(0.0, f64::max);
         assert!(worst < 0.05 * step, "{worst} against {step}");
-        // without friction or cogging there is no load
-        assert_eq!(CarriageLoad::of(&Params::default()), None);
     }
 
     #[test]
