@@ -668,12 +668,12 @@ impl<'a> LoadedLoop<'a> {
     ) {
         let (vs, li) = (FRICTION_SMOOTHING_M_S, self.li);
         let v0 = z[1];
-        saved.copy_from_slice(z);
         if self.steps == 1 {
             z[li] = self.load.force_n(z[0], v0);
             advance(phi, z, tmp);
             return;
         }
+        saved.copy_from_slice(z);
         if v0.abs() < 0.5 * vs {
             z[li] = self.load.force_n(z[0], v0) - self.c_lin * v0;
             advance(&self.damped, z, tmp);
