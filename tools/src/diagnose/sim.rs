@@ -535,8 +535,7 @@ impl CarriageLoad {
 /// `(M − ΣΓ²) ÿ = F + Σ Γ_r (2ζ_rω_r η̇_r + ω_r² η_r)`, `η̈_r + 2ζ_rω_r η̇_r + ω_r² η_r = −Γ_r ÿ`.
 /// For a rigid load this is the uncoupled loop of [`second_order`]. Exact for a piecewise-linear
 /// command (r̈ as kicks at the samples): one matrix exponential per parameter set. A carriage
-/// `load` (friction, cogging) acts on the carriage as `− F_load(y, ẏ)`, held over
-/// [`CarriageLoad::substeps`] steps of each interval.
+/// `load` (friction, cogging) acts on the carriage as `− F_load(y, ẏ)` ([`LoadedLoop`]).
 fn coupled_servo(
     r: &[f64],
     dt: f64,
@@ -630,8 +629,9 @@ struct LoadedLoop<'a> {
     steps: usize,
     /// F_c / v_s + c_v (N·s/m): the friction's slope at rest.
     c_lin: f64,
-    damped: nalgebra::DMatrix<f64>,
-    sub: nalgebra::DMatrix<f64>,
+    /// The damped interval map and the substep map; `None` when one held step per interval
+    /// suffices (`steps` 1: cogging alone, or friction too weak to ring).
+    maps: Option<(nalgebra::DMatrix<f64>, nalgebra::DMatrix<f64>)>,
 }
 
 impl<'a> LoadedLoop<'a> {
@@ -647,13 +647,20 @@ impl<'a> LoadedLoop<'a> {
     ) -> Option<LoadedLoop<'a>> {
         let steps = load.substeps(m_eff, dt);
         let c_lin = load.friction_n / FRICTION_SMOOTHING_M_S + load.viscous_n_s_per_m;
+        let maps = if steps == 1 {
+            None
+        } else {
+            Some((
+                bounded_expm(generator(c_lin), dt, limit)?,
+                bounded_expm(generator(0.0), dt / steps as f64, limit)?,
+            ))
+        };
         Some(LoadedLoop {
             load,
             li,
             steps,
             c_lin,
-            damped: bounded_expm(generator(c_lin), dt, limit)?,
-            sub: bounded_expm(generator(0.0), dt / steps as f64, limit)?,
+            maps,
         })
     }
 
@@ -668,15 +675,15 @@ impl<'a> LoadedLoop<'a> {
     ) {
         let (vs, li) = (FRICTION_SMOOTHING_M_S, self.li);
         let v0 = z[1];
-        if self.steps == 1 {
+        let Some((damped, sub)) = &self.maps else {
             z[li] = self.load.force_n(z[0], v0);
             advance(phi, z, tmp);
             return;
-        }
+        };
         saved.copy_from_slice(z);
         if v0.abs() < 0.5 * vs {
             z[li] = self.load.force_n(z[0], v0) - self.c_lin * v0;
-            advance(&self.damped, z, tmp);
+            advance(damped, z, tmp);
             if z[1].abs() < vs {
                 return;
             }
@@ -690,7 +697,7 @@ impl<'a> LoadedLoop<'a> {
         z.copy_from_slice(saved);
         for _ in 0..self.steps {
             z[li] = self.load.force_n(z[0], z[1]);
-            advance(&self.sub, z, tmp);
+            advance(sub, z, tmp);
         }
     }
 }
@@ -943,8 +950,8 @@ impl ServoLaw {
         }
     }
 
-    /// Orders 3–4 (state space, exact per sample by one matrix exponential; with a carriage
-    /// `load`, [`CarriageLoad::substeps`] exponentials of the shorter step).
+    /// Orders 3–4 (state space, exact per sample by one matrix exponential; a carriage `load`
+    /// is stepped by [`LoadedLoop`]).
     fn pid(
         &self,
         r: &[f64],
