@@ -171,6 +171,9 @@ pub struct Calib {
     pub defs: Vec<ParamDef>,
     /// Galerkin basis functions (every in-band mode converged).
     pub n_basis: usize,
+    /// Lowest clamped modes simulated ([`super::sim::BasisChoice::simulated_modes`]; `None` =
+    /// those below each recording's band edge).
+    pub simulated_modes: Option<usize>,
     /// The drive between samples is the cubic spline through them ([`Params::smooth_drive`];
     /// only in the 1-σ's model-form alternative).
     pub smooth_drive: bool,
@@ -246,6 +249,7 @@ pub fn calibration_defs(rig: &Rig, ch: &Channels, in_band_modes: usize, n_basis:
     Calib {
         defs: v,
         n_basis,
+        simulated_modes: None,
         smooth_drive: false,
         drive_reading: super::sim::DriveReading::PiecewiseLinear,
     }
@@ -289,6 +293,7 @@ pub fn calibration_unidentified(def: &ParamDef, value: f64, std: f64) -> Option<
 /// Applies the calibration vector (physical values, in [`calibration_defs`] order).
 pub fn apply_calibration(calib: &Calib, values: &[f64], p: &mut Params) {
     p.n_basis = calib.n_basis;
+    p.simulated_modes = calib.simulated_modes;
     p.smooth_drive = calib.smooth_drive;
     p.drive_reading = calib.drive_reading;
     let mut zm = Vec::new();

@@ -731,6 +731,7 @@ mod tests {
         let calib = Calib {
             defs: crate::diagnose::effects::servo_candidate(1, 100.0).params,
             n_basis: 4,
+            simulated_modes: None,
             smooth_drive: false,
             drive_reading: crate::diagnose::sim::DriveReading::PiecewiseLinear,
         };

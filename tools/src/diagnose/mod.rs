@@ -299,16 +299,22 @@ fn setup(
         .chain(std::iter::once(validate))
         .map(|d| sim::band_edge_hz(d.dt))
         .fold(f64::INFINITY, f64::min);
+    let nyquist_hz = fit_data
+        .iter()
+        .chain(std::iter::once(validate))
+        .map(|d| 0.5 / d.dt)
+        .fold(0.0, f64::max);
     let basis = match rig.beam {
-        Some(_) => Some(sim::converged_basis(rig, 1.0, band_edge_hz)?),
+        Some(_) => Some(sim::converged_basis(rig, 1.0, band_edge_hz, nyquist_hz)?),
         None => None,
     };
-    let calib = calibration_defs(
+    let mut calib = calibration_defs(
         rig,
         &channels,
         basis.as_ref().map_or(0, |b| b.freqs_hz.len()),
         basis.as_ref().map_or(4, |b| b.n_basis),
     );
+    calib.simulated_modes = basis.as_ref().map(|b| b.simulated_modes);
     Ok(Setup {
         channels,
         band_edge_hz,

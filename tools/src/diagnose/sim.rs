@@ -51,6 +51,10 @@ pub struct Params {
     /// Number of Galerkin basis functions (chosen so every mode below the band edge has
     /// converged; [`converged_basis`]).
     pub n_basis: usize,
+    /// Number of lowest clamped modes simulated ([`BasisChoice::simulated_modes`], fixed for a
+    /// diagnosis so that no parameter moves a mode across a truncation); `None` = the modes below
+    /// each recording's band edge.
+    pub simulated_modes: Option<usize>,
     /// Carriage-mass correction (kg, calibration).
     pub base_mass_delta_kg: f64,
     /// Coulomb friction (N).
@@ -170,6 +174,7 @@ impl Default for Params {
             zeta: None,
             zeta_modes: None,
             n_basis: 4,
+            simulated_modes: None,
             base_mass_delta_kg: 0.0,
             friction_n: 0.0,
             viscous_n_s_per_m: 0.0,
@@ -1248,15 +1253,13 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
     };
     let model = BeamModel::new(rig, &opts)?;
     let modes = model.clamped_modes()?;
-    // keep the modes below the band edge (0.45 × the sample rate): the exact zero-order-hold
-    // integration is valid up to Nyquist
-    let nyq = band_edge_hz(dt) * 2.0 * std::f64::consts::PI;
-    let keep = modes
-        .omega_rad_s
-        .iter()
-        .take_while(|w| **w < nyq)
-        .count()
-        .max(1);
+    // the diagnosis's fixed mode count, else the modes below the band edge (0.45 × the sample
+    // rate); the exact discretisation holds for any mode
+    let edge = band_edge_hz(dt) * 2.0 * std::f64::consts::PI;
+    let keep = p
+        .simulated_modes
+        .unwrap_or_else(|| modes.omega_rad_s.iter().take_while(|w| **w < edge).count())
+        .clamp(1, modes.omega_rad_s.len());
     let l = model.length_m;
     let npts = 16;
     let off = usize::from(p.root_stiffness_nm_per_rad.is_some());
@@ -1324,6 +1327,7 @@ fn structural_key(p: &Params, dt: f64) -> Vec<f64> {
         },
         dt,
         p.n_basis as f64,
+        p.simulated_modes.map_or(-1.0, |n| n as f64),
     ];
     key.extend(p.zeta_modes.iter().flatten());
     key
@@ -1406,13 +1410,26 @@ pub struct BasisChoice {
     pub freqs_hz: Vec<f64>,
     /// Largest relative change of those frequencies from `n_basis` to `n_basis + 1` functions.
     pub convergence_rel: f64,
+    /// Lowest clamped modes simulated: every mode of the nominal model below the Nyquist
+    /// frequency given (capped at the basis size), those between the band edge and Nyquist
+    /// included (the sampled recordings show them). The count is fixed for a diagnosis, so no
+    /// fitted parameter adds or removes a mode by moving it across a truncation (held-out
+    /// 545001, a null at 50 Hz: its second mode at 22.51 Hz lay just above the 22.5 Hz band
+    /// edge, and a hanging load, pulling it below, gained the mode and was named).
+    pub simulated_modes: usize,
 }
 
 /// The smallest number of basis functions (4–11) for which every clamped mode below
-/// `band_edge_hz` moves by less than [`BASIS_CONVERGENCE_REL`] when one more function is added.
+/// `band_edge_hz` moves by less than [`BASIS_CONVERGENCE_REL`] when one more function is added,
+/// and the modes to simulate for recordings whose highest Nyquist frequency is `nyquist_hz`.
 ///
 /// Errors: the rig has no beam or the model refuses it.
-pub fn converged_basis(rig: &Rig, stiffness_scale: f64, band_edge_hz: f64) -> Result<BasisChoice> {
+pub fn converged_basis(
+    rig: &Rig,
+    stiffness_scale: f64,
+    band_edge_hz: f64,
+    nyquist_hz: f64,
+) -> Result<BasisChoice> {
     let freqs = |n: usize| -> Result<Vec<f64>> {
         let m = BeamModel::new(
             rig,
@@ -1445,6 +1462,11 @@ pub fn converged_basis(rig: &Rig, stiffness_scale: f64, band_edge_hz: f64) -> Re
             n_basis: n,
             freqs_hz: prev[..below.min(prev.len())].to_vec(),
             convergence_rel: rel,
+            simulated_modes: prev
+                .iter()
+                .take_while(|f| **f < nyquist_hz)
+                .count()
+                .clamp(1, prev.len()),
         };
         if rel < BASIS_CONVERGENCE_REL && below < n {
             return Ok(choice);
@@ -2172,6 +2194,35 @@ mod tests {
 
     fn move_rec() -> crate::recording::Recording {
         move_rec_at(100.0)
+    }
+
+    #[test]
+    fn a_mode_between_the_band_edge_and_nyquist_is_simulated_and_no_parameter_moves_it_out() {
+        let rig = rig();
+        let f = converged_basis(&rig, 1.0, 1e3, 1e3).unwrap().freqs_hz;
+        // sampled so that mode 2 lies at 0.475 × the sample rate: above the band edge (0.45),
+        // below Nyquist (0.5)
+        let rate = f[1] / 0.475;
+        let b = converged_basis(&rig, 1.0, band_edge_hz(1.0 / rate), 0.5 * rate).unwrap();
+        assert_eq!(b.freqs_hz.len(), 1, "{b:?}");
+        assert_eq!(b.simulated_modes, 2, "{b:?}");
+        let dt = 1.0 / rate;
+        let count = |scale: f64, fixed: Option<usize>| {
+            let p = Params {
+                stiffness_scale: scale,
+                n_basis: b.n_basis,
+                simulated_modes: fixed,
+                ..Params::default()
+            };
+            beam_cache(&rig, &p, dt).unwrap().omega.len()
+        };
+        // by the band edge alone, a 20 % softer beam gains mode 2: a cliff a fitted parameter
+        // can cross
+        assert_eq!((count(1.0, None), count(0.8, None)), (1, 2));
+        // the diagnosis's fixed count keeps it at every scale
+        for scale in [0.8, 0.9, 1.0, 1.1, 1.2] {
+            assert_eq!(count(scale, Some(b.simulated_modes)), 2, "scale {scale}");
+        }
     }
 
     #[test]
