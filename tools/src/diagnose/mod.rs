@@ -788,9 +788,10 @@ fn diagnose_with(
     })?;
     let val_nrmse_nominal = nominal.val_nrmse;
     let vpred0 = nominal.vpred.clone();
-    let mut sel = forward::select_forward(&ctx, &cands, nominal, &mut budget, progress, 2);
+    let mut sel = forward::select_forward(&ctx, &cands, nominal.clone(), &mut budget, progress, 2);
     lookalike::resolve(&ctx, &cands, &mut sel, &mut budget);
     backward::eliminate(&ctx, &cands, &mut sel, &mut budget);
+    forward::structural_pair_as_crack(&ctx, &cands, &mut sel, nominal, &mut budget);
     let set: Vec<&Candidate> = sel.chosen.iter().map(|&k| &cands[k]).collect();
     let explained = check_explained(&ctx, &set, &sel, cal.best_nrmse)?;
     let earlier = Earlier {

@@ -618,26 +618,31 @@ fn coupled_servo(
 }
 
 /// A loop whose carriage carries a [`CarriageLoad`] (state index `li` holds the load's force,
-/// constant over a step), stepped one sample interval at a time by the cheapest exact-enough
-/// map: the load is stiff only inside the friction's smoothing band (|v| ≲ v_s), where the
-/// smoothed Coulomb force is a damper of rate λ = (F_c / v_s + c_v) / m that a held force over
-/// a whole interval would overshoot (λ dt ≫ 1 at 100 Hz: a chatter of F_c dt / m).
-/// - at rest (|ẏ| < v_s/2 at the start): the interval map with that damper in the generator
-///   (exact for the linearised friction), the remainder F(ẏ) − c_lin ẏ held;
-/// - moving (|ẏ| ≥ 4 v_s, tanh saturated): the interval map with the whole force held;
-/// - either of these is taken only if the velocity ends the interval in the same regime
-///   (below v_s, or above 4 v_s with the same sign); otherwise, and in between, the interval
-///   is stepped again from its start in [`CarriageLoad::substeps`] held steps (λh ≤ 1).
+/// constant over a step), stepped one sample interval at a time by a linearly implicit map
+/// (a Rosenbrock step; Hairer & Wanner, *Solving ODEs II*, IV.7): the load is stiff only
+/// inside the friction's smoothing band (|v| ≲ v_s), where the smoothed Coulomb force is a
+/// damper of slope s(v) = F_c sech²(v/v_s) / v_s + c_v that a held force over a whole interval
+/// would overshoot (s dt / m ≫ 1 at 100 Hz: a chatter of F_c dt / m).
+/// - The interval map with a damper c_k in the generator — one of a ladder c_k = s(0) 2^−k,
+///   k = 0…[`LADDER_RUNGS`] − 1, the rung nearest the slope at the interval's start — is exact
+///   for the load linearised there, `F(v₀) + c_k (v − v₀)`: the remainder F(v₀) − c_k v₀ is held.
+/// - Below the last rung (|v| ≳ 3 v_s: tanh saturated) the whole force is held.
+/// - Either is taken only if the velocity ends the interval where that linearisation holds
+///   (its slope within one rung, the same sign away from rest); otherwise the interval is
+///   stepped again from its start in [`CarriageLoad::substeps`] held steps (λh ≤ 1).
 struct LoadedLoop<'a> {
     load: &'a CarriageLoad,
     li: usize,
     steps: usize,
-    /// F_c / v_s + c_v (N·s/m): the friction's slope at rest.
+    /// s(0) = F_c / v_s + c_v (N·s/m): the friction's slope at rest.
     c_lin: f64,
-    /// The damped interval map and the substep map; `None` when one held step per interval
-    /// suffices (`steps` 1: cogging alone, or friction too weak to ring).
-    maps: Option<(nalgebra::DMatrix<f64>, nalgebra::DMatrix<f64>)>,
+    /// The damped interval maps of the ladder and the substep map; `None` when one held step
+    /// per interval suffices (`steps` 1: cogging alone, or friction too weak to ring).
+    maps: Option<(Vec<nalgebra::DMatrix<f64>>, nalgebra::DMatrix<f64>)>,
 }
+
+/// Rungs of the ladder of damped maps of [`LoadedLoop`] (slopes s(0) down to s(0) / 2⁷).
+const LADDER_RUNGS: usize = 8;
 
 impl<'a> LoadedLoop<'a> {
     /// From the loop's generator as a function of an extra carriage damper (N·s/m), with the
@@ -652,21 +657,41 @@ impl<'a> LoadedLoop<'a> {
     ) -> Option<LoadedLoop<'a>> {
         let steps = load.substeps(m_eff, dt);
         let c_lin = load.friction_n / FRICTION_SMOOTHING_M_S + load.viscous_n_s_per_m;
-        let maps = if steps == 1 {
+        let maps = if steps == 1 || !(c_lin > 0.0) {
             None
         } else {
+            let ladder = (0..LADDER_RUNGS)
+                .map(|k| bounded_expm(generator(c_lin * 0.5f64.powi(k as i32)), dt, limit))
+                .collect::<Option<Vec<_>>>()?;
             Some((
-                bounded_expm(generator(c_lin), dt, limit)?,
+                ladder,
                 bounded_expm(generator(0.0), dt / steps as f64, limit)?,
             ))
         };
         Some(LoadedLoop {
             load,
             li,
-            steps,
+            steps: if maps.is_some() { steps } else { 1 },
             c_lin,
             maps,
         })
+    }
+
+    /// The slope of the load's force in the velocity (N·s/m) at `v_m_s`.
+    fn slope(&self, v_m_s: f64) -> f64 {
+        let u = (v_m_s / FRICTION_SMOOTHING_M_S).cosh();
+        self.load.friction_n / (FRICTION_SMOOTHING_M_S * u * u) + self.load.viscous_n_s_per_m
+    }
+
+    /// The ladder's rung for velocity `v_m_s`: the nearest slope (log scale), or
+    /// [`LADDER_RUNGS`] below the last.
+    fn rung(&self, v_m_s: f64) -> usize {
+        let k = (self.c_lin / self.slope(v_m_s)).log2().round();
+        if k.is_finite() && k >= 0.0 {
+            (k as usize).min(LADDER_RUNGS)
+        } else {
+            0
+        }
     }
 
     /// One sample interval from `z` (`phi` the whole interval's map without a damper; `tmp`
@@ -678,26 +703,31 @@ impl<'a> LoadedLoop<'a> {
         tmp: &mut [f64],
         saved: &mut [f64],
     ) {
-        let (vs, li) = (FRICTION_SMOOTHING_M_S, self.li);
+        let li = self.li;
         let v0 = z[1];
-        let Some((damped, sub)) = &self.maps else {
+        let Some((ladder, sub)) = &self.maps else {
             z[li] = self.load.force_n(z[0], v0);
             advance(phi, z, tmp);
             return;
         };
         saved.copy_from_slice(z);
-        if v0.abs() < 0.5 * vs {
-            z[li] = self.load.force_n(z[0], v0) - self.c_lin * v0;
-            advance(damped, z, tmp);
-            if z[1].abs() < vs {
-                return;
+        let k = self.rung(v0);
+        match ladder.get(k) {
+            Some(map) => {
+                let c_k = self.c_lin * 0.5f64.powi(k as i32);
+                z[li] = self.load.force_n(z[0], v0) - c_k * v0;
+                advance(map, z, tmp);
             }
-        } else if v0.abs() >= 4.0 * vs {
-            z[li] = self.load.force_n(z[0], v0);
-            advance(phi, z, tmp);
-            if z[1] * v0 > 0.0 && z[1].abs() >= 4.0 * vs {
-                return;
+            None => {
+                z[li] = self.load.force_n(z[0], v0);
+                advance(phi, z, tmp);
             }
+        }
+        // the linearisation held: the slope at the end within one rung, and no crossing of
+        // the stiff band from one side to the other (at rest, k ≤ 1, the band is the map's)
+        let k_end = self.rung(z[1]);
+        if k_end.abs_diff(k) <= 1 && (k <= 1 || z[1] * v0 > 0.0) {
+            return;
         }
         z.copy_from_slice(saved);
         for _ in 0..self.steps {
