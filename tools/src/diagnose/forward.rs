@@ -2684,6 +2684,39 @@ pub(crate) mod tests {
     use nalgebra::DVector;
 
     #[test]
+    fn the_along_beam_ladder_is_anchored_inside_the_root_springs_scan() {
+        // a 0.5 m beam with EI/L = 2 N·m/rad: the root spring's scan spans k 2 … 2000 N·m/rad
+        let hints = crate::diagnose::effects::StartHints {
+            beam_mass_kg: 0.1,
+            ei_over_l: 2.0,
+            f2_hz: 15.0,
+            rate_hz: 100.0,
+            peak_deflection_m: 0.01,
+            friction: (0.0, 0.0),
+            cogging: (0.0, 0.0, 0.01),
+            cogging_pitches_m: vec![],
+            speed_m_s: 0.1,
+            zeta1: 0.01,
+            length_m: 0.5,
+            carriage_mass_kg: 2.0,
+            mode_freqs_hz: vec![2.7, 15.0, 41.0],
+        };
+        let root = crate::diagnose::effects::structural_candidates(&hints)
+            .into_iter()
+            .find(|c| c.id == Effect::RootCompliance)
+            .unwrap();
+        let along = crate::diagnose::effects::along_beam_of(&root, 0.5).unwrap();
+        let set = [&along];
+        // a root spring the recordings identify anchors the ladder itself
+        assert_eq!(root_spring_anchor(&set, 50f64.ln()), 50f64.ln());
+        // a rigid one (k L/EI 10⁵, what a crack away from the root leaves it at) anchors it in
+        // the middle of the scan, √(2 · 2000) ≈ 63 N·m/rad; so does one softer than the beam
+        let middle = (2.0f64 * 2000.0).sqrt().ln();
+        assert!((root_spring_anchor(&set, 2e5f64.ln()) - middle).abs() < 1e-12);
+        assert!((root_spring_anchor(&set, 0.1f64.ln()) - middle).abs() < 1e-12);
+    }
+
+    #[test]
     fn a_newcomer_is_refitted_from_the_better_optimum_of_what_was_chosen_with_its_own_values() {
         let joint = nalgebra::DVector::from_vec(vec![0.7, 0.01, 0.065, 0.0028, 1.6, -6.4]);
         let better = nalgebra::DVector::from_vec(vec![0.69, 0.009, 0.008, 0.0098]);
