@@ -366,22 +366,15 @@ impl Ctx<'_> {
             structure_explained: share,
             implausible: implausible(cand, &f, off, self.resolution()),
         });
-        if !(whiteness.0 > LJUNG_BOX_CRITICAL) {
-            fails.push(format!(
-                "the residual it would explain is white (Ljung–Box Q {:.0} ≤ {LJUNG_BOX_CRITICAL}): nothing to explain",
-                whiteness.0
-            ));
-        }
+        fails.extend(white_before(whiteness.0));
         let others_passed = fails.is_empty();
-        let matters = self.calibration_matter(set, &f, off);
-        fails.extend(matters.iter().cloned());
+        fails.extend(self.calibration_matter(set, &f, off));
         fails.extend(self.below_model_accuracy(set, &f));
         let passed = fails.is_empty();
         let partial = fails.len() == 1 && share.is_some_and(|f| !(f >= MIN_STRUCTURE_EXPLAINED));
-        let at_model_mode = (others_passed && fails.len() == 1 && carries_the_beam(cand, &f, off))
-            .then(|| self.mount_at_model_mode(set, &f, off))
-            .flatten()
-            .filter(|w| *w == fails[0]);
+        let at_model_mode = (others_passed && carries_the_beam(cand, &f, off))
+            .then(|| only_at_model_mode(&fails))
+            .flatten();
         CandidateOutcome {
             id: cand.id,
             words: cand.words.to_string(),
@@ -1037,15 +1030,6 @@ impl Ctx<'_> {
         fails
     }
 
-    /// The words of the calibration-matter rule when mount `cand` (last of `set`, fitted as
-    /// `f`, its parameters from `off`), carrying the beam, failed it for its resonance alone:
-    /// identified, inside the band, at one of the model's own modes. `None` otherwise.
-    fn mount_at_model_mode(&self, set: &[&Candidate], f: &FitResult, off: usize) -> Option<String> {
-        self.calibration_matter(set, f, off)
-            .into_iter()
-            .find(|w| w.starts_with(COINCIDENCE_PREFIX))
-    }
-
     /// The calibration-matter rule for a position loop: a lightly damped loop (ζ below
     /// [`RESONANT_LOOP_ZETA`]) is a resonance of the base motion, judged as a mount is: at one of
     /// the model's own modes it is a calibration matter, or not placed when its bandwidth is not
@@ -1106,6 +1090,25 @@ fn coincidence_words(fm_hz: f64, fr_hz: f64, tol_hz: f64) -> String {
     format!(
         "{COINCIDENCE_PREFIX}{fm_hz:.2} Hz coincides with the model's own mode at {fr_hz:.2} Hz (within {tol_hz:.2} Hz): a calibration matter, not a new resonance"
     )
+}
+
+/// Why a candidate has nothing to explain when the residual it would explain (Ljung–Box `q`
+/// before it) is white; `None` when it is structured.
+fn white_before(q: f64) -> Option<String> {
+    (!(q > LJUNG_BOX_CRITICAL)).then(|| {
+        format!(
+            "the residual it would explain is white (Ljung–Box Q {q:.0} ≤ {LJUNG_BOX_CRITICAL}): nothing to explain"
+        )
+    })
+}
+
+/// The words of the calibration-matter rule when `fails` holds them alone: a mount's
+/// resonance, identified and inside the band, at one of the model's own modes.
+fn only_at_model_mode(fails: &[String]) -> Option<String> {
+    match fails {
+        [w] if w.starts_with(COINCIDENCE_PREFIX) => Some(w.clone()),
+        _ => None,
+    }
 }
 
 /// Whether candidate `cand` (parameters from `off` in `f`) is a mount that carries the beam:
