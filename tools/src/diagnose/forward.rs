@@ -367,14 +367,10 @@ impl Ctx<'_> {
             implausible: implausible(cand, &f, off, self.resolution()),
         });
         fails.extend(white_before(whiteness.0));
-        let others_passed = fails.is_empty();
         fails.extend(self.calibration_matter(set, &f, off));
         fails.extend(self.below_model_accuracy(set, &f));
         let passed = fails.is_empty();
         let partial = fails.len() == 1 && share.is_some_and(|f| !(f >= MIN_STRUCTURE_EXPLAINED));
-        let at_model_mode = (others_passed && carries_the_beam(cand, &f, off))
-            .then(|| only_at_model_mode(&fails))
-            .flatten();
         CandidateOutcome {
             id: cand.id,
             words: cand.words.to_string(),
@@ -401,7 +397,6 @@ impl Ctx<'_> {
             unplaced: None,
             look_alike: None,
             partial,
-            at_model_mode,
         }
     }
 
@@ -734,48 +729,6 @@ impl Ctx<'_> {
         ))
     }
 
-    /// Whether a mount at one of the model's own modes (`o`, on the effects `chosen`, failed
-    /// only for that: [`CandidateOutcome::at_model_mode`]) is more than that mode moved. The
-    /// calibration-matter rule assumes a calibration could absorb it; but the calibration has
-    /// had its chance (every in-band mode's damping ratio, one stiffness scale), and what a
-    /// mode moved alone would be is a local compliance of the beam (a crack changes the
-    /// frequency ratios, [`Self::local_compliance_contest`]). The mount stands when that
-    /// rival does worse by the likelihood margins of conditions 1–2 on the fit and the
-    /// validation recordings: a mount splits a mode in two and pushes on the carriage, which
-    /// no moved mode does. Held-out 540700 (a 19 Hz mount, ζ 0.075, beside the beam's
-    /// 17.8 Hz mode, every channel) had been left unexplained though it removed 81.5 % of the
-    /// force residual. Returns the words when it stands, and the model evaluations used.
-    fn mount_beyond_moved_mode(
-        &self,
-        cands: &[Candidate],
-        chosen: &[usize],
-        o: &CandidateOutcome,
-        max_evaluations: usize,
-    ) -> (Option<String>, usize) {
-        let rival: Vec<&Candidate> = set_of(cands, chosen)
-            .into_iter()
-            .chain(std::iter::once(&cands[o.cand_index]))
-            .collect();
-        let Some((Some(c), used)) =
-            self.local_compliance_contest(cands, chosen, &rival, o.fit.clone(), max_evaluations)
-        else {
-            return (None, 0);
-        };
-        let stands = c.fit_gain > BIC_MARGIN && c.val_gain > VALIDATION_MARGIN;
-        self.trace(format!(
-            "{} at a model mode against a moved mode (a local compliance at {:.4} ± {:.4} m): ΔBIC {:+.1} fit, Δ(−2lnL) {:+.1} validation; {}",
-            o.id, c.at_m, c.at_sd_m, c.fit_gain, c.val_gain,
-            if stands { "the mount stands" } else { "a calibration matter" }
-        ));
-        let words = stands.then(|| {
-            format!(
-                "passes every guard; its resonance lies at one of the model's own modes, but that mode moved (a local compliance of the beam fitted in its place) does worse by ΔBIC {:+.1} on the fit recordings and Δ(−2lnL) {:+.1} on validation: a resonance of its own",
-                c.fit_gain, c.val_gain
-            )
-        });
-        (words, used)
-    }
-
     /// The root spring (`set`, last a [`Effect::RootCompliance`]) refitted from its optimum `o`
     /// with the effort [`Self::fit_along_beam`] gives the spring along the beam: the stiffness
     /// searched over the same octave ladder (refined by golden section), then the least-squares
@@ -1012,7 +965,9 @@ impl Ctx<'_> {
                         hz_text(f.std[off + i])
                     ));
                 } else if !at_edge {
-                    fails.push(coincidence_words(fm_shown, *fr, tol));
+                    fails.push(format!(
+                        "mount resonance {fm_shown:.2} Hz coincides with the model's own mode at {fr:.2} Hz (within {tol:.2} Hz): a calibration matter, not a new resonance"
+                    ));
                 }
             }
             if at_edge {
@@ -1081,17 +1036,6 @@ struct Contest {
     placed: bool,
 }
 
-/// How the calibration-matter rule's words for a mount at a model mode begin.
-const COINCIDENCE_PREFIX: &str = "mount resonance ";
-
-/// The calibration-matter rule's words for a mount whose resonance `fm_hz` lies within
-/// `tol_hz` of the model's mode at `fr_hz`.
-fn coincidence_words(fm_hz: f64, fr_hz: f64, tol_hz: f64) -> String {
-    format!(
-        "{COINCIDENCE_PREFIX}{fm_hz:.2} Hz coincides with the model's own mode at {fr_hz:.2} Hz (within {tol_hz:.2} Hz): a calibration matter, not a new resonance"
-    )
-}
-
 /// Why a candidate has nothing to explain when the residual it would explain (Ljung–Box `q`
 /// before it) is white; `None` when it is structured.
 fn white_before(q: f64) -> Option<String> {
@@ -1100,24 +1044,6 @@ fn white_before(q: f64) -> Option<String> {
             "the residual it would explain is white (Ljung–Box Q {q:.0} ≤ {LJUNG_BOX_CRITICAL}): nothing to explain"
         )
     })
-}
-
-/// The words of the calibration-matter rule when `fails` holds them alone: a mount's
-/// resonance, identified and inside the band, at one of the model's own modes.
-fn only_at_model_mode(fails: &[String]) -> Option<String> {
-    match fails {
-        [w] if w.starts_with(COINCIDENCE_PREFIX) => Some(w.clone()),
-        _ => None,
-    }
-}
-
-/// Whether candidate `cand` (parameters from `off` in `f`) is a mount that carries the beam:
-/// a fitted mount mass above zero.
-fn carries_the_beam(cand: &Candidate, f: &FitResult, off: usize) -> bool {
-    cand.params
-        .iter()
-        .position(|q| q.name == "mount_mass_kg")
-        .is_some_and(|j| f.values[off + j] > 0.0)
 }
 
 /// The guard ([`guard`], conditions 1–4 and 6) applied to the mount (fitted as `mount`) as an
@@ -1284,7 +1210,6 @@ fn fit_round(
     refit_from_larger_forms(ctx, cands, chosen, &mut outs, reference, budget);
     outs.sort_by(|a, b| a.delta_val.total_cmp(&b.delta_val));
     super::keep_lowest_bic_form(&mut outs);
-    mounts_at_model_modes(ctx, cands, chosen, &mut outs, budget);
     place_resonances(ctx, cands, chosen, &mut outs, budget);
     place_compliances(ctx, cands, chosen, &mut outs, budget);
     outs
@@ -1498,30 +1423,6 @@ fn sensor_start(cand: &Candidate, o: &CandidateOutcome) -> Option<nalgebra::DVec
     ))
 }
 
-/// Every outcome of a round that failed only for a mount at one of the model's own modes
-/// ([`CandidateOutcome::at_model_mode`]) passes when a moved mode does worse
-/// ([`Ctx::mount_beyond_moved_mode`]); its placement (condition 8) follows.
-fn mounts_at_model_modes(
-    ctx: &Ctx,
-    cands: &[Candidate],
-    chosen: &[usize],
-    outs: &mut [CandidateOutcome],
-    budget: &mut Budget,
-) {
-    let at: Vec<usize> = (0..outs.len())
-        .filter(|&i| outs[i].at_model_mode.is_some())
-        .collect();
-    for (j, &i) in at.iter().enumerate() {
-        let share = budget.share(at.len() - j + 1);
-        let (words, used) = ctx.mount_beyond_moved_mode(cands, chosen, &outs[i], share);
-        budget.spend(used);
-        if let Some(w) = words {
-            outs[i].passed = true;
-            outs[i].reason = w;
-        }
-    }
-}
-
 /// The placement test ([`Ctx::placement`], condition 8) of every resonance in `outs` that still
 /// passes (after [`super::keep_lowest_bic_form`]), the alternative fitted from each resonance
 /// form's optimum of the round.
@@ -1682,11 +1583,6 @@ fn rejudge(
         };
         n.unplaced = o.unplaced.take();
         n.look_alike = o.look_alike.take();
-        // a mount at a model mode that beat a moved mode keeps that verdict
-        if o.passed && o.at_model_mode.is_some() && n.at_model_mode.is_some() {
-            n.passed = true;
-            n.reason = o.reason.clone();
-        }
         n.apply_placement();
         if !o.passed && n.passed {
             n.passed = false;
@@ -2950,7 +2846,6 @@ pub(crate) mod tests {
             unplaced: None,
             look_alike: None,
             partial: false,
-            at_model_mode: None,
         }
     }
 

@@ -96,10 +96,6 @@ pub struct CandidateOutcome {
     /// residual — what the first effect of a pair does beside the second ([`forward`]'s
     /// pair step).
     pub partial: bool,
-    /// It failed only the calibration-matter rule for a mount that carries the beam: its
-    /// resonance lies at one of the model's own modes (the words). [`forward`] then asks
-    /// whether a moved mode explains the recordings as well before it stands.
-    pub at_model_mode: Option<String>,
 }
 
 impl CandidateOutcome {
