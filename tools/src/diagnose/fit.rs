@@ -992,11 +992,11 @@ fn successive_halving(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// Start hints of a 0.5 m beam of 0.1 kg recorded at 500 Hz (the candidates' scales).
-    fn hints() -> super::super::effects::StartHints {
+    pub(crate) fn hints() -> super::super::effects::StartHints {
         super::super::effects::StartHints {
             beam_mass_kg: 0.1,
             ei_over_l: 2.0,

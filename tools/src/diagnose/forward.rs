@@ -2585,21 +2585,7 @@ pub(crate) mod tests {
     #[test]
     fn the_along_beam_ladder_is_anchored_inside_the_root_springs_scan() {
         // a 0.5 m beam with EI/L = 2 N·m/rad: the root spring's scan spans k 2 … 2000 N·m/rad
-        let hints = crate::diagnose::effects::StartHints {
-            beam_mass_kg: 0.1,
-            ei_over_l: 2.0,
-            f2_hz: 15.0,
-            rate_hz: 100.0,
-            peak_deflection_m: 0.01,
-            friction: (0.0, 0.0),
-            cogging: (0.0, 0.0, 0.01),
-            cogging_pitches_m: vec![],
-            speed_m_s: 0.1,
-            zeta1: 0.01,
-            length_m: 0.5,
-            carriage_mass_kg: 2.0,
-            mode_freqs_hz: vec![2.7, 15.0, 41.0],
-        };
+        let hints = crate::diagnose::fit::tests::hints();
         let root = crate::diagnose::effects::structural_candidates(&hints)
             .into_iter()
             .find(|c| c.id == Effect::RootCompliance)
