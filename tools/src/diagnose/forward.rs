@@ -646,42 +646,6 @@ impl Ctx<'_> {
         what: &str,
         max_evaluations: usize,
     ) -> Option<(Option<String>, usize)> {
-        let (contest, used) =
-            self.local_compliance_contest(cands, chosen, rival, rival_fit, max_evaluations)?;
-        let Some(c) = contest else {
-            return Some((None, used));
-        };
-        let wins = c.fit_gain < -BIC_MARGIN && c.val_gain < -VALIDATION_MARGIN && c.placed;
-        self.trace(format!(
-            "{what} against a local compliance: spring along the beam at {:.4} ± {:.4} m, ΔBIC {:+.1} fit, Δ(−2lnL) {:+.1} validation; {}",
-            c.at_m, c.at_sd_m, c.fit_gain, c.val_gain,
-            if wins { "the local compliance wins" } else { "it stands" }
-        ));
-        if !wins {
-            return Some((None, used));
-        }
-        Some((
-            Some(format!(
-                "a local compliance of the beam explains the recordings better than {what}: a rotational spring {:.3} ± {:.3} m from the clamp ({:.2} of the length; ΔBIC {:+.1} fit, Δ(−2lnL) {:+.1} validation): a crack, a notch, a loose joint; outside the catalogue",
-                c.at_m, c.at_sd_m, c.at_m / c.length_m, c.fit_gain, c.val_gain
-            )),
-            used,
-        ))
-    }
-
-    /// The contest of [`Self::local_compliance_against`]: the spring along the beam fitted on
-    /// the effects `chosen`, and its likelihood gains against `rival` (fitted as `rival_fit`;
-    /// negative: the spring does better). Returns the contest (`None` when the spring's model
-    /// cannot be simulated) and the model evaluations used; `None` when the test cannot be
-    /// made (no beam, no root-spring candidate, a rival that cannot be simulated).
-    fn local_compliance_contest(
-        &self,
-        cands: &[Candidate],
-        chosen: &[usize],
-        rival: &[&Candidate],
-        rival_fit: FitResult,
-        max_evaluations: usize,
-    ) -> Option<(Option<Contest>, usize)> {
         let length_m = self.rig.beam.as_ref()?.length_m;
         let root_cand = cands.iter().find(|c| c.id == Effect::RootCompliance)?;
         let alt = super::effects::along_beam_of(root_cand, length_m)?;
@@ -700,8 +664,8 @@ impl Ctx<'_> {
         let k_at = root.x.len() - 1;
         let (g, used) = self.fit_along_beam(&alt_set, &root, k_at, length_m, max_evaluations);
         let used = used + root.evaluations;
-        let at_m = g.values.last().copied().unwrap_or(f64::NAN);
-        let at_sd_m = g.std.last().copied().unwrap_or(f64::NAN);
+        let at = g.values.last().copied().unwrap_or(f64::NAN);
+        let at_sd = g.std.last().copied().unwrap_or(f64::NAN);
         let Some(along) = self.reference(&alt_set, g) else {
             return Some((None, used));
         };
@@ -715,16 +679,20 @@ impl Ctx<'_> {
         let val_gain =
             delta_neg2ll_effective(&along.vrss, &at_rival.vrss, &at_rival.vn, &along.tau_val);
         let hi = super::effects::SPRING_POSITION_MAX_REL * length_m;
-        let placed = at_m - 2.0 * at_sd_m > CLAMP_REGION_REL * length_m && at_m < 0.99 * hi;
+        let placed = at - 2.0 * at_sd > CLAMP_REGION_REL * length_m && at < 0.99 * hi;
+        let wins = fit_gain < -BIC_MARGIN && val_gain < -VALIDATION_MARGIN && placed;
+        self.trace(format!(
+            "{what} against a local compliance: spring along the beam at {at:.4} ± {at_sd:.4} m, ΔBIC {fit_gain:+.1} fit, Δ(−2lnL) {val_gain:+.1} validation; {}",
+            if wins { "the local compliance wins" } else { "it stands" }
+        ));
+        if !wins {
+            return Some((None, used));
+        }
         Some((
-            Some(Contest {
-                fit_gain,
-                val_gain,
-                at_m,
-                at_sd_m,
-                length_m,
-                placed,
-            }),
+            Some(format!(
+                "a local compliance of the beam explains the recordings better than {what}: a rotational spring {at:.3} ± {at_sd:.3} m from the clamp ({:.2} of the length; ΔBIC {fit_gain:+.1} fit, Δ(−2lnL) {val_gain:+.1} validation): a crack, a notch, a loose joint; outside the catalogue",
+                at / length_m
+            )),
             used,
         ))
     }
@@ -1017,23 +985,6 @@ impl Ctx<'_> {
             )
         })
     }
-}
-
-/// A local compliance of the beam fitted against a rival
-/// ([`Ctx::local_compliance_contest`]).
-struct Contest {
-    /// ΔBIC of the spring's model against the rival's on the fit recordings (with the
-    /// difference of their parameter counts; negative: the spring does better).
-    fit_gain: f64,
-    /// Δ(−2 ln L) of the spring's model against the rival's on the validation recording.
-    val_gain: f64,
-    /// The spring's position from the clamp (m) and its 1 σ.
-    at_m: f64,
-    at_sd_m: f64,
-    /// The beam's length (m).
-    length_m: f64,
-    /// Its 2 σ interval lies beyond the clamp's region and short of the tip.
-    placed: bool,
 }
 
 /// Why a candidate has nothing to explain when the residual it would explain (Ljung–Box `q`
