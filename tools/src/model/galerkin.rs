@@ -145,6 +145,44 @@ pub fn quadrature(length_m: f64, intervals: usize) -> Vec<(f64, f64)> {
     pts
 }
 
+/// The beam's mass beyond every quadrature point of `pts`, `∫_x^l ρA ds` (kg), for the
+/// gravity axial load; `line_density_kg_m(x)` is ρA at x. `pts` is in [`quadrature`] order:
+/// five Gauss–Legendre points per interval, the middle one first (so not ascending): each
+/// point's value is the mass of the intervals after its own plus a 5-point Gauss–Legendre
+/// integral from the point to its interval's end, exact for a section polynomial of degree ≤ 9
+/// between stations (a running sum over the points would be first order in the interval and,
+/// in this order, wrong by a slice).
+fn mass_beyond(pts: &[(f64, f64)], line_density_kg_m: impl Fn(f64) -> f64) -> Vec<f64> {
+    debug_assert_eq!(pts.len() % GL5.len(), 0);
+    let ends: Vec<f64> = pts
+        .chunks(GL5.len())
+        .map(|c| c[0].0 + 0.5 * c.iter().map(|p| p.1).sum::<f64>())
+        .collect();
+    let mass_between = |a: f64, b: f64| -> f64 {
+        let (mid, half) = (0.5 * (a + b), 0.5 * (b - a));
+        GL5.iter()
+            .map(|&(xi, w)| half * w * line_density_kg_m(mid + half * xi))
+            .sum()
+    };
+    // mass of every interval after interval j
+    let mut after = vec![0.0; ends.len()];
+    let mut acc = 0.0;
+    for (j, c) in pts.chunks(GL5.len()).enumerate().rev() {
+        after[j] = acc;
+        acc += c
+            .iter()
+            .map(|&(x, w)| w * line_density_kg_m(x))
+            .sum::<f64>();
+    }
+    pts.iter()
+        .enumerate()
+        .map(|(k, &(x, _))| {
+            let j = k / GL5.len();
+            after[j] + mass_between(x, ends[j])
+        })
+        .collect()
+}
+
 /// [`quadrature`] with a break at `break_m` (0 < break_m < l): the intervals shared between
 /// [0, break_m] and [break_m, l] in proportion (at least one each), so that a shape with a kink
 /// there ([`ModelOptions::spring_position_m`]) is integrated piecewise smooth. Without a break
@@ -337,11 +375,7 @@ impl BeamIntegrals {
             .map(|&(x, w)| w * rho * profile.area(x))
             .collect();
         let beam_mass_kg: f64 = slice_kg.iter().sum();
-        // mass of the beam beyond each quadrature point (the points ascend)
-        let mut beyond = vec![0.0; pts.len()];
-        for k in (0..pts.len().saturating_sub(1)).rev() {
-            beyond[k] = beyond[k + 1] + slice_kg[k + 1];
-        }
+        let beyond = mass_beyond(&pts, |x| rho * profile.area(x));
         let zero = || DMatrix::zeros(dim, dim);
         let (mut mass, mut stiff_ei, mut geo_own, mut geo_unit) = (zero(), zero(), zero(), zero());
         for (k, &(x, w)) in pts.iter().enumerate() {
@@ -412,7 +446,8 @@ impl BeamIntegrals {
         let mut shapes = self.shapes.clone();
         let dim = shapes.dim();
         let mut g = DMatrix::zeros(dim, dim);
-        for &(x, w) in self.pts.iter().take_while(|p| p.0 < x_m) {
+        // the points are not ascending within an interval ([`quadrature`]): filter, not take_while
+        for &(x, w) in self.pts.iter().filter(|p| p.0 < x_m) {
             shapes.at(x);
             for i in 1..dim {
                 for j in i..dim {
