@@ -170,6 +170,27 @@ pub fn f1_preserving_factor(rig: &Rig, p: &Params) -> Option<f64> {
     Some(g1)
 }
 
+/// The simulation parameters of `calib` + `cands` at physical `values` (calibration, then each
+/// effect's, in definition order). With a structural effect (tip mass, root spring, axial
+/// load) the stiffness scale applied to EI is the calibration's times the
+/// [`f1_preserving_factor`]: the reported `stiffness_scale` is the plain model's.
+pub fn params_of_values(rig: &Rig, calib: &Calib, cands: &[&Candidate], values: &[f64]) -> Params {
+    let nc = calib.len();
+    let mut p = Params::default();
+    apply_calibration(calib, &values[..nc], &mut p);
+    let mut off = nc;
+    for c in cands {
+        apply_effect(c, &values[off..off + c.params.len()], &mut p);
+        off += c.params.len();
+    }
+    if !cands.is_empty()
+        && (p.tip_mass_kg > 0.0 || p.root_stiffness_nm_per_rad.is_some() || p.orientation.is_some())
+    {
+        p.stiffness_scale *= f1_preserving_factor(rig, &p).unwrap_or(1.0);
+    }
+    p
+}
+
 /// A candidate bound to data: the least-squares problem.
 pub struct Problem<'a> {
     rig: &'a Rig,
@@ -237,29 +258,13 @@ impl<'a> Problem<'a> {
 
     /// Physical parameters of representation `x`.
     pub fn params_of(&self, x: &DVector<f64>) -> Params {
-        let defs = self.defs();
-        let vals: Vec<f64> = defs
+        let vals: Vec<f64> = self
+            .defs()
             .iter()
             .enumerate()
             .map(|(i, d)| d.value(x[i]))
             .collect();
-        let nc = self.calib.len();
-        let mut p = Params::default();
-        apply_calibration(self.calib, &vals[..nc], &mut p);
-        let mut off = nc;
-        for c in &self.cands {
-            apply_effect(c, &vals[off..off + c.params.len()], &mut p);
-            off += c.params.len();
-        }
-        if !self.cands.is_empty() {
-            if p.tip_mass_kg > 0.0
-                || p.root_stiffness_nm_per_rad.is_some()
-                || p.orientation.is_some()
-            {
-                p.stiffness_scale *= f1_preserving_factor(self.rig, &p).unwrap_or(1.0);
-            }
-        }
-        p
+        params_of_values(self.rig, self.calib, &self.cands, &vals)
     }
 
     /// Predictions for every recording at `x` (`None` if the model refuses the parameters).

@@ -129,6 +129,11 @@ pub struct Diagnosis {
     /// parameters of `final_fit`): a damping ratio the joint fit drives out of the applied
     /// range is reported as not identified, not as a number.
     pub final_calibration_unidentified: Vec<Option<String>>,
+    /// The stiffness scale the final model applies to EI when a named structural effect (tip
+    /// mass, root spring, axial load) fits along the f1-preserving path
+    /// ([`fit::params_of_values`]): the reported `stiffness_scale` times that factor. `None`
+    /// without one (the reported scale is the applied one).
+    pub final_applied_stiffness_scale: Option<f64>,
     /// Channel noise scales σ used for whitening.
     pub sigma: [f64; 3],
     /// Location of the discrepancy.
@@ -963,7 +968,18 @@ fn conclude(
         .position(|o| o.passed && chosen.first() == Some(&o.cand_index));
     stage(progress, total_steps, total_steps, "done");
     let drive_reading = ReadingChoice::of(ctx, &reference);
+    let applied =
+        fit::params_of_values(ctx.rig, ctx.calib, &set, &reference.fit.values).stiffness_scale;
+    let reported = ctx
+        .calib
+        .defs
+        .iter()
+        .position(|d| d.name == "stiffness_scale")
+        .map(|i| reference.fit.values[i]);
     Diagnosis {
+        final_applied_stiffness_scale: reported
+            .filter(|r| (applied / r - 1.0).abs() > 1e-9)
+            .map(|_| applied),
         calibration_unidentified: unidentified_calibration(ctx.calib, &cal),
         final_calibration_unidentified: unidentified_calibration(ctx.calib, &reference.fit),
         effect: chosen
