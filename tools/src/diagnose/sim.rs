@@ -30,8 +30,8 @@
 //!    the modes); motor force from eq. (5), `u = J ÿ + hᵀ q̈ − ∫ drag`;
 //! 5. carriage forces: `+ F_c sign(ẏ) + c_v ẏ` (`base_friction`, smoothed over 1 mm/s) and
 //!    `+ a sin(2πy/p) + b cos(2πy/p)` (`cogging_ripple`);
-//! 6. tip sensor latency τ: `tip(t − τ)` by linear interpolation (`sensor_delay`); tip sensor
-//!    scale g (camera calibration): `g · tip` (`sensor_gain`).
+//! 6. tip sensor latency τ: `tip(t − τ)` by a band-limited fractional delay ([`delayed`];
+//!    `sensor_delay`); tip sensor scale g (camera calibration): `g · tip` (`sensor_gain`).
 
 use crate::model::sim::mode_zoh;
 use crate::model::{BeamModel, ModelOptions, Orientation, Rig};
