@@ -105,12 +105,14 @@ impl Progress for StageProgress {
     }
 }
 
-/// Reads and prepares one recording of `rig`: sensor directions brought to the format's
+/// Reads and prepares one recording of `rig`: camera glitches on the tip mended
+/// ([`crate::recording::glitch`]), sensor directions brought to the format's
 /// ([`crate::recording::orient`], low-pass corners at ¼ and 10 × the rig's first clamped
 /// natural frequency), then sensor zeros from the rest ([`crate::recording::zero`]).
 pub fn load(path: &Path, rig: &Rig) -> Result<Prepared> {
     let rec = super::read_recording(path)?;
     let read = rec.notes.len();
+    let rec = crate::recording::glitch::mend_tip_glitches(rec);
     let rec = match first_natural_freq_hz(rig) {
         Some(f1) => crate::recording::orient::orient(rec, f1 / 4.0, 10.0 * f1),
         None => rec,

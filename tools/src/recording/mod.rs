@@ -16,6 +16,7 @@
 //! Also reads NumPy `.npy` arrays of shape (2, N) = [time; signal] (the format of the real
 //! data in `shared/data/real/`) via [`Recording::read_npy`], without assuming uniform time.
 
+pub mod glitch;
 pub mod multirate;
 pub mod orient;
 pub mod regular;
