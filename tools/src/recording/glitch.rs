@@ -317,8 +317,11 @@ mod tests {
     #[test]
     fn a_channel_full_of_outliers_is_left_as_recorded() {
         let mut x = tip(100.0, 3000, 0.0, 6);
-        for k in (100..2900).step_by(10) {
+        // a two-sample glitch every 22 samples: 9 % of the samples, yet four clean samples
+        // either side of each
+        for k in (100..2900).step_by(22) {
             x[k] += 0.01;
+            x[k + 1] += 0.01;
         }
         let rec = Recording {
             tip_pos_m: Some(x.clone()),
