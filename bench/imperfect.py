@@ -22,6 +22,7 @@ recordings alike, and diagnosed:
   t0           time_s + 1234.5 s
   tip_clip     tip_pos_m clipped at 80 % of its largest excursion either way (a camera's field of view)
   force_clip   force_n clipped likewise (a drive's current limit)
+  glitch       tip_pos_m 5-50 mm off on ten runs of 1-3 samples per recording (a camera losing its marker)
   tip_flip     tip_pos_m negated (a camera whose axis points the other way)
   force_flip   force_n negated (a drive whose force sign is the opposite convention)
   base_flip    base_pos_m negated (an encoder counting down)
@@ -124,6 +125,15 @@ def perturb(rows, kind, rng):
             lim = 0.8 * max(abs(float(r[col[c]])) for r in data)
             for r in data:
                 r[col[c]] = repr(max(-lim, min(lim, float(r[col[c]]))))
+    elif kind == 'glitch':
+        # a camera losing its marker: ten runs of 1-3 samples, 5-50 mm off, per recording
+        if 'tip_pos_m' in col:
+            c = col['tip_pos_m']
+            for _ in range(10):
+                k = rng.randrange(10, len(data) - 13)
+                g = rng.choice([-1, 1]) * rng.uniform(0.005, 0.05)
+                for j in range(rng.randint(1, 3)):
+                    data[k + j][c] = repr(float(data[k + j][c]) + g * rng.uniform(0.8, 1.2))
     elif kind in ('tip_flip', 'force_flip', 'base_flip'):
         c = {'tip_flip': 'tip_pos_m', 'force_flip': 'force_n', 'base_flip': 'base_pos_m'}[kind]
         if c in col:
