@@ -912,6 +912,20 @@ struct Earlier {
     working_rate: rate::WorkingRate,
 }
 
+/// The stiffness scale the final model `f` of `set` applies to EI where a structural effect
+/// fits along the f1-preserving path ([`Diagnosis::final_applied_stiffness_scale`]); `None`
+/// where it is the reported one.
+fn applied_stiffness_scale(ctx: &Ctx, set: &[&Candidate], f: &FitResult) -> Option<f64> {
+    let applied = fit::params_of_values(ctx.rig, ctx.calib, set, &f.values).stiffness_scale;
+    let reported = ctx
+        .calib
+        .defs
+        .iter()
+        .position(|d| d.name == "stiffness_scale")
+        .map(|i| f.values[i])?;
+    ((applied / reported - 1.0).abs() > 1e-9).then_some(applied)
+}
+
 /// Per calibration parameter of `cal`, why the recordings do not identify it (`None`:
 /// identified; [`effects::calibration_unidentified`]).
 fn unidentified_calibration(calib: &effects::Calib, cal: &FitResult) -> Vec<Option<String>> {
@@ -968,18 +982,8 @@ fn conclude(
         .position(|o| o.passed && chosen.first() == Some(&o.cand_index));
     stage(progress, total_steps, total_steps, "done");
     let drive_reading = ReadingChoice::of(ctx, &reference);
-    let applied =
-        fit::params_of_values(ctx.rig, ctx.calib, &set, &reference.fit.values).stiffness_scale;
-    let reported = ctx
-        .calib
-        .defs
-        .iter()
-        .position(|d| d.name == "stiffness_scale")
-        .map(|i| reference.fit.values[i]);
     Diagnosis {
-        final_applied_stiffness_scale: reported
-            .filter(|r| (applied / r - 1.0).abs() > 1e-9)
-            .map(|_| applied),
+        final_applied_stiffness_scale: applied_stiffness_scale(ctx, &set, &reference.fit),
         calibration_unidentified: unidentified_calibration(ctx.calib, &cal),
         final_calibration_unidentified: unidentified_calibration(ctx.calib, &reference.fit),
         effect: chosen
