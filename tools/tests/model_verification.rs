@@ -112,6 +112,31 @@ fn fe_beam(width_root: f64, width_tip: f64, elements: usize) -> FeBeam {
     }
 }
 
+/// A clamped beam of length 0.9 m tapered linearly in width `b` and thickness `h` (root, tip;
+/// m), density `rho` (kg/m³) and modulus `e` (Pa), on a 2.5 kg carriage: the rig file and the
+/// FE beam of `elements` elements with the same dimensions.
+fn tapered(rho: f64, e: f64, b: (f64, f64), h: (f64, f64), elements: usize) -> (Rig, FeBeam) {
+    let rig = Rig::from_toml_str(&format!(
+        "[beam]\nlength_m = 0.9\ndensity_kg_m3 = {rho}\nyoungs_modulus_pa = {e}\n\
+         stations = [ {{ x_m = 0.0, width_m = {}, thickness_m = {} }}, {{ x_m = 0.9, width_m = {}, thickness_m = {} }} ]\n\
+         [base]\nmass_kg = 2.5\n[damping]\nratios = [0.0074, 0.0074]\n",
+        b.0, h.0, b.1, h.1
+    ))
+    .unwrap();
+    let fe = FeBeam {
+        length_m: 0.9,
+        density_kg_m3: rho,
+        youngs_modulus_pa: e,
+        width_m: b,
+        thickness_m: h,
+        tip_mass_kg: 0.0,
+        root_stiffness_nm_per_rad: None,
+        gravity_sign: 0.0,
+        elements,
+    };
+    (rig, fe)
+}
+
 /// Prints the Galerkin frequencies `g` (Hz) against the FE ones `fe` mode by mode and asserts
 /// each relative difference is below `tol`.
 fn assert_agrees_with_fe(name: &str, g: &[f64], fe: &[f64], tol: f64) {
@@ -509,12 +534,7 @@ fn structural_extensions_agree_with_the_finite_element_model() {
 #[test]
 fn the_gravity_axial_load_converges_with_the_basis() {
     // thinner than [`rig`] so that gravity moves f1 by several per cent
-    let r = Rig::from_toml_str(
-        "[beam]\nlength_m = 0.9\ndensity_kg_m3 = 2700.0\nyoungs_modulus_pa = 7.0e10\n\
-         stations = [ { x_m = 0.0, width_m = 0.03, thickness_m = 0.0016 }, { x_m = 0.9, width_m = 0.02, thickness_m = 0.0012 } ]\n\
-         [base]\nmass_kg = 2.5\n[damping]\nratios = [0.0074, 0.0074]\n",
-    )
-    .unwrap();
+    let (r, fe0) = tapered(2700.0, 7.0e10, (0.03, 0.02), (0.0016, 0.0012), 320);
     for (o, sign) in [(Orientation::Upright, -1.0), (Orientation::Hanging, 1.0)] {
         let at = |n: usize| {
             clamped_hz_opts(
@@ -530,15 +550,8 @@ fn the_gravity_axial_load_converges_with_the_basis() {
         let (plain4, plain) = (clamped_hz(&r, 4), clamped_hz(&r, 12));
         let fe = fe_hz(
             &FeBeam {
-                length_m: 0.9,
-                density_kg_m3: 2700.0,
-                youngs_modulus_pa: 7.0e10,
-                width_m: (0.03, 0.02),
-                thickness_m: (0.0016, 0.0012),
-                tip_mass_kg: 0.0,
-                root_stiffness_nm_per_rad: None,
                 gravity_sign: sign,
-                elements: 320,
+                ..fe0.clone()
             },
             3,
         );
@@ -733,26 +746,8 @@ fn models_of_different_beams_built_in_turn_keep_their_own_frequencies() {
 /// stations put f1 0.5 % high (docs/diagnose.md, session 29).
 #[test]
 fn a_thickness_taper_is_linear_in_the_dimensions_between_stations() {
-    let r = Rig::from_toml_str(
-        "[beam]\nlength_m = 0.9\ndensity_kg_m3 = 8000.0\nyoungs_modulus_pa = 1.9e11\n\
-         stations = [ { x_m = 0.0, width_m = 0.034, thickness_m = 0.00185 }, { x_m = 0.9, width_m = 0.024, thickness_m = 0.00150 } ]\n\
-         [base]\nmass_kg = 2.5\n[damping]\nratios = [0.0074, 0.0074]\n",
-    )
-    .unwrap();
-    let fe = fe_hz(
-        &FeBeam {
-            length_m: 0.9,
-            density_kg_m3: 8000.0,
-            youngs_modulus_pa: 1.9e11,
-            width_m: (0.034, 0.024),
-            thickness_m: (0.00185, 0.00150),
-            tip_mass_kg: 0.0,
-            root_stiffness_nm_per_rad: None,
-            gravity_sign: 0.0,
-            elements: 200,
-        },
-        3,
-    );
+    let (r, fe_b) = tapered(8000.0, 1.9e11, (0.034, 0.024), (0.00185, 0.00150), 200);
+    let fe = fe_hz(&fe_b, 3);
     assert_agrees_with_fe("thickness taper", &clamped_hz(&r, 10), &fe, 1e-5);
     // the section between stations: I at the middle from the middle's dimensions
     let p = r.profile().unwrap();
