@@ -34,6 +34,7 @@
 //! not a clean signal with glitches, and it is left as recorded with a note.
 
 use super::{fmt_sig, Recording};
+use crate::numeric::stats::median;
 use nalgebra::{DMatrix, DVector};
 
 /// How many local scales a sample must be off the median of its neighbours to be a glitch.
@@ -126,19 +127,19 @@ pub fn glitches(x: &[f64]) -> Vec<Glitch> {
     let d: Vec<f64> = (0..n)
         .map(|k| one.at(x, k).map_or(0.0, |(dev, _)| dev[0]))
         .collect();
-    let mut nonzero: Vec<f64> = d.iter().map(|v| v.abs()).filter(|v| *v > 0.0).collect();
+    let nonzero: Vec<f64> = d.iter().map(|v| v.abs()).filter(|v| *v > 0.0).collect();
     if nonzero.is_empty() {
         return Vec::new();
     }
-    let floor = median(&mut nonzero);
+    let floor = median(&nonzero);
     let scale: Vec<f64> = (0..n)
         .map(|k| {
             let (lo, hi) = (
                 k.saturating_sub(LOCAL_HALF_WIDTH),
                 (k + LOCAL_HALF_WIDTH + 1).min(n),
             );
-            let mut w: Vec<f64> = d[lo..hi].iter().map(|v| v.abs()).collect();
-            median(&mut w).max(floor)
+            let w: Vec<f64> = d[lo..hi].iter().map(|v| v.abs()).collect();
+            median(&w).max(floor)
         })
         .collect();
     // every run of 1..=MAX_GLITCH_RUN samples whose every sample is far off the cubic through
@@ -213,22 +214,6 @@ impl GapFit {
             .sum();
         let dev = (0..self.len).map(|i| x[s + i] - cubic(i as f64)).collect();
         Some((dev, (ss / self.offsets.len() as f64).sqrt()))
-    }
-}
-
-/// Median of `v` (reordered in place); 0 for an empty slice.
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let m = v.len() / 2;
-    let (_, hi, _) = v.select_nth_unstable_by(m, f64::total_cmp);
-    let hi = *hi;
-    if v.len() % 2 == 1 {
-        hi
-    } else {
-        let lo = v[..m].iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-        0.5 * (lo + hi)
     }
 }
 
