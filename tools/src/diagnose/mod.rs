@@ -956,13 +956,14 @@ fn conclude(
         total_steps,
         "uncertainty and stability of the final model",
     );
-    let honesty = identified_final(ctx, cands, &mut sel, &mut cal, &earlier, budget);
+    let honesty = identified_final(ctx, cands, &mut sel, &mut cal, &earlier, budget, progress);
     let forward::Selection {
         chosen,
         outcomes: chosen_outcomes,
         reference,
         rounds,
         step: _,
+        dropped: _,
     } = sel;
     let final_set: Vec<Candidate> = chosen.iter().map(|&k| cands[k].clone()).collect();
     let mut unexplained = unexplained::assess(
@@ -1030,8 +1031,9 @@ fn fit_bic(reference: &forward::Reference) -> f64 {
 
 /// The honest measurements of the final model ([`measure_final`]), after dropping, one at a
 /// time, every effect they show the recordings do not identify
-/// ([`forward::unidentified_in_final`], [`drop_effect`]); `cal` and `sel.reference` carry the
-/// honest 1 σ on return, a loop's frequency beyond the recordings' band without one
+/// ([`forward::unidentified_in_final`], [`drop_effect`]), the selection resumed after each
+/// one removed ([`forward::resume_after_drop`], with the look-alike and backward checks when it
+/// adds one); `cal` and `sel.reference` carry the honest 1 σ on return, a loop's frequency beyond the recordings' band without one
 /// ([`honesty::beyond_band`], after the identification check, which it does not change).
 fn identified_final(
     ctx: &Ctx,
@@ -1040,6 +1042,7 @@ fn identified_final(
     cal: &mut FitResult,
     earlier: &Earlier,
     budget: &mut Budget,
+    progress: &mut dyn crate::progress::Progress,
 ) -> honesty::Honesty {
     loop {
         let set: Vec<&Candidate> = sel.chosen.iter().map(|&k| &cands[k]).collect();
@@ -1054,7 +1057,14 @@ fn identified_final(
             budget,
         );
         match forward::unidentified_in_final(&set, &reference_h.fit, &evidence, ctx.calib.len()) {
-            Some((i, why)) if drop_effect(ctx, cands, sel, i, &why, budget) => {}
+            Some((i, why)) if drop_effect(ctx, cands, sel, i, &why, budget) => {
+                if sel.chosen.len() < set.len()
+                    && forward::resume_after_drop(ctx, cands, sel, budget, progress)
+                {
+                    lookalike::resolve(ctx, cands, sel, budget);
+                    backward::eliminate(ctx, cands, sel, budget);
+                }
+            }
             _ => {
                 *cal = cal_h;
                 sel.reference = reference_h;
@@ -1132,7 +1142,10 @@ fn drop_effect(
                 *slot = o;
             }
         }
-        None => sel.outcomes.retain(|o| o.cand_index != k),
+        None => {
+            sel.outcomes.retain(|o| o.cand_index != k);
+            sel.dropped.push(cands[k].id);
+        }
     }
     for o in sel.rounds.iter_mut().flatten() {
         if o.cand_index == k && o.passed {
