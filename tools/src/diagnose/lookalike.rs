@@ -255,6 +255,10 @@ fn refit_with(
     let not_converged = convergence(ctx, &set, &f, budget);
     let r = ctx.reference(&set, f)?;
     let base = &sel.reference;
+    ctx.trace(format!(
+        "look-alike refit with {}: rss {:?} against {:?}, validation {:?} against {:?}",
+        alt.id, r.rss, base.rss, r.vrss, base.vrss
+    ));
     let n_fit = n_of(ctx.fit_data);
     let n_eff: f64 = (0..3).map(|c| n_fit[c] as f64 / base.tau_fit[c]).sum();
     let dk = alt_cand.params.len() as f64 - cands[sel.chosen[p]].params.len() as f64;
