@@ -1013,9 +1013,7 @@ impl Ctx<'_> {
         let Some(moved) = self.reference(&rest, f) else {
             return (true, String::new(), used);
         };
-        let k = set
-            .last()
-            .map_or(1, |c| c.params.len().saturating_sub(1).max(1));
+        let k = set.last().map_or(1, |c| c.params.len().saturating_sub(1).max(1));
         let (db, dv) = self.likelihood_ratios(mount, &moved, k);
         self.trace(format!(
             "mount beside model mode {}: the mode moved alone (×{scale:.4}) against the mount: ΔBIC {db:+.1}, validation Δ(−2lnL) {dv:+.1}",

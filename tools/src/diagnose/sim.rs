@@ -2241,40 +2241,6 @@ mod tests {
     }
 
     #[test]
-    fn a_mode_moved_on_its_own_keeps_every_other_mode_and_its_shape() {
-        use crate::diagnose::effects::{apply_effect, mode_moved_rival};
-        let rig = rig();
-        let dt = 1.0 / 500.0;
-        let plain = beam_cache(&rig, &Params::default(), dt).unwrap();
-        assert!(plain.omega.len() >= 3);
-        let rival = mode_moved_rival(2).expect("mode 3 has a rival");
-        let mut p = Params::default();
-        apply_effect(&rival, &[0.9], &mut p);
-        // the rival moves the mode and adds no mount
-        assert_eq!(p.mode_frequency_scale, Some((2, 0.9)));
-        assert!(p.mount.is_none() && p.mount_mass_kg == 0.0);
-        let moved = beam_cache(&rig, &p, dt).unwrap();
-        for r in 0..plain.omega.len() {
-            let expected = if r == 2 { 0.9 } else { 1.0 };
-            assert!(
-                (moved.omega[r] / plain.omega[r] - expected).abs() < 1e-12,
-                "mode {r}"
-            );
-            assert_eq!(moved.gamma[r], plain.gamma[r]);
-            assert_eq!(moved.tip[r], plain.tip[r]);
-        }
-        // a cache built for the plain model is not reused for the moved one
-        assert_ne!(
-            structural_key(&p, dt),
-            structural_key(&Params::default(), dt)
-        );
-        // the scan spans ±20 % around the mode
-        let scan = &rival.params[0].scan;
-        assert!((scan[0] - 0.8).abs() < 1e-12 && (scan[scan.len() - 1] - 1.2).abs() < 1e-12);
-        assert!(mode_moved_rival(12).is_none());
-    }
-
-    #[test]
     fn a_mode_between_the_band_edge_and_nyquist_is_simulated_and_no_parameter_moves_it_out() {
         let rig = rig();
         let f = converged_basis(&rig, 1.0, 1e3, 1e3).unwrap().freqs_hz;
