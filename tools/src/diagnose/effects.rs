@@ -314,40 +314,6 @@ pub fn apply_calibration(calib: &Calib, values: &[f64], p: &mut Params) {
     }
 }
 
-/// The parameter names of [`mode_moved_rival`], by mode (from the first).
-pub const MODE_FREQUENCY_SCALE_NAMES: [&str; 12] = [
-    "mode1_frequency_scale",
-    "mode2_frequency_scale",
-    "mode3_frequency_scale",
-    "mode4_frequency_scale",
-    "mode5_frequency_scale",
-    "mode6_frequency_scale",
-    "mode7_frequency_scale",
-    "mode8_frequency_scale",
-    "mode9_frequency_scale",
-    "mode10_frequency_scale",
-    "mode11_frequency_scale",
-    "mode12_frequency_scale",
-];
-
-/// The rival of a mount resonance next to the model's own mode `mode` (from 0): that mode's
-/// natural frequency free on its own (`modeN_frequency_scale`, [`Params::mode_frequency_scale`];
-/// its shape, every other mode and the calibration as they are), scanned over ±20 %. A
-/// resonance the recordings show beside a model mode is a new one only where moving that mode
-/// does not explain them as well. Labelled a mount resonance (the hypothesis it is the rival
-/// of); never offered as a candidate. `None` beyond the twelfth mode.
-pub fn mode_moved_rival(mode: usize) -> Option<Candidate> {
-    let name = *MODE_FREQUENCY_SCALE_NAMES.get(mode)?;
-    let mut scale = def(name, Transform::Log, vec![1.0], 1.0, false);
-    scale.scan = (0..=20).map(|i| 0.8 + 0.02 * i as f64).collect();
-    Some(Candidate {
-        id: Effect::MountResonance,
-        words: "the model's own mode moved (the rival of a resonance beside it)",
-        orientation: None,
-        params: vec![scale],
-    })
-}
-
 /// The `servo_lag` candidate of one order of the command → base transfer function
 /// ([`super::sim::ServoLaw`]) with velocity and acceleration feed-forward, for recordings at
 /// `rate_hz`: order 1 (bandwidth, k_v), 2 (+ damping ratio, k_a), 3 (+ integral pole ratio α),
@@ -840,11 +806,6 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
             .position(|d| d.name == name)
             .map(|i| values[i])
     };
-    for (r, name) in MODE_FREQUENCY_SCALE_NAMES.iter().enumerate() {
-        if let Some(v) = get(name) {
-            p.mode_frequency_scale = Some((r, v));
-        }
-    }
     match cand.id {
         Effect::BaseFriction => {
             p.friction_n = get("friction_n").unwrap_or(0.0);
@@ -905,12 +866,6 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
                     .clamp(0.005, 2.0),
             ))
         }
-        // the rival of a mount ([`mode_moved_rival`]): the mode moved, no mount
-        Effect::MountResonance
-            if cand
-                .params
-                .iter()
-                .all(|d| MODE_FREQUENCY_SCALE_NAMES.contains(&d.name)) => {}
         Effect::MountResonance => {
             p.mount_mass_kg = get("mount_mass_kg").unwrap_or(0.0);
             p.mount = Some((

@@ -374,10 +374,7 @@ impl Ctx<'_> {
             implausible: implausible(cand, &f, off, self.resolution()),
         });
         fails.extend(white_before(whiteness.0));
-        let (matter, used) = self.calibration_matter(set, &r, base, off);
-        fails.extend(matter);
-        let mut f = f;
-        f.evaluations += used;
+        fails.extend(self.calibration_matter(set, &f, off));
         fails.extend(self.below_model_accuracy(set, &f));
         let passed = fails.is_empty();
         let partial = fails.len() == 1 && share.is_some_and(|f| !(f >= MIN_STRUCTURE_EXPLAINED));
@@ -893,18 +890,10 @@ impl Ctx<'_> {
     /// of the nominal model reproduces (held-out 437700: rigid-beam 31.47 Hz beside the beam's
     /// 32.0 Hz mode, the rig's resonance 35.7 Hz). `cand` is the last of `set`, fitted as `f`
     /// (its parameters from `off`).
-    fn calibration_matter(
-        &self,
-        set: &[&Candidate],
-        r: &Reference,
-        base: &Reference,
-        off: usize,
-    ) -> (Vec<String>, usize) {
+    fn calibration_matter(&self, set: &[&Candidate], f: &FitResult, off: usize) -> Vec<String> {
         let Some(cand) = set.last() else {
-            return (Vec::new(), 0);
+            return Vec::new();
         };
-        let f = &r.fit;
-        let mut used = 0;
         let mut fails = Vec::new();
         let pos = |name: &str| cand.params.iter().position(|q| q.name == name);
         let sd = |i: usize| {
@@ -939,11 +928,10 @@ impl Ctx<'_> {
             // sample rate)
             let ceiling = cand.params[i].starts.iter().cloned().fold(0.0, f64::max);
             let at_edge = fm >= 0.95 * ceiling;
-            if let Some((mode, fr)) = self
+            if let Some(fr) = self
                 .model_freqs
                 .iter()
-                .enumerate()
-                .find(|(_, fr)| (fm_shown - **fr).abs() <= tol)
+                .find(|fr| (fm_shown - **fr).abs() <= tol)
             {
                 if !identified(fm, f.std[off + i]) {
                     fails.push(format!(
@@ -952,13 +940,9 @@ impl Ctx<'_> {
                         hz_text(f.std[off + i])
                     ));
                 } else if !at_edge {
-                    let (moved, words, n) = self.mode_moved_as_well(set, r, base, mode);
-                    used += n;
-                    if moved {
-                        fails.push(format!(
-                            "mount resonance {fm_shown:.2} Hz coincides with the model's own mode at {fr:.2} Hz (within {tol:.2} Hz){words}: a calibration matter, not a new resonance"
-                        ));
-                    }
+                    fails.push(format!(
+                        "mount resonance {fm_shown:.2} Hz coincides with the model's own mode at {fr:.2} Hz (within {tol:.2} Hz): a calibration matter, not a new resonance"
+                    ));
                 }
             }
             if at_edge {
@@ -973,57 +957,7 @@ impl Ctx<'_> {
                 });
             }
         }
-        (fails, used)
-    }
-
-    /// Whether the model's own mode `mode` (from 0) moved on its own
-    /// ([`super::effects::mode_moved_rival`], beside the calibration and the effects of `set`
-    /// but its last, warm from `base`, the model the mount extends) explains the recordings as
-    /// well as the mount of `set` (its last, fitted as `mount`), with words for the reason and
-    /// the evaluations spent. The mount is a resonance of its own only when it beats that
-    /// rival by the guard's margins on the fit (ΔBIC, its extra parameters charged) and the
-    /// validation recordings: the calibration cannot add a resonance, but a model mode a few
-    /// per cent off (a geometry the model has not quite right) is one a mount fitted beside it
-    /// would take the place of. A coupled mount next to a beam mode splits it in two, which no
-    /// single mode moved reproduces: second simulator seed 14, case13 (a 17.1 Hz mount, ζ 0.04,
-    /// beside the model's 17.7 Hz mode; 86 % on validation) and held-out 572050 (42.8 Hz beside
-    /// 47.1 Hz) had been refused on the overlap alone. A rival that cannot be simulated leaves
-    /// the mount refused.
-    fn mode_moved_as_well(
-        &self,
-        set: &[&Candidate],
-        mount: &Reference,
-        base: &Reference,
-        mode: usize,
-    ) -> (bool, String, usize) {
-        let Some(rival) = super::effects::mode_moved_rival(mode) else {
-            return (true, String::new(), 0);
-        };
-        let Some((_, before)) = set.split_last() else {
-            return (true, String::new(), 0);
-        };
-        let rest: Vec<&Candidate> = before
-            .iter()
-            .copied()
-            .chain(std::iter::once(&rival))
-            .collect();
-        let f = self.fit(&rest, Some(&base.fit.x), mount.fit.evaluations.max(100));
-        let used = f.evaluations;
-        let scale = f.values.last().copied().unwrap_or(f64::NAN);
-        let Some(moved) = self.reference(&rest, f) else {
-            return (true, String::new(), used);
-        };
-        let k = set.last().map_or(1, |c| c.params.len().saturating_sub(1).max(1));
-        let (db, dv) = self.likelihood_ratios(mount, &moved, k);
-        self.trace(format!(
-            "mount beside model mode {}: the mode moved alone (×{scale:.4}) against the mount: ΔBIC {db:+.1}, validation Δ(−2lnL) {dv:+.1}",
-            mode + 1
-        ));
-        let beaten = db < -BIC_MARGIN && dv < -VALIDATION_MARGIN;
-        let words = format!(
-            ", and the mode moved alone (×{scale:.3}) explains the recordings within the guard's margins of it (mount against it: ΔBIC {db:+.1}, validation Δ(−2lnL) {dv:+.1})"
-        );
-        (!beaten, words, used)
+        fails
     }
 
     /// The calibration-matter rule for a position loop: a lightly damped loop (ζ below

@@ -97,11 +97,6 @@ pub struct Params {
     /// follows the absolute tip x as `s̈ + 2ζω ṡ + ω² s = ω² x + 2ζω ẋ` (a loose sensor mount;
     /// not a catalogue effect: the alternative placement a mount resonance is tested against).
     pub tip_filter: Option<(f64, f64)>,
-    /// One clamped mode's natural frequency scaled on its own (mode index from 0, factor), its
-    /// shape kept: the model's own mode moved, the rival a mount resonance beside it is tested
-    /// against (not a catalogue effect, and never a calibration: the frequencies stay tied to
-    /// one stiffness scale).
-    pub mode_frequency_scale: Option<(usize, f64)>,
     /// Cogging: sine and cosine amplitudes (N) and pitch (m).
     pub cogging: Option<(f64, f64, f64)>,
     /// Latency of the force channel (s, calibration: drives that average or filter the
@@ -198,7 +193,6 @@ impl Default for Params {
             mount: None,
             mount_mass_kg: 0.0,
             tip_filter: None,
-            mode_frequency_scale: None,
             cogging: None,
             force_delay_s: 0.0,
             backlash_m: 0.0,
@@ -1326,18 +1320,12 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
                 .clamp(0.0, 0.95)
         })
         .collect();
-    let mut omega = modes.omega_rad_s[..keep].to_vec();
-    if let Some((r, scale)) = p.mode_frequency_scale {
-        if let Some(w) = omega.get_mut(r) {
-            *w *= scale;
-        }
-    }
     let phi_half = (0..keep)
-        .map(|r| mode_zoh(omega[r], zeta[r], 0.5 * dt).0)
+        .map(|r| mode_zoh(modes.omega_rad_s[r], zeta[r], 0.5 * dt).0)
         .collect();
     Ok(BeamCache {
         key: structural_key(p, dt),
-        omega,
+        omega: modes.omega_rad_s[..keep].to_vec(),
         zeta,
         gamma: modes.participation[..keep].to_vec(),
         tip: modes.tip[..keep].to_vec(),
@@ -1370,8 +1358,6 @@ fn structural_key(p: &Params, dt: f64) -> Vec<f64> {
         dt,
         p.n_basis as f64,
         p.simulated_modes.map_or(-1.0, |n| n as f64),
-        p.mode_frequency_scale.map_or(-1.0, |(r, _)| r as f64),
-        p.mode_frequency_scale.map_or(1.0, |(_, s)| s),
     ];
     key.extend(p.zeta_modes.iter().flatten());
     key
