@@ -962,8 +962,7 @@ fn conclude(
         outcomes: chosen_outcomes,
         reference,
         rounds,
-        step: _,
-        dropped: _,
+        ..
     } = sel;
     let final_set: Vec<Candidate> = chosen.iter().map(|&k| cands[k].clone()).collect();
     let mut unexplained = unexplained::assess(
