@@ -1639,8 +1639,9 @@ pub(crate) fn select_forward(
 }
 
 /// Most times forward selection is resumed after a drop ([`resume_after_drop`]), each with a
-/// third more budget: the run time stays bounded.
-pub const MAX_RESUMPTIONS: usize = 2;
+/// third more budget: once, so that a diagnosis does at most 4/3 of its budget's work and the
+/// run time stays within its bound (the budget is sized for a minute on 2 cores).
+pub const MAX_RESUMPTIONS: usize = 1;
 
 /// Forward selection resumed on `sel` after the final model dropped an effect it does not
 /// identify ([`Selection::dropped`]): every candidate not dropped is fitted again on top of
