@@ -1113,17 +1113,14 @@ pub(crate) mod tests {
 
     #[test]
     fn an_effect_refits_from_its_own_optimum_with_the_effect_added_since_at_its_absence() {
-        use super::super::effects::{mount_candidate, servo_candidate, structural_candidates};
+        use super::super::effects::{mount_candidate, servo_candidate};
         use crate::effect::Effect;
         let h = hints();
-        let structural = structural_candidates(&h);
-        let pick = |e: Effect| {
-            structural
-                .iter()
-                .find(|c| c.id == e)
-                .expect("in the catalogue")
-        };
-        let (tip, cubic) = (pick(Effect::TipMass), pick(Effect::CubicStiffness));
+        let (tip, cubic) = (
+            structural(Effect::TipMass),
+            structural(Effect::CubicStiffness),
+        );
+        let (tip, cubic) = (&tip, &cubic);
         // the tip mass's own fit of the round before: calibration (3), then 12 g
         let previous = DVector::from_vec(vec![-0.1, -4.5, -3.8, 0.012]);
         // the cubic clamp, added since, at k_r 44 N·m/rad and c₃ 1e-5
@@ -1159,6 +1156,14 @@ pub(crate) mod tests {
         assert!(absent_seed(&previous, 3, cubic, &added_x[..1], tip).is_none());
     }
 
+    /// The structural candidate `e` of [`hints`]' catalogue.
+    fn structural(e: crate::effect::Effect) -> Candidate {
+        super::super::effects::structural_candidates(&hints())
+            .into_iter()
+            .find(|c| c.id == e)
+            .expect("in the catalogue")
+    }
+
     /// A candidate without parameters (an orientation's form).
     fn parameterless() -> Candidate {
         Candidate {
@@ -1171,17 +1176,14 @@ pub(crate) mod tests {
 
     #[test]
     fn a_root_spring_restarts_from_the_cubic_clamps_optimum_without_its_cubic_term() {
-        use super::super::effects::{mount_candidate, structural_candidates};
+        use super::super::effects::mount_candidate;
         use crate::effect::Effect;
         let h = hints();
-        let structural = structural_candidates(&h);
-        let pick = |e: Effect| {
-            structural
-                .iter()
-                .find(|c| c.id == e)
-                .expect("in the catalogue")
-        };
-        let (spring, cubic) = (pick(Effect::RootCompliance), pick(Effect::CubicStiffness));
+        let (spring, cubic) = (
+            structural(Effect::RootCompliance),
+            structural(Effect::CubicStiffness),
+        );
+        let (spring, cubic) = (&spring, &cubic);
         // calibration (3), then the cubic clamp at k_r 44 N·m/rad, c₃ 1e-5
         let x = DVector::from_vec(vec![
             -0.1,

@@ -1145,11 +1145,7 @@ fn fit_round(
             &format!("round {}: fitting {}", round + 1, cands[ci].id),
         );
         *step += 1;
-        let set: Vec<&Candidate> = chosen
-            .iter()
-            .map(|&k| &cands[k])
-            .chain(std::iter::once(&cands[ci]))
-            .collect();
+        let set = joint_set(cands, chosen, ci);
         let share = budget.share(pool.len() - j + 1);
         ctx.trace(format!(
             "round {}: {} gets {share} of {} evaluations left",
@@ -1212,28 +1208,12 @@ fn refit_without_last_added(
         }) else {
             continue;
         };
-        let set: Vec<&Candidate> = set_of(cands, chosen)
-            .into_iter()
-            .chain(std::iter::once(&cands[ci]))
-            .collect();
-        let cost = ctx
-            .fit_problem(&set, outs[i].fit.x.clone())
-            .costs_at(std::slice::from_ref(&seed))[0];
-        budget.spend(1);
-        if !(cost < outs[i].fit.cost) {
-            continue;
-        }
-        let share = budget.share(outs.len() - i + 1);
-        if let Some(o) = ctx.evaluate(&set, ci, reference, share, false, &[seed]) {
-            budget.spend(o.fit.evaluations);
-            ctx.trace(format!(
-                "{}: refitted from its fit of the round before with {} absent, cost {:.6e} → {:.6e}",
-                o.id, cands[added].id, outs[i].fit.cost, o.fit.cost
-            ));
-            if o.fit.cost < outs[i].fit.cost {
-                outs[i] = o;
-            }
-        }
+        let set = joint_set(cands, chosen, ci);
+        let from = format!(
+            "its fit of the round before with {} absent",
+            cands[added].id
+        );
+        refit_from_better_point(ctx, &set, outs, i, vec![seed], reference, budget, &from);
     }
 }
 
@@ -1253,36 +1233,59 @@ fn refit_from_larger_forms(
 ) {
     for i in 0..outs.len() {
         let ci = outs[i].cand_index;
-        let set: Vec<&Candidate> = set_of(cands, chosen)
-            .into_iter()
-            .chain(std::iter::once(&cands[ci]))
-            .collect();
+        let set = joint_set(cands, chosen, ci);
         let larger = outs.iter().filter(|o| o.fit.cost < outs[i].fit.cost);
         let seeds: Vec<_> = larger
             .filter_map(|o| fit::reduced_seed(&cands[o.cand_index], &o.fit.x, &cands[ci]))
             .collect();
-        let costs = ctx
-            .fit_problem(&set, outs[i].fit.x.clone())
-            .costs_at(&seeds);
-        budget.spend(seeds.len());
-        let Some((_, seed)) = costs
-            .into_iter()
-            .zip(seeds)
-            .filter(|(c, _)| *c < outs[i].fit.cost)
-            .min_by(|a, b| a.0.total_cmp(&b.0))
-        else {
-            continue;
-        };
-        let share = budget.share(outs.len() - i + 1);
-        if let Some(o) = ctx.evaluate(&set, ci, reference, share, false, &[seed]) {
-            budget.spend(o.fit.evaluations);
-            ctx.trace(format!(
-                "{}: refitted from a larger form's optimum, cost {:.6e} → {:.6e}",
-                o.id, outs[i].fit.cost, o.fit.cost
-            ));
-            if o.fit.cost < outs[i].fit.cost {
-                outs[i] = o;
-            }
+        let from = "a larger form's optimum";
+        refit_from_better_point(ctx, &set, outs, i, seeds, reference, budget, from);
+    }
+}
+
+/// Candidate `ci` on top of the effects `chosen`.
+fn joint_set<'c>(cands: &'c [Candidate], chosen: &[usize], ci: usize) -> Vec<&'c Candidate> {
+    set_of(cands, chosen)
+        .into_iter()
+        .chain(std::iter::once(&cands[ci]))
+        .collect()
+}
+
+/// Refits outcome `outs[i]` (model `set`, its candidate last) from the one of `seeds` that
+/// costs least, when that is less than where its fit ended, with an equal share of what is
+/// left of `budget`; the refit replaces the outcome if it ends lower. `from` names the seeds
+/// in the trace.
+#[allow(clippy::too_many_arguments)]
+fn refit_from_better_point(
+    ctx: &Ctx,
+    set: &[&Candidate],
+    outs: &mut [CandidateOutcome],
+    i: usize,
+    seeds: Vec<nalgebra::DVector<f64>>,
+    reference: &Reference,
+    budget: &mut Budget,
+    from: &str,
+) {
+    let costs = ctx.fit_problem(set, outs[i].fit.x.clone()).costs_at(&seeds);
+    budget.spend(seeds.len());
+    let Some((_, seed)) = costs
+        .into_iter()
+        .zip(seeds)
+        .filter(|(c, _)| *c < outs[i].fit.cost)
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+    else {
+        return;
+    };
+    let share = budget.share(outs.len() - i + 1);
+    let ci = outs[i].cand_index;
+    if let Some(o) = ctx.evaluate(set, ci, reference, share, false, &[seed]) {
+        budget.spend(o.fit.evaluations);
+        ctx.trace(format!(
+            "{}: refitted from {from}, cost {:.6e} → {:.6e}",
+            o.id, outs[i].fit.cost, o.fit.cost
+        ));
+        if o.fit.cost < outs[i].fit.cost {
+            outs[i] = o;
         }
     }
 }
