@@ -3,7 +3,8 @@
 //! ([`super::select::guard`] and the calibration-matter rules) against the current model, adds
 //! the best that passes and stops when none does (at most [`MAX_EFFECTS`]). When none passes
 //! but the best fails only for removing part of the structured residual, it is tried as the
-//! first of a pair ([`pair_step`]).
+//! first of a pair ([`pair_step`]). When the final model later drops an effect the recordings do
+//! not identify, the rounds are played once more on what stays ([`resume_after_drop`]).
 //!
 //! Every fit draws on one [`Budget`] of model evaluations, never on the clock, so the same
 //! recordings give the same answer on any machine.
