@@ -158,7 +158,7 @@ pub fn guard(e: &Evidence) -> Vec<String> {
     if let Some(f) = e.structure_explained {
         if !(f >= MIN_STRUCTURE_EXPLAINED) {
             fails.push(format!(
-                "removes only {:.0} % of the structured residual (less than {:.0} %): it does not account for it",
+                "removes only {:.1} % of the structured residual (less than {:.0} %): it does not account for it",
                 100.0 * f,
                 100.0 * MIN_STRUCTURE_EXPLAINED
             ));
