@@ -25,6 +25,10 @@
 //!    σ they widen. Whether an effect is there is asked at each of them with the σ the
 //!    recordings give ([`super::forward::unidentified_in_final`]); how large it is carries
 //!    their changes.
+//! 6. **The model's stated accuracy** (Type B): on parameters read from the pattern of the
+//!    natural frequencies ([`add_model_accuracy_std`], also read by the significance test) and,
+//!    in the reported 1-σ only, on every effect parameter read from the size of the response
+//!    ([`add_response_accuracy_std`]).
 
 use super::effects::{Calib, Candidate};
 use super::fit::{self, FitResult, CHANNEL_NAMES};
@@ -218,6 +222,107 @@ pub fn root_spring_accuracy_rel(rig: &Rig, p: &super::sim::Params, dt: f64) -> O
         ..p.clone()
     };
     pattern_accuracy_rel(rig, &stiffer, p, dt)
+}
+
+/// Adds the **response-accuracy uncertainty** of every effect parameter of `f` (calibration +
+/// `set`) to its 1-σ, a Type B term (GUM, JCGM 100:2008 4.3) like [`add_model_accuracy_std`]
+/// but for what is read from the *size* of the response rather than the pattern of its
+/// frequencies (a drag coefficient from the decay envelope, a mount's damping, a clamp's
+/// cubic stiffness). The model states its response to [`super::sim::BASIS_CONVERGENCE_REL`]
+/// (relative) of what it computes beyond the drive: the deflection `tip − base` on
+/// `tip_pos_m`, the whole of `force_n`, the following error `base − command` on `base_pos_m`.
+/// With s the largest relative change of those (rms over the fit recordings) per unit change of
+/// ln θ (a step of [`PATTERN_STEP`]), a response error inside ± that accuracy a moves ln θ by
+/// 1 σ = a/(√3 s) (uniform, GUM 4.3.7), added in quadrature. A parameter the recordings pin
+/// by phase or frequency (a latency, a tip mass, a loop's bandwidth) moves the response much
+/// per unit change, so its term is negligible; a drag coefficient, fitted 0.42 % off at
+/// ± 0.11 % (held-out 610400, 500 Hz, noise × 0.5: 3.8 σ) from the response's size alone,
+/// is not known better than the model's own accuracy allows. Reported 1-σ only: the
+/// significance test of the final model reads the σ before it ([`super::forward::NullEvidence`]).
+/// Returns the model evaluations used.
+pub fn add_response_accuracy_std(
+    rig: &Rig,
+    data: &[Prepared],
+    sigma: [f64; 3],
+    calib: &Calib,
+    set: &[&Candidate],
+    f: &mut FitResult,
+) -> usize {
+    let problem = fit::Problem::new(rig, data, sigma, calib, set, f.x.clone());
+    let defs: Vec<_> = problem.defs().into_iter().cloned().collect();
+    let Some(base) = problem.predictions(&f.x) else {
+        return *problem.evaluations.borrow();
+    };
+    let signal = response_beyond_drive(data, &base);
+    for i in calib.len()..defs.len().min(f.values.len()) {
+        let (v, sd) = (f.values[i], f.std[i]);
+        if v == 0.0 || !v.is_finite() || !sd.is_finite() {
+            continue;
+        }
+        let up = v * (1.0 + PATTERN_STEP);
+        let inside = match defs[i].transform {
+            super::effects::Transform::Bounded(lo, hi) => up > lo.min(hi) && up < hi.max(lo),
+            _ => true,
+        };
+        let step = 1.0 + if inside { PATTERN_STEP } else { -PATTERN_STEP };
+        let mut x = f.x.clone();
+        x[i] = defs[i].repr(v * step);
+        let Some(moved) = problem.predictions(&x) else {
+            continue;
+        };
+        let s = response_sensitivity(&response_beyond_drive(data, &moved), &signal, step);
+        if s > 0.0 && s.is_finite() {
+            let rel = super::sim::BASIS_CONVERGENCE_REL / 3f64.sqrt() / s;
+            f.std[i] = sd.hypot(v.abs() * rel);
+        }
+    }
+    let evaluations = *problem.evaluations.borrow();
+    evaluations
+}
+
+/// s of [`add_response_accuracy_std`]: the largest, over the channels, relative rms change
+/// from `signal` to `changed` (per recording, base/tip/force order) per unit change of the
+/// parameter's logarithm (`step` its factor); 0 where no channel has a signal.
+fn response_sensitivity(
+    changed: &[[Option<Vec<f64>>; 3]],
+    signal: &[[Option<Vec<f64>>; 3]],
+    step: f64,
+) -> f64 {
+    (0..3)
+        .filter_map(|c| {
+            let (mut num, mut den) = (0.0, 0.0);
+            for (a, b) in changed.iter().zip(signal) {
+                if let (Some(a), Some(b)) = (&a[c], &b[c]) {
+                    num += a.iter().zip(b).map(|(a, b)| (a - b) * (a - b)).sum::<f64>();
+                    den += b.iter().map(|b| b * b).sum::<f64>();
+                }
+            }
+            (den > 0.0).then(|| (num / den).sqrt() / step.ln().abs())
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Per recording, what the model computes beyond its drive (base, tip, force order, `None`
+/// where not predicted): the following error, the deflection, the force
+/// ([`add_response_accuracy_std`]).
+fn response_beyond_drive(
+    data: &[Prepared],
+    pred: &[super::sim::Prediction],
+) -> Vec<[Option<Vec<f64>>; 3]> {
+    data.iter()
+        .zip(pred)
+        .map(|(d, p)| {
+            let drive = p.base_m.as_ref().or(d.drive_m.as_ref()).unwrap_or(&d.cmd_m);
+            let minus = |a: &Vec<f64>, b: &Vec<f64>| -> Vec<f64> {
+                a.iter().zip(b).map(|(a, b)| a - b).collect()
+            };
+            [
+                p.base_m.as_ref().map(|b| minus(b, &d.cmd_m)),
+                p.tip_m.as_ref().map(|t| minus(t, drive)),
+                p.force_n.clone(),
+            ]
+        })
+        .collect()
 }
 
 /// Adds the **drive-interpolation uncertainty** to the 1-σ of `f` (calibration + `set`): the
@@ -830,6 +935,31 @@ mod tests {
         assert!(heavy < 0.05, "{heavy}");
         let none = crate::diagnose::sim::Params::default();
         assert!(tip_mass_accuracy_rel(&rig, &none, 1e-3).is_none());
+    }
+
+    #[test]
+    fn a_parameter_read_from_the_response_size_is_known_to_the_models_accuracy() {
+        // a deflection of 1 mm rms; a 5 % step of the parameter changes it by 1 % of itself
+        // (s = 0.01/ln 1.05 = 0.205: a drag read from the envelope) or by 50 % (a latency)
+        let deflection: Vec<f64> = (0..1000).map(|k| 1e-3 * (0.05 * k as f64).sin()).collect();
+        let signal = vec![[None, Some(deflection.clone()), None]];
+        let scaled = |g: f64| vec![[None, Some(deflection.iter().map(|v| g * v).collect()), None]];
+        let slight = response_sensitivity(&scaled(1.01), &signal, 1.05);
+        let strong = response_sensitivity(&scaled(1.5), &signal, 1.05);
+        assert!((slight - 0.01 / 1.05f64.ln()).abs() < 1e-9, "{slight}");
+        // σ(ln θ) = a/(√3 s): 0.28 % for the slight one, 50 × less for the strong one
+        let rel = |s: f64| crate::diagnose::sim::BASIS_CONVERGENCE_REL / 3f64.sqrt() / s;
+        assert!((rel(slight) - 2.82e-3).abs() < 1e-5, "{}", rel(slight));
+        assert!((rel(slight) / rel(strong) - 50.0).abs() < 1e-6);
+        // the most sensitive channel sets it; a channel without signal says nothing
+        let both = vec![[None, Some(deflection.clone()), Some(vec![0.0; 1000])]];
+        let moved = vec![[
+            None,
+            Some(scaled(1.01)[0][1].clone().unwrap()),
+            Some(vec![1.0; 1000]),
+        ]];
+        assert_eq!(response_sensitivity(&moved, &both, 1.05), slight);
+        assert_eq!(response_sensitivity(&signal, &signal, 0.95), 0.0);
     }
 
     #[test]

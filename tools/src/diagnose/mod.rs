@@ -899,6 +899,11 @@ fn widen_for_model_form(
             honesty::add_base_assumption_std(rig, fit_data, sigma, calib, set, &servo, f, share);
         keep(alt, budget);
     }
+    if !set.is_empty() {
+        budget.spend(honesty::add_response_accuracy_std(
+            rig, fit_data, sigma, calib, set, f,
+        ));
+    }
     alternatives
 }
 
