@@ -207,8 +207,14 @@ fn pattern_accuracy_rel(
     dt: f64,
 ) -> Option<f64> {
     let shift = super::sim::frequency_shift_beyond_scale_rel(rig, stepped, p, dt)?;
-    let s = shift / (1.0 + PATTERN_STEP).ln();
-    // the stated accuracy a as a bound, uniformly distributed inside ±a: σ = a/√3 (GUM 4.3.7)
+    stated_accuracy_rel(shift / (1.0 + PATTERN_STEP).ln())
+}
+
+/// a/(√3 s): the 1-σ of ln θ that the model's stated accuracy a
+/// ([`super::sim::BASIS_CONVERGENCE_REL`]), a bound uniformly distributed inside ±a (GUM
+/// 4.3.7), gives a parameter whose reading moves by s per unit change of ln θ; `None` when
+/// s is not positive and finite (the reading does not move).
+fn stated_accuracy_rel(s: f64) -> Option<f64> {
     (s > 0.0 && s.is_finite()).then(|| super::sim::BASIS_CONVERGENCE_REL / 3f64.sqrt() / s)
 }
 
@@ -249,7 +255,7 @@ pub fn add_response_accuracy_std(
     f: &mut FitResult,
 ) -> usize {
     let problem = fit::Problem::new(rig, data, sigma, calib, set, f.x.clone());
-    let defs: Vec<_> = problem.defs().into_iter().cloned().collect();
+    let defs = problem.defs();
     let Some(base) = problem.predictions(&f.x) else {
         return *problem.evaluations.borrow();
     };
@@ -261,7 +267,7 @@ pub fn add_response_accuracy_std(
         }
         let up = v * (1.0 + PATTERN_STEP);
         let inside = match defs[i].transform {
-            super::effects::Transform::Bounded(lo, hi) => up > lo.min(hi) && up < hi.max(lo),
+            super::effects::Transform::Bounded(lo, hi) => up > lo && up < hi,
             _ => true,
         };
         let step = 1.0 + if inside { PATTERN_STEP } else { -PATTERN_STEP };
@@ -271,8 +277,7 @@ pub fn add_response_accuracy_std(
             continue;
         };
         let s = response_sensitivity(&response_beyond_drive(data, &moved), &signal, step);
-        if s > 0.0 && s.is_finite() {
-            let rel = super::sim::BASIS_CONVERGENCE_REL / 3f64.sqrt() / s;
+        if let Some(rel) = stated_accuracy_rel(s) {
             f.std[i] = sd.hypot(v.abs() * rel);
         }
     }
@@ -948,7 +953,7 @@ mod tests {
         let strong = response_sensitivity(&scaled(1.5), &signal, 1.05);
         assert!((slight - 0.01 / 1.05f64.ln()).abs() < 1e-9, "{slight}");
         // σ(ln θ) = a/(√3 s): 0.28 % for the slight one, 50 × less for the strong one
-        let rel = |s: f64| crate::diagnose::sim::BASIS_CONVERGENCE_REL / 3f64.sqrt() / s;
+        let rel = |s: f64| stated_accuracy_rel(s).unwrap();
         assert!((rel(slight) - 2.82e-3).abs() < 1e-5, "{}", rel(slight));
         assert!((rel(slight) / rel(strong) - 50.0).abs() < 1e-6);
         // the most sensitive channel sets it; a channel without signal says nothing
@@ -960,6 +965,7 @@ mod tests {
         ]];
         assert_eq!(response_sensitivity(&moved, &both, 1.05), slight);
         assert_eq!(response_sensitivity(&signal, &signal, 0.95), 0.0);
+        assert!(stated_accuracy_rel(0.0).is_none());
     }
 
     #[test]

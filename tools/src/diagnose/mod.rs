@@ -870,7 +870,8 @@ fn measure_final(
 
 /// Widens the 1-σ of the final model `f` (calibration + `set`) by what the model's form leaves
 /// open: the discretisation, the drive's reading between samples and, without `base_pos_m`,
-/// the base-motion assumption ([`honesty`]). Returns the values of every alternative's refit
+/// the base-motion assumption, and by the model's stated accuracy carried to every effect
+/// parameter read from the response's size ([`honesty`]). Returns the values of every alternative's refit
 /// ([`honesty::Alternative`]).
 fn widen_for_model_form(
     ctx: &Ctx,
