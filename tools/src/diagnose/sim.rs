@@ -24,16 +24,17 @@
 //!    gravity axial load and the calibration scale), `η̈_r + 2ζ_rω_r η̇_r + ω_r² η_r = −Γ_r ÿ_r + f_r`,
 //!    integrated exactly between samples for a piecewise-linear base (as `model::sim`), with the
 //!    distributed quadratic drag `f_r = −c_d ∫ φ_r |v| v dx` applied as a per-sample impulse
-//!    (`quadratic_damping`); a cubic clamp moment `M₃ = k₃ θ³` on the root rotation θ = Σ s_r η_r
-//!    of the compliant clamp (s_r the root rotation of mode r) as a per-sample modal impulse
-//!    `f_r = −s_r M₃` ([`cubic_moment`], bounded; `cubic_stiffness`, with the linear k_r in
-//!    the modes); motor force from eq. (5), `u = J ÿ + hᵀ q̈ − ∫ drag`;
+//!    (`quadratic_damping`); a cubic clamp moment `M₃ = k₃ θ³` on the root rotation
+//!    θ = Σ s_r η_r − c M₃ of the compliant clamp (s_r the root rotation of mode r, c the
+//!    residual flexibility of the modes not simulated, [`ResidualFlexibility`]) as a per-sample
+//!    modal impulse `f_r = −s_r M₃` ([`cubic_moment`], bounded; `cubic_stiffness`, with the
+//!    linear k_r in the modes), the tip moved by the same static correction; motor force from eq. (5), `u = J ÿ + hᵀ q̈ − ∫ drag`;
 //! 5. carriage forces: `+ F_c sign(ẏ) + c_v ẏ` (`base_friction`, smoothed over 1 mm/s) and
 //!    `+ a sin(2πy/p) + b cos(2πy/p)` (`cogging_ripple`);
 //! 6. tip sensor latency τ: `tip(t − τ)` by a band-limited fractional delay ([`delayed`];
 //!    `sensor_delay`); tip sensor scale g (camera calibration): `g · tip` (`sensor_gain`).
 
-use crate::model::sim::mode_zoh;
+use crate::model::sim::{mode_ramp, mode_zoh};
 use crate::model::{BeamModel, ModelOptions, Orientation, Rig};
 use anyhow::{bail, Result};
 use nalgebra::Vector2;
@@ -1243,6 +1244,9 @@ pub struct BeamCache {
     tip: Vec<f64>,
     /// root rotation per unit modal coordinate (0 without a compliant clamp)
     root_rot: Vec<f64>,
+    /// the modes beyond `keep`, quasi-static: root rotation (rad) and tip deflection (m) per
+    /// unit moment at the compliant clamp (N·m), [`ResidualFlexibility`]
+    residual: ResidualFlexibility,
     /// mode shapes at the drag points: shape[r][j]
     shape: Vec<Vec<f64>>,
     weights: Vec<f64>,
@@ -1250,6 +1254,48 @@ pub struct BeamCache {
     base_mass: f64,
     /// each mode's transition over half a sample interval (two make one)
     phi_half: Vec<nalgebra::Matrix2<f64>>,
+    /// each mode's response to a linearly ramping force ([`mode_ramp`]); empty without a
+    /// compliant clamp
+    ramp: Vec<RampMaps>,
+}
+
+/// [`mode_ramp`] of one mode for a force ramping over a sample interval: at its end (`full`)
+/// and at its middle (`half`); `quasi_static` for a mode of ω dt ≥ [`RAMP_LIMIT_RAD`], which
+/// answers the clamp moment through [`ResidualFlexibility`] instead (its state takes none).
+#[derive(Clone, Debug)]
+struct RampMaps {
+    full: (nalgebra::Matrix2<f64>, Vector2<f64>, Vector2<f64>),
+    half: (nalgebra::Matrix2<f64>, Vector2<f64>, Vector2<f64>),
+    quasi_static: bool,
+}
+
+/// ω dt (rad) from which a simulated mode answers a clamp moment quasi-statically: the ramp's
+/// explicit part (the moment at the interval's start) feeds back through the clamp's tangent
+/// stiffness, with a weight that outgrows the implicit one beyond ω dt ≈ 2 (a hardening
+/// clamp at 250 Hz diverged), while the moment's content, a few times the lowest modes'
+/// frequencies, lies well below such a mode.
+const RAMP_LIMIT_RAD: f64 = 1.0;
+
+impl RampMaps {
+    /// The state at the end (`half` false) or middle of the interval from `x` (after the
+    /// sample's impulses) with the modal force ramping from `f` to `f_next`.
+    fn step(&self, half: bool, x: &Vector2<f64>, f: f64, f_next: f64) -> Vector2<f64> {
+        let (phi, a, b) = if half { &self.half } else { &self.full };
+        if self.quasi_static {
+            phi * x
+        } else {
+            phi * x + (a - b) * f + b * f_next
+        }
+    }
+
+    /// The displacement per unit force at the interval's end that [`RampMaps::step`] adds.
+    fn next_gain(&self) -> f64 {
+        if self.quasi_static {
+            0.0
+        } else {
+            self.full.2[0]
+        }
+    }
 }
 
 /// The resonance (Hz) of a mount that carries the beam, as the rig shows it
@@ -1323,6 +1369,7 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
     let phi_half = (0..keep)
         .map(|r| mode_zoh(modes.omega_rad_s[r], zeta[r], 0.5 * dt).0)
         .collect();
+    let (residual, ramp) = clamp_maps(&modes, &zeta, keep, dt, off == 1);
     Ok(BeamCache {
         key: structural_key(p, dt),
         omega: modes.omega_rad_s[..keep].to_vec(),
@@ -1332,12 +1379,114 @@ fn beam_cache(rig: &Rig, p: &Params, dt: f64) -> Result<BeamCache> {
         root_rot: (0..keep)
             .map(|r| if off == 1 { modes.shapes[(0, r)] } else { 0.0 })
             .collect(),
+        residual,
+        ramp,
         shape,
         weights: vec![l / npts as f64; npts],
         total_mass: model.mass[(0, 0)],
         base_mass: model.base_mass_kg,
         phi_half,
     })
+}
+
+/// The quasi-static response of the modes a simulation leaves out (residual flexibility, the
+/// static correction of the mode-displacement method; Craig & Kurdila, *Fundamentals of
+/// Structural Dynamics*, 2nd ed., §14.5) to a moment M at the compliant clamp: root rotation
+/// `−root_rad_per_nm · M` and tip deflection `−tip_m_per_nm · M` beyond what the kept modes
+/// carry.
+///
+/// Why: a root moment excites the clamp's own rotation, whose compliance lies mostly in modes
+/// far above any sample rate (for a clamp 20 × stiffer than EI/l the first mode holds 17 % of
+/// the static 1/k_r, the modes below 250 Hz 52 %, docs/diagnose.md session 52). A cubic clamp
+/// moment applied to the kept modes only moves the root by a third to a half of what it does,
+/// and the fitted k₃ grows to make up for it (2.6 % at 250 Hz, 4.9 % at 100 Hz on a noise-free
+/// case).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ResidualFlexibility {
+    /// Σ_{r ≥ keep} s_r² / ω_r² (rad / (N·m)).
+    pub root_rad_per_nm: f64,
+    /// Σ_{r ≥ keep} t_r s_r / ω_r² (m / (N·m)).
+    pub tip_m_per_nm: f64,
+}
+
+impl ResidualFlexibility {
+    /// From the mass-normalised modes of a complete (Galerkin or FE) eigen-solution: angular
+    /// frequencies `omega_rad_s` (rad/s), tip deflection `tip` and root rotation `root_rot` per
+    /// unit modal coordinate; `static_mode(r)` names the modes that answer quasi-statically
+    /// (those not simulated, and those too fast for the sample interval). Over every mode the
+    /// sums are the model's static compliance (K⁻¹), so the correction converges.
+    pub fn of_modes(
+        omega_rad_s: &[f64],
+        tip: &[f64],
+        root_rot: &[f64],
+        static_mode: impl Fn(usize) -> bool,
+    ) -> Self {
+        let mut r = Self::default();
+        for (i, ((w, t), s)) in omega_rad_s.iter().zip(tip).zip(root_rot).enumerate() {
+            if static_mode(i) {
+                r.root_rad_per_nm += s * s / (w * w);
+                r.tip_m_per_nm += t * s / (w * w);
+            }
+        }
+        r
+    }
+
+    /// The root rotation θ (rad) and the cubic moment M₃ (N·m, [`cubic_moment`]) at it when the
+    /// kept modes give `theta_modes`: the root of θ + c M₃(θ) = θ_modes (c =
+    /// `root_rad_per_nm`), by Newton from θ_modes. θ + c M₃(θ) rises monotonically (softening
+    /// keeps the tangent stiffness above k_r/10 and c < 1/k_r), so a few steps converge.
+    pub fn cubic_equilibrium(&self, k3: f64, theta_modes: f64, cap2: f64) -> (f64, f64) {
+        let c = self.root_rad_per_nm;
+        let mut theta = theta_modes;
+        if c > 0.0 {
+            for _ in 0..8 {
+                let m = cubic_moment(k3, theta, cap2);
+                let slope = 1.0
+                    + c * k3
+                        * if theta * theta < cap2 {
+                            3.0 * theta * theta
+                        } else {
+                            cap2
+                        };
+                let step = (theta + c * m - theta_modes) / slope.max(0.05);
+                theta -= step;
+                if step.abs() <= 1e-12 * theta.abs().max(1e-12) {
+                    break;
+                }
+            }
+        }
+        (theta, cubic_moment(k3, theta, cap2))
+    }
+}
+
+/// The compliant clamp's part of a [`BeamCache`] (`compliant`; defaults otherwise): the
+/// quasi-static flexibility of the modes that do not simulate a clamp moment and the ramp
+/// maps of the `keep` simulated ones with damping ratios `zeta`, at sample interval `dt`.
+fn clamp_maps(
+    modes: &crate::model::galerkin::ClampedModes,
+    zeta: &[f64],
+    keep: usize,
+    dt: f64,
+    compliant: bool,
+) -> (ResidualFlexibility, Vec<RampMaps>) {
+    if !compliant {
+        return (ResidualFlexibility::default(), Vec::new());
+    }
+    let w = &modes.omega_rad_s;
+    let residual = ResidualFlexibility::of_modes(
+        w,
+        &modes.tip,
+        &modes.shapes.row(0).iter().copied().collect::<Vec<_>>(),
+        |r| r >= keep || w[r] * dt >= RAMP_LIMIT_RAD,
+    );
+    let ramp = (0..keep)
+        .map(|r| RampMaps {
+            full: mode_ramp(w[r], zeta[r], dt, dt),
+            half: mode_ramp(w[r], zeta[r], 0.5 * dt, dt),
+            quasi_static: w[r] * dt >= RAMP_LIMIT_RAD,
+        })
+        .collect();
+    (residual, ramp)
 }
 
 fn structural_key(p: &Params, dt: f64) -> Vec<f64> {
@@ -2013,6 +2162,11 @@ fn linear_modes(c: &BeamCache, dv: &[f64]) -> (Vec<f64>, Vec<f64>) {
 /// (`k3`, N m/rad³), which couple them at every sample, for the root positions `root` (m) and
 /// their velocity steps `dv` (m/s): the tip deflection (m) and the modes' force
 /// `Σ Γ_r Δη̇_r / dt − drag` (N) per sample.
+///
+/// The drag acts as a per-sample impulse. The clamp moment M₃ is smooth (the cube of the
+/// rotation) and ramps linearly between its values at the samples ([`mode_ramp`], exact per
+/// mode), the one at the end of the interval solved with the rotation it produces
+/// ([`cubic_step`]); the modes left out answer it quasi-statically ([`ResidualFlexibility`]).
 fn nonlinear_modes(
     p: &Params,
     k3: f64,
@@ -2029,12 +2183,26 @@ fn nonlinear_modes(
     let mut w = Vec::with_capacity(n);
     let mut force = Vec::with_capacity(n);
     let mut modal_f = vec![0.0; nm];
-    let cap2 = cubic_cap2(
+    let cubic = (k3 != 0.0).then(|| CubicClamp {
         k3,
-        p.root_stiffness_nm_per_rad.unwrap_or(0.0),
-        c.root_rot.iter().map(|s| s * s).sum(),
-        dt,
-    );
+        // the explicit part's stability: the modes that ramp
+        cap2: cubic_cap2(
+            k3,
+            p.root_stiffness_nm_per_rad.unwrap_or(0.0),
+            (0..nm)
+                .filter(|&r| !c.ramp[r].quasi_static)
+                .map(|r| c.root_rot[r] * c.root_rot[r])
+                .sum(),
+            dt,
+        ),
+        // the response to the interval's end moment, and the modes left out
+        flexibility: c.residual.root_rad_per_nm
+            + (0..nm)
+                .map(|r| c.root_rot[r] * c.root_rot[r] * c.ramp[r].next_gain())
+                .sum::<f64>(),
+    });
+    // the clamp moment at the current sample (at rest: 0)
+    let mut m3 = 0.0;
     for (k, &dv) in dv.iter().enumerate() {
         // the root's velocity over the interval before the sample
         let vb = if k == 0 {
@@ -2048,27 +2216,63 @@ fn nonlinear_modes(
         } else {
             0.0
         };
-        if k3 != 0.0 {
-            let theta: f64 = (0..nm).map(|r| c.root_rot[r] * x[r][0]).sum();
-            let m3 = cubic_moment(k3, theta, cap2);
-            for r in 0..nm {
-                modal_f[r] -= c.root_rot[r] * m3;
-            }
-        }
         let mut f = -drag_total;
-        let mut tip = 0.0;
+        let mut tip = -c.residual.tip_m_per_nm * m3;
         for r in 0..nm {
             tip += c.tip[r] * x[r][0];
             x[r][1] += -c.gamma[r] * dv + modal_f[r] * dt;
-            let half = c.phi_half[r] * x[r];
+        }
+        let m3_next = match &cubic {
+            Some(cl) => cubic_step(cl, &x, m3, c),
+            None => 0.0,
+        };
+        for r in 0..nm {
+            let (now, next) = (-c.root_rot[r] * m3, -c.root_rot[r] * m3_next);
+            let half = if cubic.is_some() {
+                c.ramp[r].step(true, &x[r], now, next)
+            } else {
+                c.phi_half[r] * x[r]
+            };
             f += c.gamma[r] * (half[1] - rate_before[r]) / dt;
             rate_before[r] = half[1];
-            x[r] = (c.phi_half[r] * half).map(at_rest);
+            x[r] = if cubic.is_some() {
+                c.ramp[r].step(false, &x[r], now, next).map(at_rest)
+            } else {
+                (c.phi_half[r] * half).map(at_rest)
+            };
         }
+        m3 = m3_next;
         w.push(tip);
         force.push(f);
     }
     (w, force)
+}
+
+/// A cubic clamp in [`nonlinear_modes`]: k₃ (N·m/rad³), the bound θ_c² of [`cubic_moment`]
+/// (rad²) and the root rotation per unit end-of-interval moment that the moment itself adds
+/// (rad / N·m: the kept modes' ramp response plus the residual flexibility).
+struct CubicClamp {
+    k3: f64,
+    cap2: f64,
+    flexibility: f64,
+}
+
+/// The clamp moment M₃ (N·m) at the end of the interval that starts in the modal state `x`
+/// (after the sample's impulses) with moment `m3`: the root of θ + c M₃(θ) = θ_free, θ_free
+/// the rotation the modes reach with the moment held at `m3` less its ramp part, c the
+/// clamp's `flexibility` ([`ResidualFlexibility::cubic_equilibrium`]).
+fn cubic_step(cl: &CubicClamp, x: &[Vector2<f64>], m3: f64, c: &BeamCache) -> f64 {
+    let theta_free: f64 = (0..x.len())
+        .map(|r| {
+            let s = c.root_rot[r];
+            s * c.ramp[r].step(false, &x[r], -s * m3, 0.0)[0]
+        })
+        .sum();
+    let flex = ResidualFlexibility {
+        root_rad_per_nm: cl.flexibility,
+        tip_m_per_nm: 0.0,
+    };
+    flex.cubic_equilibrium(cl.k3, theta_free, cl.cap2).1
 }
 
 /// The distributed quadratic drag `−c_d |v| v` per unit length at the drag points (absolute
@@ -3018,6 +3222,44 @@ mod tests {
             f_hard > 1.03 * f_lin && f_soft < 0.98 * f_lin,
             "{f_soft} {f_lin} {f_hard}"
         );
+    }
+
+    /// A cubic clamp's frequency shift (Hz) on the move of
+    /// [`a_hardening_clamp_rings_faster_and_a_softening_one_slower`] sampled at `rate_hz`.
+    fn cubic_shift_hz(rate_hz: f64, k3: f64) -> f64 {
+        let rig = rig();
+        let (y, _) = crate::model::trapezoid_reference(0.0, 0.05, 0.2, 2.0, rate_hz, 20.0).unwrap();
+        let mut rec = crate::recording::Recording::with_uniform_time(y.len(), rate_hz);
+        rec.base_cmd_m = Some(y.clone());
+        rec.tip_pos_m = Some(y);
+        let lin = Params {
+            root_stiffness_nm_per_rad: Some(5.0),
+            zeta: Some((0.002, 0.002)),
+            ..Params::default()
+        };
+        let cubic = Params {
+            cubic_root_stiffness_nm_per_rad3: k3,
+            ..lin.clone()
+        };
+        ring_hz(&rig, &cubic, &rec, 15.0) - ring_hz(&rig, &lin, &rec, 15.0)
+    }
+
+    #[test]
+    fn a_cubic_clamp_shifts_the_ring_alike_at_any_sample_rate() {
+        // the clamp's compliance lies mostly in modes above any sample rate (module header,
+        // ResidualFlexibility); a moment applied to the kept modes as per-sample impulses
+        // shifted the ring by 8 % less at 50 Hz than at 1000 Hz
+        for k3 in [2e4, -1e4] {
+            let fine = cubic_shift_hz(1000.0, k3);
+            for rate in [50.0, 100.0, 250.0] {
+                let coarse = cubic_shift_hz(rate, k3);
+                println!("k3 {k3} rate {rate}: {coarse} vs {fine}");
+                assert!(
+                    (coarse / fine - 1.0).abs() < 0.01,
+                    "k3 {k3} at {rate} Hz: {coarse} vs {fine}"
+                );
+            }
+        }
     }
 
     #[test]

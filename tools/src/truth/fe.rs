@@ -55,6 +55,10 @@ pub struct FeModes {
     pub node_w: Vec<Vec<f64>>,
     /// Root rotation θ₀ per unit modal coordinate (rad / kg^½); 0 for a rigid clamp.
     pub root_theta: Vec<f64>,
+    /// Static response to a unit moment at the compliant clamp, over every DOF (K⁻¹ e_θ₀):
+    /// root rotation (rad / N·m) and tip deflection (m / N·m); 0 for a rigid clamp. Less what
+    /// the kept modes carry it is the quasi-static part of the modes left out.
+    pub root_moment_static: (f64, f64),
     /// Beam (+ tip) translational mass rᵀ M r (kg).
     pub beam_mass_kg: f64,
 }
@@ -182,7 +186,18 @@ impl FeBeam {
             node_w: vec![],
             root_theta: vec![],
             beam_mass_kg: r.dot(&mr),
+            root_moment_static: (0.0, 0.0),
         };
+        if compliant {
+            let mut e = DVector::zeros(k.nrows());
+            e[0] = 1.0;
+            let x = k
+                .clone()
+                .cholesky()
+                .context("FE stiffness matrix not positive definite")?
+                .solve(&e);
+            out.root_moment_static = (x[0], x[off + 2 * (ne - 1)]);
+        }
         for &i in idx.iter().take(n_keep) {
             let v = linv.transpose() * eig.eigenvectors.column(i);
             out.omega_rad_s.push(eig.eigenvalues[i].sqrt());

@@ -16,9 +16,12 @@
 //!   (penetration p = (y_m − y_r) ∓ b/2 beyond the gap, compressive only), 0 inside the gap; the
 //!   block rides on a guide with Coulomb friction (tanh-smoothed), which holds it inside the gap:
 //!   F_root = F_c − F_g tanh(ẏ_r / v_s);
-//! - a cubic clamp: the compliant root (FE rotation θ₀ = Σ θ₀,r η_r) has the moment
-//!   k_r θ₀ + k₃ θ₀³; the linear part is in the modes, the cubic one a modal force
-//!   `−θ₀,r k₃ θ₀³` (internal: no net force on the carriage);
+//! - a cubic clamp: the compliant root (FE rotation θ₀) has the moment k_r θ₀ + k₃ θ₀³; the
+//!   linear part is in the modes, the cubic one M₃ = k₃ θ₀³ a modal force `−θ₀,r M₃` (internal:
+//!   no net force on the carriage). The modes above the fine step's reach answer M₃
+//!   quasi-statically (static correction: K⁻¹ less the kept modes' Σ θ₀,r²/ω_r²), so
+//!   θ₀ = Σ θ₀,r η_r − c M₃(θ₀), solved per evaluation, and the tip moves by the same
+//!   correction (Craig & Kurdila, *Fundamentals of Structural Dynamics*, §14.5);
 //! - friction: Coulomb (tanh-smoothed over `stribeck_m_s`) + viscous; cogging `A sin(2π y/p + φ)`;
 //! - servo: cascaded position P / velocity PI loop evaluated once per fine step (zero-order
 //!   hold), with velocity and acceleration feed-forward (off when the concealed effect is a slow
@@ -216,11 +219,11 @@ impl Plant {
                     tip += m.node_w[rr][dy.nodes - 1] * x[4 + rr];
                 }
             }
+            let (theta, m3) = dy.clamp_rotation(&x);
             out.y_motor_m.push(ym);
-            out.tip_m.push(tip);
+            out.tip_m.push(tip - dy.residual.1 * m3);
             out.force_n.push(u);
-            out.root_rot_rad
-                .push((0..nm).map(|rr| dy.root_theta[rr] * x[4 + rr]).sum());
+            out.root_rot_rad.push(theta);
             rk.step(&mut x, dt, |z, dz| dy.deriv(z, u, dz));
         }
         out
@@ -361,6 +364,7 @@ impl Plant {
             trib,
             zetas,
             root_theta: modes.map_or(&[], |m| &m.root_theta),
+            residual: modes.map_or((0.0, 0.0), residual_flexibility),
             m_b,
             sum_g2,
             m1,
@@ -370,6 +374,21 @@ impl Plant {
             coupled: self.mount.is_some() || self.backlash.is_some(),
         }
     }
+}
+
+/// The quasi-static root rotation (rad / N·m) and tip deflection (m / N·m) per unit clamp
+/// moment of the modes `m` leaves out: the static response less the kept modes' Σ θ₀,r²/ω_r²
+/// and Σ w_tip,r θ₀,r/ω_r² (module header).
+fn residual_flexibility(m: &FeModes) -> (f64, f64) {
+    let (root, tip) = m.root_moment_static;
+    let last = m.node_w[0].len() - 1;
+    let (mut kept_root, mut kept_tip) = (0.0, 0.0);
+    for r in 0..m.omega_rad_s.len() {
+        let w2 = m.omega_rad_s[r] * m.omega_rad_s[r];
+        kept_root += m.root_theta[r] * m.root_theta[r] / w2;
+        kept_tip += m.root_theta[r] * m.node_w[r][last] / w2;
+    }
+    ((root - kept_root).max(0.0), tip - kept_tip)
 }
 
 /// The equations of motion of one [`Plant::run`] (module header), state
@@ -385,6 +404,9 @@ struct Dynamics<'a> {
     zetas: Vec<f64>,
     /// Root rotation per modal coordinate.
     root_theta: &'a [f64],
+    /// Quasi-static root rotation (rad / N·m) and tip deflection (m / N·m) of the modes left
+    /// out, per unit clamp moment (module header).
+    residual: (f64, f64),
     m_b: f64,
     sum_g2: f64,
     /// Motor mass (with a mount or play), root mass, mount stiffness and damping.
@@ -434,13 +456,31 @@ impl Dynamics<'_> {
             }
         }
         if self.plant.cubic_root_nm_per_rad3 != 0.0 {
-            let theta: f64 = (0..nm).map(|r| self.root_theta[r] * x[4 + r]).sum();
-            let m3 = self.plant.cubic_root_nm_per_rad3 * theta * theta * theta;
+            let (_, m3) = self.clamp_rotation(x);
             for r in 0..nm {
                 modal_f[r] -= self.root_theta[r] * m3;
             }
         }
         drag_total
+    }
+
+    /// The clamp's rotation θ₀ (rad) and cubic moment M₃ = k₃ θ₀³ (N·m) in state `x`: the
+    /// root of θ₀ + c k₃ θ₀³ = Σ θ₀,r η_r (c the modes left out, module header), by Newton
+    /// from the kept modes' rotation.
+    fn clamp_rotation(&self, x: &[f64]) -> (f64, f64) {
+        let k3 = self.plant.cubic_root_nm_per_rad3;
+        let kept: f64 = (0..self.nm).map(|r| self.root_theta[r] * x[4 + r]).sum();
+        let c = self.residual.0;
+        let mut theta = kept;
+        for _ in 0..20 {
+            let g = theta + c * k3 * theta.powi(3) - kept;
+            let step = g / (1.0 + 3.0 * c * k3 * theta * theta).max(0.05);
+            theta -= step;
+            if step.abs() <= 1e-13 * theta.abs() {
+                break;
+            }
+        }
+        (theta, k3 * theta.powi(3))
     }
 
     /// The force on the root (N) and the motor acceleration (m/s², NaN when motor and root
