@@ -1271,10 +1271,12 @@ struct RampMaps {
 
 /// ω dt (rad) from which a simulated mode answers a clamp moment quasi-statically: the ramp's
 /// explicit part (the moment at the interval's start) feeds back through the clamp's tangent
-/// stiffness, with a weight that outgrows the implicit one beyond ω dt ≈ 2 (a hardening
-/// clamp at 250 Hz diverged), while the moment's content, a few times the lowest modes'
-/// frequencies, lies well below such a mode.
-const RAMP_LIMIT_RAD: f64 = 1.0;
+/// stiffness, and with every simulated mode ramping (ω dt up to π) a hardening clamp at
+/// 250 Hz diverged; with the limit at 2.6 or 2.0 it does not. At 1.0 a 100 Hz recording's
+/// second mode (ω dt 1.22) lost its own amplitude-dependent frequency and the cubic fit moved
+/// 2.3 % (docs/diagnose.md, session 52). The moment's content, a few times the lowest modes'
+/// frequencies, lies well below a mode of ω dt ≥ 2.
+const RAMP_LIMIT_RAD: f64 = 2.0;
 
 impl RampMaps {
     /// The state at the end (`half` false) or middle of the interval from `x` (after the
