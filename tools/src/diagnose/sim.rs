@@ -1432,33 +1432,6 @@ impl ResidualFlexibility {
         }
         r
     }
-
-    /// The root rotation θ (rad) and the cubic moment M₃ (N·m, [`cubic_moment`]) at it when the
-    /// kept modes give `theta_modes`: the root of θ + c M₃(θ) = θ_modes (c =
-    /// `root_rad_per_nm`), by Newton from θ_modes. θ + c M₃(θ) rises monotonically (softening
-    /// keeps the tangent stiffness above k_r/10 and c < 1/k_r), so a few steps converge.
-    pub fn cubic_equilibrium(&self, k3: f64, theta_modes: f64, cap2: f64) -> (f64, f64) {
-        let c = self.root_rad_per_nm;
-        let mut theta = theta_modes;
-        if c > 0.0 {
-            for _ in 0..8 {
-                let m = cubic_moment(k3, theta, cap2);
-                let slope = 1.0
-                    + c * k3
-                        * if theta * theta < cap2 {
-                            3.0 * theta * theta
-                        } else {
-                            cap2
-                        };
-                let step = (theta + c * m - theta_modes) / slope.max(0.05);
-                theta -= step;
-                if step.abs() <= 1e-12 * theta.abs().max(1e-12) {
-                    break;
-                }
-            }
-        }
-        (theta, cubic_moment(k3, theta, cap2))
-    }
 }
 
 /// The compliant clamp's part of a [`BeamCache`] (`compliant`; defaults otherwise): the
@@ -2259,10 +2232,39 @@ struct CubicClamp {
     flexibility: f64,
 }
 
+impl CubicClamp {
+    /// The cubic moment M₃ (N·m, [`cubic_moment`]) where the modes alone would turn the root
+    /// by `theta_free` (rad): at the root of θ + c M₃(θ) = θ_free (c = `flexibility`), by Newton
+    /// from θ_free. θ + c M₃(θ) rises monotonically (softening keeps the tangent stiffness
+    /// above k_r/10 and c < 1/k_r), so a few steps converge.
+    fn moment(&self, theta_free: f64) -> f64 {
+        let (c, k3, cap2) = (self.flexibility, self.k3, self.cap2);
+        let mut theta = theta_free;
+        if c > 0.0 {
+            for _ in 0..8 {
+                let m = cubic_moment(k3, theta, cap2);
+                // dM₃/dθ / k₃: 3θ² below the bound, θ_c² beyond it
+                let d = if theta * theta < cap2 {
+                    3.0 * theta * theta
+                } else {
+                    cap2
+                };
+                let slope = 1.0 + c * k3 * d;
+                let step = (theta + c * m - theta_free) / slope.max(0.05);
+                theta -= step;
+                if step.abs() <= 1e-12 * theta.abs().max(1e-12) {
+                    break;
+                }
+            }
+        }
+        cubic_moment(k3, theta, cap2)
+    }
+}
+
 /// The clamp moment M₃ (N·m) at the end of the interval that starts in the modal state `x`
 /// (after the sample's impulses) with moment `m3`: the root of θ + c M₃(θ) = θ_free, θ_free
 /// the rotation the modes reach with the moment held at `m3` less its ramp part, c the
-/// clamp's `flexibility` ([`ResidualFlexibility::cubic_equilibrium`]).
+/// clamp's `flexibility` ([`CubicClamp::moment`]).
 fn cubic_step(cl: &CubicClamp, x: &[Vector2<f64>], m3: f64, c: &BeamCache) -> f64 {
     let theta_free: f64 = (0..x.len())
         .map(|r| {
@@ -2270,11 +2272,7 @@ fn cubic_step(cl: &CubicClamp, x: &[Vector2<f64>], m3: f64, c: &BeamCache) -> f6
             s * c.ramp[r].step(false, &x[r], -s * m3, 0.0)[0]
         })
         .sum();
-    let flex = ResidualFlexibility {
-        root_rad_per_nm: cl.flexibility,
-        tip_m_per_nm: 0.0,
-    };
-    flex.cubic_equilibrium(cl.k3, theta_free, cl.cap2).1
+    cl.moment(theta_free)
 }
 
 /// The distributed quadratic drag `−c_d |v| v` per unit length at the drag points (absolute
