@@ -110,7 +110,10 @@ impl Progress for StageProgress {
 /// ([`crate::recording::orient`], low-pass corners at ¼ and 10 × the rig's first clamped
 /// natural frequency), then sensor zeros from the rest ([`crate::recording::zero`]).
 pub fn load(path: &Path, rig: &Rig) -> Result<Prepared> {
-    let rec = super::read_recording(path)?;
+    // a tip camera or a force reading may lose its signal for a while: left out, not refused
+    let (rec, gaps) =
+        crate::recording::Recording::read_csv_leaving_gaps(path, &["tip_pos_m", "force_n"])?;
+    super::print_notes(path, &rec.notes);
     let read = rec.notes.len();
     let rec = crate::recording::glitch::mend_tip_glitches(rec);
     let rec = match first_natural_freq_hz(rig) {
@@ -119,7 +122,7 @@ pub fn load(path: &Path, rig: &Rig) -> Result<Prepared> {
     };
     let rec = crate::recording::zero::zero_at_rest(rec);
     super::print_notes(path, &rec.notes[read..]);
-    let mut d = Prepared::new(&path.display().to_string(), &rec)?;
+    let mut d = Prepared::new(&path.display().to_string(), &rec)?.with_gaps(&gaps)?;
     d.free_start = !crate::recording::zero::starts_at_rest(&rec);
     Ok(d)
 }

@@ -36,7 +36,7 @@ pub fn residuals(d: &Prepared, pred: &Prediction) -> [Option<Vec<f64>>; 3] {
             return None;
         };
         let mut r = Vec::with_capacity(a.len().min(b.len()));
-        push_channel(a, b, &d.rails[c].runs, None, &mut r);
+        push_channel(a, b, [&d.rails[c].runs, &d.gaps[c].runs], None, &mut r);
         Some(r)
     })
 }
@@ -47,7 +47,13 @@ pub fn residuals(d: &Prepared, pred: &Prediction) -> [Option<Vec<f64>>; 3] {
 pub fn extend_whitened(d: &Prepared, pred: &Prediction, sigma: [f64; 3], out: &mut Vec<f64>) {
     for (c, pair) in channel_pairs(d, pred).into_iter().enumerate() {
         if let (Some(a), Some(b)) = pair {
-            push_channel(a, b, &d.rails[c].runs, Some(sigma[c]), out);
+            push_channel(
+                a,
+                b,
+                [&d.rails[c].runs, &d.gaps[c].runs],
+                Some(sigma[c]),
+                out,
+            );
         }
     }
 }
@@ -65,11 +71,12 @@ fn channel_pairs<'a>(
 }
 
 /// Appends recording − prediction of one channel (divided by `scale` when given) to `out`, 0
-/// on the samples of `rail_runs` (`[start, end)`, a sensor held at its rail).
+/// on the samples of the runs `left_out` (`[start, end)`: a sensor held at its rail, and one
+/// that gave no reading).
 fn push_channel(
     a: &[f64],
     b: &[f64],
-    rail_runs: &[(usize, usize)],
+    left_out: [&[(usize, usize)]; 2],
     scale: Option<f64>,
     out: &mut Vec<f64>,
 ) {
@@ -79,7 +86,7 @@ fn push_channel(
         None => out.extend(a.iter().zip(b).map(|(x, y)| x - y)),
     }
     let n = out.len() - start;
-    for &(r0, r1) in rail_runs {
+    for &(r0, r1) in left_out.into_iter().flatten() {
         out[start + r0.min(n)..start + r1.min(n)].fill(0.0);
     }
 }
@@ -1416,7 +1423,8 @@ ratios = [0.0074, 0.0074]
     }
 
     /// The one-pass whitened vector is the per-channel residuals divided by σ, bit for bit, with
-    /// samples at a sensor's rail zero (a run past the end of a shorter prediction included).
+    /// samples at a sensor's rail zero (a run past the end of a shorter prediction included),
+    /// and those where the sensor gave no reading.
     #[test]
     fn whitened_residuals_in_one_pass_equal_the_divided_residuals() {
         let (rig, mut rec) = beam_and_moves(&[0.1, 0.06], 0.5, 3.0, 2.0);
@@ -1430,6 +1438,11 @@ ratios = [0.0074, 0.0074]
         let n = d.cmd_m.len();
         d.base_m = Some(d.cmd_m.iter().map(|v| 1.01 * v).collect());
         d.rails[1].runs = vec![(3, 40), (n - 5, n + 10)];
+        // a camera without a reading on samples 60–74, as the loader returns it
+        let gaps = crate::recording::regular::Gaps {
+            runs: vec![("tip_pos_m", vec![(60, 75)])],
+        };
+        let mut d = d.with_gaps(&gaps).unwrap();
         let mut pred = predict(&rig, &Params::default(), &d, &mut None).unwrap();
         pred.tip_m.as_mut().unwrap().truncate(n - 2);
         let sigma = [3e-6, 7e-5, 0.3];
@@ -1454,6 +1467,18 @@ ratios = [0.0074, 0.0074]
                 .count(),
             37
         );
+        assert!(one_pass[n + 60..n + 75].iter().all(|v| *v == 0.0));
+        assert!(one_pass[n + 40..n + 60].iter().all(|v| *v != 0.0));
+        // the base drives the model: a gap there is refused, as is a channel mostly unread
+        let base_gap = crate::recording::regular::Gaps {
+            runs: vec![("base_pos_m", vec![(60, 75)])],
+        };
+        let e = d.clone().with_gaps(&base_gap).unwrap_err().to_string();
+        assert!(e.contains("base_pos_m has no reading for a while"), "{e}");
+        let mostly = crate::recording::regular::Gaps {
+            runs: vec![("tip_pos_m", vec![(100, 100 + n / 4)])],
+        };
+        assert!(d.with_gaps(&mostly).is_err());
     }
 
     #[test]

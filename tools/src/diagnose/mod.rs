@@ -690,7 +690,7 @@ pub fn diagnose(
 }
 
 /// The channels held at a sensor's rail, in words (an assumption of the diagnosis: those
-/// samples are left out, [`saturation`]).
+/// samples are left out, [`saturation`]), and those that gave no reading for a while.
 fn saturation_words(fit_data: &[Prepared], validate: &Prepared) -> Vec<String> {
     let mut out = Vec::new();
     for d in fit_data.iter().chain(std::iter::once(validate)) {
@@ -705,6 +705,21 @@ fn saturation_words(fit_data: &[Prepared], validate: &Prepared) -> Vec<String> {
                 r.values_words(),
                 r.samples(),
                 100.0 * r.samples() as f64 / d.cmd_m.len().max(1) as f64
+            ));
+        }
+        for (c, g) in d
+            .gaps
+            .iter()
+            .enumerate()
+            .filter(|(_, g)| !g.runs.is_empty())
+        {
+            out.push(format!(
+                "{} of {} has no reading on {} samples ({:.1} %, {} run(s)): bridged by a straight line and left out of every residual",
+                fit::CHANNEL_NAMES[c],
+                d.name,
+                g.samples(),
+                100.0 * g.samples() as f64 / d.cmd_m.len().max(1) as f64,
+                g.runs.len()
             ));
         }
     }

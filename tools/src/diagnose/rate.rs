@@ -535,6 +535,10 @@ pub fn decimate_prepared(d: &Prepared, q: usize) -> Prepared {
             .rails
             .clone()
             .map(|r| r.decimated(q, RAIL_MARGIN, d.cmd_m.len().div_ceil(q))),
+        gaps: d
+            .gaps
+            .clone()
+            .map(|r| r.decimated(q, RAIL_MARGIN, d.cmd_m.len().div_ceil(q))),
         free_start: d.free_start,
     }
 }
@@ -660,6 +664,7 @@ mod tests {
             tip_m: Some(tip),
             force_n: None,
             rails: Default::default(),
+            gaps: Default::default(),
             free_start: false,
         }
     }

@@ -342,6 +342,11 @@ pub struct Prepared {
     /// Samples held at a sensor's rail, per compared channel (base, tip, force): left out of
     /// every residual ([`super::saturation`]; the base, which also drives the model, has none).
     pub rails: [super::saturation::Rails; 3],
+    /// Runs where a compared channel had no reading (base, tip, force; a sensor that lost its
+    /// target for longer than the loader fills, bridged by a straight line): left out of every
+    /// residual as the rails are ([`Prepared::with_gaps`]; the base, which drives the model,
+    /// has none). The `values` of each are empty.
+    pub gaps: [super::saturation::Rails; 3],
     /// The recording does not start at rest (a logger started mid-motion, or while the beam
     /// still rang: [`crate::recording::zero::starts_at_rest`]): the prediction adds the beam
     /// modes' free response from an unknown initial state ([`add_free_response`]).
@@ -394,8 +399,39 @@ impl Prepared {
             tip_m: rec.tip_pos_m.clone(),
             force_n: rec.force_n.clone(),
             rails,
+            gaps: Default::default(),
             free_start: false,
         })
+    }
+
+    /// This recording with the runs `gaps` of its tip and force channels (as read by
+    /// [`crate::recording::regular::regularise_leaving_gaps`]) left out of every residual.
+    /// Errors: a gap in `base_pos_m` or `base_cmd_m` (they drive the model), or more than
+    /// [`super::saturation::MAX_RAIL_FRACTION`] of a channel at its rails or in gaps.
+    pub fn with_gaps(mut self, gaps: &crate::recording::regular::Gaps) -> Result<Prepared> {
+        for (name, runs) in &gaps.runs {
+            let c = match *name {
+                "tip_pos_m" => 1,
+                "force_n" => 2,
+                _ => bail!("{}: {name} has no reading for a while: the base motion drives the model and cannot be left out; cut the recording there", self.name),
+            };
+            let len = self.cmd_m.len();
+            let share = (self.rails[c].samples() + runs.iter().map(|(a, b)| b - a).sum::<usize>())
+                as f64
+                / len.max(1) as f64;
+            if share > super::saturation::MAX_RAIL_FRACTION {
+                bail!(
+                    "{}: {name} has no usable reading (at a rail or missing) on {:.0} % of the samples: too little of the motion was recorded",
+                    self.name,
+                    100.0 * share
+                );
+            }
+            self.gaps[c] = super::saturation::Rails {
+                values: Vec::new(),
+                runs: runs.clone(),
+            };
+        }
+        Ok(self)
     }
 }
 
@@ -1781,9 +1817,9 @@ fn add_free_response(d: &Prepared, c: &BeamCache, mount: Option<(f64, f64)>, out
         .chain(mount)
         .filter(|(w, z)| *w < 0.8 * nyquist && *z < 1.0)
         .collect();
-    for (measured, predicted, rails) in [
-        (&d.tip_m, &mut out.tip_m, &d.rails[1]),
-        (&d.force_n, &mut out.force_n, &d.rails[2]),
+    for (measured, predicted, rails, gaps) in [
+        (&d.tip_m, &mut out.tip_m, &d.rails[1], &d.gaps[1]),
+        (&d.force_n, &mut out.force_n, &d.rails[2], &d.gaps[2]),
     ] {
         let (Some(m), Some(p)) = (measured, predicted.as_mut()) else {
             continue;
@@ -1808,7 +1844,7 @@ fn add_free_response(d: &Prepared, c: &BeamCache, mount: Option<(f64, f64)>, out
         }
         let mut fitted = basis.clone();
         let mut r = DVector::from_fn(n, |k, _| m[k] - p[k]);
-        for &(s, e) in &rails.runs {
+        for &(s, e) in rails.runs.iter().chain(&gaps.runs) {
             for k in s.min(n)..e.min(n) {
                 r[k] = 0.0;
                 fitted.row_mut(k).fill(0.0);

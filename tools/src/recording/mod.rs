@@ -179,6 +179,29 @@ impl Recording {
         regular::regularise(rec).with_context(|| format!("{}: invalid recording", path.display()))
     }
 
+    /// [`Recording::read_csv`], except that the channels named in `gappy` may lose their
+    /// reading for longer than [`regular::MAX_FILL_RUN`] samples (a camera that lost its
+    /// marker): those runs are bridged and returned ([`regular::regularise_leaving_gaps`]),
+    /// for a comparison to leave out.
+    ///
+    /// Errors: as [`Recording::read_csv`], except the long gap in a channel of `gappy`.
+    pub fn read_csv_leaving_gaps(
+        path: impl AsRef<Path>,
+        gappy: &[&str],
+    ) -> Result<(Self, regular::Gaps)> {
+        let path = path.as_ref();
+        let rec = Self::read_csv_cells(path, &mut |_| {})?;
+        if let Some(k) = rec.time_s.iter().position(|t| !t.is_finite()) {
+            bail!(
+                "{}: time_s is not finite at data row {}",
+                path.display(),
+                k + 1
+            );
+        }
+        regular::regularise_leaving_gaps(rec, gappy)
+            .with_context(|| format!("{}: invalid recording", path.display()))
+    }
+
     /// Reads a recording CSV row by row (memory: the columns only, 8 bytes per value) and
     /// checks it with [`Recording::validate_gapped`]: logging gaps and jitter are allowed
     /// (see [`split_at_gaps`]). The time column is `time_s` (seconds) or `time_ms`

@@ -48,6 +48,11 @@ pub const MAX_REORDER_ROWS: usize = 10;
 /// The largest share of a channel's samples that may be filled.
 pub const MAX_FILL_FRACTION: f64 = 0.1;
 
+/// The largest share of a channel's samples that may lie in gaps left out of every comparison
+/// ([`regularise_leaving_gaps`]): with more, too little of the motion was recorded (the share
+/// a sensor may also spend at its rails in the diagnosis).
+pub const MAX_GAP_FRACTION: f64 = 0.25;
+
 /// The largest offset of a row's time from the fitted grid, in sample steps, that counts as
 /// jitter (a larger one is a varying sample rate).
 pub const MAX_JITTER_STEPS: f64 = 0.3;
@@ -92,12 +97,39 @@ enum Jitter {
 ///
 /// Errors: see the module header; each names the data row (1-based) or the channel.
 pub fn regularise(rec: Recording) -> Result<Recording> {
+    regularise_leaving_gaps(rec, &[]).map(|(rec, _)| rec)
+}
+
+/// Runs of samples `[start, end)` (indices of the regularised recording) where a channel had
+/// no reading: a sensor that lost its target for longer than [`MAX_FILL_RUN`] samples.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Gaps {
+    /// Per channel of [`CHANNELS`] (by name), its runs, ascending.
+    pub runs: Vec<(&'static str, Vec<(usize, usize)>)>,
+}
+
+impl Gaps {
+    /// The runs of channel `name` (empty when it has none).
+    pub fn of(&self, name: &str) -> &[(usize, usize)] {
+        self.runs
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map_or(&[], |(_, r)| r.as_slice())
+    }
+}
+
+/// [`regularise`], except that in the channels named in `gappy` (sensors a model is compared
+/// with, never one that drives it) a run of more than [`MAX_FILL_RUN`] missing samples is not
+/// refused: it is filled by a straight line between the readings on either side (a value for
+/// the signal's continuity, not a measurement) and returned in [`Gaps`], for the caller to
+/// leave out of every comparison. Such runs may hold up to [`MAX_GAP_FRACTION`] of a channel.
+pub fn regularise_leaving_gaps(rec: Recording, gappy: &[&str]) -> Result<(Recording, Gaps)> {
     let complete = CHANNELS
         .iter()
         .filter_map(|n| rec.channel(n))
         .all(|c| c.iter().all(|v| v.is_finite()));
     if complete && rec.validate().is_ok() {
-        return Ok(rec);
+        return Ok((rec, Gaps::default()));
     }
     let rec = in_time_order(rec)?;
     let rec = drop_duplicate_rows(rec)?;
@@ -125,12 +157,21 @@ pub fn regularise(rec: Recording) -> Result<Recording> {
         notes: std::mem::take(&mut rec.notes),
         ..Default::default()
     };
+    let mut gaps = Gaps::default();
     for name in CHANNELS {
         let Some(values) = rec.channel(name) else {
             continue;
         };
-        let (filled, note) = fill_channel(name, values, &grid, first, last)?;
+        let span = Span {
+            first,
+            last,
+            gaps_allowed: gappy.contains(&name),
+        };
+        let (filled, runs, note) = fill_channel(name, values, &grid, span)?;
         out.notes.extend(note);
+        if !runs.is_empty() {
+            gaps.runs.push((name, runs));
+        }
         *out.channel_slot(name).expect("known channel") = Some(filled);
     }
     if cut != (0, 0) {
@@ -140,7 +181,7 @@ pub fn regularise(rec: Recording) -> Result<Recording> {
         ));
     }
     out.validate()?;
-    Ok(out)
+    Ok((out, gaps))
 }
 
 /// `rec` with rows written out of time order put in order (a stable sort by time) when none
@@ -466,15 +507,27 @@ fn common_span(rec: &Recording, grid: &Grid) -> Result<(usize, usize)> {
     Ok((first as usize, last as usize))
 }
 
-/// One channel on grid indices `first..=last`, and a note when values were filled.
-/// Errors: a run of missing samples over [`MAX_FILL_RUN`], or over [`MAX_FILL_FRACTION`] filled.
+/// The grid indices `first..=last` a channel is put on, and whether it may keep gaps.
+#[derive(Clone, Copy)]
+struct Span {
+    first: usize,
+    last: usize,
+    gaps_allowed: bool,
+}
+
+/// One channel on grid indices `span.first..=span.last`, its gaps (runs of more than
+/// [`MAX_FILL_RUN`] missing samples, `[start, end)` from `span.first`, filled by a straight
+/// line; only where `span.gaps_allowed`) and a note when values were filled.
+/// Errors: a run of missing samples over [`MAX_FILL_RUN`] where gaps are not allowed, gaps
+/// over [`MAX_GAP_FRACTION`] of the channel, or other missing samples over
+/// [`MAX_FILL_FRACTION`] filled.
 fn fill_channel(
     name: &str,
     values: &[f64],
     grid: &Grid,
-    first: usize,
-    last: usize,
-) -> Result<(Vec<f64>, Option<String>)> {
+    span: Span,
+) -> Result<(Vec<f64>, Vec<(usize, usize)>, Option<String>)> {
+    let Span { first, last, .. } = span;
     let (u, x): (Vec<f64>, Vec<f64>) = grid
         .pos
         .iter()
@@ -483,23 +536,38 @@ fn fill_channel(
         .map(|(p, v)| (*p, *v))
         .unzip();
     let mut longest = 0usize;
+    let mut gaps: Vec<(usize, usize, usize)> = Vec::new();
     for (k, w) in u.windows(2).enumerate() {
         let run = ((w[1] - w[0]).round() as usize).saturating_sub(1);
         if run > MAX_FILL_RUN && w[1] > first as f64 && w[0] < last as f64 {
-            bail!(
-                "column {name}: {run} consecutive samples missing after {} s (more than {MAX_FILL_RUN} \
-                 are not filled): cut the recording there",
-                fmt_sig(grid.t0_s + u[k] * grid.dt_s, 4)
-            );
+            if !span.gaps_allowed {
+                bail!(
+                    "column {name}: {run} consecutive samples missing after {} s (more than {MAX_FILL_RUN} \
+                     are not filled): cut the recording there",
+                    fmt_sig(grid.t0_s + u[k] * grid.dt_s, 4)
+                );
+            }
+            let a = (w[0].round() as usize + 1).max(first) - first;
+            let b = (w[1].round() as usize).min(last + 1) - first;
+            gaps.push((k, a, b));
+            continue;
         }
         longest = longest.max(run);
     }
     let n_grid = last - first + 1;
+    let in_gaps: usize = gaps.iter().map(|(_, a, b)| b - a).sum();
+    if in_gaps as f64 > MAX_GAP_FRACTION * n_grid as f64 {
+        bail!(
+            "column {name}: no reading on {in_gaps} of {n_grid} samples in runs of more than {MAX_FILL_RUN} ({:.0} %, more than {:.0} %): too little of the motion was recorded",
+            100.0 * in_gaps as f64 / n_grid as f64,
+            100.0 * MAX_GAP_FRACTION
+        );
+    }
     let n_valid = u
         .iter()
         .filter(|p| **p >= first as f64 - 1e-9 && **p <= last as f64 + 1e-9)
         .count();
-    let filled = n_grid.saturating_sub(n_valid);
+    let filled = n_grid.saturating_sub(n_valid + in_gaps);
     if filled as f64 > MAX_FILL_FRACTION * n_grid as f64 {
         bail!(
             "column {name}: {filled} of {n_grid} samples missing ({:.0} %, more than {:.0} %)",
@@ -507,13 +575,34 @@ fn fill_channel(
             100.0 * MAX_FILL_FRACTION
         );
     }
-    let out = lagrange_at(&u, &x, (first..=last).map(|j| j as f64));
-    let note = (filled > 0 && values.iter().any(|v| !v.is_finite())).then(|| {
-        format!(
-            "{name}: {filled} missing values filled (degree-5 interpolation, longest run {longest})"
-        )
-    });
-    Ok((out, note))
+    let mut out = lagrange_at(&u, &x, (first..=last).map(|j| j as f64));
+    for &(k, a, b) in &gaps {
+        // a straight line between the readings on either side: no polynomial across a gap
+        let (u0, u1) = (u[k] - first as f64, u[k + 1] - first as f64);
+        for (j, v) in out.iter_mut().enumerate().take(b).skip(a) {
+            *v = x[k] + (x[k + 1] - x[k]) * (j as f64 - u0) / (u1 - u0);
+        }
+    }
+    let mut notes = Vec::new();
+    if filled > 0 && values.iter().any(|v| !v.is_finite()) {
+        notes.push(format!(
+            "{filled} missing values filled (degree-5 interpolation, longest run {longest})"
+        ));
+    }
+    if !gaps.is_empty() {
+        let widest = gaps.iter().map(|(_, a, b)| b - a).max().unwrap_or(0);
+        notes.push(format!(
+            "no reading on {in_gaps} samples in {} run(s) of more than {MAX_FILL_RUN} (longest {} s): bridged by a straight line and left out of every comparison",
+            gaps.len(),
+            fmt_sig(widest as f64 * grid.dt_s, 3)
+        ));
+    }
+    let note = (!notes.is_empty()).then(|| format!("{name}: {}", notes.join("; ")));
+    Ok((
+        out,
+        gaps.into_iter().map(|(_, a, b)| (a, b)).collect(),
+        note,
+    ))
 }
 
 /// Local Lagrange interpolation through (`u`, `x`) (strictly increasing `u`, at least 2
@@ -812,6 +901,40 @@ mod tests {
             e.contains("varying sample rate") || e.contains("not one sample rate"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_long_gap_in_a_compared_channel_is_bridged_and_returned_only_where_allowed() {
+        // a camera that lost its marker for 0.6 s (60 samples) and, later, for 0.15 s
+        let mut r = recording(grid_times(1000, 100.0));
+        let tip = r.tip_pos_m.as_mut().unwrap();
+        tip[300..360].fill(f64::NAN);
+        tip[700..715].fill(f64::NAN);
+        tip[500] = f64::NAN;
+        assert!(regularise(r.clone()).is_err());
+        assert!(regularise_leaving_gaps(r.clone(), &["force_n"]).is_err());
+        let (out, gaps) = regularise_leaving_gaps(r.clone(), &["tip_pos_m"]).unwrap();
+        assert_eq!(out.len(), 1000);
+        assert_eq!(gaps.of("tip_pos_m"), &[(300, 360), (700, 715)]);
+        assert!(gaps.of("base_cmd_m").is_empty());
+        // the gaps are a straight line between the readings on either side; the single blank
+        // is filled as before
+        let (a, want) = (out.tip_pos_m.unwrap(), signal(&grid_times(1000, 100.0)));
+        let line = |k: usize| want[299] + (want[360] - want[299]) * (k - 299) as f64 / 61.0;
+        assert!((300..360).all(|k| (a[k] - line(k)).abs() < 1e-12));
+        assert!((a[500] - want[500]).abs() < 0.3 * 0.003);
+        assert!(out
+            .notes
+            .iter()
+            .any(|n| n.contains("tip_pos_m: 1 missing values filled")
+                && n.contains("no reading on 75 samples in 2 run(s)")));
+        // a quarter of the channel without a reading says too little
+        let tip = r.tip_pos_m.as_mut().unwrap();
+        tip[100..400].fill(f64::NAN);
+        let e = regularise_leaving_gaps(r, &["tip_pos_m"])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no reading on 315 of 1000 samples"), "{e}");
     }
 
     #[test]
