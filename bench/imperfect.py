@@ -23,6 +23,8 @@ recordings alike, and diagnosed:
   tip_clip     tip_pos_m clipped at 80 % of its largest excursion either way (a camera's field of view)
   force_clip   force_n clipped likewise (a drive's current limit)
   glitch       tip_pos_m 5-50 mm off on ten runs of 1-3 samples per recording (a camera losing its marker)
+  gaps         tip_pos_m and force_n each blank on three runs of 30-120 samples per recording, away from
+               its first and last tenth (a marker lost for 0.3-1.2 s at 100 Hz; a force reading dropped)
   tip_flip     tip_pos_m negated (a camera whose axis points the other way)
   force_flip   force_n negated (a drive whose force sign is the opposite convention)
   base_flip    base_pos_m negated (an encoder counting down)
@@ -134,6 +136,16 @@ def perturb(rows, kind, rng):
                 g = rng.choice([-1, 1]) * rng.uniform(0.005, 0.05)
                 for j in range(rng.randint(1, 3)):
                     data[k + j][c] = repr(float(data[k + j][c]) + g * rng.uniform(0.8, 1.2))
+    elif kind == 'gaps':
+        # longer than any fill (recording::regular::MAX_FILL_RUN): left out of the comparison
+        n = len(data)
+        for c in ('tip_pos_m', 'force_n'):
+            if c in col:
+                for _ in range(3):
+                    length = rng.randint(30, 120)
+                    k = rng.randint(n // 10, n - n // 10 - length)
+                    for r in data[k:k + length]:
+                        r[col[c]] = ''
     elif kind in ('tip_flip', 'force_flip', 'base_flip'):
         c = {'tip_flip': 'tip_pos_m', 'force_flip': 'force_n', 'base_flip': 'base_pos_m'}[kind]
         if c in col:
