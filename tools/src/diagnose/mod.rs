@@ -96,6 +96,11 @@ pub struct CandidateOutcome {
     /// residual — what the first effect of a pair does beside the second ([`forward`]'s
     /// pair step).
     pub partial: bool,
+    /// It failed only the calibration-matter rule, as a coupled mount whose resonance lies
+    /// beside a model mode: apart by more than its half-power half-width (and 2 σ), within the
+    /// full width. Such a split-off resonance is judged against a local compliance of the beam
+    /// instead ([`forward`]'s `judge_mounts_beside_modes`).
+    pub beside_mode: bool,
 }
 
 impl CandidateOutcome {
