@@ -576,13 +576,7 @@ fn fill_channel(
         );
     }
     let mut out = lagrange_at(&u, &x, (first..=last).map(|j| j as f64));
-    for &(k, a, b) in &gaps {
-        // a straight line between the readings on either side: no polynomial across a gap
-        let (u0, u1) = (u[k] - first as f64, u[k + 1] - first as f64);
-        for (j, v) in out.iter_mut().enumerate().take(b).skip(a) {
-            *v = x[k] + (x[k + 1] - x[k]) * (j as f64 - u0) / (u1 - u0);
-        }
-    }
+    bridge_gaps(&mut out, (&u, &x), &gaps, first);
     let mut notes = Vec::new();
     if filled > 0 && values.iter().any(|v| !v.is_finite()) {
         notes.push(format!(
@@ -603,6 +597,23 @@ fn fill_channel(
         gaps.into_iter().map(|(_, a, b)| (a, b)).collect(),
         note,
     ))
+}
+
+/// Overwrites the samples of each gap `(k, a, b)` of `out` (`[a, b)` counted from grid index
+/// `first`, between the valid samples `k` and `k + 1` of `(u, x)`) with the straight line
+/// between those two readings: no polynomial across a gap.
+fn bridge_gaps(
+    out: &mut [f64],
+    (u, x): (&[f64], &[f64]),
+    gaps: &[(usize, usize, usize)],
+    first: usize,
+) {
+    for &(k, a, b) in gaps {
+        let (u0, u1) = (u[k] - first as f64, u[k + 1] - first as f64);
+        for (j, v) in out.iter_mut().enumerate().take(b).skip(a) {
+            *v = x[k] + (x[k + 1] - x[k]) * (j as f64 - u0) / (u1 - u0);
+        }
+    }
 }
 
 /// Local Lagrange interpolation through (`u`, `x`) (strictly increasing `u`, at least 2
