@@ -167,16 +167,7 @@ impl Recording {
     /// column named), a ragged row, and what [`regular::regularise`] refuses (time going
     /// backwards, a long gap, a varying sample rate), each with the file's name.
     pub fn read_csv(path: impl AsRef<Path>) -> Result<Self> {
-        let path = path.as_ref();
-        let rec = Self::read_csv_cells(path, &mut |_| {})?;
-        if let Some(k) = rec.time_s.iter().position(|t| !t.is_finite()) {
-            bail!(
-                "{}: time_s is not finite at data row {}",
-                path.display(),
-                k + 1
-            );
-        }
-        regular::regularise(rec).with_context(|| format!("{}: invalid recording", path.display()))
+        Self::read_csv_leaving_gaps(path, &[]).map(|(rec, _)| rec)
     }
 
     /// [`Recording::read_csv`], except that the channels named in `gappy` may lose their
