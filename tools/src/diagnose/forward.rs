@@ -1419,10 +1419,7 @@ fn judge_mounts_beside_modes(
         if !outs[i].beside_mode {
             continue;
         }
-        let rival: Vec<&Candidate> = set_of(cands, chosen)
-            .into_iter()
-            .chain(std::iter::once(&cands[outs[i].cand_index]))
-            .collect();
+        let rival = joint_set(cands, chosen, outs[i].cand_index);
         let share = budget.share(outs.len() - i + 1);
         let what = "a mount's resonance beside a model mode";
         let Some((why, used)) =
