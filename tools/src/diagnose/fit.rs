@@ -1442,7 +1442,7 @@ ratios = [0.0074, 0.0074]
         let gaps = crate::recording::regular::Gaps {
             runs: vec![("tip_pos_m", vec![(60, 75)])],
         };
-        let mut d = d.with_gaps(&gaps).unwrap();
+        let d = d.with_gaps(&gaps).unwrap();
         let mut pred = predict(&rig, &Params::default(), &d, &mut None).unwrap();
         pred.tip_m.as_mut().unwrap().truncate(n - 2);
         let sigma = [3e-6, 7e-5, 0.3];
