@@ -79,8 +79,7 @@ pub enum Effect {
     MountResonance,
     /// Force ripple periodic in the carriage position.
     CoggingRipple,
-    /// Scale error of the tip sensor: of the whole reading (a camera fixed in the room) or of
-    /// the deflection from the carriage (a camera riding on the carriage).
+    /// Scale error of the tip sensor.
     SensorGain,
     /// Dead band (play) between the drive and the beam root.
     Backlash,
@@ -184,10 +183,7 @@ impl Effect {
                 p!("cogging_amplitude_n", "ripple amplitude (N)"),
                 p!("cogging_pitch_m", "ripple period in carriage position (m)"),
             ],
-            Effect::SensorGain => &[p!(
-                "sensor_gain",
-                "tip sensor scale: reported / true (1), of the reading or of the deflection"
-            )],
+            Effect::SensorGain => &[p!("sensor_gain", "tip sensor scale: reported / true (1)")],
             Effect::Backlash => &[p!(
                 "backlash_m",
                 "total play between drive and beam root (m)",

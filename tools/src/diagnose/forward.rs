@@ -681,7 +681,14 @@ impl Ctx<'_> {
             return Some((None, used));
         };
         let at_rival = self.reference(rival, rival_fit)?;
-        let (fit_gain, val_gain) = self.gains_over(&along, &alt_set, &at_rival, rival);
+        let n_fit = n_of(self.fit_data);
+        let n_eff: f64 = (0..3).map(|c| n_fit[c] as f64 / along.tau_fit[c]).sum();
+        let k = |set: &[&Candidate]| set.iter().map(|c| c.params.len()).sum::<usize>() as f64;
+        let extra = k(&alt_set) - k(rival);
+        let fit_gain = delta_neg2ll_effective(&along.rss, &at_rival.rss, &n_fit, &along.tau_fit)
+            + extra * n_eff.max(1.0).ln();
+        let val_gain =
+            delta_neg2ll_effective(&along.vrss, &at_rival.vrss, &at_rival.vn, &along.tau_val);
         let hi = super::effects::SPRING_POSITION_MAX_REL * length_m;
         let placed = at - 2.0 * at_sd > CLAMP_REGION_REL * length_m && at < 0.99 * hi;
         let wins = fit_gain < -BIC_MARGIN && val_gain < -VALIDATION_MARGIN && placed;
@@ -696,107 +703,6 @@ impl Ctx<'_> {
             Some(format!(
                 "a local compliance of the beam explains the recordings better than {what}: a rotational spring {at:.3} ± {at_sd:.3} m from the clamp ({:.2} of the length; ΔBIC {fit_gain:+.1} fit, Δ(−2lnL) {val_gain:+.1} validation): a crack, a notch, a loose joint; outside the catalogue",
                 at / length_m
-            )),
-            used,
-        ))
-    }
-
-    /// The likelihood margins of conditions 1–2 of an alternative model `alt` (effects
-    /// `alt_set`) over a rival `rival` (effects `rival_set`): ΔBIC on the fit recordings with
-    /// the alternative's extra parameters (effective sample counts of `alt`), and Δ(−2 ln L) on
-    /// the validation recording. Negative: the alternative explains the recordings better.
-    fn gains_over(
-        &self,
-        alt: &Reference,
-        alt_set: &[&Candidate],
-        rival: &Reference,
-        rival_set: &[&Candidate],
-    ) -> (f64, f64) {
-        let n_fit = n_of(self.fit_data);
-        let n_eff: f64 = (0..3).map(|c| n_fit[c] as f64 / alt.tau_fit[c]).sum();
-        let k = |set: &[&Candidate]| set.iter().map(|c| c.params.len()).sum::<usize>() as f64;
-        let extra = k(alt_set) - k(rival_set);
-        let fit_gain = delta_neg2ll_effective(&alt.rss, &rival.rss, &n_fit, &alt.tau_fit)
-            + extra * n_eff.max(1.0).ln();
-        let val_gain = delta_neg2ll_effective(&alt.vrss, &rival.vrss, &rival.vn, &alt.tau_val);
-        (fit_gain, val_gain)
-    }
-
-    /// Whether a scale of the deflection reading (a passing [`Effect::SensorGain`] of the
-    /// carriage-camera form, `scale`, on the effects `chosen`) is physics the scale does not
-    /// model in disguise. A scale multiplies every mode's share of the tip reading and the
-    /// quasi-static deflection alike; what changes them unequally are a local compliance of the
-    /// beam (a crack, a notch: the modes' shapes change) and a resonance between the tip and its
-    /// sensor (a loose sensor mount: the reading's gain depends on frequency). Each is fitted on
-    /// the effects `chosen` (from their optimum within the scale's fit, `max_evaluations` each)
-    /// and the scale is refused when one explains the recordings better by the likelihood
-    /// margins of conditions 1–2 ([`Self::local_compliance_against`] for the first, the
-    /// tip-sensor form of the mount candidate, [`super::effects::sensor_side_of`], for the
-    /// second). Session 30 had dropped this form for naming a crack (held-out 426000, 429001:
-    /// 1.024, 31 % on validation) and a loose sensor mount (429010: 1.127, 74.5 %). Returns the
-    /// reason the scale is refused (`None`: it stands) and the model evaluations used; `None`
-    /// for another effect or form.
-    fn deflection_scale_against_shape_changes(
-        &self,
-        cands: &[Candidate],
-        chosen: &[usize],
-        scale: &CandidateOutcome,
-        max_evaluations: usize,
-    ) -> Option<(Option<String>, usize)> {
-        let cand = &cands[scale.cand_index];
-        if cand.id != Effect::SensorGain
-            || !cand
-                .params
-                .iter()
-                .any(|q| q.name == "deflection_gain_error")
-        {
-            return None;
-        }
-        let rival = joint_set(cands, chosen, scale.cand_index);
-        let what = "a scale of the deflection reading";
-        let (why, mut used) = self
-            .local_compliance_against(
-                cands,
-                chosen,
-                &rival,
-                scale.fit.clone(),
-                what,
-                max_evaluations / 2,
-            )
-            .unwrap_or((None, 0));
-        if why.is_some() {
-            return Some((why, used));
-        }
-        let mount = cands.iter().find(|c| {
-            c.id == Effect::MountResonance && super::effects::sensor_side_of(c).is_some()
-        })?;
-        let (loose, _) = super::effects::sensor_side_of(mount)?;
-        let base = set_of(cands, chosen);
-        let alt_set: Vec<&Candidate> = base
-            .iter()
-            .copied()
-            .chain(std::iter::once(&loose))
-            .collect();
-        let n_base = self.calib.len() + base.iter().map(|c| c.params.len()).sum::<usize>();
-        let base_x = scale.fit.x.rows(0, n_base).into_owned();
-        let g = self.fit(&alt_set, Some(&base_x), max_evaluations / 2);
-        used += g.evaluations;
-        let fm = g.values.get(n_base).copied().unwrap_or(f64::NAN);
-        let (Some(at_sensor), Some(at_scale)) = (
-            self.reference(&alt_set, g),
-            self.reference(&rival, scale.fit.clone()),
-        ) else {
-            return Some((None, used));
-        };
-        let (fit_gain, val_gain) = self.gains_over(&at_sensor, &alt_set, &at_scale, &rival);
-        let wins = fit_gain < -BIC_MARGIN && val_gain < -VALIDATION_MARGIN;
-        self.trace(format!(
-            "{what} against a loose sensor mount at {fm:.2} Hz: ΔBIC {fit_gain:+.1} fit, Δ(−2lnL) {val_gain:+.1} validation; {}",
-            if wins { "the sensor's resonance wins" } else { "it stands" }
-        ));
-        Some((
-            wins.then(|| format!(
-                "a resonance between the tip and its sensor (a loose sensor mount, {fm:.2} Hz) explains the recordings better than {what} (ΔBIC {fit_gain:+.1} fit, Δ(−2lnL) {val_gain:+.1} validation): the reading's gain depends on frequency; outside the catalogue"
             )),
             used,
         ))
@@ -968,10 +874,7 @@ impl Ctx<'_> {
                     super::sim::frequency_shift_beyond_scale_rel(self.rig, &p, &without, dt)?,
                 )
             }
-            _ => (
-                "changes the tip readings (or their deflection from the carriage)",
-                p.sensor_gain_error.abs().max(p.deflection_gain_error.abs()),
-            ),
+            _ => ("changes the tip readings", p.sensor_gain_error.abs()),
         };
         let accuracy = super::sim::BASIS_CONVERGENCE_REL;
         (size < accuracy).then(|| {
@@ -1537,10 +1440,8 @@ fn judge_mounts_beside_modes(
 }
 
 /// The placement test of a root spring ([`Ctx::compliance_placement`], condition 9) of every
-/// passing [`Effect::RootCompliance`] in `outs`, the local-compliance test of every passing
-/// [`Effect::GravityAxialLoad`] ([`Ctx::axial_load_against_local_compliance`]), and the
-/// shape-change tests of every passing scale of the deflection reading
-/// ([`Ctx::deflection_scale_against_shape_changes`]).
+/// passing [`Effect::RootCompliance`] in `outs`, and the local-compliance test of every passing
+/// [`Effect::GravityAxialLoad`] ([`Ctx::axial_load_against_local_compliance`]).
 fn place_compliances(
     ctx: &Ctx,
     cands: &[Candidate],
@@ -1549,17 +1450,6 @@ fn place_compliances(
     budget: &mut Budget,
 ) {
     for i in 0..outs.len() {
-        if outs[i].passed && outs[i].id == Effect::SensorGain {
-            let share = budget.share(outs.len() - i + 1);
-            if let Some((why, used)) =
-                ctx.deflection_scale_against_shape_changes(cands, chosen, &outs[i], share)
-            {
-                budget.spend(used);
-                outs[i].unplaced = why;
-            }
-            outs[i].apply_placement();
-            continue;
-        }
         if outs[i].passed && outs[i].id == Effect::GravityAxialLoad {
             let share = budget.share(outs.len() - i + 1);
             if let Some((why, used)) =

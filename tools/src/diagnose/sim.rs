@@ -32,9 +32,7 @@
 //! 5. carriage forces: `+ F_c sign(ẏ) + c_v ẏ` (`base_friction`, smoothed over 1 mm/s) and
 //!    `+ a sin(2πy/p) + b cos(2πy/p)` (`cogging_ripple`);
 //! 6. tip sensor latency τ: `tip(t − τ)` by a band-limited fractional delay ([`delayed`];
-//!    `sensor_delay`); tip sensor scale g (camera calibration): `g · tip` (`sensor_gain`), or,
-//!    for a camera riding on the carriage, `y + g · (tip − y)` on the deflection from the
-//!    carriage position y.
+//!    `sensor_delay`); tip sensor scale g (camera calibration): `g · tip` (`sensor_gain`).
 
 use crate::model::sim::{mode_ramp, mode_zoh};
 use crate::model::{BeamModel, ModelOptions, Orientation, Rig};
@@ -90,9 +88,6 @@ pub struct Params {
     pub sensor_delay_s: f64,
     /// Tip sensor scale error g − 1: the sensor reports (1 + g) × the absolute tip position.
     pub sensor_gain_error: f64,
-    /// Scale error g − 1 of a tip sensor riding on the carriage: it reports the carriage
-    /// position plus (1 + g) × the tip's deflection from the carriage.
-    pub deflection_gain_error: f64,
     /// Gravity axial load.
     pub orientation: Option<Orientation>,
     /// Mount resonance (Hz, damping ratio): k = (2π f)² (m_mount + m_beam), as loaded rigidly.
@@ -195,7 +190,6 @@ impl Default for Params {
             drag_kg_per_m2: 0.0,
             sensor_delay_s: 0.0,
             sensor_gain_error: 0.0,
-            deflection_gain_error: 0.0,
             orientation: None,
             mount: None,
             mount_mass_kg: 0.0,
@@ -1744,7 +1738,7 @@ pub fn predict(
                 let root_pos: Vec<f64> = (0..root.len())
                     .map(|k| root[k] + drive_pos[k] - drive[k])
                     .collect();
-                out.tip_m = Some(tip_sensor(p, &root_pos, &w, drive_pos, dt));
+                out.tip_m = Some(tip_sensor(p, &root_pos, &w, dt));
             }
             force
         }
@@ -2344,35 +2338,25 @@ fn drag_impulses(
 }
 
 /// The tip sensor: absolute tip (root + deflection `w`), late by the sensor latency and scaled
-/// by its gain: of the absolute position (a sensor fixed in the room), or of the deflection from
-/// the `carriage` position (a camera riding on the carriage, the carriage's own position read
-/// from its encoder; late by the same latency).
-fn tip_sensor(p: &Params, root: &[f64], w: &[f64], carriage: &[f64], dt: f64) -> Vec<f64> {
-    let late = |x: Vec<f64>| {
-        if p.sensor_delay_s != 0.0 {
-            delayed(&x, p.sensor_delay_s, dt)
-        } else {
-            x
-        }
-    };
+/// by its gain.
+fn tip_sensor(p: &Params, root: &[f64], w: &[f64], dt: f64) -> Vec<f64> {
     let tip: Vec<f64> = root.iter().zip(w).map(|(y, w)| y + w).collect();
     let tip = match p.tip_filter {
         Some((f, z)) => second_order(&tip, dt, 2.0 * std::f64::consts::PI * f, z, 0.0, 1.0),
         None => tip,
     };
-    let mut tip = late(tip);
-    if p.deflection_gain_error != 0.0 {
-        let carriage = late(carriage.to_vec());
-        for (t, y) in tip.iter_mut().zip(&carriage) {
-            *t += p.deflection_gain_error * (*t - y);
-        }
-    }
+    let tip = if p.sensor_delay_s != 0.0 {
+        delayed(&tip, p.sensor_delay_s, dt)
+    } else {
+        tip
+    };
     if p.sensor_gain_error != 0.0 {
-        for t in tip.iter_mut() {
-            *t *= 1.0 + p.sensor_gain_error;
-        }
+        tip.iter()
+            .map(|v| (1.0 + p.sensor_gain_error) * v)
+            .collect()
+    } else {
+        tip
     }
-    tip
 }
 
 /// Adds friction and cogging on the carriage (moving with `drive`) to the motor force and
@@ -2651,46 +2635,6 @@ mod tests {
             s += w * (two_pi_f * t).sin();
         }
         c.hypot(s)
-    }
-
-    #[test]
-    fn a_camera_on_the_carriage_scales_the_deflection_and_one_in_the_room_the_position() {
-        // a 2 Hz base sine: the room sensor's 3 % error shows as 3 % of the 10 mm base motion,
-        // the carriage camera's as 3 % of the deflection only
-        let rig = rig();
-        let d = sine_drive(100.0, 2.0);
-        let y = d.cmd_as_sampled().to_vec();
-        let tip = |p: &Params| predict(&rig, p, &d, &mut None).unwrap().tip_m.unwrap();
-        let nominal = tip(&Params::default());
-        let on_carriage = tip(&Params {
-            deflection_gain_error: 0.03,
-            ..Params::default()
-        });
-        let in_room = tip(&Params {
-            sensor_gain_error: 0.03,
-            ..Params::default()
-        });
-        let mut largest_deflection: f64 = 0.0;
-        for k in 0..y.len() {
-            let w = nominal[k] - y[k];
-            largest_deflection = largest_deflection.max(w.abs());
-            assert!((on_carriage[k] - y[k] - 1.03 * w).abs() < 1e-12);
-            assert!((in_room[k] - 1.03 * nominal[k]).abs() < 1e-12);
-        }
-        assert!(largest_deflection > 1e-4, "{largest_deflection}");
-        // with a latency both read the carriage and the tip at the same late instant
-        let late = |e: f64| {
-            tip(&Params {
-                sensor_delay_s: 0.013,
-                deflection_gain_error: e,
-                ..Params::default()
-            })
-        };
-        let (l0, l3) = (late(0.0), late(0.03));
-        let y_late = delayed(&y, 0.013, d.dt);
-        for k in 0..y.len() {
-            assert!((l3[k] - y_late[k] - 1.03 * (l0[k] - y_late[k])).abs() < 1e-12);
-        }
     }
 
     #[test]

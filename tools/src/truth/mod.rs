@@ -242,23 +242,6 @@ fn apply_gravity(
     Ok(())
 }
 
-/// The tip camera's scale on the fine-step tip position `tip_m`: of the whole reading for a
-/// camera fixed in the room, of the deflection from the carriage position `carriage_m` (same
-/// steps) for one riding on the carriage ([`Sensors::tip_gain_on_deflection`]).
-fn camera_scale(tip_m: &mut [f64], carriage_m: &[f64], sensors: &Sensors) {
-    let g = sensors.tip_gain;
-    if g == 1.0 {
-        return;
-    }
-    for (t, y) in tip_m.iter_mut().zip(carriage_m) {
-        *t = if sensors.tip_gain_on_deflection {
-            y + g * (*t - y)
-        } else {
-            g * *t
-        };
-    }
-}
-
 /// Sensor noise and quantisation, scaled by `noise_scale`.
 fn draw_sensors(rng: &mut StdRng, noise_scale: f64) -> Sensors {
     unmodelled::scale_noise(
@@ -267,7 +250,6 @@ fn draw_sensors(rng: &mut StdRng, noise_scale: f64) -> Sensors {
             tip_quantum_m: if rng.gen_bool(0.5) { 1e-5 } else { 1e-4 },
             tip_delay_s: 0.0,
             tip_gain: 1.0,
-            tip_gain_on_deflection: false,
             encoder_noise_m: log_uniform(rng, 2e-7, 2e-6),
             encoder_quantum_m: 1e-6,
             force_noise_n: log_uniform(rng, 0.01, 0.2),
@@ -485,12 +467,6 @@ impl Draft {
                     1.0 + rng.gen_range(0.02..0.08) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
                 self.plant.sensors.tip_gain = g;
                 self.put("sensor_gain", g);
-                // a camera fixed in the room, or riding on the carriage (its scale on the
-                // deflection only): drawn from a copy of the stream, so the draws after it are
-                // those of a seed before the carriage camera existed
-                let on_carriage = rng.clone().gen_bool(0.5);
-                self.plant.sensors.tip_gain_on_deflection = on_carriage;
-                self.put("camera_on_carriage", if on_carriage { 1.0 } else { 0.0 });
             }
             _ => {
                 let pi2 = 2.0 * std::f64::consts::PI;
@@ -613,7 +589,6 @@ impl Draft {
         if let Some(s) = extra.sensed_tip(&run.tip_m, fine_dt) {
             run.tip_m = s;
         }
-        camera_scale(&mut run.tip_m, &run.y_motor_m, &self.plant.sensors);
         let n = cmd.len() / FINE_STEPS;
         let mut rec = Recording::with_uniform_time(n, rate);
         let q = |v: f64, qn: f64| if qn > 0.0 { (v / qn).round() * qn } else { v };
@@ -684,7 +659,7 @@ impl Draft {
                 };
                 let drift = extra.drift_m(i_rec, k as f64 / self.rate, duration_s);
                 q(
-                    v + drift + gauss(sensors.tip_noise_m),
+                    self.plant.sensors.tip_gain * v + drift + gauss(sensors.tip_noise_m),
                     sensors.tip_quantum_m,
                 )
             })

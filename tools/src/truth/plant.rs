@@ -131,11 +131,8 @@ pub struct Sensors {
     pub tip_quantum_m: f64,
     /// Tip latency (s).
     pub tip_delay_s: f64,
-    /// Tip scale: the camera reports `tip_gain × position` (calibration error; 1 = exact), or,
-    /// riding on the carriage, the carriage position plus `tip_gain ×` the deflection from it.
+    /// Tip scale: the camera reports `tip_gain × position` (calibration error; 1 = exact).
     pub tip_gain: f64,
-    /// The tip camera rides on the carriage: its scale acts on the deflection only.
-    pub tip_gain_on_deflection: bool,
     /// Encoder noise σ (m).
     pub encoder_noise_m: f64,
     /// Encoder quantum (m).
@@ -631,7 +628,6 @@ mod tests {
                 tip_quantum_m: 0.0,
                 tip_delay_s: 0.0,
                 tip_gain: 1.0,
-                tip_gain_on_deflection: false,
                 encoder_noise_m: 0.0,
                 encoder_quantum_m: 0.0,
                 force_noise_n: 0.0,

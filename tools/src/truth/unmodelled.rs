@@ -500,7 +500,6 @@ mod tests {
             tip_quantum_m: 1e-5,
             tip_delay_s: 0.0,
             tip_gain: 1.0,
-            tip_gain_on_deflection: false,
             encoder_noise_m: 1e-6,
             encoder_quantum_m: 1e-6,
             force_noise_n: 0.1,
