@@ -614,10 +614,7 @@ impl Ctx<'_> {
         grav: &CandidateOutcome,
         max_evaluations: usize,
     ) -> Option<(Option<String>, usize)> {
-        let rival: Vec<&Candidate> = set_of(cands, chosen)
-            .into_iter()
-            .chain(std::iter::once(&cands[grav.cand_index]))
-            .collect();
+        let rival = joint_set(cands, chosen, grav.cand_index);
         let refit = self.fit(&rival, Some(&grav.fit.x), max_evaluations);
         let used = refit.evaluations;
         let load_fit = if refit.cost < grav.fit.cost {
@@ -1464,10 +1461,7 @@ fn place_compliances(
         if !outs[i].passed || outs[i].id != Effect::RootCompliance {
             continue;
         }
-        let set: Vec<&Candidate> = set_of(cands, chosen)
-            .into_iter()
-            .chain(std::iter::once(&cands[outs[i].cand_index]))
-            .collect();
+        let set = joint_set(cands, chosen, outs[i].cand_index);
         let share = budget.share(outs.len() - i + 1);
         if let Some((why, used)) = ctx.compliance_placement(&set, &outs[i], share) {
             budget.spend(used);
@@ -1539,10 +1533,7 @@ fn place_resonances(
         if !outs[i].passed || !resonance_to_place(cand, &outs[i]) {
             continue;
         }
-        let set: Vec<&Candidate> = set_of(cands, chosen)
-            .into_iter()
-            .chain(std::iter::once(cand))
-            .collect();
+        let set = joint_set(cands, chosen, outs[i].cand_index);
         // its own optimum first
         let own = sensor_start(cand, &outs[i]);
         let all: Vec<_> = own
