@@ -162,10 +162,16 @@ impl Effect {
                 "root_stiffness_nm_per_rad",
                 "rotational stiffness of the clamp (N·m/rad)",
             )],
-            Effect::QuadraticDamping => &[p!(
-                "drag_coefficient_kg_per_m2",
-                "distributed drag: force per unit length = c |v| v (kg/m²)",
-            )],
+            Effect::QuadraticDamping => &[
+                p!(
+                    "drag_coefficient_kg_per_m2",
+                    "distributed drag: force per unit length = c |v| v (kg/m²)",
+                ),
+                p!(
+                    "tip_drag_coefficient_kg_per_m",
+                    "drag on a body at the tip: force = c |v| v at the tip (kg/m; the other placement)",
+                ),
+            ],
             Effect::SensorDelay => &[p!("sensor_delay_s", "latency of the tip sensor (s)")],
             Effect::GravityAxialLoad => &[],
             Effect::MountResonance => &[

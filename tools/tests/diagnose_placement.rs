@@ -167,3 +167,31 @@ fn an_unresolvably_fast_mode_returns_at_once() {
     let (phi, _) = mode_zoh(10.0, 0.0, 0.01);
     assert!((phi[(0, 0)] - 0.1f64.cos()).abs() < 1e-12);
 }
+
+/// Quadratic drag has two placements, told apart by how it shares out among the modes (the
+/// tip's mode shapes against their integral along the beam): on a body at the tip (a target,
+/// a paddle; the form of the independent simulator's drag) and distributed along the beam.
+/// The generator draws one or the other (seed 11: at the tip; seed 13: along the beam); the
+/// diagnosis names `quadratic_damping` with the placement's own coefficient, within 10 %.
+#[test]
+fn drag_on_a_tip_body_is_told_from_drag_along_the_beam() {
+    for (seed, name) in [
+        (11, "tip_drag_coefficient_kg_per_m"),
+        (13, "drag_coefficient_kg_per_m2"),
+    ] {
+        let (j, truth) = common::diagnose_generated("quadratic_damping", seed);
+        assert_eq!(
+            common::named_effects(&j),
+            ["quadratic_damping"],
+            "{}",
+            j["effects"]
+        );
+        let params = &j["effects"][0]["parameters"];
+        let (got, want) = (params[name].as_f64(), truth[name].as_f64().unwrap());
+        let got = got.unwrap_or_else(|| panic!("seed {seed}: {params}"));
+        assert!(
+            (got - want).abs() < 0.1 * want,
+            "seed {seed}: {got} vs {want}"
+        );
+    }
+}

@@ -605,13 +605,28 @@ fn play_drag_candidates(h: &StartHints) -> Vec<Candidate> {
     };
     c.push(Candidate {
         id: Effect::QuadraticDamping,
-        words: "amplitude-dependent (quadratic, aerodynamic) damping",
+        words: "amplitude-dependent (quadratic, aerodynamic) damping along the beam",
         orientation: None,
         params: vec![def(
             "drag_coefficient_kg_per_m2",
             Transform::Linear,
             vec![0.3 * c0, c0],
             c0 * 0.1,
+            true,
+        )],
+    });
+    // the same on a body at the tip (u(l) = 1): ζ_eq = (4/3π) c_t A / (m/l ∫u²) ≈ 1.7 c_t A / m,
+    // so the drag that doubles ζ1 is ζ1 m / (1.7 A) = c0 l / 6.3
+    let ct0 = c0 * h.length_m.max(1e-3) / 6.3;
+    c.push(Candidate {
+        id: Effect::QuadraticDamping,
+        words: "amplitude-dependent (quadratic, aerodynamic) damping on a body at the tip",
+        orientation: None,
+        params: vec![def(
+            "tip_drag_coefficient_kg_per_m",
+            Transform::Linear,
+            vec![0.3 * ct0, ct0],
+            ct0 * 0.1,
             true,
         )],
     });
@@ -818,34 +833,15 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
                 get("cogging_pitch_m").unwrap_or(0.01),
             ));
         }
-        Effect::ServoLag => {
-            p.servo = Some((
-                get("servo_bandwidth_hz").unwrap_or(1e3),
-                get("servo_damping_ratio").unwrap_or(0.7).clamp(0.05, 5.0),
-            ));
-            p.servo_ff = (
-                get("servo_velocity_ff").unwrap_or(0.0).clamp(-0.5, 1.5),
-                get("servo_acceleration_ff").unwrap_or(0.0).clamp(-0.5, 1.5),
-            );
-            p.servo_integral_ratio = get("servo_integral_ratio").unwrap_or(0.0);
-            p.servo_force_lag_ratio = get("servo_force_lag_ratio").unwrap_or(0.0);
-            p.servo_order = if get("servo_force_lag_ratio").is_some() {
-                4
-            } else if get("servo_integral_ratio").is_some() {
-                3
-            } else if get("servo_damping_ratio").is_some() {
-                2
-            } else {
-                1
-            };
-        }
+        Effect::ServoLag => apply_servo(&get, p),
         Effect::TipMass => p.tip_mass_kg = get("tip_mass_kg").unwrap_or(0.0).abs(),
         Effect::RootCompliance => {
             p.root_stiffness_nm_per_rad = get("root_stiffness_nm_per_rad");
             p.spring_position_m = get("spring_position_m").unwrap_or(0.0);
         }
         Effect::QuadraticDamping => {
-            p.drag_kg_per_m2 = get("drag_coefficient_kg_per_m2").unwrap_or(0.0).abs()
+            p.drag_kg_per_m2 = get("drag_coefficient_kg_per_m2").unwrap_or(0.0).abs();
+            p.tip_drag_kg_per_m = get("tip_drag_coefficient_kg_per_m").unwrap_or(0.0).abs();
         }
         Effect::SensorDelay => p.sensor_delay_s = get("sensor_delay_s").unwrap_or(0.0),
         Effect::SensorGain => {
@@ -875,6 +871,30 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
         }
         Effect::GravityAxialLoad => {}
     }
+}
+
+/// The `servo_lag` values of a candidate (`get`: a value by parameter name) into `p`: the
+/// loop's order follows from the parameters the candidate has ([`servo_candidate`]).
+fn apply_servo(get: &impl Fn(&str) -> Option<f64>, p: &mut Params) {
+    p.servo = Some((
+        get("servo_bandwidth_hz").unwrap_or(1e3),
+        get("servo_damping_ratio").unwrap_or(0.7).clamp(0.05, 5.0),
+    ));
+    p.servo_ff = (
+        get("servo_velocity_ff").unwrap_or(0.0).clamp(-0.5, 1.5),
+        get("servo_acceleration_ff").unwrap_or(0.0).clamp(-0.5, 1.5),
+    );
+    p.servo_integral_ratio = get("servo_integral_ratio").unwrap_or(0.0);
+    p.servo_force_lag_ratio = get("servo_force_lag_ratio").unwrap_or(0.0);
+    p.servo_order = if get("servo_force_lag_ratio").is_some() {
+        4
+    } else if get("servo_integral_ratio").is_some() {
+        3
+    } else if get("servo_damping_ratio").is_some() {
+        2
+    } else {
+        1
+    };
 }
 
 #[cfg(test)]

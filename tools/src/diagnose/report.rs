@@ -83,7 +83,10 @@ pub fn parameters_at(
         for i in 0..names.len() {
             let v = if matches!(
                 names[i],
-                "tip_mass_kg" | "drag_coefficient_kg_per_m2" | "backlash_m"
+                "tip_mass_kg"
+                    | "drag_coefficient_kg_per_m2"
+                    | "tip_drag_coefficient_kg_per_m"
+                    | "backlash_m"
             ) {
                 vals[i].abs()
             } else {

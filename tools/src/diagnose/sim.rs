@@ -23,8 +23,8 @@
 //! 4. beam: clamped-base modes of [`BeamModel`] (M, K of eqs. 13–20 with tip mass, root spring,
 //!    gravity axial load and the calibration scale), `η̈_r + 2ζ_rω_r η̇_r + ω_r² η_r = −Γ_r ÿ_r + f_r`,
 //!    integrated exactly between samples for a piecewise-linear base (as `model::sim`), with the
-//!    distributed quadratic drag `f_r = −c_d ∫ φ_r |v| v dx` applied as a per-sample impulse
-//!    (`quadratic_damping`); a cubic clamp moment `M₃ = k₃ θ³` on the root rotation
+//!    quadratic drag applied as a per-sample impulse (`quadratic_damping`), distributed
+//!    `f_r = −c_d ∫ φ_r |v| v dx` or on a body at the tip `f_r = −c_t φ_r(l) |v_l| v_l`; a cubic clamp moment `M₃ = k₃ θ³` on the root rotation
 //!    θ = Σ s_r η_r − c M₃ of the compliant clamp (s_r the root rotation of mode r, c the
 //!    residual flexibility of the modes not simulated, [`ResidualFlexibility`]) as a per-sample
 //!    modal impulse `f_r = −s_r M₃` ([`cubic_moment`], bounded; `cubic_stiffness`, with the
@@ -84,6 +84,10 @@ pub struct Params {
     pub spring_position_m: f64,
     /// Distributed quadratic drag (kg/m²: force per unit length = c |v| v).
     pub drag_kg_per_m2: f64,
+    /// Quadratic drag on a body at the tip (kg/m: force = c |v| v at the tip's absolute
+    /// velocity), the other placement of `quadratic_damping`: a tip target, paddle or mass
+    /// whose area dominates the beam's.
+    pub tip_drag_kg_per_m: f64,
     /// Tip sensor latency (s).
     pub sensor_delay_s: f64,
     /// Tip sensor scale error g − 1: the sensor reports (1 + g) × the absolute tip position.
@@ -166,6 +170,11 @@ impl Params {
     pub fn tip_load_shape(&self) -> bool {
         self.tip_mass_kg > 0.0
     }
+
+    /// Whether any quadratic drag acts on the beam (distributed or on a tip body).
+    pub fn has_drag(&self) -> bool {
+        self.drag_kg_per_m2 > 0.0 || self.tip_drag_kg_per_m > 0.0
+    }
 }
 
 impl Default for Params {
@@ -188,6 +197,7 @@ impl Default for Params {
             root_stiffness_nm_per_rad: None,
             spring_position_m: 0.0,
             drag_kg_per_m2: 0.0,
+            tip_drag_kg_per_m: 0.0,
             sensor_delay_s: 0.0,
             sensor_gain_error: 0.0,
             orientation: None,
@@ -1721,7 +1731,7 @@ pub fn predict(
     // unless drag or a cubic clamp act on the modes)
     let force = match c {
         Some(c) => {
-            let linear = p.drag_kg_per_m2 == 0.0
+            let linear = !p.has_drag()
                 && (p.root_stiffness_nm_per_rad.is_none()
                     || p.cubic_root_stiffness_nm_per_rad3 == 0.0);
             let (w, force) = match exact.filter(|_| linear) {
@@ -2102,7 +2112,7 @@ fn beam_response(
         Some(_) => p.cubic_root_stiffness_nm_per_rad3,
         None => 0.0,
     };
-    let (w, beam_force) = if p.drag_kg_per_m2 > 0.0 || k3 != 0.0 {
+    let (w, beam_force) = if p.has_drag() || k3 != 0.0 {
         nonlinear_modes(p, k3, root, &dv, dt, c)
     } else {
         let (w, momentum_step) = linear_modes(c, &dv);
@@ -2222,8 +2232,8 @@ fn nonlinear_modes(
             (root[k] - root[k - 1]) / dt
         };
         modal_f.iter_mut().for_each(|f| *f = 0.0);
-        let drag_total = if p.drag_kg_per_m2 > 0.0 {
-            drag_impulses(p.drag_kg_per_m2, vb, &x, c, &mut modal_f)
+        let drag_total = if p.has_drag() {
+            drag_impulses(p, vb, &x, c, &mut modal_f)
         } else {
             0.0
         };
@@ -2311,30 +2321,46 @@ fn cubic_step(cl: &CubicClamp, x: &[Vector2<f64>], m3: f64, c: &BeamCache) -> f6
     cl.moment(theta_free)
 }
 
-/// The distributed quadratic drag `−c_d |v| v` per unit length at the drag points (absolute
-/// velocity v = root velocity `v_root` + the modes' velocities `x[r][1]`), added to the modal
-/// forces `modal_f`; returns the total drag force (N).
+/// The quadratic drag of `p` as modal impulses, added to the modal forces `modal_f`; returns
+/// the total drag force (N). Absolute velocity v = root velocity `v_root` + the modes'
+/// velocities `x[r][1]` at each point:
+/// - distributed, `−c_d |v| v` per unit length at the drag points (`drag_kg_per_m2`);
+/// - on a body at the tip, `−c_t |v| v` at the tip (`tip_drag_kg_per_m`).
 fn drag_impulses(
-    c_d: f64,
+    p: &Params,
     v_root: f64,
     x: &[Vector2<f64>],
     c: &BeamCache,
     modal_f: &mut [f64],
 ) -> f64 {
-    let nm = x.len();
     let mut total = 0.0;
-    for j in 0..c.weights.len() {
-        let mut v = v_root;
-        for r in 0..nm {
-            v += c.shape[r][j] * x[r][1];
-        }
-        let f = -c_d * c.weights[j] * v.abs() * v;
-        total += f;
-        for r in 0..nm {
-            modal_f[r] += c.shape[r][j] * f;
+    if p.drag_kg_per_m2 > 0.0 {
+        for j in 0..c.weights.len() {
+            let coef = p.drag_kg_per_m2 * c.weights[j];
+            total += drag_at(coef, v_root, x, |r| c.shape[r][j], modal_f);
         }
     }
+    if p.tip_drag_kg_per_m > 0.0 {
+        total += drag_at(p.tip_drag_kg_per_m, v_root, x, |r| c.tip[r], modal_f);
+    }
     total
+}
+
+/// The drag `−coef |v| v` (N) at one point whose mode shapes are `shape(r)`, added to the
+/// modal forces `modal_f` ([`drag_impulses`]).
+fn drag_at(
+    coef: f64,
+    v_root: f64,
+    x: &[Vector2<f64>],
+    shape: impl Fn(usize) -> f64,
+    modal_f: &mut [f64],
+) -> f64 {
+    let v = v_root + (0..x.len()).map(|r| shape(r) * x[r][1]).sum::<f64>();
+    let f = -coef * v.abs() * v;
+    for (r, m) in modal_f.iter_mut().enumerate().take(x.len()) {
+        *m += shape(r) * f;
+    }
+    f
 }
 
 /// The tip sensor: absolute tip (root + deflection `w`), late by the sensor latency and scaled

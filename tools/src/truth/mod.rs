@@ -283,6 +283,7 @@ fn nominal_plant(
         backlash: None,
         cubic_root_nm_per_rad3: 0.0,
         drag_kg_per_m2: 0.0,
+        tip_drag_kg_per_m: 0.0,
         sensors,
     };
     plant.servo.velocity_bandwidth_hz = (4.0 * plant.servo.position_bandwidth_hz).min(150.0);
@@ -533,7 +534,8 @@ impl Draft {
     }
 
     /// Drag giving an equivalent linear damping of 0.4–1.0 ζ1 at the peak tip deflection of
-    /// `cmd`.
+    /// `cmd`: distributed along the beam, or (one draw in two, from a stream of its own so every
+    /// other draw of the seed stays what it was) on a body at the tip.
     fn set_drag(&mut self, rng: &mut StdRng, cmd: &[(f64, f64, f64)], fine_dt: f64) -> Result<()> {
         let (modes, h) = self.plant.beam.as_ref().context("beam")?;
         let run = self.plant.run(cmd, fine_dt);
@@ -545,14 +547,26 @@ impl Draft {
             .fold(0.0, f64::max);
         let phi = &modes.node_w[0];
         let nn = phi.len();
-        let cube: f64 = (1..nn)
-            .map(|j| if j + 1 == nn { 0.5 * h } else { *h } * phi[j].abs().powi(3))
-            .sum();
+        let on_tip =
+            StdRng::seed_from_u64(rng.clone().gen::<u64>() ^ 0x7469_705f_6472_6167).gen_bool(0.5);
+        // ∫|φ|³ along the beam, or |φ(l)|³ of the tip body
+        let cube: f64 = if on_tip {
+            phi[nn - 1].abs().powi(3)
+        } else {
+            (1..nn)
+                .map(|j| if j + 1 == nn { 0.5 * h } else { *h } * phi[j].abs().powi(3))
+                .sum()
+        };
         let c = rng.gen_range(0.4..1.0) * self.zeta.0 * 3.0 * std::f64::consts::PI / 4.0
             * phi[nn - 1].abs()
             / (peak.max(1e-4) * cube);
-        self.plant.drag_kg_per_m2 = c;
-        self.put("drag_coefficient_kg_per_m2", c);
+        if on_tip {
+            self.plant.tip_drag_kg_per_m = c;
+            self.put("tip_drag_coefficient_kg_per_m", c);
+        } else {
+            self.plant.drag_kg_per_m2 = c;
+            self.put("drag_coefficient_kg_per_m2", c);
+        }
         Ok(())
     }
 

@@ -5,7 +5,8 @@
 //! coordinates η_r of [`super::fe::FeModes`], Rayleigh damping from ζ1, ζ2):
 //! - beam (FE form of the paper's eq. 12 in the moving frame):
 //!   `η̈_r + 2ζ_rω_r η̇_r + ω_r² η_r = −Γ_r ÿ_r + Σ_j φ_r(x_j) F_j`, with the distributed quadratic
-//!   air drag `F_j = −c_d L_j |v_j| v_j` on node j (tributary length L_j, absolute velocity v_j);
+//!   air drag `F_j = −c_d L_j |v_j| v_j` on node j (tributary length L_j, absolute velocity v_j),
+//!   or a drag `−c_t |v| v` on a body at the tip (the tip node alone);
 //! - beam root (mass m_root, the whole carriage without a mount):
 //!   `(m_root + m_b − ΣΓ_r²) ÿ_r = F_root + ΣF_j − Σ Γ_r (Σ_j φ_r(x_j)F_j − 2ζ_rω_rη̇_r − ω_r²η_r)`;
 //! - without a mount F_root = F_motor − F_friction(ẏ) − F_cogging(y) and y_m = y_r; with a mount
@@ -168,6 +169,8 @@ pub struct Plant {
     pub cubic_root_nm_per_rad3: f64,
     /// Distributed quadratic drag coefficient (N·s²/m³ = kg/m², force per unit length).
     pub drag_kg_per_m2: f64,
+    /// Quadratic drag on a body at the tip (kg/m: force = −c |v| v on the tip node).
+    pub tip_drag_kg_per_m: f64,
     /// Sensors.
     pub sensors: Sensors,
 }
@@ -253,6 +256,7 @@ impl Plant {
             cogging: None,
             cubic_root_nm_per_rad3: 0.0,
             drag_kg_per_m2: 0.0,
+            tip_drag_kg_per_m: 0.0,
             ..self.clone()
         };
         let dy = linear.dynamics();
@@ -441,13 +445,20 @@ impl Dynamics<'_> {
         let (nm, vr) = (self.nm, x[3]);
         let mut drag_total = 0.0;
         if let Some(m) = self.modes {
-            if self.plant.drag_kg_per_m2 > 0.0 {
-                for j in 1..self.nodes {
+            let tip = self.nodes - 1;
+            for j in 1..self.nodes {
+                let c = self.plant.drag_kg_per_m2 * self.trib[j]
+                    + if j == tip {
+                        self.plant.tip_drag_kg_per_m
+                    } else {
+                        0.0
+                    };
+                if c > 0.0 {
                     let mut v = vr;
                     for r in 0..nm {
                         v += m.node_w[r][j] * x[4 + nm + r];
                     }
-                    let f = -self.plant.drag_kg_per_m2 * self.trib[j] * v.abs() * v;
+                    let f = -c * v.abs() * v;
                     drag_total += f;
                     for r in 0..nm {
                         modal_f[r] += m.node_w[r][j] * f;
@@ -623,6 +634,7 @@ mod tests {
             }),
             cubic_root_nm_per_rad3: 0.0,
             drag_kg_per_m2: 0.0,
+            tip_drag_kg_per_m: 0.0,
             sensors: Sensors {
                 tip_noise_m: 0.0,
                 tip_quantum_m: 0.0,
