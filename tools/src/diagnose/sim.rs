@@ -24,7 +24,8 @@
 //!    gravity axial load and the calibration scale), `η̈_r + 2ζ_rω_r η̇_r + ω_r² η_r = −Γ_r ÿ_r + f_r`,
 //!    integrated exactly between samples for a piecewise-linear base (as `model::sim`), with the
 //!    quadratic drag applied as a per-sample impulse (`quadratic_damping`), distributed
-//!    `f_r = −c_d ∫ φ_r |v| v dx` or on a body at the tip `f_r = −c_t φ_r(l) |v_l| v_l`; a cubic clamp moment `M₃ = k₃ θ³` on the root rotation
+//!    `f_r = −c_d ∫ φ_r |v| v dx` or on a body at the tip `f_r = −c_t φ_r(l) |v_l| v_l`; a cubic
+//!    clamp moment `M₃ = k₃ θ³` on the root rotation
 //!    θ = Σ s_r η_r − c M₃ of the compliant clamp (s_r the root rotation of mode r, c the
 //!    residual flexibility of the modes not simulated, [`ResidualFlexibility`]) as a per-sample
 //!    modal impulse `f_r = −s_r M₃` ([`cubic_moment`], bounded; `cubic_stiffness`, with the

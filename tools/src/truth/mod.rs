@@ -547,6 +547,7 @@ impl Draft {
             .fold(0.0, f64::max);
         let phi = &modes.node_w[0];
         let nn = phi.len();
+        // the placement's own stream: the next draw, mixed with "tip_drag" in ASCII
         let on_tip =
             StdRng::seed_from_u64(rng.clone().gen::<u64>() ^ 0x7469_705f_6472_6167).gen_bool(0.5);
         // ∫|φ|³ along the beam, or |φ(l)|³ of the tip body
