@@ -444,7 +444,8 @@ impl Dynamics<'_> {
     fn modal_forces(&self, x: &[f64], modal_f: &mut [f64]) -> f64 {
         let (nm, vr) = (self.nm, x[3]);
         let mut drag_total = 0.0;
-        if let Some(m) = self.modes {
+        let dragged = self.plant.drag_kg_per_m2 > 0.0 || self.plant.tip_drag_kg_per_m > 0.0;
+        if let Some(m) = self.modes.filter(|_| dragged) {
             let tip = self.nodes - 1;
             for j in 1..self.nodes {
                 let c = self.plant.drag_kg_per_m2 * self.trib[j]
