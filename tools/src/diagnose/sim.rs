@@ -1557,6 +1557,44 @@ pub fn frequency_shift_rel(rig: &Rig, p: &Params, without: &Params, dt: f64) -> 
         .reduce(f64::max)
 }
 
+/// How far the cubic clamp of `p` (k₃, [`Params::cubic_root_stiffness_nm_per_rad3`], beside
+/// its linear stiffness k_r) moves the clamped natural frequencies below the band edge of
+/// sample interval `dt` between small motion and the recordings' peak: the shift
+/// ([`frequency_shift_rel`]) from the linear clamp k_r to the describing-function stiffness
+/// k_r + ¾ k₃ θ² of a root swinging with amplitude θ (Krylov–Bogoliubov first harmonic of
+/// M = k_r θ + k₃ θ³). θ is read from `peak_deflection_m` (m, the largest tip deflection
+/// relative to the carriage in the recordings) through the first mode's ratio of root
+/// rotation to tip deflection. Relative; `None` without a beam, a compliant clamp or a
+/// first mode with a tip deflection, or when a model is refused. A softening clamp that
+/// loses its stiffness at the peak counts as an unbounded shift.
+pub fn cubic_frequency_shift_rel(
+    rig: &Rig,
+    p: &Params,
+    dt: f64,
+    peak_deflection_m: f64,
+) -> Option<f64> {
+    let kr = p.root_stiffness_nm_per_rad?;
+    let c = beam_cache(rig, p, dt).ok()?;
+    let (s1, t1) = (*c.root_rot.first()?, *c.tip.first()?);
+    if t1 == 0.0 || !(kr > 0.0) {
+        return None;
+    }
+    let theta = peak_deflection_m * (s1 / t1).abs();
+    let k_eq = kr + 0.75 * p.cubic_root_stiffness_nm_per_rad3 * theta * theta;
+    if !(k_eq > 0.0) {
+        return Some(f64::INFINITY);
+    }
+    let linear = Params {
+        cubic_root_stiffness_nm_per_rad3: 0.0,
+        ..p.clone()
+    };
+    let at_peak = Params {
+        root_stiffness_nm_per_rad: Some(k_eq),
+        ..linear.clone()
+    };
+    frequency_shift_rel(rig, &at_peak, &linear, dt)
+}
+
 /// f_r(p) / f_r(without) of the clamped modes both models keep below the band edge of `dt`;
 /// `None` without a beam or when either model is refused.
 fn frequency_ratios(rig: &Rig, p: &Params, without: &Params, dt: f64) -> Option<Vec<f64>> {
@@ -2559,6 +2597,45 @@ mod tests {
         // no beam: no frequencies
         let carriage = Rig::from_toml_str("[base]\nmass_kg = 2.5\n").unwrap();
         assert!(frequency_shift_rel(&carriage, &spring, &p0, dt).is_none());
+    }
+
+    #[test]
+    fn a_cubic_clamp_shifts_the_frequencies_with_amplitude_up_to_a_rigid_clamp() {
+        let (rig, dt) = (rig(), 0.002);
+        let p0 = Params {
+            n_basis: 8,
+            ..Params::default()
+        };
+        // a root spring lowering f1 by 5 %, hardening by k₃
+        let clamp = |k3: f64| Params {
+            root_stiffness_nm_per_rad: Some(6.0),
+            cubic_root_stiffness_nm_per_rad3: k3,
+            ..p0.clone()
+        };
+        // the rigid clamp's frequencies against the linear spring's
+        let rigid_shift = frequency_shift_rel(&rig, &p0, &clamp(0.0), dt).unwrap();
+        let shift = |k3: f64, peak_m: f64| cubic_frequency_shift_rel(&rig, &clamp(k3), dt, peak_m);
+        // no cubic term: no amplitude dependence
+        assert!(shift(0.0, 0.05).unwrap() < 1e-12);
+        // hardening: grows with the amplitude, quadratically while small, and never beyond the
+        // shift of the linear spring itself (a clamp that turns rigid)
+        let k3 = 1e5;
+        let (s1, s2, s_big) = (
+            shift(k3, 1e-3).unwrap(),
+            shift(k3, 2e-3).unwrap(),
+            shift(k3, 1.0).unwrap(),
+        );
+        assert!(s1 > 0.0 && (s2 / s1 - 4.0).abs() < 0.2, "{s1} {s2}");
+        assert!(
+            s_big <= rigid_shift && s_big > 0.9 * rigid_shift,
+            "{s_big} vs {rigid_shift}"
+        );
+        // a clamp that softens to nothing at the peak: unbounded
+        assert_eq!(shift(-1e5, 1.0), Some(f64::INFINITY));
+        // small motion of a weakly cubic clamp: within the model's accuracy
+        assert!(shift(1.0, 0.01).unwrap() < BASIS_CONVERGENCE_REL);
+        // a rigid clamp has no cubic term to judge
+        assert!(cubic_frequency_shift_rel(&rig, &p0, dt, 0.05).is_none());
     }
 
     #[test]
