@@ -1197,7 +1197,11 @@ fn closest_failed(rounds: &[Vec<CandidateOutcome>]) -> Option<&CandidateOutcome>
 /// fitted then or did not pass the guard itself (a root spring within the model's accuracy,
 /// or placed along the beam, does not come back in through a cubic clamp whose cubic term the
 /// final model does not identify: second simulator, seed 3, case14, docs/diagnose.md,
-/// session 29).
+/// session 29), or when another effect that passed in that round gained more on validation
+/// than the root spring: the round's choice made without the cubic clamp would not be the
+/// root spring, and the selection resumes instead (second simulator, seed 20, case10: a 5 g
+/// tip mass, Δval −809 in round 1 against the root spring's −677, was reported as the root
+/// spring that replaced an unidentified cubic clamp).
 fn simpler_form(
     cands: &[Candidate],
     rounds: &[Vec<CandidateOutcome>],
@@ -1215,7 +1219,12 @@ fn simpler_form(
         .iter()
         .find(|o| o.cand_index == s && o.passed)?
         .clone();
-    Some((s, o))
+    // the round's choice made again without the cubic clamp: the root spring only when it
+    // would have been chosen (the largest validation gain of the rest that passed)
+    let beaten = round
+        .iter()
+        .any(|x| x.passed && x.cand_index != k && x.cand_index != s && x.delta_val < o.delta_val);
+    (!beaten).then_some((s, o))
 }
 
 /// The resonance of a coupled mount among `set` as the rig shows it, with 1 σ, for the final
@@ -1447,5 +1456,20 @@ mod tests {
             row(1, Effect::RootCompliance, false),
         ]];
         assert!(simpler_form(&cands, &refused, 2).is_none());
+        // nor one whose round had another effect that passed with a larger validation gain
+        // than the spring (Δ(−2lnL) −809 against −677): the round chosen again without the
+        // clamp would not take the spring
+        let mut tip = row(3, Effect::TipMass, true);
+        tip.delta_val = -809.0;
+        let mut spring = row(1, Effect::RootCompliance, true);
+        spring.delta_val = -677.0;
+        let mut clamp = row(2, Effect::CubicStiffness, true);
+        clamp.delta_val = -951.0;
+        let beaten = vec![vec![clamp.clone(), tip.clone(), spring.clone()]];
+        assert!(simpler_form(&cands, &beaten, 2).is_none());
+        // the same round with the spring ahead of the tip mass keeps it
+        tip.delta_val = -600.0;
+        let ahead = vec![vec![clamp, tip, spring]];
+        assert_eq!(simpler_form(&cands, &ahead, 2).map(|(s, _)| s), Some(1));
     }
 }
