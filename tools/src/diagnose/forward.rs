@@ -582,8 +582,12 @@ impl Ctx<'_> {
             ));
         }
         self.trace(format!(
-            "placement of {}: along the beam at {at:.4} ± {at_sd:.4} m, Δ(−2lnL) {fit_gain:+.1} fit, {val_gain:+.1} validation; {}",
+            "placement of {}: along the beam at {at:.4} ± {at_sd:.4} m, Δ(−2lnL) {fit_gain:+.1} fit, {val_gain:+.1} validation (rss fit {:?} vs {:?}, validation {:?} vs {:?}); {}",
             cand.id,
+            along.rss,
+            at_root.rss,
+            along.vrss,
+            at_root.vrss,
             if fails.is_empty() { "placed along the beam".to_string() } else { fails.join("; ") }
         ));
         if !fails.is_empty() {
