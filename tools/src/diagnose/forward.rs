@@ -899,15 +899,7 @@ impl Ctx<'_> {
     fn peak_deflection_m(&self) -> Option<f64> {
         self.fit_data
             .iter()
-            .filter_map(|d| {
-                let tip = d.tip_m.as_ref()?;
-                Some(
-                    tip.iter()
-                        .zip(d.drive_as_sampled())
-                        .map(|(a, b)| (a - b).abs())
-                        .fold(0.0, f64::max),
-                )
-            })
+            .filter_map(|d| d.peak_deflection_m())
             .reduce(f64::max)
     }
 

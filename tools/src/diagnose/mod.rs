@@ -595,13 +595,8 @@ fn start_hints(rig: &Rig, fit_data: &[Prepared], cal: &Calibrated, m: &ModelFact
             fr_v.extend(v);
             fr_y.extend(drive.iter().copied());
         }
-        if let Some(t) = &d.tip_m {
-            peak_def = peak_def.max(
-                t.iter()
-                    .zip(drive)
-                    .map(|(a, b)| (a - b).abs())
-                    .fold(0.0, f64::max),
-            );
+        if let Some(p) = d.peak_deflection_m() {
+            peak_def = peak_def.max(p);
         }
     }
     let friction = locate::friction_ls(&fr_r, &fr_v);

@@ -462,6 +462,18 @@ impl Prepared {
             None => self.cmd_as_sampled(),
         }
     }
+
+    /// The largest tip deflection relative to the drive as sampled, max |tip − drive| (m);
+    /// `None` without a tip channel.
+    pub fn peak_deflection_m(&self) -> Option<f64> {
+        let tip = self.tip_m.as_ref()?;
+        Some(
+            tip.iter()
+                .zip(self.drive_as_sampled())
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max),
+        )
+    }
 }
 
 /// The base motion that drives the model when `base_pos_m` (`base`) is recorded with its
