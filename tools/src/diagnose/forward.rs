@@ -1459,9 +1459,23 @@ fn judge_mounts_beside_modes(
 }
 
 /// The placement test of a root spring ([`Ctx::compliance_placement`], condition 9) of every
-/// passing [`Effect::RootCompliance`] in `outs`, and the local-compliance test of every passing
-/// [`Effect::GravityAxialLoad`] ([`Ctx::axial_load_against_local_compliance`]).
+/// passing [`Effect::RootCompliance`] in `outs`, the local-compliance test of every passing
+/// [`Effect::GravityAxialLoad`] ([`Ctx::axial_load_against_local_compliance`]), and, once the
+/// recordings have placed a spring along the beam, of every passing tip mass
+/// ([`tip_mass_against_local_compliance`]).
 fn place_compliances(
+    ctx: &Ctx,
+    cands: &[Candidate],
+    chosen: &[usize],
+    outs: &mut [CandidateOutcome],
+    budget: &mut Budget,
+) {
+    place_each(ctx, cands, chosen, outs, budget);
+    tip_mass_against_local_compliance(ctx, cands, chosen, outs, budget);
+}
+
+/// The tests of [`place_compliances`] on root springs and axial loads.
+fn place_each(
     ctx: &Ctx,
     cands: &[Candidate],
     chosen: &[usize],
@@ -1486,6 +1500,46 @@ fn place_compliances(
         let set = joint_set(cands, chosen, outs[i].cand_index);
         let share = budget.share(outs.len() - i + 1);
         if let Some((why, used)) = ctx.compliance_placement(&set, &outs[i], share) {
+            budget.spend(used);
+            outs[i].unplaced = why;
+        }
+        outs[i].apply_placement();
+    }
+}
+
+/// A tip mass (a passing [`Effect::TipMass`] of `outs`) where the same round placed the root
+/// spring along the beam ([`Ctx::compliance_placement`]: a local compliance, outside the
+/// catalogue) must beat that local compliance as an axial load must
+/// ([`Ctx::local_compliance_against`]). Both lower the first mode more than the second: with
+/// two modes in band they are one change of the frequency ratio, and the tip mass, a catalogue
+/// name, stood in for a crack. Second simulator, seed 22, case21 (EI −59 % over 18 mm at 0.26
+/// of the length): the spring along the beam at 0.261 ± 0.003 m took 99.6 % of the tip's
+/// validation residual and was rightly refused a catalogue name; a 14.4 g tip mass, 89.0 %,
+/// was then named. True tip masses are not touched: there the root spring explained a few per
+/// cent (seed 22, case22 and case23: 5.6 and 5.3 %, against 99.0 and 98.0 % for the mass).
+fn tip_mass_against_local_compliance(
+    ctx: &Ctx,
+    cands: &[Candidate],
+    chosen: &[usize],
+    outs: &mut [CandidateOutcome],
+    budget: &mut Budget,
+) {
+    let located = outs
+        .iter()
+        .any(|o| o.id == Effect::RootCompliance && o.unplaced.is_some());
+    if !located {
+        return;
+    }
+    for i in 0..outs.len() {
+        if !(outs[i].passed && outs[i].id == Effect::TipMass) {
+            continue;
+        }
+        let rival = joint_set(cands, chosen, outs[i].cand_index);
+        let share = budget.share(outs.len() - i + 1);
+        let fit = outs[i].fit.clone();
+        if let Some((why, used)) =
+            ctx.local_compliance_against(cands, chosen, &rival, fit, "a tip mass", share)
+        {
             budget.spend(used);
             outs[i].unplaced = why;
         }
