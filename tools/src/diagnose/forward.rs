@@ -1472,12 +1472,12 @@ fn place_compliances(
     outs: &mut [CandidateOutcome],
     budget: &mut Budget,
 ) {
-    place_each(ctx, cands, chosen, outs, budget);
+    place_springs_and_loads(ctx, cands, chosen, outs, budget);
     tip_mass_against_local_compliance(ctx, cands, chosen, outs, budget);
 }
 
 /// The tests of [`place_compliances`] on root springs and axial loads.
-fn place_each(
+fn place_springs_and_loads(
     ctx: &Ctx,
     cands: &[Candidate],
     chosen: &[usize],
