@@ -82,24 +82,6 @@ pub fn long_run_std_repr(
     )
 }
 
-/// d value / d x of every parameter of `f` (calibration + `set`) at its optimum: the factor
-/// from representation to physical units.
-pub fn dvalues(
-    rig: &Rig,
-    data: &[Prepared],
-    sigma: [f64; 3],
-    calib: &Calib,
-    set: &[&Candidate],
-    f: &FitResult,
-) -> Vec<f64> {
-    let problem = fit::Problem::new(rig, data, sigma, calib, set, f.x.clone());
-    let defs = problem.defs();
-    defs.iter()
-        .enumerate()
-        .map(|(i, d)| d.dvalue(f.x[i]))
-        .collect()
-}
-
 /// [`long_run_std_repr`] in physical units, replacing `f.std`; returns the evaluations used.
 pub fn long_run_std(
     rig: &Rig,
@@ -506,10 +488,6 @@ pub struct Refits {
     pub stability: Vec<Stability>,
     /// `values[r][i]`: parameter i refitted to fit recording r alone (physical units).
     pub values: Vec<Vec<f64>>,
-    /// `x[r][i]`: the same in representation units.
-    pub x: Vec<Vec<f64>>,
-    /// `std_repr[r][i]`: the long-run 1 σ of refit r (representation units).
-    pub std_repr: Vec<Vec<f64>>,
 }
 
 /// Refits the final model (`set`, joint optimum `f`) to each fit recording alone with
@@ -527,8 +505,6 @@ pub fn stability(
     let none = Refits {
         stability: vec![],
         values: vec![],
-        x: vec![],
-        std_repr: vec![],
     };
     if fit_data.len() < 2 {
         return (none, 0);
@@ -576,17 +552,11 @@ pub fn stability(
         });
         off += c.params.len();
     }
-    let x = refits
-        .iter()
-        .map(|(g, _)| g.x.iter().copied().collect())
-        .collect();
-    let (values, std_repr) = refits.into_iter().map(|(g, s)| (g.values, s)).unzip();
+    let values = refits.into_iter().map(|(g, _)| g.values).collect();
     (
         Refits {
             stability: out,
             values,
-            x,
-            std_repr,
         },
         used,
     )
@@ -609,46 +579,6 @@ pub fn spread_std(values: &[Vec<f64>]) -> Vec<f64> {
             let mean = values.iter().map(|v| v[i]).sum::<f64>() / n as f64;
             let var = values.iter().map(|v| (v[i] - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
             (var / n as f64).sqrt()
-        })
-        .collect()
-}
-
-/// Per parameter, the 1 σ of the joint estimate that the per-recording refits give when they
-/// are combined by their own long-run 1 σ (`refits.x`, `refits.std_repr`, representation
-/// units): the σ of their inverse-variance weighted mean, σ_w = (Σ 1/σ_r²)^−½, scaled by
-/// S = max(1, √(χ²/(n − 1))), χ² = Σ (θ_r − θ̄_w)²/σ_r² — the scale factor of inconsistent
-/// measurements (Birge 1932; Particle Data Group, *Review of Particle Physics*, Introduction
-/// §5.2.2). In physical units with `dvalue[i]`, d value/d x at the joint optimum.
-/// A recording that carries little information on a parameter (a 0.2–10 Hz sweep on a root
-/// spring fixed by the ratio of f2 to f1, second simulator seed 23, case01: 10.1 N·m/rad
-/// alone against 3.33 from the moves) refits it far off with a large σ of its own; the
-/// unweighted [`spread_std`] read that wandering as the recordings' disagreement (±3.37 on
-/// 3.48) and the spring was dropped as not identified. Two refits of equal σ give
-/// |θ₁ − θ₂|/2 when they disagree beyond it, as [`spread_std`] does. Where a refit's σ is
-/// not finite and positive, or `dvalue` is not finite, that parameter falls back to
-/// [`spread_std`] of `refits.values`.
-pub fn weighted_spread_std(refits: &Refits, dvalue: &[f64]) -> Vec<f64> {
-    let plain = spread_std(&refits.values);
-    let n = refits.x.len();
-    (0..plain.len())
-        .map(|i| {
-            let pairs: Option<Vec<(f64, f64)>> = (0..n)
-                .map(|r| {
-                    let (x, s) = (refits.x[r].get(i)?, refits.std_repr[r].get(i)?);
-                    (x.is_finite() && s.is_finite() && *s > 0.0).then_some((*x, *s))
-                })
-                .collect();
-            let d = dvalue.get(i).copied().unwrap_or(f64::NAN);
-            match pairs {
-                Some(p) if p.len() >= 2 && d.is_finite() => {
-                    let w: f64 = p.iter().map(|(_, s)| s.powi(-2)).sum();
-                    let mean = p.iter().map(|(x, s)| x / (s * s)).sum::<f64>() / w;
-                    let chi2: f64 = p.iter().map(|(x, s)| ((x - mean) / s).powi(2)).sum();
-                    let scale = (chi2 / (p.len() - 1) as f64).max(1.0).sqrt();
-                    scale / w.sqrt() * d.abs()
-                }
-                _ => plain[i],
-            }
         })
         .collect()
 }
@@ -1064,37 +994,6 @@ mod tests {
         let three = spread_std(&[vec![1.0], vec![2.0], vec![3.0]]);
         assert!((three[0] - (1.0f64 / 3.0).sqrt()).abs() < 1e-12);
         assert!(spread_std(&[vec![1.0]]).is_empty());
-    }
-
-    fn refits(x: &[[f64; 1]], std: &[[f64; 1]]) -> Refits {
-        Refits {
-            stability: vec![],
-            values: x.iter().map(|v| v.to_vec()).collect(),
-            x: x.iter().map(|v| v.to_vec()).collect(),
-            std_repr: std.iter().map(|v| v.to_vec()).collect(),
-        }
-    }
-
-    #[test]
-    fn refits_are_combined_by_their_own_sigma_and_scaled_by_their_disagreement() {
-        // equal σ, disagreeing far beyond it: |θ₁ − θ₂|/2, as the unweighted spread
-        let r = refits(&[[1.0], [3.0]], &[[0.01], [0.01]]);
-        assert!((weighted_spread_std(&r, &[1.0])[0] - 1.0).abs() < 1e-9);
-        // equal σ, agreeing within it: the σ of the mean, σ/√2
-        let r = refits(&[[1.0], [1.001]], &[[0.1], [0.1]]);
-        assert!((weighted_spread_std(&r, &[1.0])[0] - 0.1 / 2f64.sqrt()).abs() < 1e-9);
-        // seed 23 case01's root spring (ln k): the sweep alone 10.1 ± a factor e, the moves
-        // 3.33 ± 2.5 %: the moves decide, and the sweep's wandering is within its own σ
-        let r = refits(&[[10.07f64.ln()], [3.33f64.ln()]], &[[1.0], [0.025]]);
-        let s = weighted_spread_std(&r, &[3.48])[0];
-        assert!(s > 0.025 * 3.48 && s < 0.04 * 3.48, "{s}");
-        assert!(spread_std(&[vec![10.07], vec![3.33]])[0] > 3.3);
-        // the same wandering with a σ that does not cover it is disagreement again
-        let r = refits(&[[10.07f64.ln()], [3.33f64.ln()]], &[[0.05], [0.025]]);
-        assert!(weighted_spread_std(&r, &[3.48])[0] > 0.4 * 3.48);
-        // a refit without a σ: the unweighted spread
-        let r = refits(&[[1.0], [3.0]], &[[f64::NAN], [0.01]]);
-        assert_eq!(weighted_spread_std(&r, &[1.0])[0], 1.0);
     }
 
     #[test]

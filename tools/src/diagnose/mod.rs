@@ -859,13 +859,7 @@ fn measure_final(
     );
     budget.spend(used);
     let long_run = reference.fit.std.clone();
-    let dvalue = honesty::dvalues(rig, fit_data, sigma, calib, set, &reference.fit);
-    let spread = honesty::weighted_spread_std(&refits, &dvalue);
-    ctx.trace(format!(
-        "final model's per-recording refits {:?}: 1 σ of their disagreement, weighted {spread:?}, unweighted {:?}",
-        refits.values,
-        honesty::spread_std(&refits.values)
-    ));
+    let spread = honesty::spread_std(&refits.values);
     honesty::add_spread_std(&mut reference.fit, &spread);
     // the model's stated accuracy (Type B) belongs to what the recordings give; the
     // alternatives' changes (added in quadrature after it) do not
