@@ -884,12 +884,7 @@ impl Ctx<'_> {
                 "changes the in-band natural frequencies between small motion and the recordings' peak deflection",
                 super::sim::cubic_frequency_shift_rel(self.rig, &p, dt, self.peak_deflection_m()?)?,
             ),
-            _ => (
-                "changes the tip readings",
-                p.sensor_gain_error
-                    .abs()
-                    .max(p.sensor_deflection_gain_error.abs()),
-            ),
+            _ => ("changes the tip readings", p.sensor_gain_error.abs()),
         };
         let accuracy = super::sim::BASIS_CONVERGENCE_REL;
         (size < accuracy).then(|| {
