@@ -35,7 +35,6 @@ pub mod proof;
 pub mod rate;
 pub mod report;
 pub mod saturation;
-pub mod scale_bands;
 pub mod select;
 pub mod sim;
 pub mod unexplained;
