@@ -661,6 +661,18 @@ fn sensor_gravity_mount_candidates(h: &StartHints) -> Vec<Candidate> {
         )],
     });
     c.push(Candidate {
+        id: Effect::SensorGain,
+        words: "scale error of a tip sensor riding on the carriage: on the deflection only (e.g. a camera on the carriage)",
+        orientation: None,
+        params: vec![def(
+            "sensor_deflection_gain_error",
+            Transform::Linear,
+            vec![0.0],
+            0.01,
+            true,
+        )],
+    });
+    c.push(Candidate {
         id: Effect::GravityAxialLoad,
         words: "gravity axial load: the beam hangs (tension)",
         orientation: Some(Orientation::Hanging),
@@ -845,7 +857,10 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
         }
         Effect::SensorDelay => p.sensor_delay_s = get("sensor_delay_s").unwrap_or(0.0),
         Effect::SensorGain => {
-            p.sensor_gain_error = get("sensor_gain_error").unwrap_or(0.0).clamp(-0.5, 0.5)
+            p.sensor_gain_error = get("sensor_gain_error").unwrap_or(0.0).clamp(-0.5, 0.5);
+            p.sensor_deflection_gain_error = get("sensor_deflection_gain_error")
+                .unwrap_or(0.0)
+                .clamp(-0.5, 0.5);
         }
         Effect::Backlash => p.backlash_m = get("backlash_m").unwrap_or(0.0).abs(),
         Effect::CubicStiffness => {

@@ -378,6 +378,7 @@ impl Ctx<'_> {
         let (matter, beside) = self.calibration_matter(set, &f, off);
         fails.extend(matter);
         fails.extend(self.below_model_accuracy(set, &f));
+        fails.extend(self.deflection_scale_disagreement(set, &r, off));
         let passed = fails.is_empty();
         let beside_mode = beside && fails.len() == 1;
         let partial = fails.len() == 1 && share.is_some_and(|f| !(f >= MIN_STRUCTURE_EXPLAINED));
@@ -884,7 +885,12 @@ impl Ctx<'_> {
                 "changes the in-band natural frequencies between small motion and the recordings' peak deflection",
                 super::sim::cubic_frequency_shift_rel(self.rig, &p, dt, self.peak_deflection_m()?)?,
             ),
-            _ => ("changes the tip readings", p.sensor_gain_error.abs()),
+            _ => (
+                "changes the tip readings",
+                p.sensor_gain_error
+                    .abs()
+                    .max(p.sensor_deflection_gain_error.abs()),
+            ),
         };
         let accuracy = super::sim::BASIS_CONVERGENCE_REL;
         (size < accuracy).then(|| {
@@ -892,6 +898,42 @@ impl Ctx<'_> {
                 "{what} by at most {size:.1e} (relative), within the model's stated accuracy {accuracy:.0e} (Galerkin convergence): not distinguishable from the model's own approximation"
             )
         })
+    }
+
+    /// Why a fitted scale of a sensor riding on the carriage (`sensor_deflection_gain_error`
+    /// of the last of `set`, fitted as `r`, its parameters from `off`) is not one: the scales
+    /// refitted per mode band on the validation recording's tip channel must agree
+    /// ([`super::scale_bands`]). `None` for any other candidate, or when they agree.
+    fn deflection_scale_disagreement(
+        &self,
+        set: &[&Candidate],
+        r: &Reference,
+        off: usize,
+    ) -> Option<String> {
+        let cand = *set.last()?;
+        let i = cand
+            .params
+            .iter()
+            .position(|q| q.name == "sensor_deflection_gain_error")?;
+        let g = r.fit.values[off + i];
+        let measured = self.validate.tip_m.as_deref()?;
+        let with = r.vpred.tip_m.as_deref()?;
+        let mut x0 = r.fit.x.clone();
+        x0[off + i] = 0.0;
+        let vdata = std::slice::from_ref(self.validate);
+        let vprob = fit::Problem::new(self.rig, vdata, self.sigma, self.calib, set, x0.clone());
+        let without = vprob.predictions(&x0)?.remove(0).tip_m?;
+        let bands = super::scale_bands::band_scales(
+            measured,
+            &without,
+            with,
+            g,
+            self.validate.dt,
+            self.model_freqs,
+            super::sim::band_edge_hz(self.validate.dt),
+        );
+        self.trace(format!("deflection scale {g:+.5} per mode band: {bands:?}"));
+        super::scale_bands::disagreement(&bands, g)
     }
 
     /// The largest tip deflection relative to the drive in the fit recordings (m); `None`

@@ -35,6 +35,7 @@ pub mod proof;
 pub mod rate;
 pub mod report;
 pub mod saturation;
+pub mod scale_bands;
 pub mod select;
 pub mod sim;
 pub mod unexplained;

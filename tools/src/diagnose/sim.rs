@@ -33,7 +33,8 @@
 //! 5. carriage forces: `+ F_c sign(ẏ) + c_v ẏ` (`base_friction`, smoothed over 1 mm/s) and
 //!    `+ a sin(2πy/p) + b cos(2πy/p)` (`cogging_ripple`);
 //! 6. tip sensor latency τ: `tip(t − τ)` by a band-limited fractional delay ([`delayed`];
-//!    `sensor_delay`); tip sensor scale g (camera calibration): `g · tip` (`sensor_gain`).
+//!    `sensor_delay`); tip sensor scale g (camera calibration): `g · tip` (`sensor_gain`), or,
+//!    for a sensor riding on the carriage, on the deflection only: `y + g · w`.
 
 use crate::model::sim::{mode_ramp, mode_zoh};
 use crate::model::{BeamModel, ModelOptions, Orientation, Rig};
@@ -93,6 +94,10 @@ pub struct Params {
     pub sensor_delay_s: f64,
     /// Tip sensor scale error g − 1: the sensor reports (1 + g) × the absolute tip position.
     pub sensor_gain_error: f64,
+    /// The other placement of the tip sensor's scale error, g − 1 on the deflection from the
+    /// carriage: a sensor riding on the carriage (a camera on the carriage, a strain gauge at
+    /// the root) reports root + (1 + g) × deflection.
+    pub sensor_deflection_gain_error: f64,
     /// Gravity axial load.
     pub orientation: Option<Orientation>,
     /// Mount resonance (Hz, damping ratio): k = (2π f)² (m_mount + m_beam), as loaded rigidly.
@@ -201,6 +206,7 @@ impl Default for Params {
             tip_drag_kg_per_m: 0.0,
             sensor_delay_s: 0.0,
             sensor_gain_error: 0.0,
+            sensor_deflection_gain_error: 0.0,
             orientation: None,
             mount: None,
             mount_mass_kg: 0.0,
@@ -2414,10 +2420,11 @@ fn drag_at(
     f
 }
 
-/// The tip sensor: absolute tip (root + deflection `w`), late by the sensor latency and scaled
-/// by its gain.
+/// The tip sensor: absolute tip (root + deflection `w`, the deflection scaled by a sensor on
+/// the carriage's gain), late by the sensor latency and scaled by its gain.
 fn tip_sensor(p: &Params, root: &[f64], w: &[f64], dt: f64) -> Vec<f64> {
-    let tip: Vec<f64> = root.iter().zip(w).map(|(y, w)| y + w).collect();
+    let g_w = 1.0 + p.sensor_deflection_gain_error;
+    let tip: Vec<f64> = root.iter().zip(w).map(|(y, w)| y + g_w * w).collect();
     let tip = match p.tip_filter {
         Some((f, z)) => second_order(&tip, dt, 2.0 * std::f64::consts::PI * f, z, 0.0, 1.0),
         None => tip,
@@ -2507,6 +2514,42 @@ mod tests {
             sp[10..n - 10].iter().all(|x| (x - 3.0).abs() < 1e-4),
             "{sp:?}"
         );
+    }
+
+    #[test]
+    fn a_sensor_on_the_carriage_scales_the_deflection_and_a_fixed_one_the_whole_reading() {
+        let dt = 0.01;
+        let root: Vec<f64> = (0..200).map(|k| 0.3 * (k as f64 * dt).min(1.0)).collect();
+        let w: Vec<f64> = (0..200)
+            .map(|k| 0.004 * (9.0 * k as f64 * dt).sin())
+            .collect();
+        let p = Params::default();
+        let plain = tip_sensor(&p, &root, &w, dt);
+        let deflection = tip_sensor(
+            &Params {
+                sensor_deflection_gain_error: -0.03,
+                ..p.clone()
+            },
+            &root,
+            &w,
+            dt,
+        );
+        let whole = tip_sensor(
+            &Params {
+                sensor_gain_error: -0.03,
+                ..p.clone()
+            },
+            &root,
+            &w,
+            dt,
+        );
+        for k in 0..200 {
+            assert!((deflection[k] - (root[k] + 0.97 * w[k])).abs() < 1e-15);
+            assert!((whole[k] - 0.97 * plain[k]).abs() < 1e-15);
+        }
+        // at rest after the move the fixed sensor misreads the 0.3 m travel by 9 mm; the
+        // carriage's sees it exactly
+        assert!((whole[150] - root[150] - 0.97 * w[150]).abs() > 8e-3);
     }
 
     #[test]
