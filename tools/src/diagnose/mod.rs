@@ -7,6 +7,7 @@
 //!   uncertainties;
 //! - [`locate`]: where/when/at which frequency the residual is structured;
 //! - [`saturation`]: samples a sensor held at its rail, left out of every residual;
+//! - [`scale_bands`]: a tip sensor's scale on the deflection must scale every mode band alike;
 //! - [`select`]: BIC + validation + model-form allowance + whiteness + significance guard;
 //! - [`backward`]: after forward selection, each chosen effect must still earn its parameters
 //!   beside the others (backward elimination);
