@@ -6,15 +6,14 @@
 //! deflection's size in *one* part of the band: a crack that moves one mode against the others
 //! (the stiffness scale keeps the first in place and `g` shrinks the mismatched second), a
 //! loose sensor resonance, a tip mass changing the mode shapes. A true scale multiplies every
-//! mode's share of the deflection alike. This module is that test (Ewins, *Modal Testing*,
-//! 2nd ed., §4.3: a calibration error scales every FRF ordinate by the same factor):
+//! mode's share of the deflection alike (a calibration error scales every FRF ordinate by
+//! the same factor). This module is that test:
 //!
 //! 1. the band from 0 to the band edge is split into one band per in-band model mode, at the
 //!    geometric means of adjacent natural frequencies;
 //! 2. in each band b the scale is refitted alone by least squares in the frequency domain
 //!    (every series less its end-to-end line and under a Tukey taper, against leakage
-//!    between the bands), the other
-//!    parameters held:
+//!    between the bands), the other parameters held:
 //!    `ĝ_b = Σ Re(W̄_k E₀,k) / Σ |W_k|²` over the band's bins, `W` the DFT of the model's
 //!    deflection as the sensor sees it (`(pred_g − pred₀)/g`), `E₀` of the residual with
 //!    `g = 0`;
