@@ -37,6 +37,7 @@
 //!    it.
 
 use super::select::MIN_SIGMAS;
+use crate::ident::frf::Window;
 use realfft::num_complex::Complex64;
 use realfft::RealFftPlanner;
 
@@ -146,12 +147,7 @@ pub fn disagreement(bands: &[BandScale], gain_error: f64) -> Option<String> {
 fn random_effects(bands: &[&BandScale]) -> (f64, f64, f64) {
     let w: Vec<f64> = bands.iter().map(|b| b.sigma.powi(-2)).collect();
     let (sw, sw2) = (w.iter().sum::<f64>(), w.iter().map(|v| v * v).sum::<f64>());
-    let fixed = bands
-        .iter()
-        .zip(&w)
-        .map(|(b, w)| w * b.gain_error)
-        .sum::<f64>()
-        / sw;
+    let fixed = weighted_mean(bands, &w);
     let q: f64 = bands
         .iter()
         .zip(&w)
@@ -168,13 +164,13 @@ fn random_effects(bands: &[&BandScale]) -> (f64, f64, f64) {
         .map(|b| 1.0 / (b.sigma.powi(2) + tau2))
         .collect();
     let swr: f64 = wr.iter().sum();
-    let mean = bands
-        .iter()
-        .zip(&wr)
-        .map(|(b, w)| w * b.gain_error)
-        .sum::<f64>()
-        / swr;
-    (mean, swr.powf(-0.5), tau2.sqrt())
+    (weighted_mean(bands, &wr), swr.powf(-0.5), tau2.sqrt())
+}
+
+/// Σ wᵢ ĝᵢ / Σ wᵢ over `bands`.
+fn weighted_mean(bands: &[&BandScale], w: &[f64]) -> f64 {
+    let num: f64 = bands.iter().zip(w).map(|(b, w)| w * b.gain_error).sum();
+    num / w.iter().sum::<f64>()
 }
 
 /// Band edges (Hz): 0, the geometric means of adjacent in-band modes, the band edge.
@@ -195,28 +191,20 @@ fn band_edges(modes_hz: &[f64], band_edge_hz: f64) -> Vec<f64> {
 pub const TAPER_FRACTION: f64 = 0.1;
 
 /// `x` less the straight line through its first and last samples, under a Tukey window
-/// ([`TAPER_FRACTION`]; Harris 1978). A record's ends are not periodic: untreated, the first
-/// mode's large response leaks into every band (sidelobes falling 6 dB per octave), so that
-/// the upper bands repeat band 1's scale (held-out 743000, a crack: 0.017 ± 0.0085 in 21–45 Hz
-/// beside 0.0257 in 0–5 Hz, and 0.097 ± 0.017 in its own band). The line removes the step
-/// between the ends, the window the rest, and the middle 90 % keeps full weight.
+/// ([`TAPER_FRACTION`]; [`Window::Tukey`]). A record's ends are not periodic: untreated, the
+/// first mode's large response leaks into every band (sidelobes falling 6 dB per octave), so
+/// that the upper bands repeat band 1's scale (held-out 743000, a crack: 0.017 ± 0.0085 in
+/// 21–45 Hz beside 0.0257 in 0–5 Hz, and 0.097 ± 0.017 in its own band). The line removes the
+/// step between the ends, the window the rest, and the middle 90 % keeps full weight.
 fn tapered(x: &[f64]) -> Vec<f64> {
     let n = x.len();
     let (a, b) = (x[0], x[n - 1]);
-    let edge = ((TAPER_FRACTION / 2.0) * n as f64).max(1.0);
+    let h = Window::Tukey {
+        taper_fraction: TAPER_FRACTION,
+    }
+    .samples(n);
     (0..n)
-        .map(|k| {
-            let line = a + (b - a) * k as f64 / (n - 1) as f64;
-            let from_end = k.min(n - 1 - k) as f64;
-            let h = if from_end >= edge {
-                1.0
-            } else {
-                (std::f64::consts::FRAC_PI_2 * from_end / edge)
-                    .sin()
-                    .powi(2)
-            };
-            h * (x[k] - line)
-        })
+        .map(|k| h[k] * (x[k] - a - (b - a) * k as f64 / (n - 1) as f64))
         .collect()
 }
 

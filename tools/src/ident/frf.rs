@@ -35,10 +35,16 @@ pub enum Window {
         /// Window value at the last sample (0 < end_fraction ≤ 1).
         end_fraction: f64,
     },
+    /// Tukey (tapered cosine): flat, with a Hann half at each end over `taper_fraction` / 2 of
+    /// the samples (Harris 1978); keeps full weight on the middle of a record.
+    Tukey {
+        /// Fraction of the samples tapered, both ends together (0 < taper_fraction ≤ 1).
+        taper_fraction: f64,
+    },
 }
 
 impl Window {
-    /// `hamming`, `hann`, `rect`, `exp` (to 1 %) or `exp:0.05`.
+    /// `hamming`, `hann`, `rect`, `exp` (to 1 %), `exp:0.05`, `tukey` (10 %) or `tukey:0.2`.
     pub fn from_name(s: &str) -> Result<Window> {
         let l = s.to_ascii_lowercase();
         Ok(match l.as_str() {
@@ -46,6 +52,18 @@ impl Window {
             "hann" | "hanning" => Window::Hann,
             "rect" | "rectangular" | "boxcar" | "none" => Window::Rectangular,
             "exp" | "exponential" => Window::Exponential { end_fraction: 0.01 },
+            "tukey" => Window::Tukey {
+                taper_fraction: 0.1,
+            },
+            _ if l.starts_with("tukey:") => {
+                let f: f64 = l["tukey:".len()..]
+                    .parse()
+                    .with_context(|| format!("window `{s}`: not a number after tukey:"))?;
+                if !(f > 0.0 && f <= 1.0) {
+                    bail!("window `{s}`: the taper fraction must be in (0, 1]");
+                }
+                Window::Tukey { taper_fraction: f }
+            }
             _ => match l.strip_prefix("exp:") {
                 Some(v) => {
                     let e: f64 = v
@@ -57,7 +75,7 @@ impl Window {
                     Window::Exponential { end_fraction: e }
                 }
                 None => {
-                    bail!("unknown window `{s}` (hamming, hann, rect, exp, exp:<end fraction>)")
+                    bail!("unknown window `{s}` (hamming, hann, rect, exp, exp:<end fraction>, tukey, tukey:<taper fraction>)")
                 }
             },
         })
@@ -73,6 +91,21 @@ impl Window {
             Window::Rectangular => vec![1.0; n],
             Window::Exponential { end_fraction } => {
                 (0..n).map(|k| end_fraction.powf(k as f64 / m)).collect()
+            }
+            Window::Tukey { taper_fraction } => {
+                let edge = (taper_fraction / 2.0 * m).max(1.0);
+                (0..n)
+                    .map(|k| {
+                        let from_end = k.min(n - 1 - k) as f64;
+                        if from_end >= edge {
+                            1.0
+                        } else {
+                            (std::f64::consts::FRAC_PI_2 * from_end / edge)
+                                .sin()
+                                .powi(2)
+                        }
+                    })
+                    .collect()
             }
         }
     }
@@ -573,6 +606,12 @@ mod tests {
             matches!(Window::from_name("exp:0.1").unwrap(), Window::Exponential { end_fraction } if (end_fraction - 0.1).abs() < 1e-15)
         );
         assert!(Window::from_name("kaiser").is_err());
+        let t = Window::Tukey {
+            taper_fraction: 0.2,
+        }
+        .samples(101);
+        assert!(t[0] == 0.0 && t[100] == 0.0 && t[10] == 1.0 && t[50] == 1.0 && t[5] < 1.0);
+        assert!(Window::from_name("tukey:1.5").is_err());
     }
 
     #[test]
