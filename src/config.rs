@@ -49,6 +49,75 @@ impl Source {
     }
 }
 
+/// How the shaper in the settings was checked when it was installed (`tune`'s verdict).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Verified {
+    /// Not recorded: set by hand, changed after tuning, or read from a format-2 record.
+    Unknown,
+    /// A measurement (a sensor on a move, or the shaper applied to a recorded free vibration)
+    /// found the shaper within the tolerance.
+    Measured,
+    /// Nothing could measure it; only the identified modes predict it
+    /// (`tune --accept-predicted`).
+    PredictedOnly,
+}
+
+impl Verified {
+    /// `unknown`, `measured` or `predicted-only` (the console's and `status`'s word).
+    pub fn name(self) -> &'static str {
+        match self {
+            Verified::Unknown => "unknown",
+            Verified::Measured => "measured",
+            Verified::PredictedOnly => "predicted-only",
+        }
+    }
+
+    /// The inverse of [`Verified::name`] (`predicted` is accepted for `predicted-only`).
+    pub fn from_name(s: &str) -> Option<Verified> {
+        match s {
+            "unknown" => Some(Verified::Unknown),
+            "measured" => Some(Verified::Measured),
+            "predicted-only" | "predicted" => Some(Verified::PredictedOnly),
+            _ => None,
+        }
+    }
+}
+
+/// What `tune` certified for the installed shaper: how it was checked and, per mode slot,
+/// the natural-frequency band (Hz) its worst-case percentage vibration was certified over
+/// (f̂ ± max(2σ, minimum band), paper eq. 27 over the band). Any change of the mode slots or
+/// the custom list clears it ([`Certificate::NONE`]): it describes the shaper it was issued for.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Certificate {
+    /// How the shaper was checked.
+    pub verified: Verified,
+    /// Certified band (low, high natural frequency in Hz) of each mode slot.
+    pub band_hz: [Option<(f32, f32)>; MAX_MODES],
+}
+
+impl Certificate {
+    /// No certificate: verification unknown, no band.
+    pub const NONE: Certificate = Certificate {
+        verified: Verified::Unknown,
+        band_hz: [None; MAX_MODES],
+    };
+
+    /// Checks the bands: finite, 0 < low < high, only on slots that hold a mode, and
+    /// `Unknown` carries no band.
+    pub fn validate(&self, modes: &[Option<ModeSetting>; MAX_MODES]) -> Result<(), ConfigError> {
+        for (band, mode) in self.band_hz.iter().zip(modes) {
+            let Some((lo, hi)) = *band else { continue };
+            let ok = lo.is_finite() && hi.is_finite() && lo > 0.0 && lo < hi;
+            if !ok || mode.is_none() || self.verified == Verified::Unknown {
+                return Err(ConfigError::Range(
+                    "certified band (0 < low < high Hz, on a set mode slot)",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// All persistent parameters (stored as a record of format [`SETTINGS_VERSION`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Settings {
@@ -76,6 +145,46 @@ pub struct Settings {
     pub move_accel_mm_s2: f32,
     /// DAC mirror full scale ± (mm).
     pub dac_span_mm: f32,
+    /// What `tune` certified for the shaper of [`Settings::modes`] and [`Settings::custom`].
+    pub certificate: Certificate,
+}
+
+/// The settings as format version 2 stored them (everything but the certificate): read
+/// only, to migrate a record the previous firmware saved ([`Settings::decode`]).
+#[derive(Deserialize)]
+struct SettingsV2 {
+    modes: [Option<ModeSetting>; MAX_MODES],
+    custom: heapless::Vec<Impulse, MAX_CUSTOM_IMPULSES>,
+    shaping_enabled: bool,
+    path: NumericPath,
+    tick_rate_hz: u32,
+    step_nm: u32,
+    max_step_rate_hz: u32,
+    input_nm_per_count: u32,
+    source: Source,
+    move_speed_mm_s: f32,
+    move_accel_mm_s2: f32,
+    dac_span_mm: f32,
+}
+
+impl From<SettingsV2> for Settings {
+    fn from(v: SettingsV2) -> Settings {
+        Settings {
+            modes: v.modes,
+            custom: v.custom,
+            shaping_enabled: v.shaping_enabled,
+            path: v.path,
+            tick_rate_hz: v.tick_rate_hz,
+            step_nm: v.step_nm,
+            max_step_rate_hz: v.max_step_rate_hz,
+            input_nm_per_count: v.input_nm_per_count,
+            source: v.source,
+            move_speed_mm_s: v.move_speed_mm_s,
+            move_accel_mm_s2: v.move_accel_mm_s2,
+            dac_span_mm: v.dac_span_mm,
+            certificate: Certificate::NONE,
+        }
+    }
 }
 
 impl Default for Settings {
@@ -95,8 +204,8 @@ pub enum ConfigError {
     Range(&'static str),
     /// Encoded record: truncated, checksum mismatch, wrong magic or undecodable body.
     Corrupt,
-    /// Encoded record intact but of another format version (e.g. 1, the format before
-    /// [`SETTINGS_VERSION`] 2); names the version found.
+    /// Encoded record intact but of a format version this firmware does not read (1, the
+    /// hand-written format, or a newer one); names the version found.
     Version {
         /// Version byte of the record.
         found: u8,
@@ -163,6 +272,7 @@ impl Settings {
         move_speed_mm_s: 100.0,
         move_accel_mm_s2: 1000.0,
         dac_span_mm: 100.0,
+        certificate: Certificate::NONE,
     };
 
     /// Checks every scalar field's range (not the shaper; see [`Settings::tap_table`]).
@@ -190,7 +300,7 @@ impl Settings {
         if !pos(self.dac_span_mm) || self.dac_span_mm > 1000.0 {
             return Err(ConfigError::Range("dac span (0..1000 mm)"));
         }
-        Ok(())
+        self.certificate.validate(&self.modes)
     }
 
     /// The shaper these settings describe: the convolution of every set mode, then the
@@ -249,15 +359,19 @@ impl Settings {
         Ok(end + CRC_LEN)
     }
 
-    /// Parses a record written by [`Settings::encode`] and validates it (including the
-    /// shaper design). Errors: [`ConfigError::Corrupt`] for a bad length, checksum, magic or
-    /// body; [`ConfigError::Version`] for an intact record of another format version (e.g. a
-    /// version-1 record of the old hand-written format); any validation error for a record
-    /// that decodes but is out of range.
+    /// Parses a record written by [`Settings::encode`] (or by the previous firmware, format
+    /// version 2, migrated: the same settings with [`Certificate::NONE`]) and validates it
+    /// (including the shaper design). Errors: [`ConfigError::Corrupt`] for a bad length,
+    /// checksum, magic or body; [`ConfigError::Version`] for an intact record of another
+    /// format version (a version-1 record of the old hand-written format, or a newer one);
+    /// any validation error for a record that decodes but is out of range.
     pub fn decode(bytes: &[u8]) -> Result<Settings, ConfigError> {
-        let body = record_body(bytes)?;
-        let (s, rest) =
-            postcard::take_from_bytes::<Settings>(body).map_err(|_| ConfigError::Corrupt)?;
+        let (version, body) = record_body(bytes)?;
+        let (s, rest) = match version {
+            SETTINGS_VERSION => postcard::take_from_bytes::<Settings>(body),
+            _ => postcard::take_from_bytes::<SettingsV2>(body).map(|(v, r)| (v.into(), r)),
+        }
+        .map_err(|_| ConfigError::Corrupt)?;
         if !rest.is_empty() {
             return Err(ConfigError::Corrupt);
         }
@@ -267,8 +381,9 @@ impl Settings {
     }
 }
 
-/// The body of a record whose checksum, magic and version are right.
-fn record_body(bytes: &[u8]) -> Result<&[u8], ConfigError> {
+/// The format version and body of a record whose checksum and magic are right and whose
+/// version this firmware reads ([`SETTINGS_VERSION`] or [`SETTINGS_VERSION_MIGRATED`]).
+fn record_body(bytes: &[u8]) -> Result<(u8, &[u8]), ConfigError> {
     let signed_len = bytes
         .len()
         .checked_sub(CRC_LEN)
@@ -283,7 +398,7 @@ fn record_body(bytes: &[u8]) -> Result<&[u8], ConfigError> {
         return Err(ConfigError::Corrupt);
     }
     match header[MAGIC.len()] {
-        SETTINGS_VERSION => Ok(body),
+        v @ (SETTINGS_VERSION | SETTINGS_VERSION_MIGRATED) => Ok((v, body)),
         found => Err(ConfigError::Version { found }),
     }
 }
@@ -293,10 +408,15 @@ fn record_body(bytes: &[u8]) -> Result<&[u8], ConfigError> {
 /// little-endian floats, enums by variant index), then the CRC-32/ISO-HDLC of everything
 /// before it (4 bytes, little-endian).
 ///
-/// Version 1 was a hand-written little-endian layout; its records are refused with
+/// Version 3 added the [`Certificate`]. Version 2 (the same layout without it) is still read
+/// and migrated ([`SETTINGS_VERSION_MIGRATED`]): a firmware update keeps the user's saved
+/// shaper. Version 1 was a hand-written little-endian layout; its records are refused with
 /// [`ConfigError::Version`] (the defaults stay in force until the next `save`). Any change of
-/// [`Settings`] or the types in it changes the body, so it must bump this version.
-pub const SETTINGS_VERSION: u8 = 2;
+/// [`Settings`] or the types in it changes the body, so it must bump this version and keep
+/// reading the one before.
+pub const SETTINGS_VERSION: u8 = 3;
+/// The previous format version, read and migrated by [`Settings::decode`].
+pub const SETTINGS_VERSION_MIGRATED: u8 = 2;
 const HEADER_LEN: usize = MAGIC.len() + 1;
 const CRC_LEN: usize = 4;
 const MAGIC: [u8; 3] = *b"BSH";

@@ -114,6 +114,7 @@ const HELP: &[&str] = &[
     "help | status | shaper | config",
     "mode <1-4> <zv|zvd|zvdd|zvddd|mzv|ei|2hei|3hei|umzv> <freq_hz> <zeta> [v_tol]",
     "clear <1-4|all> | custom <a>@<t_s> ... | custom clear | shaping on|off | path fixed|f32",
+    "certify unknown | certify measured|predicted [<lo_hz> <hi_hz> ...]   (set by tune)",
     "move <target_mm> [speed_mm_s] [accel_mm_s2] | stop | zero | speed <mm_s> | accel <mm_s2>",
     "sweep lin|exp <f0_hz> <f1_hz> <amplitude_mm> <duration_s>   (about the present position)",
     "rate <tick_hz> | step <nm_per_step> | maxrate <steps_per_s> | input <nm_per_count>",
@@ -249,6 +250,10 @@ impl Console {
         out: &mut impl Write,
     ) -> CmdResult {
         let mut new = self.settings.clone();
+        // A certificate describes the shaper it was issued for: a new shaper voids it.
+        if matches!(command, Command::Mode(..) | Command::Clear(_) | Command::Custom(_)) {
+            new.certificate = crate::config::Certificate::NONE;
+        }
         let slot_range = || Refusal::new("range", "mode slot must be 1..4");
         let what = match command {
             Command::Mode(slot, m) => {
@@ -273,6 +278,10 @@ impl Console {
             Command::Custom(list) => {
                 new.custom = list;
                 "custom"
+            }
+            Command::Certify(c) => {
+                new.certificate = c;
+                "certify"
             }
             Command::Shaping(on) => {
                 new.shaping_enabled = on;
@@ -431,7 +440,7 @@ impl Console {
         let _ = writeln!(
             out,
             "{}",
-            StatusReply::new(&s, self.settings.shaping_enabled)
+            StatusReply::new(&s, &self.settings)
         );
         Ok(())
     }

@@ -158,7 +158,7 @@ fn status_config_and_shaper_replies_read_back_what_the_board_holds() {
     let out = b.ok("status");
     let st = StatusReply::parse(last(&out)).unwrap();
     assert_eq!(st.to_string(), last(&out));
-    assert_eq!(st, StatusReply::new(&b.rt.status(), true));
+    assert_eq!(st, StatusReply::new(&b.rt.status(), b.console.settings()));
 
     let out = b.ok("shaper");
     let sh = ShaperReply::parse(last(&out)).unwrap();

@@ -1,11 +1,12 @@
-//! The settings record (format version 2: magic, version, postcard body, CRC-32): round trip
+//! The settings record (format version 3: magic, version, postcard body, CRC-32; version 2
+//! is migrated, see tests/certificate.rs): round trip
 //! of any settings (proptest), every corrupted or truncated record refused as corrupt, and
 //! an intact record of the old hand-written version 1 (or of an unknown version) refused
 //! with its version named — by the codec, by the flash storage and by the console, with the
 //! defaults (at boot) or the settings in force (on `load`) kept.
 
 use beamshaper::config::{
-    ConfigError, ModeSetting, Settings, Source, MAX_CUSTOM_IMPULSES, SETTINGS_MAX_BYTES,
+    Certificate, ConfigError, ModeSetting, Verified, Settings, Source, MAX_CUSTOM_IMPULSES, SETTINGS_MAX_BYTES,
     SETTINGS_VERSION,
 };
 use beamshaper::console::Console;
@@ -163,9 +164,13 @@ fn any_settings() -> impl Strategy<Value = Settings> {
         ),
         any::<bool>(),
         (-10.0f32..20_000.0, -10.0f32..2.0e6, -10.0f32..2000.0),
+        (
+            0usize..3,
+            proptest::array::uniform4(proptest::option::of((-1.0f32..50.0, -1.0f32..50.0))),
+        ),
     )
         .prop_map(
-            |(modes, custom, shaping, f32_path, ints, stepdir, floats)| {
+            |(modes, custom, shaping, f32_path, ints, stepdir, floats, cert)| {
                 let mut s = Settings::DEFAULT;
                 s.modes = modes;
                 // Half of the lists are normalised to sum 1 (a usable custom shaper).
@@ -198,6 +203,11 @@ fn any_settings() -> impl Strategy<Value = Settings> {
                     Source::Internal
                 };
                 (s.move_speed_mm_s, s.move_accel_mm_s2, s.dac_span_mm) = floats;
+                s.certificate = Certificate {
+                    verified: [Verified::Unknown, Verified::Measured, Verified::PredictedOnly]
+                        [cert.0],
+                    band_hz: cert.1,
+                };
                 s
             },
         )
@@ -370,7 +380,7 @@ fn at_boot_a_version_1_record_leaves_the_defaults_and_the_console_names_the_vers
         lines,
         [
             "# boot: stored settings unusable (stored settings are format version 1, this \
-             firmware reads version 2 (save to replace them))",
+             firmware reads version 3 (save to replace them))",
             "# boot: using defaults",
             "ok boot",
         ],

@@ -12,7 +12,7 @@
 //!
 //! No heap: lists are `heapless`, parsing borrows the line. Parsing never panics.
 
-use crate::config::{ModeSetting, Source, MAX_CUSTOM_IMPULSES, MAX_MODES};
+use crate::config::{Certificate, ModeSetting, Source, Verified, MAX_CUSTOM_IMPULSES, MAX_MODES};
 use crate::engine::NumericPath;
 use crate::reference::SweepKind;
 use crate::shaper::{design::DEFAULT_V_TOL, Impulse, ShaperKind};
@@ -50,6 +50,10 @@ pub enum Command {
     Clear(Option<usize>),
     /// `custom <a>@<t_s> …` (1 to 16 impulses); empty = `custom clear`.
     Custom(heapless::Vec<Impulse, MAX_CUSTOM_IMPULSES>),
+    /// `certify unknown` or `certify measured|predicted [<lo_hz> <hi_hz> …]`: how the installed
+    /// shaper was checked and the band (Hz) certified for each mode slot in order (at most
+    /// [`MAX_MODES`] pairs); `tune` sends it after programming the shaper.
+    Certify(Certificate),
     /// `shaping on|off`.
     Shaping(bool),
     /// `path fixed|f32`.
@@ -320,6 +324,7 @@ impl Command {
                 _ => return Err(syntax("clear <1-4|all>")),
             },
             "custom" => Command::Custom(parse_custom(args)?),
+            "certify" => Command::Certify(parse_certify(args)?),
             "shaping" => Command::Shaping(choice(
                 args,
                 &[(true, "on"), (false, "off")],
@@ -374,6 +379,23 @@ fn parse_mode(args: &[&str]) -> Result<Command, Refusal> {
             zeta,
         },
     ))
+}
+
+fn parse_certify(args: &[&str]) -> Result<Certificate, Refusal> {
+    const USAGE: &str = "certify unknown | certify measured|predicted [<lo_hz> <hi_hz> ...]";
+    let (word, bands) = args.split_first().ok_or(syntax(USAGE))?;
+    let verified = Verified::from_name(word).ok_or(syntax(USAGE))?;
+    if bands.len() % 2 != 0 || bands.len() > 2 * MAX_MODES {
+        return Err(syntax(USAGE));
+    }
+    let mut c = Certificate {
+        verified,
+        band_hz: [None; MAX_MODES],
+    };
+    for (slot, pair) in c.band_hz.iter_mut().zip(bands.chunks_exact(2)) {
+        *slot = Some((parse_f64(pair[0])? as f32, parse_f64(pair[1])? as f32));
+    }
+    Ok(c)
 }
 
 fn parse_custom(args: &[&str]) -> Result<heapless::Vec<Impulse, MAX_CUSTOM_IMPULSES>, Refusal> {
@@ -503,6 +525,13 @@ impl fmt::Display for Command {
                 f.write_str("custom")?;
                 imps.iter()
                     .try_for_each(|i| write!(f, " {}@{}", i.amplitude, i.time_s))
+            }
+            Command::Certify(c) => {
+                write!(f, "certify {}", c.verified.name())?;
+                c.band_hz
+                    .iter()
+                    .map_while(|b| *b)
+                    .try_for_each(|(lo, hi)| write!(f, " {lo} {hi}"))
             }
             Command::Shaping(on) => write!(f, "shaping {}", on_off(*on)),
             Command::Path(p) => write!(f, "path {}", p.name()),

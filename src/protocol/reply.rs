@@ -3,7 +3,7 @@
 //! and parsed by the host (`parse`). See [`super`] for the syntax.
 
 use super::{on_off, parse_f64, parse_slot, ErrorCode, SweepArgs, PATHS, SOURCES};
-use crate::config::{ModeSetting, Source};
+use crate::config::{ModeSetting, Settings, Source, Verified};
 use crate::engine::NumericPath;
 use crate::reference::SweepKind;
 use crate::runtime::{Status, Waiting};
@@ -181,11 +181,15 @@ pub struct StatusReply {
     pub shaping: bool,
     /// Configuration changes applied since start.
     pub changes: u32,
+    /// How the installed shaper was checked (the settings' certificate); a board of an earlier
+    /// firmware, whose `status` has no `verified=`, reads as [`Verified::Unknown`].
+    pub verified: Verified,
 }
 
 impl StatusReply {
-    /// The reply for the runtime's `status` with shaping `shaping`.
-    pub fn new(s: &Status, shaping: bool) -> Self {
+    /// The reply for the runtime's `status` with the operator's `settings`.
+    pub fn new(s: &Status, settings: &Settings) -> Self {
+        let shaping = settings.shaping_enabled;
         StatusReply {
             ticks: s.ticks,
             reference_mm: s.reference_counts as f64 * 1e-6,
@@ -205,6 +209,7 @@ impl StatusReply {
             source: s.source,
             shaping,
             changes: s.applied_changes,
+            verified: settings.certificate.verified,
         }
     }
 
@@ -229,6 +234,13 @@ impl StatusReply {
             source: named(line, "source", &SOURCES)?,
             shaping: flag(line, "shaping")?,
             changes: value(line, "changes")?,
+            verified: match field(line, "verified") {
+                None => Verified::Unknown,
+                Some(v) => Verified::from_name(v).ok_or(ReplyError {
+                    key: "verified",
+                    unreadable: true,
+                })?,
+            },
         })
     }
 }
@@ -267,7 +279,7 @@ impl fmt::Display for StatusReply {
             f,
             "ok status ticks={} reference_mm={} setpoint_mm={} emitted_steps={} moving={} pending={} \
              waiting={} stages={} taps_in_flight={} still_ticks={} step_rate_faults={} tick_hz={} \
-             path={} taps={} duration_ticks={} source={} shaping={} changes={}",
+             path={} taps={} duration_ticks={} source={} shaping={} changes={} verified={}",
             self.ticks,
             Num(self.reference_mm, 6),
             Num(self.setpoint_mm, 6),
@@ -286,6 +298,7 @@ impl fmt::Display for StatusReply {
             self.source.name(),
             on_off(self.shaping),
             self.changes,
+            self.verified.name(),
         )
     }
 }
@@ -374,6 +387,10 @@ pub struct ConfigReply {
     pub accel_mm_s2: f64,
     /// Impulses in the custom list.
     pub custom: usize,
+    /// The settings' certificate (how the shaper was checked, the certified band per mode
+    /// slot: `verified=… bands_hz=lo:hi,-,…`); absent on boards of an earlier firmware, read
+    /// as [`crate::config::Certificate::NONE`].
+    pub certificate: crate::config::Certificate,
 }
 
 impl ConfigReply {
@@ -390,6 +407,7 @@ impl ConfigReply {
             speed_mm_s: s.move_speed_mm_s as f64,
             accel_mm_s2: s.move_accel_mm_s2 as f64,
             custom: s.custom.len(),
+            certificate: s.certificate,
         }
     }
 
@@ -406,7 +424,38 @@ impl ConfigReply {
             speed_mm_s: value(line, "speed_mm_s")?,
             accel_mm_s2: value(line, "accel_mm_s2")?,
             custom: value(line, "custom")?,
+            certificate: parse_certificate(line)?,
         })
+    }
+}
+
+/// `verified=<name> bands_hz=<lo:hi|->,…` of a `config` reply (absent: no certificate).
+fn parse_certificate(line: &str) -> Result<crate::config::Certificate, ReplyError> {
+    let mut c = crate::config::Certificate::NONE;
+    let bad = |key| ReplyError {
+        key,
+        unreadable: true,
+    };
+    if let Some(v) = field(line, "verified") {
+        c.verified = Verified::from_name(v).ok_or(bad("verified"))?;
+    }
+    let Some(list) = field(line, "bands_hz") else {
+        return Ok(c);
+    };
+    let mut items = list.split(',');
+    for slot in c.band_hz.iter_mut() {
+        *slot = match items.next().ok_or(bad("bands_hz"))? {
+            "-" => None,
+            pair => {
+                let (lo, hi) = pair.split_once(':').ok_or(bad("bands_hz"))?;
+                let num = |t: &str| t.parse::<f32>().map_err(|_| bad("bands_hz"));
+                Some((num(lo)?, num(hi)?))
+            }
+        };
+    }
+    match items.next() {
+        None => Ok(c),
+        Some(_) => Err(bad("bands_hz")),
     }
 }
 
@@ -415,7 +464,7 @@ impl fmt::Display for ConfigReply {
         write!(
             f,
             "ok config shaping={} path={} tick_hz={} step_nm={} maxrate={} input_nm={} source={} speed_mm_s={} \
-             accel_mm_s2={} custom={}",
+             accel_mm_s2={} custom={} verified={} bands_hz=",
             on_off(self.shaping),
             self.path.name(),
             self.tick_hz,
@@ -425,8 +474,17 @@ impl fmt::Display for ConfigReply {
             self.source.name(),
             Num(self.speed_mm_s, 4),
             Num(self.accel_mm_s2, 4),
-            self.custom
-        )
+            self.custom,
+            self.certificate.verified.name(),
+        )?;
+        for (i, b) in self.certificate.band_hz.iter().enumerate() {
+            let sep = if i == 0 { "" } else { "," };
+            match b {
+                Some((lo, hi)) => write!(f, "{sep}{lo}:{hi}")?,
+                None => write!(f, "{sep}-")?,
+            }
+        }
+        Ok(())
     }
 }
 

@@ -165,10 +165,10 @@ pub fn superposed_vibration_pct(
 /// (after the excitation's transient), keeping only windows whose vibration is still at least
 /// 20 % of the record's largest excursion — so a part that does not decay (noise, a
 /// disturbance) of up to 0.4 % of the excursion adds at most 2 % to the window's V; the
-/// largest (worst) value of those. Windows whose white-noise contribution to V,
-/// 3σ·√(ΣA_i²)/amplitude (σ from the median third difference), exceeds
-/// `resolution_pct` are left out too: they cannot resolve the tolerance. `None` if no window
-/// qualifies.
+/// largest (worst) value of those. Windows whose measurement-noise contribution to V
+/// ([`SuperposedCheck::noise_m`] / the window's amplitude) exceeds `resolution_pct` are left
+/// out too: they cannot resolve the tolerance. `None` if no window qualifies
+/// ([`superposed_check`] says why).
 pub fn superposed_vibration_worst_pct(
     x: &[f64],
     dt_s: f64,
@@ -176,9 +176,71 @@ pub fn superposed_vibration_worst_pct(
     window_s: f64,
     resolution_pct: f64,
 ) -> Option<f64> {
+    superposed_check(x, dt_s, 0.0, shaper, window_s, resolution_pct).pct
+}
+
+/// What the model-free check could measure on a recorded free vibration, and why not.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SuperposedCheck {
+    /// The worst V (%) over the windows that resolve the tolerance; `None`: none does.
+    pub pct: Option<f64>,
+    /// The noise's bound on the shaped residual (m): the larger of 3σ·√(ΣA_i²) (white noise
+    /// of σ from the median third difference) and (q/2)·Σ|A_i| (a quantiser of step q
+    /// errs by at most q/2 on each sample, and the shaper sums the delayed samples).
+    pub noise_m: f64,
+    /// White-noise σ estimated from the median third difference (m).
+    pub sigma_m: f64,
+    /// Windows that fit in the record (of the six tried).
+    pub windows: usize,
+    /// Largest vibration (m, about the mean) of those windows that kept ≥ 20 % of the peak.
+    pub best_raw_m: f64,
+}
+
+impl SuperposedCheck {
+    /// Why no window could check the shaper, for the user (`None` when one did).
+    pub fn why_not(&self, resolution_pct: f64) -> Option<String> {
+        if self.pct.is_some() {
+            return None;
+        }
+        Some(if self.windows == 0 {
+            "the free vibration is shorter than the shaper plus its settling window".to_string()
+        } else if self.best_raw_m <= 0.0 {
+            "the free vibration has decayed below 20 % of its peak in every window".to_string()
+        } else {
+            format!(
+                "its noise bound {:.3} mm (σ {:.3} mm) is {:.2} % of the largest window's {:.3} mm; resolving the tolerance needs ≤ {:.2} %",
+                self.noise_m * 1e3,
+                self.sigma_m * 1e3,
+                100.0 * self.noise_m / self.best_raw_m,
+                self.best_raw_m * 1e3,
+                resolution_pct
+            )
+        })
+    }
+}
+
+/// The windowed model-free check of [`superposed_vibration_worst_pct`] on `x` (uniform step
+/// `dt_s`, at the sensor's real update rate — a sample-and-hold staircase must be resampled
+/// first), for a sensor of quantisation step `quantum_m` (0 when continuous), with what it
+/// found when no window resolves `resolution_pct`.
+pub fn superposed_check(
+    x: &[f64],
+    dt_s: f64,
+    quantum_m: f64,
+    shaper: &Shaper,
+    window_s: f64,
+    resolution_pct: f64,
+) -> SuperposedCheck {
     let n = x.len();
+    let mut out = SuperposedCheck {
+        pct: None,
+        noise_m: 0.0,
+        sigma_m: 0.0,
+        windows: 0,
+        best_raw_m: 0.0,
+    };
     if n < 16 {
-        return None;
+        return out;
     }
     let mean = x.iter().sum::<f64>() / n as f64;
     // White-noise σ from the third difference (variance C(6,3)·σ² = 20σ²): a smooth vibration
@@ -189,29 +251,33 @@ pub fn superposed_vibration_worst_pct(
         .map(|w| (w[3] - 3.0 * w[2] + 3.0 * w[1] - w[0]).abs())
         .collect();
     d.sort_by(f64::total_cmp);
-    let sigma = d[d.len() / 2] / (0.6745 * 20f64.sqrt());
-    let gain = shaper
-        .impulses()
-        .iter()
-        .map(|i| i.amplitude * i.amplitude)
-        .sum::<f64>()
-        .sqrt();
+    out.sigma_m = d[d.len() / 2] / (0.6745 * 20f64.sqrt());
+    let amps = shaper.impulses();
+    let gain = amps.iter().map(|i| i.amplitude * i.amplitude).sum::<f64>().sqrt();
+    let abs_sum = amps.iter().map(|i| i.amplitude.abs()).sum::<f64>();
+    out.noise_m = (3.0 * out.sigma_m * gain).max(0.5 * quantum_m.max(0.0) * abs_sum);
     let peak = x.iter().map(|v| (v - mean).abs()).fold(0.0, f64::max);
     let w = (window_s / dt_s) as usize;
-    [0.1, 0.2, 0.3, 0.4, 0.5, 0.6]
-        .iter()
-        .filter_map(|f| {
-            let k = (n as f64 * f) as usize;
-            let raw = x
-                .get(k..k + w)?
-                .iter()
-                .map(|v| (v - mean).abs())
-                .fold(0.0, f64::max);
-            let resolves = 100.0 * 3.0 * sigma * gain <= resolution_pct * raw;
-            (raw >= 0.2 * peak && resolves)
-                .then(|| superposed_vibration_pct(&x[k..], dt_s, shaper, window_s))?
-        })
-        .reduce(f64::max)
+    for f in [0.1, 0.2, 0.3, 0.4, 0.5, 0.6] {
+        let k = (n as f64 * f) as usize;
+        let fits = (shaper.duration_s() + window_s) / dt_s + 2.0 <= (n - k.min(n)) as f64;
+        let Some(win) = x.get(k..k + w).filter(|_| fits) else {
+            continue;
+        };
+        out.windows += 1;
+        let raw = win.iter().map(|v| (v - mean).abs()).fold(0.0, f64::max);
+        if raw < 0.2 * peak {
+            continue;
+        }
+        out.best_raw_m = out.best_raw_m.max(raw);
+        if 100.0 * out.noise_m > resolution_pct * raw {
+            continue;
+        }
+        if let Some(v) = superposed_vibration_pct(&x[k..], dt_s, shaper, window_s) {
+            out.pct = Some(out.pct.map_or(v, |p: f64| p.max(v)));
+        }
+    }
+    out
 }
 
 /// Displacement (up to scale and sign) of a recorded **acceleration** `a` (uniform step

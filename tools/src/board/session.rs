@@ -5,7 +5,7 @@
 //! [`super::client::BoardClient`]. No console text is written or read by hand on the host.
 
 use super::client::{BoardClient, Reply};
-use beamshaper::config::{ModeSetting, Source, MAX_MODES};
+use beamshaper::config::{Certificate, ModeSetting, Source, MAX_MODES};
 pub use beamshaper::protocol::Command;
 use beamshaper::protocol::{
     CaptureReply, ConfigReply, DumpReply, ModeLine, MoveReply, ReplyError, ShaperReply,
@@ -52,6 +52,8 @@ pub struct BoardConfig {
     pub source_internal: bool,
     /// Impulses in the custom list.
     pub custom_len: usize,
+    /// How the installed shaper was certified (none on a board of an earlier firmware).
+    pub certificate: Certificate,
 }
 
 /// `capture` reply (the core's type).
@@ -124,6 +126,7 @@ impl Session {
             max_step_rate_hz: cfg.max_step_rate_hz,
             source_internal: cfg.source == Source::Internal,
             custom_len: cfg.custom,
+            certificate: cfg.certificate,
         })
     }
 
@@ -226,6 +229,12 @@ impl Session {
             }
             progress(out.len());
         }
+    }
+
+    /// `certify …`: records on the board how its installed shaper was checked and the band
+    /// certified per mode slot (sent after programming; a new shaper voids it).
+    pub fn certify(&mut self, c: &Certificate) -> Result<(), SessionError> {
+        self.send(&Command::Certify(*c)).map(|_| ())
     }
 
     /// `save` (the board stores its running configuration).

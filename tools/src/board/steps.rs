@@ -238,8 +238,14 @@ fn restore_config(s: &mut Session, before: &BoardState) -> Result<&'static str, 
         s.program(&modes, &before.custom, before.config.shaping)
             .map(|_| "reprogrammed the configuration read at the start")?
     };
+    if before.config.certificate != beamshaper::config::Certificate::NONE {
+        s.certify(&before.config.certificate)?;
+    }
     let now = s.config()?;
-    if now.modes != before.config.modes || now.shaping != before.config.shaping {
+    if now.modes != before.config.modes
+        || now.shaping != before.config.shaping
+        || now.certificate != before.config.certificate
+    {
         return Err(StepError::NotReady(
             "the board's configuration after restoring differs from the one read at the start",
         ));

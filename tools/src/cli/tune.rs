@@ -9,9 +9,10 @@ use crate::measures::MeasuredMove;
 use crate::plot::{lines_marked_svg, Marks, Series};
 use crate::shaping::{band, sensitivity, Candidate};
 use crate::tune::{
-    Design, Excitation, Foreign, IdentifiedModes, Signal, TuneError, TuneOptions, TuneReport,
-    TuneView,
+    Design, Excitation, Foreign, IdentifiedModes, Outcome, Signal, TuneError, TuneOptions,
+    TuneReport, TuneView,
 };
+use beamshaper::config::Verified;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use std::path::{Path, PathBuf};
@@ -71,6 +72,12 @@ pub struct TuneArgs {
     /// Virtual board speed-up over real time.
     #[arg(long, default_value_t = 200.0, value_parser = finite_f64)]
     pub time_scale: f64,
+    /// When nothing can measure the shaper (no camera log, no rig camera, no recorded free
+    /// vibration that resolves the tolerance), save it on the identified modes' prediction
+    /// alone; `tune.json` says `"verified": "predicted only"` and the board's `status`
+    /// `verified=predicted-only`.
+    #[arg(long)]
+    pub accept_predicted: bool,
 }
 
 impl TuneArgs {
@@ -93,6 +100,7 @@ impl TuneArgs {
             camera_log: o.camera_log,
             signal: SignalArg::Auto,
             time_scale: o.time_scale,
+            accept_predicted: o.accept_predicted,
         }
     }
 
@@ -115,6 +123,7 @@ impl TuneArgs {
                 SignalArg::Acceleration => Signal::Acceleration,
             },
             time_scale: self.time_scale,
+            accept_predicted: self.accept_predicted,
         }
     }
 }
@@ -129,9 +138,15 @@ pub fn tune(a: TuneArgs) -> Result<TuneReport> {
             println!("done in {:.1} s", t0.elapsed().as_secs_f64());
             Ok(r)
         }
-        Err(TuneError::VerificationFailed { restored, .. }) => {
+        Err(TuneError::VerificationFailed {
+            restored, report, ..
+        }) => {
             println!("{restored}");
-            bail!("verification failed: the measured percentage vibration exceeds --tolerance-pct {} % (see {}); {restored}", a.tolerance_pct, a.out.join("tune.json").display())
+            let why = crate::tune::why_failed(&report, a.tolerance_pct);
+            bail!(
+                "verification failed: {why} (see {}); {restored}",
+                a.out.join("tune.json").display()
+            )
         }
         Err(e) => Err(e.into()),
     }
@@ -239,14 +254,26 @@ fn print_verification(a: &TuneArgs, r: &TuneReport) {
         "  predicted at the identified modes {:.2} %",
         v.predicted_pct
     );
+    for why in &v.unmeasured_because {
+        println!("  nothing measured: {why}");
+    }
     println!(
         "  -> {}",
-        if r.passed {
-            "PASS"
-        } else if v.measured_pct.is_none() && v.superposed_pct.is_none() {
-            "FAIL: nothing measured the shaper (no camera log and no recorded free vibration)"
-        } else {
-            "FAIL"
+        match (r.verified, v.outcome(a.tolerance_pct)) {
+            (Verified::Measured, _) => "PASS".to_string(),
+            (Verified::PredictedOnly, _) => format!(
+                "ACCEPTED ON THE PREDICTION ONLY (--accept-predicted): nothing measured the shaper; predicted {:.2} %",
+                v.predicted_pct
+            ),
+            (_, Outcome::Unmeasured) => format!(
+                "FAIL: nothing could measure the shaper{}",
+                if a.accept_predicted {
+                    " and the prediction exceeds the tolerance"
+                } else {
+                    " (--accept-predicted saves on the prediction alone)"
+                }
+            ),
+            _ => "FAIL: exceeds the tolerance".to_string(),
         }
     );
     if let Some((mu, ms)) = &v.moves {
@@ -391,6 +418,12 @@ fn write_report(a: &TuneArgs, r: &TuneReport) -> Result<()> {
         .collect();
     let j = serde_json::json!({
         "passed": r.passed,
+        "verified": match r.verified {
+            Verified::Measured => Some("measured"),
+            Verified::PredictedOnly => Some("predicted only"),
+            Verified::Unknown => None,
+        },
+        "certified_bands_hz": r.passed.then(|| crate::tune::certificate(&a.options(), r).band_hz.iter().flatten().map(|(lo, hi)| [*lo as f64, *hi as f64]).collect::<Vec<_>>()),
         "input": r.input.display().to_string(),
         "port": r.port,
         "identification": r.id.description,

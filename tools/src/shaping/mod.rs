@@ -110,28 +110,42 @@ pub fn candidates(modes: &[ModeEstimate], v_tol: f64, min_band: f64) -> Vec<Cand
 }
 
 /// A recorded free vibration for the model-free check: tip position (m, or any displacement
-/// up to scale) at a uniform step `dt_s` (s).
+/// up to scale) at a uniform step `dt_s` (s) — the sensor's real update interval — and the
+/// sensor's quantisation step.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RecordedVibration {
     /// Samples (m).
     pub position_m: Vec<f64>,
     /// Sample step (s).
     pub dt_s: f64,
+    /// Quantisation step of the samples (m); 0 when continuous.
+    pub quantum_m: f64,
 }
 
 /// Percentage vibration (%) shaper `s` leaves on a recorded free vibration by superposition
-/// (model-free; [`crate::measures::superposed_vibration_worst_pct`] over windows of
-/// `window_s`, windows whose noise cannot resolve half of `tolerance_pct` left out). `None`
-/// when no window qualifies.
+/// (model-free; [`crate::measures::superposed_check`] over windows of `window_s`, windows
+/// whose noise or quantisation cannot resolve half of `tolerance_pct` left out). `None`
+/// when no window qualifies ([`superposed_check`] says why).
 pub fn superposed_pct(
     rec: &RecordedVibration,
     s: &Shaper,
     window_s: f64,
     tolerance_pct: f64,
 ) -> Option<f64> {
-    crate::measures::superposed_vibration_worst_pct(
+    superposed_check(rec, s, window_s, tolerance_pct).pct
+}
+
+/// [`superposed_pct`] with what the check found when no window resolves the tolerance.
+pub fn superposed_check(
+    rec: &RecordedVibration,
+    s: &Shaper,
+    window_s: f64,
+    tolerance_pct: f64,
+) -> crate::measures::SuperposedCheck {
+    crate::measures::superposed_check(
         &rec.position_m,
         rec.dt_s,
+        rec.quantum_m,
         s,
         window_s,
         tolerance_pct / 2.0,

@@ -33,11 +33,12 @@ pub mod verify;
 
 pub use inputs::{check_inputs, connect, Bench, Excitation, Inputs};
 pub use recorded::{free_vibration, generate_recording, recorded_free_position};
-pub use verify::Verification;
+pub use verify::{Outcome, Verification};
 
 use crate::board::plan::{plan_move, MovePlan, PlanError};
 use crate::board::steps::{program, read_board, restore, BoardState, StepError};
 use crate::ident::ModeEstimate;
+use beamshaper::config::{Certificate, Verified, MAX_MODES};
 use crate::shaping::{
     choose, settings_with, Candidate, ChoiceRules, NoShaperFits, RecordedVibration,
 };
@@ -97,6 +98,9 @@ pub struct TuneOptions {
     pub signal: Signal,
     /// Virtual board speed-up over real time, 1..=1000.
     pub time_scale: f64,
+    /// When nothing can measure the shaper, save it on the identified modes' prediction
+    /// alone (within the tolerance), recorded as `predicted-only` on the board.
+    pub accept_predicted: bool,
 }
 
 impl TuneOptions {
@@ -115,6 +119,7 @@ impl TuneOptions {
             camera_log: None,
             signal: Signal::Auto,
             time_scale: 200.0,
+            accept_predicted: false,
         }
     }
 }
@@ -159,7 +164,7 @@ pub enum TuneError {
     #[error(transparent)]
     View(Foreign),
     /// The verification did not pass; `restored` says what was done with the board.
-    #[error("verification failed: the measured percentage vibration exceeds the tolerance {tolerance_pct} %; {restored}")]
+    #[error("verification failed: {}; {restored}", why_failed(report, *tolerance_pct))]
     VerificationFailed {
         /// The tolerance (%).
         tolerance_pct: f64,
@@ -177,6 +182,40 @@ pub enum TuneError {
         #[source]
         source: Box<TuneError>,
     },
+}
+
+/// Why a verification failed, as a clause: what exceeded the tolerance, or why nothing could
+/// measure the shaper (and how to save it on the prediction alone).
+pub fn why_failed(r: &TuneReport, tolerance_pct: f64) -> String {
+    let v = &r.verification;
+    match v.outcome(tolerance_pct) {
+        Outcome::Exceeded => {
+            let named = [
+                ("measured", v.measured_pct),
+                ("on the recorded vibration", v.superposed_pct),
+                ("rig model", v.rig_model_pct),
+            ];
+            let over: Vec<String> = named
+                .iter()
+                .filter_map(|(n, p)| p.filter(|&p| p > tolerance_pct).map(|p| format!("{n} {p:.2} %")))
+                .collect();
+            format!(
+                "the percentage vibration exceeds the tolerance {tolerance_pct} % ({})",
+                over.join(", ")
+            )
+        }
+        Outcome::Unmeasured if v.predicted_pct > tolerance_pct => format!(
+            "nothing could measure the shaper ({}), and the identified modes predict {:.2} %, over the tolerance {tolerance_pct} %",
+            v.unmeasured_because.join("; "),
+            v.predicted_pct
+        ),
+        Outcome::Unmeasured => format!(
+            "nothing could measure the shaper ({}); the identified modes predict {:.2} % — pass --accept-predicted to save it on that prediction alone (the board then reports verified=predicted-only)",
+            v.unmeasured_because.join("; "),
+            v.predicted_pct
+        ),
+        Outcome::Passed => "the checks passed but the board did not save".to_string(),
+    }
 }
 
 impl TuneError {
@@ -230,6 +269,9 @@ pub struct Design {
 pub struct TuneReport {
     /// The check passed (and the board saved).
     pub passed: bool,
+    /// How the saved shaper was checked: `Measured`, or `PredictedOnly` (accepted with
+    /// [`TuneOptions::accept_predicted`] when nothing could measure); `Unknown` when not saved.
+    pub verified: Verified,
     /// The recording identified (the user's or the excitation's).
     pub input: PathBuf,
     /// The board's port.
@@ -309,14 +351,25 @@ fn run_job(
 ) -> Result<TuneReport, TuneError> {
     let (input, id) = recording_and_modes(o, bench, before, pre, view)?;
     let recorded = recorded_free_position(inputs, id.modes[0].freq_hz);
-    let design = design(o, id.shaped_modes(), before, recorded.as_ref())?;
+    let design = design(o, id.shaped_modes(), before, recorded.as_ref().ok())?;
     view.designed(id.shaped_modes(), &design)
         .map_err(TuneError::View)?;
     program(&mut bench.session, &design.best)?;
     view.programmed(&bench.port, &design.best);
-    let verification = verify::verify(o, bench, inputs, &id, &design, recorded.as_ref(), before)?;
+    let recorded = recorded.as_ref().map_err(String::as_str);
+    let verification = verify::verify(o, bench, inputs, &id, &design, recorded, before)?;
+    let verified = match verification.outcome(o.tolerance_pct) {
+        Outcome::Passed => Verified::Measured,
+        Outcome::Unmeasured
+            if o.accept_predicted && verification.predicted_pct <= o.tolerance_pct =>
+        {
+            Verified::PredictedOnly
+        }
+        _ => Verified::Unknown,
+    };
     let report = TuneReport {
-        passed: verification.passed(o.tolerance_pct),
+        passed: verified != Verified::Unknown,
+        verified,
         input,
         port: bench.port.clone(),
         rig_label: inputs.rig_label.clone(),
@@ -327,10 +380,28 @@ fn run_job(
     };
     view.verified(&report).map_err(TuneError::View)?;
     if report.passed {
+        let c = certificate(o, &report);
+        bench.session.certify(&c).map_err(StepError::from)?;
         bench.session.save().map_err(StepError::from)?;
         view.saved();
     }
     Ok(report)
+}
+
+/// The certificate `tune` leaves on the board with the saved shaper: how it was verified and,
+/// per shaped mode (slots 1, 2, …), the band its worst case was certified over
+/// ([`crate::shaping::band`]).
+pub fn certificate(o: &TuneOptions, r: &TuneReport) -> Certificate {
+    let mut c = Certificate {
+        verified: r.verified,
+        band_hz: [None; MAX_MODES],
+    };
+    let modes = r.id.shaped_modes().iter().take(r.design.best.modes.len());
+    for (slot, m) in c.band_hz.iter_mut().zip(modes) {
+        let b = crate::shaping::band(m, o.min_band_pct / 100.0);
+        *slot = Some((b.freq_hz.0 as f32, b.freq_hz.1 as f32));
+    }
+    c
 }
 
 /// The recording and its modes: the user's (identified before the board was touched), or an

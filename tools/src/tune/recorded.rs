@@ -12,15 +12,19 @@ use std::path::Path;
 
 /// The free vibration in a recording, for the model-free check: tip (minus base, when there
 /// is one) after the base last left its final position by more than 20 µm, from the largest
-/// excursion on, resampled to its median step. `None` when there is none (e.g. a sweep that
-/// ends moving) or the file cannot be read.
-pub fn free_vibration(path: &Path) -> Option<(Vec<f64>, f64)> {
-    let rec = Recording::read_any(path, &mut |_| {}).ok()?;
-    let tip = rec.tip_pos_m.as_ref()?;
+/// excursion on, resampled to its median step. Errors (a sentence for the user): the file
+/// cannot be read, has no tip channel, or holds no free vibration (fewer than 64 samples after
+/// the base's last move, e.g. a sweep that ends moving).
+pub fn free_vibration(path: &Path) -> Result<(Vec<f64>, f64), String> {
+    let rec = Recording::read_any(path, &mut |_| {}).map_err(|e| format!("{e:#}"))?;
+    let tip = rec
+        .tip_pos_m
+        .as_ref()
+        .ok_or("the recording has no tip channel (tip_pos_m)")?;
     let base = rec.base_pos_m.as_ref().or(rec.base_cmd_m.as_ref());
     let (sig, start): (Vec<f64>, usize) = match base {
         Some(b) => {
-            let last = *b.last()?;
+            let last = *b.last().ok_or("the recording is empty")?;
             let moved = b
                 .iter()
                 .rposition(|v| (v - last).abs() > 20e-6)
@@ -31,7 +35,10 @@ pub fn free_vibration(path: &Path) -> Option<(Vec<f64>, f64)> {
     };
     let (t, x) = (&rec.time_s[start..], &sig[start..]);
     if t.len() < 64 {
-        return None;
+        return Err(format!(
+            "only {} samples follow the base's last move: no free vibration to apply the shaper to",
+            t.len()
+        ));
     }
     let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
     steps.sort_by(f64::total_cmp);
@@ -40,23 +47,29 @@ pub fn free_vibration(path: &Path) -> Option<(Vec<f64>, f64)> {
     let mean = xu.iter().sum::<f64>() / xu.len() as f64;
     let half = &xu[..xu.len() / 2];
     let k = (0..half.len())
-        .max_by(|&i, &j| (half[i] - mean).abs().total_cmp(&(half[j] - mean).abs()))?;
-    Some((xu[k..].to_vec(), dt))
+        .max_by(|&i, &j| (half[i] - mean).abs().total_cmp(&(half[j] - mean).abs()))
+        .ok_or("no free vibration")?;
+    Ok((xu[k..].to_vec(), dt))
 }
 
 /// The user's recorded free vibration as tip position (m) at a uniform step (s), for the
 /// model-free check: an accelerometer's signal integrated twice (high-passed at half the first
-/// identified natural frequency). `None` when the input has none (generated sweep, or a
-/// recording that ends moving).
-pub fn recorded_free_position(inputs: &Inputs, f1_hz: f64) -> Option<RecordedVibration> {
-    let (x, dt) = inputs.recording.as_deref().and_then(free_vibration)?;
+/// identified natural frequency). Errors (a sentence): no recording (a generated sweep), or
+/// [`free_vibration`]'s reasons.
+pub fn recorded_free_position(inputs: &Inputs, f1_hz: f64) -> Result<RecordedVibration, String> {
+    let path = inputs
+        .recording
+        .as_deref()
+        .ok_or("no user recording (the excitation was generated)")?;
+    let (x, dt) = free_vibration(path)?;
     let pos = match inputs.acceleration {
         true => displacement_from_acceleration(&x, dt, 0.5 * f1_hz),
         false => x,
     };
-    Some(RecordedVibration {
+    Ok(RecordedVibration {
         position_m: pos,
         dt_s: dt,
+        quantum_m: 0.0,
     })
 }
 

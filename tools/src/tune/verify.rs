@@ -7,7 +7,11 @@
 //! - **rig model**: the declared rig's model driven by the board's captured setpoints
 //!   ([`rig_model_pct`]);
 //! - **predicted**: the design's V at the identified modes (the identified model's claim,
-//!   shown, never a check).
+//!   shown, never a check — unless the user accepts it with `--accept-predicted` when nothing
+//!   could measure, and the board then says `verified=predicted-only`).
+//!
+//! The verdict ([`Outcome`]) tells "a check exceeded the tolerance" from "nothing could
+//! measure the shaper", and says why each measuring check was unavailable.
 //!
 //! Every path ends with the carriage where it started.
 
@@ -19,7 +23,7 @@ use crate::board::steps::{program, ring_down, run_move, BoardState, MoveRun, Ste
 use crate::measures::{cut_move, MeasuredMove};
 use crate::model::sim::BaseMotionSim;
 use crate::model::{BeamModel, ModelOptions};
-use crate::shaping::{superposed_pct, RecordedVibration};
+use crate::shaping::{superposed_check, RecordedVibration};
 use beamshaper::shaper::residual_vibration;
 use std::path::Path;
 
@@ -36,26 +40,51 @@ pub struct Verification {
     pub moves: Option<(MeasuredMove, MeasuredMove)>,
     /// The design's V at the identified modes (%): the identified model's prediction.
     pub predicted_pct: f64,
+    /// Why each measuring check that did not run could not (sentences; empty when one ran).
+    pub unmeasured_because: Vec<String>,
+}
+
+/// The verdict of the checks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Outcome {
+    /// A measuring check (sensor or superposition) ran, and every check is within tolerance.
+    Passed,
+    /// A check (measured, superposed or the rig model) exceeds the tolerance.
+    Exceeded,
+    /// Nothing measured the shaper (no sensor, no recorded free vibration that resolves the
+    /// tolerance); no check that ran exceeds it.
+    Unmeasured,
 }
 
 impl Verification {
+    /// The verdict at tolerance `tol` (%).
+    pub fn outcome(&self, tol: f64) -> Outcome {
+        let checks = [self.measured_pct, self.superposed_pct, self.rig_model_pct];
+        if checks.iter().flatten().any(|&v| v > tol) {
+            Outcome::Exceeded
+        } else if self.measured_pct.is_none() && self.superposed_pct.is_none() {
+            Outcome::Unmeasured
+        } else {
+            Outcome::Passed
+        }
+    }
+
     /// Passed: at least one check that does not rest on the identified modes (sensor or
     /// superposition) exists, and every check is within `tol` (%).
     pub fn passed(&self, tol: f64) -> bool {
-        let checks = [self.measured_pct, self.superposed_pct, self.rig_model_pct];
-        (self.measured_pct.is_some() || self.superposed_pct.is_some())
-            && checks.iter().flatten().all(|&v| v <= tol)
+        self.outcome(tol) == Outcome::Passed
     }
 }
 
-/// Runs the verification moves and computes every check (see the module docs).
+/// Runs the verification moves and computes every check (see the module docs). `recorded`
+/// is the user's free vibration, or why there is none.
 pub fn verify(
     o: &TuneOptions,
     bench: &mut Bench,
     inputs: &Inputs,
     id: &IdentifiedModes,
     d: &Design,
-    recorded: Option<&RecordedVibration>,
+    recorded: Result<&RecordedVibration, &str>,
     before: &BoardState,
 ) -> Result<Verification, TuneError> {
     let tick_hz = before.tick_hz();
@@ -65,11 +94,28 @@ pub fn verify(
         .take(d.best.modes.len())
         .map(|m| 100.0 * residual_vibration(&d.best.shaper, m.freq_hz, m.zeta))
         .fold(0.0, f64::max);
-    let superposed =
-        recorded.and_then(|r| superposed_pct(r, &d.best.shaper, d.window_s, o.tolerance_pct));
+    let mut unmeasured_because = Vec::new();
+    let superposed = match recorded {
+        Ok(r) => {
+            let c = superposed_check(r, &d.best.shaper, d.window_s, o.tolerance_pct);
+            if let Some(why) = c.why_not(o.tolerance_pct / 2.0) {
+                unmeasured_because.push(format!("the recorded free vibration cannot check it: {why}"));
+            }
+            c.pct
+        }
+        Err(why) => {
+            unmeasured_because.push(format!("no recorded free vibration: {why}"));
+            None
+        }
+    };
     let here = bench.session.status().map_err(StepError::from)?.setpoint_mm;
     let (moves, setpoints) = match bench.sensor_log.clone() {
-        None => (None, shaped_both_ways(bench, here, d, tick_hz)?),
+        None => {
+            unmeasured_because.push(
+                "no sensor watches the board's moves (no --camera-log, and the board is not the virtual rig)".into(),
+            );
+            (None, shaped_both_ways(bench, here, d, tick_hz)?)
+        }
         Some(log) => {
             let (mu, ms, sp) = measure_pair(bench, here, id, d, &log, tick_hz)?;
             (Some((mu, ms)), sp)
@@ -79,14 +125,19 @@ pub fn verify(
         true => Some(rig_model_pct(inputs, &setpoints, d, tick_hz)?),
         false => None,
     };
+    let measured_pct = moves
+        .as_ref()
+        .map(|(mu, ms)| 100.0 * ms.residual_m / mu.residual_m);
+    if measured_pct.is_some() || superposed.is_some() {
+        unmeasured_because.clear();
+    }
     Ok(Verification {
-        measured_pct: moves
-            .as_ref()
-            .map(|(mu, ms)| 100.0 * ms.residual_m / mu.residual_m),
+        measured_pct,
         superposed_pct: superposed,
         rig_model_pct,
         moves,
         predicted_pct,
+        unmeasured_because,
     })
 }
 
