@@ -93,6 +93,14 @@ fn default_run_sweeps_on_the_board_identifies_from_the_camera_and_saves_after_th
         .unwrap()
         .expect("saved settings");
     assert!(saved.modes[0].is_some());
+    // The board keeps how the shaper was checked and the band it was certified over.
+    assert_eq!(
+        saved.certificate.verified,
+        beamshaper::config::Verified::Measured
+    );
+    let (lo, hi) = saved.certificate.band_hz[0].expect("mode 1's certified band");
+    assert!(lo < f1 as f32 && (f1 as f32) < hi, "band {lo}..{hi} around {f1}");
+    assert_eq!(r["verified"], "measured");
     for f in [
         "verification.svg",
         "sensitivity.svg",
@@ -328,4 +336,65 @@ fn tune_succeeds_on_a_sweep_and_on_a_dithering_move_with_ring_down() {
             );
         }
     }
+}
+
+/// A recording with no free vibration in it (a sweep cut while the base still moves), on a
+/// board without a sensor: nothing can measure the shaper. `tune` says exactly that (not
+/// "exceeds the tolerance"), saves nothing and exits with an error; with `--accept-predicted`
+/// it saves, and `tune.json` and the board's stored certificate say "predicted only".
+#[test]
+fn a_shaper_nothing_can_measure_is_refused_or_saved_as_predicted_only() {
+    use beamtools::ident::protocol::simulate_sweep;
+    use beamtools::ident::sweep::{SweepKind, SweepSpec};
+    use beamtools::model::{BeamModel, ModelOptions};
+    let rig = Rig::from_toml_str(DEFAULT_RIG_TOML).unwrap();
+    let m = BeamModel::new(&rig, &ModelOptions::default()).unwrap();
+    let sweep = simulate_sweep(
+        &m,
+        &SweepSpec::paper(SweepKind::Exponential, 3.0),
+        100.0,
+        0.0,
+        1,
+    )
+    .unwrap();
+    // Cut where the base is moving fastest in the last third: no ring-down follows.
+    let b = sweep.base_pos_m.clone().unwrap();
+    let n = b.len();
+    let cut = (2 * n / 3..n - 1)
+        .max_by(|&i, &j| (b[i + 1] - b[i]).abs().total_cmp(&(b[j + 1] - b[j]).abs()))
+        .unwrap();
+    let rec = sweep.slice(0..cut + 1);
+    let tmp = tmpdir("tune-unmeasured");
+    let dir = tmp.path().to_path_buf();
+    let path = dir.join("sweep-cut.csv");
+    rec.write_csv(&path).unwrap();
+
+    let out = dir.join("refused");
+    let err = tune(TuneArgs::new(Some(path.clone()), &out)).unwrap_err();
+    let msg = format!("{err:#}");
+    assert!(msg.contains("nothing could measure the shaper"), "{msg}");
+    assert!(msg.contains("--accept-predicted"), "{msg}");
+    assert!(!msg.contains("exceeds"), "{msg}");
+    let r = json(&out);
+    assert_eq!(r["passed"], false);
+    assert!(r["verified"].is_null());
+    assert_eq!(load_flash(&out.join("vboard-flash.bin")).unwrap(), None, "nothing saved");
+
+    let out = dir.join("accepted");
+    let mut args = TuneArgs::new(Some(path), &out);
+    args.accept_predicted = true;
+    let report = tune(args).unwrap();
+    assert!(report.passed);
+    let r = json(&out);
+    assert_eq!(r["verified"], "predicted only");
+    assert!(r["verification"]["measured_vibration_pct"].is_null());
+    assert!(r["verification"]["superposed_vibration_pct"].is_null());
+    let saved = load_flash(&out.join("vboard-flash.bin"))
+        .unwrap()
+        .expect("saved settings");
+    assert_eq!(
+        saved.certificate.verified,
+        beamshaper::config::Verified::PredictedOnly
+    );
+    assert!(saved.certificate.band_hz[0].is_some());
 }
