@@ -1,28 +1,49 @@
-//! The recording format shared by every tool of the project.
+//! The recording format shared by every tool of the project, and what loggers write.
 //!
-//! CSV: a header row, comma-separated (`;` with decimal commas, or tabs, are read too, with a
-//! note), uniform sampling. Columns:
-//! - `time_s` (required): time in seconds of each sample, strictly increasing, uniform step
-//!   (dropped frames, duplicated rows and jittering stamps are mended by [`regular`]);
+//! A [`Recording`] is a time base and optional channels, all one length, in SI units:
+//! - `time_s` (required): time in seconds of each sample, strictly increasing (uniform after
+//!   [`regular`]; the gapped readers keep logging gaps and jitter);
 //! - `base_cmd_m`: commanded base position (m);
 //! - `base_pos_m`: measured base position (m);
 //! - `tip_pos_m`: absolute tip position along the base axis, lab frame (m);
-//! - `force_n`: motor force (N).
+//! - `force_n`: motor force (N);
+//! - `tip_acc_m_s2`: tip acceleration along the base axis, lab frame (m/s²), e.g. one axis of
+//!   a printer's accelerometer.
 //!
-//! Columns other than `time_s` are optional; unknown columns are ignored with a note. Positions
-//! in millimetres or micrometres (`tip_pos_mm`, `base_cmd_um`, …) and times in `time_ms` or
-//! `time_us` are converted to SI with a note. A blank
-//! or `nan` cell of a channel is a missing value ([`regular`] fills short runs of them).
-//! Also reads NumPy `.npy` arrays of shape (2, N) = [time; signal] (the format of the real
-//! data in `shared/data/real/`) via [`Recording::read_npy`], without assuming uniform time.
+//! Files read (docs/recording-formats.md has each with an example):
+//! - the project's CSV: a header row with the channel names above, comma-separated (`;` with
+//!   decimal commas, or tabs, are read too, with a note). Unknown columns are ignored with a
+//!   note; positions in `_mm`/`_um`, `tip_acc_mm_s2` and times in `time_ms`/`time_us` are
+//!   converted to SI with a note. A blank or `nan` cell is a missing value ([`regular`] fills
+//!   short runs; [`multirate`] reads a channel logged on every k-th row at its own rate);
+//! - any CSV whose columns `--columns` maps to the channels, each with its scale to SI
+//!   ([`columns`]);
+//! - Klipper's raw accelerometer CSV (`#time,accel_x,accel_y,accel_z`, mm/s²): one axis as
+//!   `tip_acc_m_s2` ([`klipper`]);
+//! - row-wise logs, whose rows update only some columns (a ROS bag exported row-wise): each
+//!   channel forward-filled ([`rowwise`]);
+//! - NumPy `.npy` arrays of shape (2, N) = [time; signal] (the real data in
+//!   `shared/data/real/`) via [`Recording::read_npy`], without assuming uniform time.
+//!
+//! Reading is fast ([`csvread`]: `beamtool bench-read FILE`). What each channel's samples
+//! really are is estimated from its values ([`hold`]): its quantisation step
+//! ([`Recording::quantum`]) and, for a slow sensor held in a fast log (a sample-and-hold
+//! staircase), its real update rate ([`Recording::update_rate_hz`]); both are noted on reading.
 
+pub mod columns;
+pub mod csvread;
 pub mod glitch;
+pub mod hold;
+pub mod klipper;
 pub mod multirate;
 pub mod orient;
+mod read;
 pub mod regular;
+pub mod rowwise;
 pub mod zero;
 
 use anyhow::{anyhow, bail, Context, Result};
+pub use columns::{Axis, ColumnMap, ReadOptions};
 use std::path::Path;
 
 /// Relative tolerance on the sampling interval for a recording to count as uniform.
@@ -41,12 +62,21 @@ pub struct Recording {
     pub tip_pos_m: Option<Vec<f64>>,
     /// Motor force (N).
     pub force_n: Option<Vec<f64>>,
+    /// Tip acceleration along the base axis, lab frame (m/s²): an accelerometer on the tip
+    /// (Klipper's raw accelerometer CSV gives one axis of it, converted from mm/s²).
+    pub tip_acc_m_s2: Option<Vec<f64>>,
     /// Notes made while reading (ignored columns, etc.), for the user.
     pub notes: Vec<String>,
 }
 
 /// The channel names in file order.
-pub const CHANNELS: [&str; 4] = ["base_cmd_m", "base_pos_m", "tip_pos_m", "force_n"];
+pub const CHANNELS: [&str; 5] = [
+    "base_cmd_m",
+    "base_pos_m",
+    "tip_pos_m",
+    "force_n",
+    "tip_acc_m_s2",
+];
 
 impl Recording {
     /// A recording with only a time base `t_k = k / sample_rate_hz`, k = 0..n.
@@ -74,18 +104,58 @@ impl Recording {
             "base_pos_m" => self.base_pos_m.as_deref(),
             "tip_pos_m" => self.tip_pos_m.as_deref(),
             "force_n" => self.force_n.as_deref(),
+            "tip_acc_m_s2" => self.tip_acc_m_s2.as_deref(),
             _ => None,
         }
     }
 
-    fn channel_slot(&mut self, name: &str) -> Option<&mut Option<Vec<f64>>> {
+    /// A recording on the time base `time_s` whose every present channel is `f(channel)`
+    /// (notes kept): slicing, resampling and decimation go through it, so that every channel
+    /// of [`CHANNELS`] is treated alike.
+    pub fn map_channels(&self, time_s: Vec<f64>, f: impl Fn(&[f64]) -> Vec<f64>) -> Recording {
+        let mut out = Recording {
+            time_s,
+            notes: self.notes.clone(),
+            ..Default::default()
+        };
+        for name in CHANNELS {
+            if let Some(c) = self.channel(name) {
+                *out.channel_slot(name).expect("known channel") = Some(f(c));
+            }
+        }
+        out
+    }
+
+    pub(crate) fn channel_slot(&mut self, name: &str) -> Option<&mut Option<Vec<f64>>> {
         match name {
             "base_cmd_m" => Some(&mut self.base_cmd_m),
             "base_pos_m" => Some(&mut self.base_pos_m),
             "tip_pos_m" => Some(&mut self.tip_pos_m),
             "force_n" => Some(&mut self.force_n),
+            "tip_acc_m_s2" => Some(&mut self.tip_acc_m_s2),
             _ => None,
         }
+    }
+
+    /// The quantisation step of channel `name` ([`hold::quantum`]): the step its values move
+    /// in (an encoder's count, 1 mm, 0.001 rad), in the channel's unit; `None` when the channel
+    /// is absent or its values are not on a grid.
+    pub fn quantum(&self, name: &str) -> Option<f64> {
+        hold::quantum(self.channel(name)?)
+    }
+
+    /// The staircase of channel `name` ([`hold::staircase`]), when it is a slow sensor's
+    /// sample-and-hold in a faster log.
+    pub fn staircase(&self, name: &str) -> Option<hold::Staircase> {
+        let x = self.channel(name)?;
+        hold::staircase(&self.time_s, x, hold::quantum(x))
+    }
+
+    /// The real update rate (Hz) of channel `name` when it is a sample-and-hold staircase (a
+    /// 22 Hz sensor in a 100 Hz log: ~22), from the times its value changes
+    /// ([`hold::staircase`]); `None` when the channel is absent or changes at the log's rate.
+    pub fn update_rate_hz(&self, name: &str) -> Option<f64> {
+        self.staircase(name).map(|s| s.update_rate_hz)
     }
 
     /// Sampling interval (s), the median of the time steps.
@@ -156,183 +226,6 @@ impl Recording {
             }
         }
         Ok(())
-    }
-
-    /// Reads a recording CSV onto a uniform, complete time base: duplicated rows, dropped
-    /// frames, blank or `nan` cells and jittering time stamps are mended as
-    /// [`regular::regularise`] says, with a note each; the result passes
-    /// [`Recording::validate`].
-    ///
-    /// Errors: unreadable file, no time column, a cell that is not a number (row and
-    /// column named), a ragged row, and what [`regular::regularise`] refuses (time going
-    /// backwards, a long gap, a varying sample rate), each with the file's name.
-    pub fn read_csv(path: impl AsRef<Path>) -> Result<Self> {
-        Self::read_csv_leaving_gaps(path, &[]).map(|(rec, _)| rec)
-    }
-
-    /// [`Recording::read_csv`], except that the channels named in `gappy` may lose their
-    /// reading for longer than [`regular::MAX_FILL_RUN`] samples (a camera that lost its
-    /// marker): those runs are bridged and returned ([`regular::regularise_leaving_gaps`]),
-    /// for a comparison to leave out.
-    ///
-    /// Errors: as [`Recording::read_csv`], except the long gap in a channel of `gappy`.
-    pub fn read_csv_leaving_gaps(
-        path: impl AsRef<Path>,
-        gappy: &[&str],
-    ) -> Result<(Self, regular::Gaps)> {
-        let path = path.as_ref();
-        let rec = Self::read_csv_cells(path, &mut |_| {})?;
-        if let Some(k) = rec.time_s.iter().position(|t| !t.is_finite()) {
-            bail!(
-                "{}: time_s is not finite at data row {}",
-                path.display(),
-                k + 1
-            );
-        }
-        regular::regularise_leaving_gaps(rec, gappy)
-            .with_context(|| format!("{}: invalid recording", path.display()))
-    }
-
-    /// Reads a recording CSV row by row (memory: the columns only, 8 bytes per value) and
-    /// checks it with [`Recording::validate_gapped`]: logging gaps and jitter are allowed
-    /// (see [`split_at_gaps`]). The time column is `time_s` (seconds) or `time_ms`
-    /// (milliseconds, converted with a note). `progress(rows)` is called every 2²⁰ rows.
-    ///
-    /// Errors: unreadable file, no time column (a `time`/`t` column is refused with the
-    /// hint to name its unit), a cell that is not a number, NaN/inf, non-increasing time.
-    pub fn read_csv_gapped(path: &Path, progress: &mut dyn FnMut(usize)) -> Result<Self> {
-        let rec = Self::read_csv_cells(path, progress)?;
-        rec.validate_gapped()
-            .with_context(|| format!("{}: invalid recording", path.display()))?;
-        Ok(rec)
-    }
-
-    /// [`Recording::read_csv_gapped`], except that a file with blank or `nan` cells is first
-    /// [regularised](regular::regularise) (short runs filled, with notes); where that is refused
-    /// (a long logging gap, which `identify` splits at), the gapped reading's error stands.
-    fn read_csv_any(path: &Path, progress: &mut dyn FnMut(usize)) -> Result<Self> {
-        let rec = Self::read_csv_cells(path, progress)?;
-        let blanks = CHANNELS
-            .iter()
-            .filter_map(|n| rec.channel(n))
-            .any(|c| c.iter().any(|v| v.is_nan()));
-        if blanks && rec.time_s.iter().all(|t| t.is_finite()) {
-            if let Ok(r) = regular::regularise(rec.clone()) {
-                return Ok(r);
-            }
-        }
-        rec.validate_gapped()
-            .with_context(|| format!("{}: invalid recording", path.display()))?;
-        Ok(rec)
-    }
-
-    /// The cells of a recording CSV as numbers, unchecked: a blank or `nan` cell of a
-    /// channel is NaN (a missing value).
-    fn read_csv_cells(path: &Path, progress: &mut dyn FnMut(usize)) -> Result<Self> {
-        let delimiter = sniff_delimiter(path)?;
-        let mut rdr = csv::ReaderBuilder::new()
-            .trim(csv::Trim::All)
-            .comment(Some(b'#'))
-            .delimiter(delimiter)
-            .from_path(path)
-            .with_context(|| format!("cannot open recording {}", path.display()))?;
-        let headers = rdr
-            .headers()
-            .with_context(|| format!("{}: no header row", path.display()))?
-            .clone();
-        let names: Vec<&str> = headers.iter().collect();
-        let (time_col, time_scale) =
-            time_column(&names).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-        let mut rec = Recording::default();
-        rec.notes.extend(delimiter_note(delimiter));
-        if time_scale != 1.0 {
-            let h = names[time_col];
-            rec.notes.push(format!(
-                "time column `{h}` converted to seconds (×{time_scale:e})"
-            ));
-        }
-        let cols = channel_columns(&names, time_col, &mut rec)
-            .map_err(|e| anyhow!("{}: {e}", path.display()))?;
-        let mut slots: Vec<Vec<f64>> = vec![Vec::new(); cols.len()];
-        let mut record = csv::ByteRecord::new();
-        let mut row = 0usize;
-        loop {
-            let more = rdr.read_byte_record(&mut record).map_err(|e| {
-                anyhow!(
-                    "{}: data row {}: {}",
-                    path.display(),
-                    row + 1,
-                    csv_error(&e)
-                )
-            })?;
-            if !more {
-                break;
-            }
-            row += 1;
-            let cell = |i: usize, name: &str| -> Result<f64> {
-                let b = record.get(i).ok_or_else(|| {
-                    anyhow!("{}: data row {row}: missing column {name}", path.display())
-                })?;
-                let s = std::str::from_utf8(b).unwrap_or("?");
-                if s.is_empty() && i != time_col {
-                    return Ok(f64::NAN);
-                }
-                parse_number(s, delimiter).map_err(|_| {
-                    anyhow!(
-                        "{}: data row {row}, column {name}: `{s}` is not a number",
-                        path.display()
-                    )
-                })
-            };
-            rec.time_s
-                .push(cell(time_col, names[time_col])? * time_scale);
-            for (slot, &(i, name, scale)) in slots.iter_mut().zip(&cols) {
-                slot.push(cell(i, name)? * scale);
-            }
-            if row % (1 << 20) == 0 {
-                progress(row);
-            }
-        }
-        for (slot, &(_, name, _)) in slots.into_iter().zip(&cols) {
-            *rec.channel_slot(name).expect("known channel") = Some(slot);
-        }
-        Ok(rec)
-    }
-
-    /// Reads any recording by its extension: `.npy` ([`Recording::read_npy`], the signal
-    /// row as `tip_pos_m` in the unit it was recorded in, with a note) or CSV (any other
-    /// extension, [`Recording::read_csv_gapped`]). Gaps and jitter are kept (see
-    /// [`split_at_gaps`]); a time base in milliseconds is refused with that hint when
-    /// nothing could be identified below its Nyquist frequency (see [`check_time_unit`]).
-    /// LabVIEW `.lvm` files are spectra here: read them with `ident::magspec::read_lvm`. A CSV
-    /// with blank or `nan` cells is read through [`regular::regularise`] where it allows.
-    pub fn read_any(path: &Path, progress: &mut dyn FnMut(usize)) -> Result<Self> {
-        let ext = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .unwrap_or("")
-            .to_ascii_lowercase();
-        let rec = if ext == "npy" {
-            let (t, x) = Self::read_npy(path)?;
-            Recording {
-                time_s: t,
-                tip_pos_m: Some(x),
-                notes: vec![
-                    "`.npy` [time; signal]: the signal row stands for the tip (unit as recorded)"
-                        .into(),
-                ],
-                ..Default::default()
-            }
-        } else if ext == "lvm" {
-            bail!(
-                "{}: a LabVIEW `.lvm` file is read as a magnitude spectrum by `identify`, not as a time recording",
-                path.display()
-            );
-        } else {
-            Self::read_csv_any(path, progress)?
-        };
-        check_time_unit(&rec).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-        Ok(rec)
     }
 
     /// Writes the recording as CSV (`time_s` then the present channels in [`CHANNELS`]
@@ -470,128 +363,6 @@ fn npy_values(bytes: &[u8]) -> Option<Vec<f64>> {
         .or_else(|| conv::<u8>(bytes))
 }
 
-/// The time column of a CSV header and its scale to seconds: `time_s` (1), `time_ms` (10⁻³)
-/// or `time_us` (10⁻⁶). A column named `time` or `t` without a unit is refused with the hint.
-fn time_column(names: &[&str]) -> Result<(usize, f64)> {
-    if let Some(i) = names.iter().position(|h| *h == "time_s") {
-        return Ok((i, 1.0));
-    }
-    if let Some(i) = names.iter().position(|h| *h == "time_ms") {
-        return Ok((i, 1e-3));
-    }
-    if let Some(i) = names.iter().position(|h| *h == "time_us") {
-        return Ok((i, 1e-6));
-    }
-    if names
-        .iter()
-        .any(|h| matches!(h.to_ascii_lowercase().as_str(), "time" | "t" | "timestamp"))
-    {
-        bail!(
-            "the time column has no unit: name it `time_s` (seconds) or `time_ms` (milliseconds)"
-        );
-    }
-    bail!("no `time_s` column (header: {})", names.join(", "))
-}
-
-/// The channel columns of a CSV header (index, channel, scale to SI, see [`channel_column`]),
-/// with an empty slot in `rec` for each and a note for every converted or ignored column.
-/// Errors: two columns holding one channel.
-fn channel_columns(
-    names: &[&str],
-    time_col: usize,
-    rec: &mut Recording,
-) -> Result<Vec<(usize, &'static str, f64)>> {
-    let mut cols: Vec<(usize, &'static str, f64)> = Vec::new();
-    for (i, h) in names.iter().enumerate() {
-        if i == time_col {
-            continue;
-        }
-        if let Some((name, scale)) = channel_column(h) {
-            if cols.iter().any(|c| c.1 == name) {
-                bail!("two columns hold `{name}` (`{h}` and another)");
-            }
-            if scale != 1.0 {
-                rec.notes
-                    .push(format!("column `{h}` converted to `{name}` (×{scale:e})"));
-            }
-            cols.push((i, name, scale));
-            *rec.channel_slot(name).expect("known channel") = Some(Vec::new());
-        } else {
-            rec.notes.push(format!("ignored column `{h}`"));
-        }
-    }
-    Ok(cols)
-}
-
-/// The channel a CSV column holds and its scale to SI: a channel's own name (1), or a position
-/// channel in millimetres or micrometres (`tip_pos_mm`, `base_cmd_um`: 10⁻³, 10⁻⁶).
-fn channel_column(header: &str) -> Option<(&'static str, f64)> {
-    CHANNELS.iter().find_map(|&c| {
-        if header == c {
-            return Some((c, 1.0));
-        }
-        let stem = c.strip_suffix("_m")?;
-        match header.strip_prefix(stem)? {
-            "_mm" => Some((c, 1e-3)),
-            "_um" => Some((c, 1e-6)),
-            _ => None,
-        }
-    })
-}
-
-/// The note on a column separator other than the comma.
-fn delimiter_note(delimiter: u8) -> Option<String> {
-    match delimiter {
-        b';' => Some("columns separated by `;` (decimal commas read as points)".into()),
-        b'\t' => Some("columns separated by tabs".into()),
-        _ => None,
-    }
-}
-
-/// A cell as a number; with `;` as the separator, a decimal comma reads as a point.
-fn parse_number(cell: &str, delimiter: u8) -> std::result::Result<f64, std::num::ParseFloatError> {
-    if delimiter == b';' && cell.contains(',') {
-        cell.replacen(',', ".", 1).parse()
-    } else {
-        cell.parse()
-    }
-}
-
-/// The column separator of a recording CSV, read from its header (the first line that is not
-/// a `#` comment): a comma where it has one, else `;` (spreadsheets set to a decimal comma
-/// write that), else a tab, else a comma (a one-column file).
-fn sniff_delimiter(path: &Path) -> Result<u8> {
-    use std::io::BufRead;
-    let file = std::fs::File::open(path)
-        .with_context(|| format!("cannot open recording {}", path.display()))?;
-    for line in std::io::BufReader::new(file).split(b'\n') {
-        let line = line.with_context(|| format!("cannot read recording {}", path.display()))?;
-        let line = line.trim_ascii();
-        if line.is_empty() || line.starts_with(b"#") {
-            continue;
-        }
-        return Ok([b',', b';', b'\t']
-            .into_iter()
-            .find(|d| line.contains(d))
-            .unwrap_or(b','));
-    }
-    Ok(b',')
-}
-
-/// A csv error without Rust debug text.
-fn csv_error(e: &csv::Error) -> String {
-    match e.kind() {
-        csv::ErrorKind::UnequalLengths {
-            expected_len, len, ..
-        } => {
-            format!("{len} fields where the header has {expected_len}")
-        }
-        csv::ErrorKind::Io(e) => e.to_string(),
-        csv::ErrorKind::Utf8 { .. } => "not valid UTF-8 text".into(),
-        _ => e.to_string(),
-    }
-}
-
 /// Lowest frequency (Hz) the identification looks at; a recording whose Nyquist frequency
 /// lies below it has nothing to identify.
 pub const F_MIN_HZ: f64 = 0.2;
@@ -673,34 +444,15 @@ pub fn split_at_gaps(rec: &Recording, gaps: &[Gap]) -> Vec<Recording> {
 impl Recording {
     /// The samples in `r`, every channel alike (notes kept).
     pub fn slice(&self, r: std::ops::Range<usize>) -> Recording {
-        let cut = |c: &Option<Vec<f64>>| c.as_ref().map(|v| v[r.clone()].to_vec());
-        Recording {
-            time_s: self.time_s[r.clone()].to_vec(),
-            base_cmd_m: cut(&self.base_cmd_m),
-            base_pos_m: cut(&self.base_pos_m),
-            tip_pos_m: cut(&self.tip_pos_m),
-            force_n: cut(&self.force_n),
-            notes: self.notes.clone(),
-        }
+        self.map_channels(self.time_s[r.clone()].to_vec(), |v| v[r.clone()].to_vec())
     }
 
     /// The recording on a uniform grid at its median sample rate (linear interpolation of
     /// every channel; use on a gap-free segment whose steps only jitter).
     pub fn resampled_uniform(&self) -> Recording {
         let rate = self.sample_rate_hz();
-        let re = |c: &Option<Vec<f64>>| {
-            c.as_ref()
-                .map(|v| resample_uniform(&self.time_s, v, rate).1)
-        };
         let (t, _, _) = resample_uniform(&self.time_s, &self.time_s, rate);
-        Recording {
-            time_s: t,
-            base_cmd_m: re(&self.base_cmd_m),
-            base_pos_m: re(&self.base_pos_m),
-            tip_pos_m: re(&self.tip_pos_m),
-            force_n: re(&self.force_n),
-            notes: self.notes.clone(),
-        }
+        self.map_channels(t, |v| resample_uniform(&self.time_s, v, rate).1)
     }
 
     /// True when every step is within [`UNIFORM_TOLERANCE`] of the median.
@@ -762,15 +514,8 @@ pub fn decimate_fir(x: &[f64], q: usize) -> Vec<f64> {
 impl Recording {
     /// Every channel [decimated](decimate_fir) by `q` (uniform recordings), time base kept.
     pub fn decimated(&self, q: usize) -> Recording {
-        let d = |c: &Option<Vec<f64>>| c.as_ref().map(|v| decimate_fir(v, q));
-        Recording {
-            time_s: self.time_s.iter().step_by(q.max(1)).copied().collect(),
-            base_cmd_m: d(&self.base_cmd_m),
-            base_pos_m: d(&self.base_pos_m),
-            tip_pos_m: d(&self.tip_pos_m),
-            force_n: d(&self.force_n),
-            notes: self.notes.clone(),
-        }
+        let t = self.time_s.iter().step_by(q.max(1)).copied().collect();
+        self.map_channels(t, |v| decimate_fir(v, q))
     }
 }
 
@@ -901,13 +646,8 @@ mod tests {
 /// dropped.
 pub fn decimate(rec: &Recording, rate_hz: f64) -> Recording {
     let f = ((rec.sample_rate_hz() / rate_hz).round() as usize).max(1);
-    let pick = |v: &Option<Vec<f64>>| v.as_ref().map(|v| v.iter().step_by(f).copied().collect());
-    Recording {
-        time_s: rec.time_s.iter().step_by(f).copied().collect(),
-        base_cmd_m: pick(&rec.base_cmd_m),
-        base_pos_m: pick(&rec.base_pos_m),
-        tip_pos_m: pick(&rec.tip_pos_m),
-        force_n: pick(&rec.force_n),
-        notes: vec![],
-    }
+    let t = rec.time_s.iter().step_by(f).copied().collect();
+    let mut out = rec.map_channels(t, |v| v.iter().step_by(f).copied().collect());
+    out.notes.clear();
+    out
 }

@@ -55,6 +55,12 @@ fn slow_period(rec: &Recording) -> Option<(usize, usize, &'static str)> {
     slowest
 }
 
+/// True when `rec` has the pattern read here: a uniform time base and some channel logged on
+/// every k-th row (k ≥ 2).
+pub(super) fn holds_pattern(rec: &Recording) -> bool {
+    rec.len() >= 2 && rec.is_uniform() && slow_period(rec).is_some()
+}
+
 /// `rec` at its slowest channel's rate (see the module header), with a note; `rec` unchanged
 /// when every channel is at the rows' rate or the time base is not uniform.
 ///

@@ -250,27 +250,18 @@ fn drop_duplicate_rows(rec: Recording) -> Result<Recording> {
     if dropped == 0 {
         return Ok(rec);
     }
-    let pick = |c: &Option<Vec<f64>>| {
-        c.as_ref().map(|v| {
-            v.iter()
-                .zip(&keep)
-                .filter(|(_, k)| **k)
-                .map(|(x, _)| *x)
-                .collect()
-        })
+    let pick = |v: &[f64]| -> Vec<f64> {
+        v.iter()
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(x, _)| *x)
+            .collect()
     };
-    let mut notes = rec.notes.clone();
-    notes.push(format!(
+    let mut out = rec.map_channels(pick(&rec.time_s), pick);
+    out.notes.push(format!(
         "{dropped} duplicated rows dropped (same time and values as the row before)"
     ));
-    Ok(Recording {
-        time_s: pick(&Some(rec.time_s.clone())).unwrap_or_default(),
-        base_cmd_m: pick(&rec.base_cmd_m),
-        base_pos_m: pick(&rec.base_pos_m),
-        tip_pos_m: pick(&rec.tip_pos_m),
-        force_n: pick(&rec.force_n),
-        notes,
-    })
+    Ok(out)
 }
 
 /// The sample grid of a strictly increasing time base: each step as a whole number of median
