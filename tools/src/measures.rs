@@ -176,7 +176,7 @@ pub fn superposed_vibration_worst_pct(
     window_s: f64,
     resolution_pct: f64,
 ) -> Option<f64> {
-    superposed_check(x, dt_s, 0.0, shaper, window_s, resolution_pct).pct
+    superposed_check(x, dt_s, 0.0, 0.0, shaper, window_s, resolution_pct).pct
 }
 
 /// What the model-free check could measure on a recorded free vibration, and why not.
@@ -185,10 +185,10 @@ pub struct SuperposedCheck {
     /// The worst V (%) over the windows that resolve the tolerance; `None`: none does.
     pub pct: Option<f64>,
     /// The noise's bound on the shaped residual (m): the larger of 3σ·√(ΣA_i²) (white noise
-    /// of σ from the median third difference) and (q/2)·Σ|A_i| (a quantiser of step q
+    /// of σ from the median k-th difference) and (q/2)·Σ|A_i| (a quantiser of step q
     /// errs by at most q/2 on each sample, and the shaper sums the delayed samples).
     pub noise_m: f64,
-    /// White-noise σ estimated from the median third difference (m).
+    /// White-noise σ estimated from the median k-th difference (m; [`difference_order`]).
     pub sigma_m: f64,
     /// Windows that fit in the record (of the six tried).
     pub windows: usize,
@@ -219,14 +219,58 @@ impl SuperposedCheck {
     }
 }
 
+/// Binomial coefficient C(2k, k): the variance gain of a k-th difference on white noise.
+fn central_binomial(k: usize) -> f64 {
+    (1..=k).fold(1.0, |c, i| c * (k + i) as f64 / i as f64)
+}
+
+/// The smallest difference order k ≥ 3 (at most [`MAX_DIFFERENCE_ORDER`]) at which a
+/// sinusoid of amplitude `amplitude` and frequency `cycles_per_sample` (f·dt) adds at most
+/// `allowed` to a white-noise σ estimated from k-th differences: its k-th difference has
+/// amplitude (2 sin(π f dt))^k · amplitude, and the estimate divides by √C(2k, k). A
+/// vibration sampled well above its frequency needs k = 3; a slow sensor (22 Hz on a 0.7 Hz
+/// swing) a higher order, or its own swing is read as noise.
+pub fn difference_order(amplitude: f64, cycles_per_sample: f64, allowed: f64) -> usize {
+    let r = (2.0 * (std::f64::consts::PI * cycles_per_sample.clamp(0.0, 0.5)).sin()).abs();
+    (3..=MAX_DIFFERENCE_ORDER)
+        .find(|&k| amplitude * r.powi(k as i32) / central_binomial(k).sqrt() <= allowed)
+        .unwrap_or(MAX_DIFFERENCE_ORDER)
+}
+
+/// Highest difference order [`difference_order`] uses (C(16, 8) = 12 870: beyond it the
+/// estimate leans on ever fewer effectively independent samples).
+pub const MAX_DIFFERENCE_ORDER: usize = 8;
+
+/// White-noise σ of `x` from its k-th differences: the median |Δᵏx| over 0.6745 (the normal
+/// distribution's median absolute value) and √C(2k, k) (their variance gain). A smooth
+/// vibration sampled well above its frequency contributes (2πf·dt)ᵏ of its amplitude, where
+/// a first difference would mistake an oversampled signal's slope for noise.
+pub fn white_noise_sigma(x: &[f64], k: usize) -> f64 {
+    let mut d: Vec<f64> = x.to_vec();
+    for _ in 0..k {
+        d = d.windows(2).map(|w| w[1] - w[0]).collect();
+    }
+    if d.is_empty() {
+        return 0.0;
+    }
+    for v in d.iter_mut() {
+        *v = v.abs();
+    }
+    let mid = d.len() / 2;
+    let (_, m, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
+    *m / (0.6745 * central_binomial(k).sqrt())
+}
+
 /// The windowed model-free check of [`superposed_vibration_worst_pct`] on `x` (uniform step
 /// `dt_s`, at the sensor's real update rate — a sample-and-hold staircase must be resampled
-/// first), for a sensor of quantisation step `quantum_m` (0 when continuous), with what it
-/// found when no window resolves `resolution_pct`.
+/// first), for a sensor of quantisation step `quantum_m` (0 when continuous) and a vibration
+/// whose highest natural frequency is `content_hz` (0 when unknown: third differences), with
+/// what it found when no window resolves `resolution_pct`.
 pub fn superposed_check(
     x: &[f64],
     dt_s: f64,
     quantum_m: f64,
+    content_hz: f64,
     shaper: &Shaper,
     window_s: f64,
     resolution_pct: f64,
@@ -243,20 +287,16 @@ pub fn superposed_check(
         return out;
     }
     let mean = x.iter().sum::<f64>() / n as f64;
-    // White-noise σ from the third difference (variance C(6,3)·σ² = 20σ²): a smooth vibration
-    // sampled well above its frequency contributes (2πf·dt)³ of its amplitude there, where a
-    // first difference would mistake an oversampled signal's slope for noise.
-    let mut d: Vec<f64> = x
-        .windows(4)
-        .map(|w| (w[3] - 3.0 * w[2] + 3.0 * w[1] - w[0]).abs())
-        .collect();
-    d.sort_by(f64::total_cmp);
-    out.sigma_m = d[d.len() / 2] / (0.6745 * 20f64.sqrt());
+    let peak = x.iter().map(|v| (v - mean).abs()).fold(0.0, f64::max);
     let amps = shaper.impulses();
     let gain = amps.iter().map(|i| i.amplitude * i.amplitude).sum::<f64>().sqrt();
     let abs_sum = amps.iter().map(|i| i.amplitude.abs()).sum::<f64>();
+    // The σ that would just fail the resolution on the largest excursion; the noise estimate
+    // must not be inflated by the vibration itself by more than a tenth of it.
+    let sigma_limit = resolution_pct / 100.0 * peak / (3.0 * gain.max(f64::EPSILON));
+    let k = difference_order(peak, content_hz * dt_s, 0.1 * sigma_limit);
+    out.sigma_m = white_noise_sigma(x, k);
     out.noise_m = (3.0 * out.sigma_m * gain).max(0.5 * quantum_m.max(0.0) * abs_sum);
-    let peak = x.iter().map(|v| (v - mean).abs()).fold(0.0, f64::max);
     let w = (window_s / dt_s) as usize;
     for f in [0.1, 0.2, 0.3, 0.4, 0.5, 0.6] {
         let k = (n as f64 * f) as usize;
@@ -325,4 +365,43 @@ pub fn displacement_from_acceleration(a: &[f64], dt_s: f64, f_lo_hz: f64) -> Vec
         return a.to_vec();
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+
+    fn noise(n: usize, sigma: f64, seed: u64) -> Vec<f64> {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let d = Normal::new(0.0, sigma).unwrap();
+        (0..n).map(|_| d.sample(&mut rng)).collect()
+    }
+
+    #[test]
+    fn white_noise_sigma_is_recovered_at_every_difference_order() {
+        let x = noise(20_000, 0.3, 1);
+        for k in 3..=MAX_DIFFERENCE_ORDER {
+            let s = white_noise_sigma(&x, k);
+            assert!((s / 0.3 - 1.0).abs() < 0.05, "order {k}: σ {s}");
+        }
+    }
+
+    #[test]
+    fn a_slowly_sampled_swing_is_not_read_as_noise() {
+        // 0.735 Hz at 22 Hz, 50 mm, with 0.03 mm of white noise: third differences see the swing.
+        let (f, dt, a, sigma) = (0.735, 1.0 / 22.0, 50.0, 0.03);
+        let e = noise(2000, sigma, 2);
+        let x: Vec<f64> = (0..2000)
+            .map(|k| a * (2.0 * std::f64::consts::PI * f * k as f64 * dt).sin() + e[k])
+            .collect();
+        assert!(white_noise_sigma(&x, 3) > 1.5 * sigma);
+        let k = difference_order(a, f * dt, 0.1 * sigma);
+        assert!(k > 3, "order {k}");
+        let s = white_noise_sigma(&x, k);
+        assert!((s / sigma - 1.0).abs() < 0.15, "order {k}: σ {s}");
+        // Well oversampled, the third difference suffices.
+        assert_eq!(difference_order(a, 1.0 / 1000.0, 0.1 * sigma), 3);
+    }
 }

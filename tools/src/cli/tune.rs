@@ -124,6 +124,7 @@ impl TuneArgs {
             },
             time_scale: self.time_scale,
             accept_predicted: self.accept_predicted,
+            read: Default::default(),
         }
     }
 }
@@ -249,6 +250,9 @@ fn print_verification(a: &TuneArgs, r: &TuneReport) {
         if r.acceleration { ", acceleration integrated twice" } else { "" },
         a.tolerance_pct / 2.0
     );
+    if let Some(n) = &v.recorded_note {
+        println!("    ({n})");
+    }
     println!("  rig model ({})  {}", r.rig_label, fmt(v.rig_model_pct));
     println!(
         "  predicted at the identified modes {:.2} %",

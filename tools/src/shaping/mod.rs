@@ -120,6 +120,12 @@ pub struct RecordedVibration {
     pub dt_s: f64,
     /// Quantisation step of the samples (m); 0 when continuous.
     pub quantum_m: f64,
+    /// Highest natural frequency in the vibration (Hz; the identified modes'), for the noise
+    /// estimate; 0 when unknown.
+    pub content_hz: f64,
+    /// How the samples were taken from the recording, when that needs saying (a
+    /// sample-and-hold staircase read at its update rate).
+    pub note: Option<String>,
 }
 
 /// Percentage vibration (%) shaper `s` leaves on a recorded free vibration by superposition
@@ -146,6 +152,7 @@ pub fn superposed_check(
         &rec.position_m,
         rec.dt_s,
         rec.quantum_m,
+        rec.content_hz,
         s,
         window_s,
         tolerance_pct / 2.0,
@@ -303,6 +310,9 @@ mod tests {
         RecordedVibration {
             position_m,
             dt_s: dt,
+            quantum_m: 0.0,
+            content_hz: f_hz,
+            note: None,
         }
     }
 

@@ -98,6 +98,8 @@ pub struct TuneOptions {
     pub signal: Signal,
     /// Virtual board speed-up over real time, 1..=1000.
     pub time_scale: f64,
+    /// How the user's recording is read (`--columns`, `--axis`).
+    pub read: crate::recording::ReadOptions,
     /// When nothing can measure the shaper, save it on the identified modes' prediction
     /// alone (within the tolerance), recorded as `predicted-only` on the board.
     pub accept_predicted: bool,
@@ -119,6 +121,7 @@ impl TuneOptions {
             camera_log: None,
             signal: Signal::Auto,
             time_scale: 200.0,
+            read: Default::default(),
             accept_predicted: false,
         }
     }
@@ -350,7 +353,8 @@ fn run_job(
     view: &mut dyn TuneView,
 ) -> Result<TuneReport, TuneError> {
     let (input, id) = recording_and_modes(o, bench, before, pre, view)?;
-    let recorded = recorded_free_position(inputs, id.modes[0].freq_hz);
+    let f_max = id.modes.iter().map(|m| m.freq_hz).fold(0.0, f64::max);
+    let recorded = recorded_free_position(inputs, id.modes[0].freq_hz, f_max);
     let design = design(o, id.shaped_modes(), before, recorded.as_ref().ok())?;
     view.designed(id.shaped_modes(), &design)
         .map_err(TuneError::View)?;

@@ -6,30 +6,64 @@ use super::Inputs;
 use crate::measures::displacement_from_acceleration;
 use crate::model::sim::BaseMotionSim;
 use crate::model::{BeamModel, ModelOptions, Rig};
-use crate::recording::Recording;
+use crate::recording::{hold, ReadOptions, Recording};
 use crate::shaping::RecordedVibration;
 use std::path::Path;
 
-/// The free vibration in a recording, for the model-free check: tip (minus base, when there
-/// is one) after the base last left its final position by more than 20 µm, from the largest
-/// excursion on, resampled to its median step. Errors (a sentence for the user): the file
-/// cannot be read, has no tip channel, or holds no free vibration (fewer than 64 samples after
-/// the base's last move, e.g. a sweep that ends moving).
-pub fn free_vibration(path: &Path) -> Result<(Vec<f64>, f64), String> {
-    let rec = Recording::read_any(path, &mut |_| {}).map_err(|e| format!("{e:#}"))?;
-    let tip = rec
-        .tip_pos_m
-        .as_ref()
-        .ok_or("the recording has no tip channel (tip_pos_m)")?;
+/// A recording's free vibration, as its sensor sampled it ([`free_vibration`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FreeVibration {
+    /// Samples (the channel's unit: m, or m/s² for an acceleration), uniform.
+    pub x: Vec<f64>,
+    /// Sample step (s): the sensor's update period when the log holds its samples.
+    pub dt_s: f64,
+    /// Quantisation step of the samples (0 when continuous).
+    pub quantum: f64,
+    /// The signal is the tip acceleration (`tip_acc_m_s2`), not a position.
+    pub acceleration: bool,
+    /// What was done to reach the sensor's own samples (for the user), if anything.
+    pub note: Option<String>,
+}
+
+/// The free vibration in a recording, for the model-free check: tip position (minus base,
+/// when there is one) — or the tip acceleration when the recording has no position — after
+/// the base last left its final position by more than 20 µm, from the largest excursion on,
+/// at the sensor's own samples:
+/// - a sample-and-hold staircase (a slow sensor in a fast log, or a row-wise log
+///   forward-filled; [`crate::recording::hold::staircase`]) is read back at its update
+///   period, one value from the middle of each hold (robust to an update jitter below half a
+///   period), so the log's repeated rows are not mistaken for smooth samples;
+/// - otherwise resampled to the median step;
+/// - the quantisation step ([`crate::recording::hold::quantum`]) is kept for the noise
+///   bound of the check.
+///
+/// Errors (a sentence for the user): the file cannot be read, has no tip channel, or holds no
+/// free vibration (fewer than 64 samples after the base's last move, e.g. a sweep that ends
+/// moving).
+pub fn free_vibration(path: &Path, opts: &ReadOptions) -> Result<FreeVibration, String> {
+    let rec = Recording::read_any_with(path, opts, &mut |_| {}).map_err(|e| format!("{e:#}"))?;
+    let (tip, acceleration) = match (&rec.tip_pos_m, &rec.tip_acc_m_s2) {
+        (Some(p), _) => (p, false),
+        (None, Some(a)) => (a, true),
+        (None, None) => return Err("the recording has no tip channel (tip_pos_m or tip_acc_m_s2)".into()),
+    };
     let base = rec.base_pos_m.as_ref().or(rec.base_cmd_m.as_ref());
     let (sig, start): (Vec<f64>, usize) = match base {
-        Some(b) => {
+        Some(b) if !acceleration => {
             let last = *b.last().ok_or("the recording is empty")?;
             let moved = b
                 .iter()
                 .rposition(|v| (v - last).abs() > 20e-6)
                 .map_or(0, |k| k + 1);
             (tip.iter().zip(b).map(|(t, b)| t - b).collect(), moved)
+        }
+        Some(b) => {
+            let last = *b.last().ok_or("the recording is empty")?;
+            let moved = b
+                .iter()
+                .rposition(|v| (v - last).abs() > 20e-6)
+                .map_or(0, |k| k + 1);
+            (tip.clone(), moved)
         }
         None => (tip.clone(), 0),
     };
@@ -40,36 +74,99 @@ pub fn free_vibration(path: &Path) -> Result<(Vec<f64>, f64), String> {
             t.len()
         ));
     }
-    let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    steps.sort_by(f64::total_cmp);
-    let dt = steps[steps.len() / 2];
-    let (_, xu, _) = crate::recording::resample_uniform(t, x, 1.0 / dt);
+    // The sensor's step is the tip channel's own (the base is at rest here).
+    let quantum = hold::quantum(&tip[start..]);
+    let (xu, dt, note) = match hold::staircase(t, x, quantum) {
+        Some(st) => {
+            let held = held_samples(t, x, st.period_s);
+            let note = format!(
+                "the tip channel is a sample-and-hold staircase: {} samples at its update rate {} Hz (log rows at {} Hz)",
+                held.len(),
+                crate::recording::fmt_sig(st.update_rate_hz, 3),
+                crate::recording::fmt_sig(st.row_rate_hz, 3)
+            );
+            (held, st.period_s, Some(note))
+        }
+        None => {
+            let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+            steps.sort_by(f64::total_cmp);
+            let dt = steps[steps.len() / 2];
+            let (_, xu, _) = crate::recording::resample_uniform(t, x, 1.0 / dt);
+            (xu, dt, None)
+        }
+    };
+    if xu.len() < 16 {
+        return Err(format!("only {} sensor samples of free vibration", xu.len()));
+    }
     let mean = xu.iter().sum::<f64>() / xu.len() as f64;
     let half = &xu[..xu.len() / 2];
     let k = (0..half.len())
         .max_by(|&i, &j| (half[i] - mean).abs().total_cmp(&(half[j] - mean).abs()))
         .ok_or("no free vibration")?;
-    Ok((xu[k..].to_vec(), dt))
+    Ok(FreeVibration {
+        x: xu[k..].to_vec(),
+        dt_s: dt,
+        quantum: quantum.unwrap_or(0.0),
+        acceleration,
+        note,
+    })
+}
+
+/// The sensor's samples in a sample-and-hold log (`x` at times `t`, updated every
+/// `period_s` on average): each change of value is an update, seen on the first row after
+/// it; a gap of m periods between changes holds m − 1 updates that repeated the value (a
+/// quantised signal at a turning point), placed evenly in it. These (time, value) samples
+/// are resampled to the uniform step `period_s` by linear interpolation — the sensor's own
+/// time stamps kept, so a jittering update clock does not shift the samples.
+fn held_samples(t: &[f64], x: &[f64], period_s: f64) -> Vec<f64> {
+    let mut ts: Vec<f64> = Vec::new();
+    let mut xs: Vec<f64> = Vec::new();
+    for k in 1..x.len() {
+        if x[k] == x[k - 1] {
+            continue;
+        }
+        if let Some(&last) = ts.last() {
+            let m = ((t[k] - last) / period_s).round().max(1.0) as usize;
+            let held = xs[xs.len() - 1];
+            for j in 1..m {
+                ts.push(last + (t[k] - last) * j as f64 / m as f64);
+                xs.push(held);
+            }
+        }
+        ts.push(t[k]);
+        xs.push(x[k]);
+    }
+    if ts.len() < 2 {
+        return xs;
+    }
+    crate::recording::resample_uniform(&ts, &xs, 1.0 / period_s).1
 }
 
 /// The user's recorded free vibration as tip position (m) at a uniform step (s), for the
 /// model-free check: an accelerometer's signal integrated twice (high-passed at half the first
-/// identified natural frequency). Errors (a sentence): no recording (a generated sweep), or
-/// [`free_vibration`]'s reasons.
-pub fn recorded_free_position(inputs: &Inputs, f1_hz: f64) -> Result<RecordedVibration, String> {
+/// identified natural frequency `f1_hz`; `f_max_hz` the highest identified one). Errors (a
+/// sentence): no recording (a generated sweep), or [`free_vibration`]'s reasons.
+pub fn recorded_free_position(
+    inputs: &Inputs,
+    f1_hz: f64,
+    f_max_hz: f64,
+) -> Result<RecordedVibration, String> {
     let path = inputs
         .recording
         .as_deref()
         .ok_or("no user recording (the excitation was generated)")?;
-    let (x, dt) = free_vibration(path)?;
-    let pos = match inputs.acceleration {
-        true => displacement_from_acceleration(&x, dt, 0.5 * f1_hz),
-        false => x,
+    let fv = free_vibration(path, &inputs.read)?;
+    let (pos, quantum_m) = match inputs.acceleration || fv.acceleration {
+        // the quantum of an acceleration does not carry over to its double integral
+        true => (displacement_from_acceleration(&fv.x, fv.dt_s, 0.5 * f1_hz), 0.0),
+        false => (fv.x, fv.quantum),
     };
     Ok(RecordedVibration {
         position_m: pos,
-        dt_s: dt,
-        quantum_m: 0.0,
+        dt_s: fv.dt_s,
+        quantum_m,
+        content_hz: f_max_hz,
+        note: fv.note,
     })
 }
 

@@ -42,6 +42,8 @@ pub struct Verification {
     pub predicted_pct: f64,
     /// Why each measuring check that did not run could not (sentences; empty when one ran).
     pub unmeasured_because: Vec<String>,
+    /// How the recorded vibration was sampled, when that needs saying.
+    pub recorded_note: Option<String>,
 }
 
 /// The verdict of the checks.
@@ -138,6 +140,7 @@ pub fn verify(
         moves,
         predicted_pct,
         unmeasured_because,
+        recorded_note: recorded.ok().and_then(|r| r.note.clone()),
     })
 }
 
