@@ -728,11 +728,20 @@ pub fn choose_path(
             )
         };
     };
-    let still = format!(
-        "±{} µm (6 × its noise {} µm, 1.4826 × MAD of the last 10 %)",
-        fmt_sig(b.still_band_m * 1e6, 3),
-        fmt_sig(b.noise_m * 1e6, 3)
-    );
+    let still = if b.still_band_m > 6.0 * b.noise_m {
+        // the floor: a base that does not move at all at the recording's resolution
+        format!(
+            "±{} µm (10⁻⁷ of its range: its last 10 % does not move at the recording's resolution, noise {} µm)",
+            fmt_sig(b.still_band_m * 1e6, 3),
+            fmt_sig(b.noise_m * 1e6, 3)
+        )
+    } else {
+        format!(
+            "±{} µm (6 × its noise {} µm, 1.4826 × MAD of the last 10 %)",
+            fmt_sig(b.still_band_m * 1e6, 3),
+            fmt_sig(b.noise_m * 1e6, 3)
+        )
+    };
     if !b.ends_still {
         return (
             IdentPath::Frf,
