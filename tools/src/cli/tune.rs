@@ -71,6 +71,9 @@ pub struct TuneArgs {
     /// Virtual board speed-up over real time.
     #[arg(long, default_value_t = 200.0, value_parser = finite_f64)]
     pub time_scale: f64,
+    /// How the recording is read (`--columns`, `--axis`).
+    #[command(flatten)]
+    pub read: super::read::ReadArgs,
 }
 
 impl TuneArgs {
@@ -93,6 +96,10 @@ impl TuneArgs {
             camera_log: o.camera_log,
             signal: SignalArg::Auto,
             time_scale: o.time_scale,
+            read: super::read::ReadArgs {
+                columns: o.read.columns,
+                axis: o.read.axis,
+            },
         }
     }
 
@@ -115,6 +122,7 @@ impl TuneArgs {
                 SignalArg::Acceleration => Signal::Acceleration,
             },
             time_scale: self.time_scale,
+            read: self.read.options(),
         }
     }
 }

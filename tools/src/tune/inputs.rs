@@ -31,6 +31,8 @@ pub struct Inputs {
     /// The recording's vibration signal is an acceleration (integrated twice for the
     /// model-free check).
     pub acceleration: bool,
+    /// How the recording is read (`--columns`, `--axis`).
+    pub read: crate::recording::ReadOptions,
 }
 
 /// Refuses an option out of its range; the message names the option.
@@ -117,6 +119,7 @@ pub fn check_inputs(o: &TuneOptions) -> Result<Inputs, TuneError> {
                 .as_ref()
                 .is_some_and(|p| p.extension().is_some_and(|e| e == "npy")),
         },
+        read: o.read.clone(),
     })
 }
 

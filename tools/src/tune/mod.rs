@@ -97,6 +97,8 @@ pub struct TuneOptions {
     pub signal: Signal,
     /// Virtual board speed-up over real time, 1..=1000.
     pub time_scale: f64,
+    /// How the user's recording is read (`--columns`, `--axis`).
+    pub read: crate::recording::ReadOptions,
 }
 
 impl TuneOptions {
@@ -115,6 +117,7 @@ impl TuneOptions {
             camera_log: None,
             signal: Signal::Auto,
             time_scale: 200.0,
+            read: Default::default(),
         }
     }
 }
@@ -278,7 +281,7 @@ impl TuneView for Quiet {}
 pub fn tune(o: &TuneOptions, view: &mut dyn TuneView) -> Result<TuneReport, TuneError> {
     let inputs = check_inputs(o)?;
     let pre = match &inputs.recording {
-        Some(p) => Some(identify_step(p)?),
+        Some(p) => Some(identify_step(p, &o.read)?),
         None => None,
     };
     let mut bench = connect(o, &inputs)?;
@@ -347,7 +350,7 @@ fn recording_and_modes(
         None => {
             let e = inputs::excite(o, bench, before)?;
             view.excited(&e);
-            let id = identify_step(&e.recording)?;
+            let id = identify_step(&e.recording, &Default::default())?;
             (e.recording, id)
         }
     };
@@ -360,13 +363,17 @@ fn recording_and_modes(
 
 /// The identification step: the recording at `path` (CSV, `.npy`, `.lvm` spectrum; a sweep,
 /// a free decay or moves + ring-down, with gaps) → its physical modes
-/// ([`crate::ident::identify::identify_file`] with default options).
-pub fn identify_step(path: &Path) -> Result<IdentifiedModes, TuneError> {
-    let id = crate::ident::identify::identify_file(
-        path,
-        &crate::ident::IdentifyOptions::default(),
-        &mut |_| {},
-    )
+/// ([`crate::ident::identify::identify_file`] with default options, the file read as `read`
+/// says).
+pub fn identify_step(
+    path: &Path,
+    read: &crate::recording::ReadOptions,
+) -> Result<IdentifiedModes, TuneError> {
+    let opts = crate::ident::IdentifyOptions {
+        read: read.clone(),
+        ..Default::default()
+    };
+    let id = crate::ident::identify::identify_file(path, &opts, &mut |_| {})
     .map_err(|e| TuneError::Other(e.into()))?;
     Ok(IdentifiedModes {
         description: crate::ident::report::identification_table(&id),

@@ -6,16 +6,23 @@ use super::Inputs;
 use crate::measures::displacement_from_acceleration;
 use crate::model::sim::BaseMotionSim;
 use crate::model::{BeamModel, ModelOptions, Rig};
-use crate::recording::Recording;
+use crate::recording::{ReadOptions, Recording};
 use crate::shaping::RecordedVibration;
 use std::path::Path;
 
-/// The free vibration in a recording, for the model-free check: tip (minus base, when there
-/// is one) after the base last left its final position by more than 20 µm, from the largest
-/// excursion on, resampled to its median step. `None` when there is none (e.g. a sweep that
-/// ends moving) or the file cannot be read.
-pub fn free_vibration(path: &Path) -> Option<(Vec<f64>, f64)> {
-    let rec = Recording::read_any(path, &mut |_| {}).ok()?;
+/// The free vibration in a recording read as `read` says, for the model-free check: tip (minus
+/// base, when there is one) after the base last left its final position by more than 20 µm,
+/// from the largest excursion on, resampled to its median step. A recording with a tip
+/// accelerometer and no tip position gives the acceleration (m/s²; the base is not
+/// subtracted). Returns (signal, step s, the signal is that acceleration); `None` when there
+/// is none (e.g. a sweep that ends moving) or the file cannot be read.
+pub fn free_vibration(path: &Path, read: &ReadOptions) -> Option<(Vec<f64>, f64, bool)> {
+    let rec = Recording::read_any_with(path, read, &mut |_| {}).ok()?;
+    if rec.tip_pos_m.is_none() {
+        let acc = rec.tip_acc_m_s2.as_ref()?;
+        let (x, dt) = from_largest_excursion(&rec.time_s, acc)?;
+        return Some((x, dt, true));
+    }
     let tip = rec.tip_pos_m.as_ref()?;
     let base = rec.base_pos_m.as_ref().or(rec.base_cmd_m.as_ref());
     let (sig, start): (Vec<f64>, usize) = match base {
@@ -29,7 +36,13 @@ pub fn free_vibration(path: &Path) -> Option<(Vec<f64>, f64)> {
         }
         None => (tip.clone(), 0),
     };
-    let (t, x) = (&rec.time_s[start..], &sig[start..]);
+    let (x, dt) = from_largest_excursion(&rec.time_s[start..], &sig[start..])?;
+    Some((x, dt, false))
+}
+
+/// `x` at times `t` resampled to its median step, from its largest excursion (in its first
+/// half) on; `None` for fewer than 64 samples.
+fn from_largest_excursion(t: &[f64], x: &[f64]) -> Option<(Vec<f64>, f64)> {
     if t.len() < 64 {
         return None;
     }
@@ -49,8 +62,8 @@ pub fn free_vibration(path: &Path) -> Option<(Vec<f64>, f64)> {
 /// identified natural frequency). `None` when the input has none (generated sweep, or a
 /// recording that ends moving).
 pub fn recorded_free_position(inputs: &Inputs, f1_hz: f64) -> Option<RecordedVibration> {
-    let (x, dt) = inputs.recording.as_deref().and_then(free_vibration)?;
-    let pos = match inputs.acceleration {
+    let (x, dt, acc) = free_vibration(inputs.recording.as_deref()?, &inputs.read)?;
+    let pos = match inputs.acceleration || acc {
         true => displacement_from_acceleration(&x, dt, 0.5 * f1_hz),
         false => x,
     };
