@@ -214,8 +214,11 @@ pub fn identify_file(
         return identify_spectrum_file(path, opts);
     }
     let rec = Recording::read_any_with(path, &opts.read, &mut |n| progress(Stage::Reading(n)))?;
-    let mut id =
-        identify(&rec, opts, progress).map_err(|e| anyhow::anyhow!("{}: {e:#}", path.display()))?;
+    let mut id = identify(&rec, opts, progress).map_err(|e| {
+        // what reading noted (the columns read, a row-wise log, a staircase, …) follows the error
+        let notes: String = rec.notes.iter().map(|n| format!("\n  note: {n}")).collect();
+        anyhow::anyhow!("{}: {e:#}{notes}", path.display())
+    })?;
     // what reading noted or mended (ignored columns, blank cells filled, …) heads the warnings
     id.warnings.splice(0..0, rec.notes.iter().cloned());
     Ok(id)
