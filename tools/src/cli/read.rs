@@ -116,6 +116,7 @@ pub fn bench_read(a: BenchReadArgs) -> Result<()> {
         .len() as f64;
     let mut best = f64::INFINITY;
     let mut shape = (0usize, 0usize);
+    let mut notes = Vec::new();
     for _ in 0..a.repeat.max(1) {
         let t0 = Instant::now();
         let rec = Recording::read_any_with(&a.file, &opts, &mut |_| {})?;
@@ -127,7 +128,9 @@ pub fn bench_read(a: BenchReadArgs) -> Result<()> {
                 .filter(|c| rec.channel(c).is_some())
                 .count(),
         );
+        notes = rec.notes;
     }
+    super::print_notes(&a.file, &notes);
     let rss = peak_rss_mib().unwrap_or(f64::NAN);
     // the cells alone: every column parsed, nothing mended or noted
     let layout = crate::recording::csvread::layout(&a.file);
