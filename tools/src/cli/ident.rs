@@ -76,6 +76,9 @@ pub struct IdentifyArgs {
     /// FRF), decay (free decay of the tip, after the base's last move).
     #[arg(long, default_value = "auto")]
     pub path: String,
+    /// How the recording is read (`--columns`, `--axis`).
+    #[command(flatten)]
+    pub read: super::read::ReadArgs,
 }
 
 fn parse_band(s: &str) -> Result<(f64, f64)> {
@@ -193,6 +196,7 @@ pub fn identify_options_of(a: &IdentifyArgs) -> Result<IdentifyOptions> {
             f_max_hz: a.f_max_hz,
             ..Default::default()
         },
+        read: a.read.options(),
         ..Default::default()
     })
 }
@@ -422,11 +426,14 @@ pub struct FrfArgs {
     /// JSON of the whole estimate.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// How the recording is read (`--columns`, `--axis`).
+    #[command(flatten)]
+    pub read: super::read::ReadArgs,
 }
 
 /// `beamtool frf`.
 pub fn frf(a: FrfArgs) -> Result<()> {
-    let rec = super::read_recording(&a.recording)?;
+    let rec = super::read_recording_with(&a.recording, &a.read.options())?;
     let opts = WelchOptions {
         nperseg: Some(a.nperseg.unwrap_or(rec.len() / 4)),
         overlap: a.overlap,

@@ -11,6 +11,7 @@ pub mod diagnose;
 pub mod ident;
 pub mod model;
 pub mod paper;
+pub mod read;
 pub mod truth;
 pub mod tune;
 
@@ -64,6 +65,8 @@ pub enum Command {
     DiagnoseProof(crate::cli::diagnose::ProofArgs),
     /// Write one truth-generator case (rig + fit/validation recordings with a hidden effect).
     Truth(crate::cli::truth::TruthArgs),
+    /// Benchmark reading a recording (rows/s, MB/s, peak RSS) beside a peer (python3's csv).
+    BenchRead(crate::cli::read::BenchReadArgs),
 }
 
 /// Runs one command: one arm per command (keep one line per arm where possible, append new
@@ -102,6 +105,7 @@ pub fn run(command: Command) -> Result<()> {
             default_rig(&mut a.rig)?;
             crate::cli::paper::bench_sim(a)
         }
+        Command::BenchRead(a) => crate::cli::read::bench_read(a),
     }
 }
 
@@ -117,7 +121,15 @@ pub fn finite_f64(s: &str) -> std::result::Result<f64, String> {
 /// Reads a recording CSV onto a uniform time base ([`crate::recording::Recording::read_csv`]) and prints what
 /// was mended on the way (`note: FILE: …` on stderr).
 pub fn read_recording(path: &std::path::Path) -> Result<crate::recording::Recording> {
-    let rec = crate::recording::Recording::read_csv(path)?;
+    read_recording_with(path, &Default::default())
+}
+
+/// [`read_recording`] with the reading options `opts` (`--columns`, `--axis`).
+pub fn read_recording_with(
+    path: &std::path::Path,
+    opts: &crate::recording::ReadOptions,
+) -> Result<crate::recording::Recording> {
+    let rec = crate::recording::Recording::read_csv_with(path, opts)?;
     print_notes(path, &rec.notes);
     Ok(rec)
 }

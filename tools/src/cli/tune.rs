@@ -78,6 +78,9 @@ pub struct TuneArgs {
     /// `verified=predicted-only`.
     #[arg(long)]
     pub accept_predicted: bool,
+    /// How the recording is read (`--columns`, `--axis`).
+    #[command(flatten)]
+    pub read: super::read::ReadArgs,
 }
 
 impl TuneArgs {
@@ -101,6 +104,10 @@ impl TuneArgs {
             signal: SignalArg::Auto,
             time_scale: o.time_scale,
             accept_predicted: o.accept_predicted,
+            read: super::read::ReadArgs {
+                columns: o.read.columns,
+                axis: o.read.axis,
+            },
         }
     }
 
@@ -124,7 +131,7 @@ impl TuneArgs {
             },
             time_scale: self.time_scale,
             accept_predicted: self.accept_predicted,
-            read: Default::default(),
+            read: self.read.options(),
         }
     }
 }

@@ -96,6 +96,8 @@ pub struct IdentifyOptions {
     /// Longest FRF segment (samples): longer recordings are Welch-averaged in Hamming
     /// segments of this length (bounded memory).
     pub max_segment: usize,
+    /// How the recording file is read by [`identify_file`] (`--columns`, `--axis`).
+    pub read: crate::recording::ReadOptions,
 }
 
 impl Default for IdentifyOptions {
@@ -105,6 +107,7 @@ impl Default for IdentifyOptions {
             frf: IdentOptions::default(),
             decay: FreeDecayOptions::default(),
             max_segment: 1 << 19,
+            read: Default::default(),
         }
     }
 }
@@ -196,7 +199,7 @@ pub struct Identification {
     pub decay_result: Option<FreeDecayResult>,
 }
 
-/// Reads the file at `path` ([`Recording::read_any`]: CSV, `.npy`; or a LabVIEW `.lvm`
+/// Reads the file at `path` ([`Recording::read_any_with`] with `opts.read`: CSV, `.npy`; or a LabVIEW `.lvm`
 /// magnitude spectrum) and identifies it ([`identify`]; a spectrum by [`super::magspec`] in
 /// `opts.decay`'s band, at most 6 peaks ≥ 10 dB prominent).
 pub fn identify_file(
@@ -210,9 +213,12 @@ pub fn identify_file(
     if is_lvm {
         return identify_spectrum_file(path, opts);
     }
-    let rec = Recording::read_any(path, &mut |n| progress(Stage::Reading(n)))?;
-    let mut id =
-        identify(&rec, opts, progress).map_err(|e| anyhow::anyhow!("{}: {e:#}", path.display()))?;
+    let rec = Recording::read_any_with(path, &opts.read, &mut |n| progress(Stage::Reading(n)))?;
+    let mut id = identify(&rec, opts, progress).map_err(|e| {
+        // what reading noted (the columns read, a row-wise log, a staircase, …) follows the error
+        let notes: String = rec.notes.iter().map(|n| format!("\n  note: {n}")).collect();
+        anyhow::anyhow!("{}: {e:#}{notes}", path.display())
+    })?;
     // what reading noted or mended (ignored columns, blank cells filled, …) heads the warnings
     id.warnings.splice(0..0, rec.notes.iter().cloned());
     Ok(id)

@@ -69,14 +69,17 @@ pub fn quantum(x: &[f64]) -> Option<f64> {
     let d_min = d.iter().copied().fold(f64::INFINITY, f64::min);
     (1..=MAX_QUANTUM_DIVISOR).find_map(|k| {
         let q = d_min / k as f64;
-        let on = d
+        // stop at the first difference past the allowed share off the grid
+        let allowed = ((1.0 - MIN_ON_GRID_SHARE) * d.len() as f64) as usize;
+        let on_grid = d
             .iter()
             .filter(|&&v| {
                 let m = v / q;
-                (m - m.round()).abs() <= QUANTUM_TOLERANCE
+                (m - m.round()).abs() > QUANTUM_TOLERANCE
             })
-            .count();
-        (on as f64 >= MIN_ON_GRID_SHARE * d.len() as f64).then(|| {
+            .nth(allowed)
+            .is_none();
+        on_grid.then(|| {
             // the mean step of the single-step differences (rounding of d_min averaged out)
             let singles: Vec<f64> = d
                 .iter()
@@ -114,9 +117,14 @@ pub fn staircase(t: &[f64], x: &[f64], quantum: Option<f64>) -> Option<Staircase
     if n < 2 * MIN_CHANGES {
         return None;
     }
+    // at least half the samples repeat the one before: counted first, it rules out most channels
+    let repeats = (1..n).filter(|&k| x[k] == x[k - 1]).count();
+    if 2 * repeats < n - 1 {
+        return None;
+    }
     let mut steps: Vec<f64> = t[..n].windows(2).map(|w| w[1] - w[0]).collect();
-    steps.sort_by(f64::total_cmp);
-    let h = steps[steps.len() / 2];
+    let mid = steps.len() / 2;
+    let h = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
     if !(h > 0.0) {
         return None;
     }

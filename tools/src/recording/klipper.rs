@@ -37,12 +37,12 @@ fn variance(x: &[f64]) -> f64 {
     v.iter().map(|a| (a - mean) * (a - mean)).sum::<f64>() / (v.len() - 1) as f64
 }
 
-/// The axis to read from the three accelerations `xyz` (mm/s², any scale): `chosen`, or the one
+/// The axis to read from the three accelerations `xyz` (m/s²): `chosen`, or the one
 /// with the largest variance about its mean. Returns the axis and the note saying why.
 pub fn choose_axis(xyz: [&[f64]; 3], chosen: Option<Axis>) -> (Axis, String) {
     let rms: Vec<f64> = xyz.iter().map(|c| variance(c).sqrt()).collect();
     let list = format!(
-        "x {}, y {}, z {} mm/s²",
+        "x {}, y {}, z {} m/s²",
         fmt_sig(rms[0], 3),
         fmt_sig(rms[1], 3),
         fmt_sig(rms[2], 3)

@@ -164,8 +164,9 @@ impl Recording {
         if d.is_empty() {
             return f64::NAN;
         }
-        d.sort_by(|a, b| a.total_cmp(b));
-        d[d.len() / 2]
+        // the middle element of the sorted steps, found without sorting them all
+        let mid = d.len() / 2;
+        *d.select_nth_unstable_by(mid, f64::total_cmp).1
     }
 
     /// Sample rate (Hz) = 1 / [`Recording::sample_interval_s`].

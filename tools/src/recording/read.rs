@@ -275,7 +275,13 @@ fn plan(
         let read: Vec<String> = map
             .entries
             .iter()
-            .map(|e| format!("{} = `{}` × {}", e.channel, e.column, e.scale))
+            .map(|e| {
+                let scale = match e.scale.abs() {
+                    s if (1e-3..1e4).contains(&s) => format!("{}", e.scale),
+                    _ => format!("{:e}", e.scale),
+                };
+                format!("{} = `{}` × {scale}", e.channel, e.column)
+            })
             .collect();
         notes.push(format!("--columns: {}", read.join(", ")));
         let unmapped: Vec<&str> = names

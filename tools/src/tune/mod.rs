@@ -323,7 +323,7 @@ impl TuneView for Quiet {}
 pub fn tune(o: &TuneOptions, view: &mut dyn TuneView) -> Result<TuneReport, TuneError> {
     let inputs = check_inputs(o)?;
     let pre = match &inputs.recording {
-        Some(p) => Some(identify_step(p)?),
+        Some(p) => Some(identify_step(p, &o.read)?),
         None => None,
     };
     let mut bench = connect(o, &inputs)?;
@@ -422,7 +422,7 @@ fn recording_and_modes(
         None => {
             let e = inputs::excite(o, bench, before)?;
             view.excited(&e);
-            let id = identify_step(&e.recording)?;
+            let id = identify_step(&e.recording, &Default::default())?;
             (e.recording, id)
         }
     };
@@ -435,13 +435,17 @@ fn recording_and_modes(
 
 /// The identification step: the recording at `path` (CSV, `.npy`, `.lvm` spectrum; a sweep,
 /// a free decay or moves + ring-down, with gaps) → its physical modes
-/// ([`crate::ident::identify::identify_file`] with default options).
-pub fn identify_step(path: &Path) -> Result<IdentifiedModes, TuneError> {
-    let id = crate::ident::identify::identify_file(
-        path,
-        &crate::ident::IdentifyOptions::default(),
-        &mut |_| {},
-    )
+/// ([`crate::ident::identify::identify_file`] with default options, the file read as `read`
+/// says).
+pub fn identify_step(
+    path: &Path,
+    read: &crate::recording::ReadOptions,
+) -> Result<IdentifiedModes, TuneError> {
+    let opts = crate::ident::IdentifyOptions {
+        read: read.clone(),
+        ..Default::default()
+    };
+    let id = crate::ident::identify::identify_file(path, &opts, &mut |_| {})
     .map_err(|e| TuneError::Other(e.into()))?;
     Ok(IdentifiedModes {
         description: crate::ident::report::identification_table(&id),
