@@ -29,7 +29,8 @@
 use super::freedecay::{identify_free_decay, FreeDecayOptions, FreeDecayResult};
 use super::frf::{Frf, InputChannel, Window};
 use super::longrec::{
-    explore_resolution_hz, half_power_resolution_hz, input_band_top_hz, segment_for_resolution,
+    explore_resolution_hz, half_power_resolution_hz, input_band_top_hz, resolution_note,
+    segment_for_resolution, segmented,
 };
 use super::pipeline::{
     estimate_on_frf, frf_band, frf_with_options, refine_estimates, IdentOptions, IdentResult,
@@ -506,52 +507,6 @@ fn frf_by_resolution(
     let p = frf_pass(seg, &segmented(fo, l2, n, max_segment, &mut out.warnings), progress)?;
     out.warnings.push(resolution_note(lowest.as_ref(), p.frf.nperseg, rate));
     Ok(p)
-}
-
-/// `fo` with Hamming-windowed Welch segments of `l` samples (50 % overlap); with `fo`'s own
-/// window over the whole record when `l` exceeds half of the `n` samples and `n` ≤
-/// `max_segment` (else Hamming segments of `max_segment`, with a warning).
-fn segmented(
-    fo: &IdentOptions,
-    l: usize,
-    n: usize,
-    max_segment: usize,
-    warnings: &mut Vec<String>,
-) -> IdentOptions {
-    let mut o = fo.clone();
-    let l = if 2 * l > n { n } else { l };
-    if l == n && n <= max_segment {
-        return o;
-    }
-    let l = l.min(max_segment);
-    if l == max_segment {
-        warnings.push(format!(
-            "long recording ({n} samples): FRF averaged over Hamming-windowed segments of {l} samples (50 % overlap)"
-        ));
-    }
-    o.welch.nperseg = Some(l);
-    o.welch.window = Window::Hamming;
-    o.welch.overlap = 0.5;
-    o
-}
-
-/// What set the FRF's resolution: the lowest mode's half-power band in lines.
-fn resolution_note(lowest: Option<&ModeEstimate>, nperseg: usize, rate: f64) -> String {
-    let df = rate / nperseg as f64;
-    match lowest {
-        Some(m) => format!(
-            "FRF resolution from the lowest mode ({} Hz, ζ {}): Welch segments of {nperseg} samples, Δf = {} Hz, {} lines in its half-power band ({} wanted)",
-            fmt_sig(m.freq_hz, 5),
-            fmt_sig(m.zeta, 3),
-            fmt_sig(df, 3),
-            fmt_sig(2.0 * m.zeta * m.freq_hz / df, 3),
-            super::longrec::LINES_PER_HALF_POWER
-        ),
-        None => format!(
-            "no physical mode at the band's exploring resolution: FRF of segments of {nperseg} samples, Δf = {} Hz",
-            fmt_sig(df, 3)
-        ),
-    }
 }
 
 /// The free-decay paths: [`identify_free_decay`] of the tip signal (from where the base is

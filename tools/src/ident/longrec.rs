@@ -17,7 +17,9 @@
 //!   segment is one segment (the transient FRF of a sweep from rest to rest).
 
 use super::frf::{welch, Detrend, WelchOptions, Window};
-use crate::recording::Recording;
+use super::pipeline::IdentOptions;
+use super::ModeEstimate;
+use crate::recording::{fmt_sig, Recording};
 
 /// FRF lines across the lowest mode's half-power band 2ζf. Bendat & Piersol's resolution bias
 /// of a resonance peak of a windowed spectral estimate is ≈ −(B_e / B_r)² / 3 (B_e the
@@ -128,6 +130,52 @@ pub fn segment_for_resolution(rate_hz: f64, df_hz: f64, max_len: usize) -> usize
         return max_len;
     }
     (want as usize).next_power_of_two().clamp(16, max_len)
+}
+
+/// `fo` with Hamming-windowed Welch segments of `l` samples (50 % overlap); with `fo`'s own
+/// window over the whole record when `l` exceeds half of the `n` samples and `n` ≤
+/// `max_segment` (else Hamming segments of `max_segment`, with a warning).
+pub fn segmented(
+    fo: &IdentOptions,
+    l: usize,
+    n: usize,
+    max_segment: usize,
+    warnings: &mut Vec<String>,
+) -> IdentOptions {
+    let mut o = fo.clone();
+    let l = if 2 * l > n { n } else { l };
+    if l == n && n <= max_segment {
+        return o;
+    }
+    let l = l.min(max_segment);
+    if l == max_segment {
+        warnings.push(format!(
+            "long recording ({n} samples): FRF averaged over Hamming-windowed segments of {l} samples (50 % overlap)"
+        ));
+    }
+    o.welch.nperseg = Some(l);
+    o.welch.window = Window::Hamming;
+    o.welch.overlap = 0.5;
+    o
+}
+
+/// What set the FRF's resolution: the lowest mode's half-power band in lines.
+pub fn resolution_note(lowest: Option<&ModeEstimate>, nperseg: usize, rate: f64) -> String {
+    let df = rate / nperseg as f64;
+    match lowest {
+        Some(m) => format!(
+            "FRF resolution from the lowest mode ({} Hz, ζ {}): Welch segments of {nperseg} samples, Δf = {} Hz, {} lines in its half-power band ({} wanted)",
+            fmt_sig(m.freq_hz, 5),
+            fmt_sig(m.zeta, 3),
+            fmt_sig(df, 3),
+            fmt_sig(2.0 * m.zeta * m.freq_hz / df, 3),
+            LINES_PER_HALF_POWER
+        ),
+        None => format!(
+            "no physical mode at the band's exploring resolution: FRF of segments of {nperseg} samples, Δf = {} Hz",
+            fmt_sig(df, 3)
+        ),
+    }
 }
 
 #[cfg(test)]
