@@ -23,8 +23,10 @@
 //!    a plausible damping ratio (10⁻⁴ ≤ ζ < `zeta_max`, 1-σ below ζ); of two modes within
 //!    5 % the one stable at fewer orders is a split peak.
 //!    The maximum-likelihood refinement then runs on the kept modes only.
-//! 5. **Bounded memory**: the FRF of a recording longer than [`IdentifyOptions::max_segment`]
-//!    samples is a Welch average of Hamming-windowed segments of that length (paper Step 2).
+//! 5. **Long recordings** ([`super::longrec`]): the FRF path decimates to 4 × the band's top
+//!    (anti-aliased FIR) and takes its Welch segments from resolution (the lowest mode's
+//!    half-power band in 16 lines, after an exploring pass at the band's resolution), never
+//!    longer than [`IdentifyOptions::max_segment`] samples (bounded memory).
 
 use super::freedecay::{identify_free_decay, FreeDecayOptions, FreeDecayResult};
 use super::frf::{Frf, InputChannel, Window};
@@ -101,8 +103,8 @@ pub struct IdentifyOptions {
     pub frf: IdentOptions,
     /// Free-decay path options (band).
     pub decay: FreeDecayOptions,
-    /// Longest FRF segment (samples): longer recordings are Welch-averaged in Hamming
-    /// segments of this length (bounded memory).
+    /// Longest FRF segment (samples): a longer one is Welch-averaged in Hamming segments of
+    /// this length (bounded memory); the segment itself follows resolution ([`super::longrec`]).
     pub max_segment: usize,
 }
 
