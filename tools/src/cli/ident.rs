@@ -79,6 +79,16 @@ pub struct IdentifyArgs {
     /// How the recording is read (`--columns`, `--axis`).
     #[command(flatten)]
     pub read: super::read::ReadArgs,
+    /// Benchmark: wall time per stage, peak RSS (VmHWM), and the peer's run (--peer-python).
+    #[arg(long)]
+    pub bench: bool,
+    /// With --bench: a Python with numpy, scipy and sdypy-EMA to run the peer
+    /// (bench/identify_peer.py: scipy csd/welch H1 + sdypy-EMA LSCF) on the same file.
+    #[arg(long, requires = "bench")]
+    pub peer_python: Option<PathBuf>,
+    /// With --bench: the peer's script (default: bench/identify_peer.py of this checkout).
+    #[arg(long, requires = "bench")]
+    pub peer_script: Option<PathBuf>,
 }
 
 fn parse_band(s: &str) -> Result<(f64, f64)> {
@@ -216,7 +226,12 @@ pub fn identify(a: IdentifyArgs) -> Result<()> {
     {
         return identify_spectrum(&a);
     }
-    let id = crate::ident::identify::identify_file(&a.recording, &opts, &mut progress_line)?;
+    let mut clock = super::identbench::StageClock::start();
+    let id = crate::ident::identify::identify_file(&a.recording, &opts, &mut |s| {
+        clock.mark(&s);
+        progress_line(s)
+    })?;
+    let end = std::time::Instant::now();
     println!("{}:", a.recording.display());
     print!("{}", report::identification_table(&id));
     if let Some((r, frf)) = &id.frf_result {
@@ -247,6 +262,16 @@ pub fn identify(a: IdentifyArgs) -> Result<()> {
         std::fs::write(j, serde_json::to_string_pretty(&id)?)
             .with_context(|| format!("cannot write {}", j.display()))?;
         println!("JSON -> {}", j.display());
+    }
+    if a.bench {
+        let b = super::identbench::BenchArgs {
+            file: &a.recording,
+            python: a.peer_python.as_deref(),
+            script: a.peer_script.as_deref(),
+            window: opts.frf.welch.window,
+            max_order: opts.frf.max_order,
+        };
+        super::identbench::print_bench(&b, &id, &clock, end);
     }
     Ok(())
 }

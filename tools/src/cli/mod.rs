@@ -9,6 +9,7 @@ mod allocator;
 pub mod board;
 pub mod diagnose;
 pub mod ident;
+mod identbench;
 pub mod model;
 pub mod paper;
 pub mod read;

@@ -23,14 +23,24 @@
 //!    a plausible damping ratio (10⁻⁴ ≤ ζ < `zeta_max`, 1-σ below ζ); of two modes within
 //!    5 % the one stable at fewer orders is a split peak.
 //!    The maximum-likelihood refinement then runs on the kept modes only.
-//! 5. **Bounded memory**: the FRF of a recording longer than [`IdentifyOptions::max_segment`]
-//!    samples is a Welch average of Hamming-windowed segments of that length (paper Step 2).
+//! 5. **Long recordings** ([`super::longrec`]): the FRF path decimates to 4 × the band's top
+//!    (anti-aliased FIR) and takes its Welch segments from resolution (the lowest mode's
+//!    half-power band in 16 lines, after an exploring pass at the band's resolution), never
+//!    longer than [`IdentifyOptions::max_segment`] samples (bounded memory).
 
 use super::freedecay::{identify_free_decay, FreeDecayOptions, FreeDecayResult};
 use super::frf::{Frf, InputChannel, Window};
-use super::pipeline::{identify_recording, refine_estimates, IdentOptions, IdentResult, Method};
+use super::longrec::{
+    explore_resolution_hz, half_power_resolution_hz, input_band_top_hz, resolution_note,
+    segment_for_resolution, segmented,
+};
+use super::pipeline::{
+    estimate_on_frf, frf_band, frf_with_options, refine_estimates, IdentOptions, IdentResult,
+    Method,
+};
 use super::spectrum::{amplitude_spectrum, peaks};
 use super::ModeEstimate;
+pub use super::longrec::MAX_FULL_RATE_SAMPLES;
 use crate::recording::{check_time_unit, find_gaps, fmt_sig, split_at_gaps, Recording, F_MIN_HZ};
 use anyhow::{bail, Result};
 use serde::Serialize;
@@ -93,8 +103,8 @@ pub struct IdentifyOptions {
     pub frf: IdentOptions,
     /// Free-decay path options (band).
     pub decay: FreeDecayOptions,
-    /// Longest FRF segment (samples): longer recordings are Welch-averaged in Hamming
-    /// segments of this length (bounded memory).
+    /// Longest FRF segment (samples): a longer one is Welch-averaged in Hamming segments of
+    /// this length (bounded memory); the segment itself follows resolution ([`super::longrec`]).
     pub max_segment: usize,
     /// How the recording file is read by [`identify_file`] (`--columns`, `--axis`).
     pub read: crate::recording::ReadOptions,
@@ -127,6 +137,12 @@ pub enum Stage {
     Screening,
     /// Maximum-likelihood refinement of this many modes.
     Refining(usize),
+    /// Anti-aliased decimation by this factor ([`decimation_factor`]).
+    Decimating(usize),
+    /// Welch FRF with segments of this many samples.
+    Welch(usize),
+    /// The FRF estimators on this many lines in the band.
+    Estimators(usize),
 }
 
 impl fmt::Display for Stage {
@@ -138,6 +154,9 @@ impl fmt::Display for Stage {
             Stage::Estimating(p, n) => write!(f, "estimating modes: {p}, {n} samples"),
             Stage::Screening => write!(f, "screening the modes"),
             Stage::Refining(n) => write!(f, "maximum-likelihood refinement of {n} mode(s)"),
+            Stage::Decimating(q) => write!(f, "decimating by {q} (anti-aliased FIR)"),
+            Stage::Welch(n) => write!(f, "FRF: Welch segments of {n} samples"),
+            Stage::Estimators(n) => write!(f, "FRF estimators on {n} lines"),
         }
     }
 }
@@ -306,7 +325,7 @@ pub fn identify(
     progress(Stage::Excitation);
     let mut base = base_channel(&seg).map(base_motion);
     let (path, reason) = choose_path(&seg, base.as_ref(), opts);
-    decimate_for_path(&mut seg, &mut base, path, opts, &mut warnings);
+    decimate_for_path(&mut seg, &mut base, path, opts, &mut warnings, progress);
     let rate = seg.sample_rate_hz();
     let span = (seg.time_s[0], seg.time_s[seg.len() - 1]);
     let mut out = Identification {
@@ -360,8 +379,12 @@ fn decimate_for_path(
     path: IdentPath,
     opts: &IdentifyOptions,
     warnings: &mut Vec<String>,
+    progress: &mut dyn FnMut(Stage),
 ) {
     let q = decimation_factor(seg, path, opts);
+    if q > 1 {
+        progress(Stage::Decimating(q));
+    }
     if q <= 1 {
         return;
     }
@@ -381,8 +404,9 @@ fn decimate_for_path(
     *seg = Cow::Owned(d);
 }
 
-/// The FRF path: [`identify_recording`] without refinement, [`screen_modes`], then the
-/// maximum-likelihood refinement of the kept modes (LSCF, LSCE primary), into `out`.
+/// The FRF path, into `out`: Welch segments from resolution ([`frf_by_resolution`]), the
+/// estimators without refinement, [`screen_modes`], then the maximum-likelihood refinement of
+/// the kept modes (LSCF, LSCE primary).
 fn frf_path(
     seg: &Recording,
     opts: &IdentifyOptions,
@@ -390,13 +414,16 @@ fn frf_path(
     progress: &mut dyn FnMut(Stage),
 ) -> Result<()> {
     progress(Stage::Estimating(out.path, seg.len()));
-    let mut fo = frf_options(seg, opts, out);
+    let mut fo = frf_options(seg, opts);
     // The ML refinement runs on the screened modes only (faster, and a spurious
     // estimate cannot pull a physical one).
     let ml = std::mem::replace(&mut fo.ml_refine, false);
-    let (r, frf) = identify_recording(seg, &fo)?;
-    progress(Stage::Screening);
-    let (mut kept, rejected) = screen_modes(&r, &frf, &fo);
+    let FrfPass {
+        r,
+        frf,
+        mut kept,
+        rejected,
+    } = frf_by_resolution(seg, &fo, opts.max_segment, out, progress)?;
     out.warnings.extend(r.warnings.iter().cloned());
     let primary = r.methods.first().map(|m| m.method);
     if ml && matches!(primary, Some(Method::Lscf | Method::Lsce)) {
@@ -408,6 +435,86 @@ fn frf_path(
     out.reason = format!("{}; FRF {} -> {}", out.reason, r.input, r.output);
     out.frf_result = Some((r, frf));
     Ok(())
+}
+
+/// One FRF and its screened estimates.
+struct FrfPass {
+    r: IdentResult,
+    frf: Frf,
+    kept: Vec<ModeEstimate>,
+    rejected: Vec<RejectedMode>,
+}
+
+/// Welch FRF of `seg` with `fo`, the estimators (no refinement) and [`screen_modes`].
+fn frf_pass(
+    seg: &Recording,
+    fo: &IdentOptions,
+    progress: &mut dyn FnMut(Stage),
+) -> Result<FrfPass> {
+    if seg.len() < 256 {
+        bail!(
+            "the recording has {} samples; identification needs at least 256",
+            seg.len()
+        );
+    }
+    progress(Stage::Welch(fo.welch.nperseg.unwrap_or(seg.len())));
+    let (frf, warnings) = frf_with_options(seg, fo)?;
+    let lines = frf_band(&frf, fo).map_or(0, |b| frf.band(b.0, b.1).len());
+    progress(Stage::Estimators(lines));
+    let r = estimate_on_frf(seg, &frf, warnings, fo, &mut crate::progress::Silent)?;
+    progress(Stage::Screening);
+    let (kept, rejected) = screen_modes(&r, &frf, fo);
+    Ok(FrfPass {
+        r,
+        frf,
+        kept,
+        rejected,
+    })
+}
+
+/// The FRF pass with Welch segments set by resolution ([`super::longrec`]), not by the
+/// record's length: asked segments (`fo.welch.nperseg`) are used as they are (at most
+/// `max_segment`). Otherwise, when the band's exploring resolution needs segments of at most
+/// half the record, a first pass at that resolution finds the lowest physical mode, whose
+/// half-power band then sets the final segment (no second pass when the first was fine
+/// enough). A record shorter than twice its segment is one segment with `fo`'s window (at most
+/// `max_segment` samples: longer ones are Hamming segments of that length, bounded memory).
+fn frf_by_resolution(
+    seg: &Recording,
+    fo: &IdentOptions,
+    max_segment: usize,
+    out: &mut Identification,
+    progress: &mut dyn FnMut(Stage),
+) -> Result<FrfPass> {
+    let (n, rate) = (seg.len(), seg.sample_rate_hz());
+    if let Some(l) = fo.welch.nperseg {
+        let mut o = fo.clone();
+        if l > max_segment {
+            o.welch.nperseg = Some(max_segment);
+            o.welch.window = Window::Hamming;
+            out.warnings.push(format!(
+                "long recording ({n} samples): FRF averaged over Hamming-windowed segments of {max_segment} samples (50 % overlap)"
+            ));
+        }
+        return frf_pass(seg, &o, progress);
+    }
+    let top = fo.band_hz.map(|b| b.1).or_else(|| input_band_top_hz(seg));
+    let l1 = top.map(|t| segment_for_resolution(rate, explore_resolution_hz(t), max_segment));
+    let Some(l1) = l1.filter(|l| 2 * l <= n) else {
+        return frf_pass(seg, &segmented(fo, n, n, max_segment, &mut out.warnings), progress);
+    };
+    let first = frf_pass(seg, &segmented(fo, l1, n, max_segment, &mut Vec::new()), progress);
+    let lowest = first.as_ref().ok().and_then(|p| p.kept.first().cloned());
+    let l2 = lowest.as_ref().map_or(n, |m| {
+        segment_for_resolution(rate, half_power_resolution_hz(m.freq_hz, m.zeta), n)
+    });
+    if let (Ok(p), true) = (&first, l2 <= l1) {
+        out.warnings.push(resolution_note(lowest.as_ref(), p.frf.nperseg, rate));
+        return first;
+    }
+    let p = frf_pass(seg, &segmented(fo, l2, n, max_segment, &mut out.warnings), progress)?;
+    out.warnings.push(resolution_note(lowest.as_ref(), p.frf.nperseg, rate));
+    Ok(p)
 }
 
 /// The free-decay paths: [`identify_free_decay`] of the tip signal (from where the base is
@@ -505,53 +612,16 @@ fn rayleigh(modes: &[ModeEstimate], warnings: &mut Vec<String>) -> Option<(f64, 
     Some((a1, a2))
 }
 
-/// Longest recording analysed at full rate (samples); longer ones are decimated when their
-/// content allows ([`decimation_factor`]).
-pub const MAX_FULL_RATE_SAMPLES: usize = 1 << 20;
-
-/// Decimation factor for a recording longer than [`MAX_FULL_RATE_SAMPLES`] (bounded memory
-/// and time), 1 otherwise. FRF path: the new Nyquist frequency stays ≥ 4 × the top of the
-/// input's band (where the Welch spectrum of the base acceleration — from the command when
-/// recorded — is within 30 dB of its maximum); free-decay paths: ≥ the highest frequency asked
-/// for (`opts.decay.f_max_hz`). At least 2¹⁶ samples are kept.
+/// Decimation factor of `rec` before `path` ([`super::longrec::decimation_factor`]: the FRF
+/// path keeps ≥ 4 × the top of `opts.frf.band_hz` or of the input's band; free-decay paths
+/// decimate only above [`MAX_FULL_RATE_SAMPLES`] samples, to `opts.decay.f_max_hz`).
 pub fn decimation_factor(rec: &Recording, path: IdentPath, opts: &IdentifyOptions) -> usize {
-    let n = rec.len();
-    if n <= MAX_FULL_RATE_SAMPLES {
-        return 1;
-    }
-    let rate = rec.sample_rate_hz();
-    let f_keep = match path {
-        IdentPath::Frf => {
-            let x = rec.base_cmd_m.as_deref().or(rec.base_pos_m.as_deref());
-            match x.and_then(|x| input_band_top_hz(x, rate)) {
-                Some(f) => 4.0 * opts.frf.band_hz.map_or(f, |b| b.1.max(f)),
-                None => return 1,
-            }
-        }
-        _ => opts.decay.f_max_hz,
-    };
-    let q = (0.5 * rate / f_keep).floor() as usize;
-    q.min(n >> 16).max(1)
-}
-
-/// Top of the band (Hz) where the base acceleration's Welch spectrum (Hamming segments of
-/// 2¹⁶ samples) is within 30 dB of its maximum.
-fn input_band_top_hz(x: &[f64], rate: f64) -> Option<f64> {
-    let a: Vec<f64> = x
-        .windows(3)
-        .map(|w| (w[2] - 2.0 * w[1] + w[0]) * rate * rate)
-        .collect();
-    let wo = super::frf::WelchOptions {
-        nperseg: Some(1 << 16),
-        overlap: 0.5,
-        window: Window::Hamming,
-        detrend: super::frf::Detrend::Mean,
-        pad: 1,
-    };
-    let f = super::frf::welch(&a, &a, rate, &wo).ok()?;
-    let top = f.sxx.iter().skip(1).cloned().fold(0.0, f64::max);
-    let k = f.sxx.iter().rposition(|v| *v >= 1e-3 * top)?;
-    Some(f.freq_hz[k].max(f.df_hz()))
+    super::longrec::decimation_factor(
+        rec,
+        path == IdentPath::Frf,
+        opts.frf.band_hz,
+        opts.decay.f_max_hz,
+    )
 }
 
 /// The base position channel: measured if present, else the command.
@@ -808,21 +878,11 @@ fn tip_signal(rec: &Recording, from: usize) -> (Vec<f64>, Vec<f64>) {
     (t, x)
 }
 
-/// The FRF options for `rec`: force input when there is no base; Hamming-windowed Welch
-/// segments of `opts.max_segment` samples for long recordings.
-fn frf_options(rec: &Recording, opts: &IdentifyOptions, out: &mut Identification) -> IdentOptions {
+/// The FRF options for `rec`: force input when there is no base.
+fn frf_options(rec: &Recording, opts: &IdentifyOptions) -> IdentOptions {
     let mut fo = opts.frf.clone();
     if base_channel(rec).is_none() && rec.force_n.is_some() {
         fo.input = InputChannel::Force;
-    }
-    if rec.len() > opts.max_segment && fo.welch.nperseg.is_none_or(|n| n > opts.max_segment) {
-        fo.welch.nperseg = Some(opts.max_segment);
-        fo.welch.window = Window::Hamming;
-        out.warnings.push(format!(
-            "long recording ({} samples): FRF averaged over Hamming-windowed segments of {} samples (50 % overlap)",
-            rec.len(),
-            opts.max_segment
-        ));
     }
     fo
 }

@@ -87,35 +87,34 @@ fn lscf_once(
     let f_hi = freq_hz[nl - 1];
     let dt = 1.0 / (2.0 * f_hi);
     let n1 = order + 1;
-    let mut r = DMatrix::<f64>::zeros(n1, n1);
-    let mut s = DMatrix::<f64>::zeros(n1, n1);
-    let mut t = DMatrix::<f64>::zeros(n1, n1);
-    let mut basis = vec![Complex64::new(0.0, 0.0); n1];
+    // R, S and T are Toeplitz: Re(conj(Ω^i) Ω^j) = cos((j − i)θ) and
+    // Re(−conj(Ω^i) H Ω^j) = Re(−H Ω^(j−i)); their diagonals are sums over the lines of
+    // one power Ω^d each, O(lines × order) instead of O(lines × order²).
+    let mut rd = vec![0.0; n1];
+    let mut td = vec![0.0; n1];
+    let mut sp = vec![0.0; n1]; // j − i = d ≥ 0
+    let mut sm = vec![0.0; n1]; // i − j = d ≥ 0
     for k in 0..nl {
         let w = weight[k];
         if !(w > 0.0) || !h[k].re.is_finite() || !h[k].im.is_finite() {
             continue;
         }
         let om = Complex64::new(0.0, 2.0 * std::f64::consts::PI * freq_hz[k] * dt).exp();
-        let mut p = Complex64::new(1.0, 0.0);
-        for b in basis.iter_mut() {
-            *b = p;
-            p *= om;
-        }
         let w2 = w * w;
         let hh = h[k];
         let h2 = hh.norm_sqr();
-        for i in 0..n1 {
-            for j in 0..n1 {
-                // Re(conj(Ω^i) Ω^j) = cos((j − i)θ)
-                let c = (basis[i].conj() * basis[j]).re;
-                r[(i, j)] += w2 * c;
-                t[(i, j)] += w2 * h2 * c;
-                // X^H Y: conj(Ω^i) (−H Ω^j)
-                s[(i, j)] += w2 * (-(basis[i].conj() * hh * basis[j])).re;
-            }
+        let mut p = Complex64::new(1.0, 0.0);
+        for d in 0..n1 {
+            rd[d] += w2 * p.re;
+            td[d] += w2 * h2 * p.re;
+            sp[d] -= w2 * (hh * p).re;
+            sm[d] -= w2 * (hh * p.conj()).re;
+            p *= om;
         }
     }
+    let r = DMatrix::<f64>::from_fn(n1, n1, |i, j| rd[i.abs_diff(j)]);
+    let t = DMatrix::<f64>::from_fn(n1, n1, |i, j| td[i.abs_diff(j)]);
+    let s = DMatrix::<f64>::from_fn(n1, n1, |i, j| if j >= i { sp[j - i] } else { sm[i - j] });
     let rinv_s = match r.clone().cholesky() {
         Some(c) => c.solve(&s),
         None => {

@@ -33,6 +33,7 @@ pub mod estimator;
 pub mod freedecay;
 pub mod frf;
 pub mod identify;
+pub mod longrec;
 pub mod lsce;
 pub mod lscf;
 pub mod magspec;

@@ -521,12 +521,28 @@ pub fn identify_recording_with(
             rec.len()
         );
     }
-    let (frf, mut warnings) = frf_with_options(rec, opts)?;
+    let (frf, warnings) = frf_with_options(rec, opts)?;
+    let res = estimate_on_frf(rec, &frf, warnings, opts, progress)?;
+    Ok((res, frf))
+}
+
+/// The estimator half of [`identify_recording_with`]: the FRF estimators of `opts.methods` on
+/// `frf` (of `rec`), the free decays of `rec` when `Method::LogDec` is asked for, combined;
+/// `warnings` (from the FRF) are carried into the result.
+///
+/// Errors: a band beyond Nyquist, too few lines in the band, no method producing a mode.
+pub fn estimate_on_frf(
+    rec: &Recording,
+    frf: &Frf,
+    mut warnings: Vec<String>,
+    opts: &IdentOptions,
+    progress: &mut dyn Progress,
+) -> Result<IdentResult> {
     let frf_methods = opts.methods.iter().any(|m| *m != Method::LogDec);
     let (mut methods, band) = if frf_methods {
-        identify_frf(&frf, opts, &mut warnings, progress)?
+        identify_frf(frf, opts, &mut warnings, progress)?
     } else {
-        (vec![], auto_band(&frf))
+        (vec![], auto_band(frf))
     };
     if opts.methods.contains(&Method::LogDec) {
         let fd = FreeDecayOptions {
@@ -565,7 +581,7 @@ pub fn identify_recording_with(
             modes[1].zeta,
         )
     });
-    let res = IdentResult {
+    Ok(IdentResult {
         modes,
         methods,
         rayleigh,
@@ -575,8 +591,7 @@ pub fn identify_recording_with(
         input: frf.input.clone(),
         output: frf.output.clone(),
         warnings,
-    };
-    Ok((res, frf))
+    })
 }
 
 /// Replaces `modes` by their maximum-likelihood refinement ([`super::mlfit`]); the σ of each is
