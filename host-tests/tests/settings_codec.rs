@@ -412,3 +412,43 @@ fn load_of_a_version_1_record_keeps_the_settings_in_force_and_answers_err_versio
     );
     assert_eq!(before, after);
 }
+
+/// The record the format-2 firmware (commit 873f980) saved for [`tuned`], byte for byte
+/// (printed by that firmware's `Settings::encode`).
+const V2_RECORD_HEX: &str = "4253480201029a9999999999f13facadd85f764f7e3f000105b81e85eb51b89e3f9a99999999991b407b14ae47e17a843f0002000000000000e03f0000000000000000000000000000e03f7b14ae47e17a843f0101d00fe807c09a0ce807010080164300007a440000c8426f70482e";
+
+fn v2_record() -> Vec<u8> {
+    (0..V2_RECORD_HEX.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(&V2_RECORD_HEX[i..i + 2], 16).unwrap())
+        .collect()
+}
+
+#[test]
+fn a_record_of_the_previous_firmware_is_migrated_with_the_shaper_intact() {
+    assert_eq!(SETTINGS_VERSION, 3);
+    let v2 = v2_record();
+    assert_eq!(v2[3], 2, "the fixture is a format-2 record");
+    let s = Settings::decode(&v2).expect("a format-2 record is read");
+    assert_eq!(s, tuned());
+    assert_eq!(s.certificate, Certificate::NONE);
+    // Through the flash layer and the boot path, as a firmware update meets it.
+    let mut flash = Flash::new(WriteCountCheck::OnceOnly, None, true);
+    store_raw(&mut flash, &v2);
+    let loaded = load(&mut flash);
+    assert_eq!(loaded, Ok(Some(tuned())));
+    let mut rt = Box::new(Runtime::new());
+    let mut out = String::new();
+    let console = Console::boot(loaded, &mut *rt, 0, &mut out);
+    assert!(out.contains("# boot: settings loaded from flash"), "{out}");
+    assert_eq!(console.settings(), &tuned());
+    // Saved again, it is written in the current format.
+    let mut rec = [0u8; SETTINGS_MAX_BYTES];
+    let n = console.settings().encode(&mut rec).unwrap();
+    assert_eq!(rec[3], SETTINGS_VERSION);
+    assert_eq!(Settings::decode(&rec[..n]), Ok(tuned()));
+    // A format-2 record with a flipped bit is still corrupt, not migrated.
+    let mut bad = v2.clone();
+    bad[12] ^= 1;
+    assert!(Settings::decode(&bad).is_err());
+}

@@ -62,6 +62,13 @@ fn board_with_unsaved_change(dir: &Path, camera: Option<&Path>) -> (String, Path
     (port, flash, bytes)
 }
 
+/// The paper's exponential sweep (eq. 34) of model `m`, simulated at 100 Hz without noise.
+fn paper_sweep(m: &beamtools::model::BeamModel) -> beamtools::recording::Recording {
+    use beamtools::ident::protocol::simulate_sweep;
+    use beamtools::ident::sweep::{SweepKind, SweepSpec};
+    simulate_sweep(m, &SweepSpec::paper(SweepKind::Exponential, 3.0), 100.0, 0.0, 1).unwrap()
+}
+
 #[test]
 fn default_run_sweeps_on_the_board_identifies_from_the_camera_and_saves_after_the_measured_check() {
     let tmp = tmpdir("tune");
@@ -285,8 +292,7 @@ fn options_accept_negative_numbers_refuse_non_finite_and_impossible_values() {
 /// 10 %, checked on the user's recorded vibration (no rig, no camera).
 #[test]
 fn tune_succeeds_on_a_sweep_and_on_a_dithering_move_with_ring_down() {
-    use beamtools::ident::protocol::{add_noise, simulate_sweep, truth};
-    use beamtools::ident::sweep::{SweepKind, SweepSpec};
+    use beamtools::ident::protocol::{add_noise, truth};
     use beamtools::model::sim::BaseMotionSim;
     use beamtools::model::{trapezoid_reference, BeamModel, ModelOptions};
     use rand::{Rng, SeedableRng};
@@ -295,14 +301,7 @@ fn tune_succeeds_on_a_sweep_and_on_a_dithering_move_with_ring_down() {
     let tr = truth(&m).unwrap().clamped;
     let tmp = tmpdir("tune-user-recordings");
     let dir = tmp.path().to_path_buf();
-    let sweep = simulate_sweep(
-        &m,
-        &SweepSpec::paper(SweepKind::Exponential, 3.0),
-        100.0,
-        0.0,
-        1,
-    )
-    .unwrap();
+    let sweep = paper_sweep(&m);
     sweep.write_csv(dir.join("sweep.csv")).unwrap();
     let sim = BaseMotionSim::new(&m, 1e-3).unwrap();
     let (y, _) = trapezoid_reference(0.0, 0.02, 0.2, 2.0, 1000.0, 40.0).unwrap();
@@ -344,19 +343,10 @@ fn tune_succeeds_on_a_sweep_and_on_a_dithering_move_with_ring_down() {
 /// it saves, and `tune.json` and the board's stored certificate say "predicted only".
 #[test]
 fn a_shaper_nothing_can_measure_is_refused_or_saved_as_predicted_only() {
-    use beamtools::ident::protocol::simulate_sweep;
-    use beamtools::ident::sweep::{SweepKind, SweepSpec};
     use beamtools::model::{BeamModel, ModelOptions};
     let rig = Rig::from_toml_str(DEFAULT_RIG_TOML).unwrap();
     let m = BeamModel::new(&rig, &ModelOptions::default()).unwrap();
-    let sweep = simulate_sweep(
-        &m,
-        &SweepSpec::paper(SweepKind::Exponential, 3.0),
-        100.0,
-        0.0,
-        1,
-    )
-    .unwrap();
+    let sweep = paper_sweep(&m);
     // Cut where the base is moving fastest in the last third: no ring-down follows.
     let b = sweep.base_pos_m.clone().unwrap();
     let n = b.len();
