@@ -9,6 +9,7 @@ mod allocator;
 pub mod board;
 pub mod diagnose;
 pub mod ident;
+pub mod klipper;
 pub mod model;
 pub mod paper;
 pub mod truth;
@@ -64,6 +65,9 @@ pub enum Command {
     DiagnoseProof(crate::cli::diagnose::ProofArgs),
     /// Write one truth-generator case (rig + fit/validation recordings with a hidden effect).
     Truth(crate::cli::truth::TruthArgs),
+    /// Score our spectrum designs against Klipper's own recommendation on Klipper spectrum
+    /// files (resonances_*.csv, calibration_data_*.csv), by Klipper's metrics.
+    KlipperCompare(crate::cli::klipper::KlipperCompareArgs),
 }
 
 /// Runs one command: one arm per command (keep one line per arm where possible, append new
@@ -71,7 +75,7 @@ pub enum Command {
 pub fn run(command: Command) -> Result<()> {
     allocator::keep_freed_memory();
     match command {
-        Command::Tune(a) => tune::tune(a).map(|_| ()),
+        Command::Tune(a) => tune::run(a),
         Command::Vboard(a) => board::vboard(a),
         Command::Console(a) => board::console(a),
         Command::Shaper(a) => board::shaper(a),
@@ -102,6 +106,7 @@ pub fn run(command: Command) -> Result<()> {
             default_rig(&mut a.rig)?;
             crate::cli::paper::bench_sim(a)
         }
+        Command::KlipperCompare(a) => crate::cli::klipper::klipper_compare(a),
     }
 }
 

@@ -19,6 +19,7 @@
 pub mod glitch;
 pub mod multirate;
 pub mod orient;
+pub mod psd;
 pub mod regular;
 pub mod zero;
 
