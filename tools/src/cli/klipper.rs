@@ -9,7 +9,7 @@ use crate::recording::psd::KlipperSpectrum;
 use crate::shaping::klipper::{
     worst_response, FitSpectrum, Recommendation, SHAPER_VIBRATION_REDUCTION,
 };
-use crate::shaping::spectrum::{metrics, verdict, Comparison, Metrics};
+use crate::shaping::spectrum::{metrics, verdict, Comparison, Metrics, Objective};
 use crate::tune::spectrum::{design_file, tune_spectrum as job, SpectrumView};
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -30,6 +30,19 @@ pub struct KlipperCompareArgs {
     /// "Recommended shaper is …"), as `calibrate_shaper.py` prints them.
     #[arg(long)]
     pub verbose: bool,
+    /// What our design minimises within the "not worse" box: `least-smoothing` (issue 70's
+    /// rule) or `klipper-score` (Klipper's own trade of vibrations against smoothing).
+    #[arg(long, value_enum, default_value_t = ObjectiveArg::LeastSmoothing)]
+    pub objective: ObjectiveArg,
+}
+
+/// See [`Objective`].
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ObjectiveArg {
+    /// [`Objective::LeastSmoothing`].
+    LeastSmoothing,
+    /// [`Objective::KlipperScore`].
+    KlipperScore,
 }
 
 /// Klipper's console lines for a recommendation (the format of `calibrate_shaper.py`).
@@ -296,7 +309,13 @@ pub fn klipper_compare(a: KlipperCompareArgs) -> Result<()> {
     );
     let (mut rows, mut failed) = (vec![], vec![]);
     for f in &a.files {
-        let (_, fit, c) = match design_file(f) {
+        let (_, fit, c) = match design_file(
+            f,
+            match a.objective {
+                ObjectiveArg::LeastSmoothing => Objective::LeastSmoothing,
+                ObjectiveArg::KlipperScore => Objective::KlipperScore,
+            },
+        ) {
             Ok(v) => v,
             Err(e) => {
                 println!("{:<44} | error: {e:#}", short(f));

@@ -178,23 +178,43 @@ pub fn worst_response(s: &Shaper, freq_hz: &[f64]) -> Vec<f64> {
 /// Remaining vibrations (fraction, 0..1) of shaper `s` on `spec` (see the module docs): the
 /// worst over [`TEST_DAMPING_RATIOS`]. A spectrum with no power above its threshold gives 0.
 pub fn remaining_vibrations(s: &Shaper, spec: &FitSpectrum) -> f64 {
+    remaining_vibrations_within(s, spec, f64::INFINITY).unwrap_or(f64::INFINITY)
+}
+
+/// [`remaining_vibrations`], or `None` as soon as it is known to exceed `limit` (fraction).
+///
+/// Exact shortcut: for a shaper with non-negative amplitudes `V ≤ 1`, so a bin whose PSD is at
+/// or below the threshold adds nothing (`V·P − P_th ≤ 0`); only the bins above it are
+/// evaluated, largest first, and the sum stops once it passes `limit`.
+pub fn remaining_vibrations_within(s: &Shaper, spec: &FitSpectrum, limit: f64) -> Option<f64> {
     let threshold = spec.psd.iter().cloned().fold(0.0, f64::max) / SHAPER_VIBRATION_REDUCTION;
     let all: f64 = spec.psd.iter().map(|p| (p - threshold).max(0.0)).sum();
     if all <= 0.0 {
-        return 0.0;
+        return Some(0.0);
     }
-    TEST_DAMPING_RATIOS
-        .iter()
-        .map(|&z| {
-            let v = response(s, &spec.freq_hz, z);
-            let rem: f64 = v
-                .iter()
-                .zip(&spec.psd)
-                .map(|(v, p)| (v * p - threshold).max(0.0))
-                .sum();
-            rem / all
-        })
-        .fold(0.0, f64::max)
+    let positive = s.impulses().iter().all(|i| i.amplitude >= 0.0);
+    let mut bins: Vec<usize> = (0..spec.psd.len())
+        .filter(|&k| !positive || spec.psd[k] > threshold)
+        .collect();
+    bins.sort_by(|&a, &b| spec.psd[b].total_cmp(&spec.psd[a]));
+    let stop = limit * all;
+    let mut worst = 0.0f64;
+    for z in TEST_DAMPING_RATIOS {
+        let mut rem = 0.0;
+        for &k in &bins {
+            let f = spec.freq_hz[k];
+            let v = match f > 0.0 {
+                true => residual_vibration(s, f, z),
+                false => 1.0,
+            };
+            rem += (v * spec.psd[k] - threshold).max(0.0);
+            if rem > stop {
+                return None;
+            }
+        }
+        worst = worst.max(rem / all);
+    }
+    Some(worst)
 }
 
 /// The two sums smoothing is affine in: `s90(a) = √2(v·c90 + a/2·q90)`, `s180(a) = a/2·q180`.

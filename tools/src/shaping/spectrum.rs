@@ -13,12 +13,16 @@
 //!    peaks ([`two_peaks`]), the convolution of two short designs (ZV, MZV, ZVD at ζ = 0.1),
 //!    one per peak, on a grid of ±[`PEAK_SEARCH_FRACTION`] around each peak (paper §4:
 //!    multi-mode shapers by convolution). Klipper's recommended shaper itself is a candidate.
-//! 3. Within the box, the design is the candidate with the lowest **Klipper score**
-//!    `smoothing · (R^1.5 + 0.2 R + 0.01)` — Klipper's own trade of remaining vibrations R
-//!    against smoothing, applied over the wider design space. Smoothing rises monotonically
-//!    as the frequency falls for a fixed design (impulse times scale as 1/f), and the score is
-//!    at least `0.01 · smoothing`, so each family is scanned from 150 Hz down only while its
-//!    smoothing is within the box and `0.01 · smoothing` is below the best score.
+//! 3. Within the box, the design is the candidate that minimises the [`Objective`]:
+//!    - [`Objective::LeastSmoothing`] (default; issue 70's rule "keeps the remaining
+//!      vibrations low with the least smoothing"): the least smoothing;
+//!    - [`Objective::KlipperScore`]: the lowest Klipper score `smoothing · (R^1.5 + 0.2 R +
+//!      0.01)` — Klipper's own trade of remaining vibrations R against smoothing, applied over
+//!      the wider design space.
+//!
+//!    Smoothing rises monotonically as the frequency falls for a fixed design (impulse times
+//!    scale as 1/f), and the score is at least `0.01 · smoothing`, so each family is scanned
+//!    from 150 Hz down only while its smoothing (or `0.01 · smoothing`) can still win.
 //!
 //! Negative-impulse designs (UM-ZV) are left out: Klipper's smoothing is defined for
 //! positive impulse trains, and a negative impulse triples the peak velocity of a shaped
@@ -175,11 +179,44 @@ pub fn two_peaks(spec: &FitSpectrum) -> Vec<f64> {
     kept.iter().map(|&i| spec.freq_hz[i]).collect()
 }
 
-/// Tracks the lowest-score candidate within the box (module docs).
+/// The vibrations R at which `R^1.5 + 0.2R + 0.01 = g` (bisection; the left side increases
+/// with R); 0 for `g ≤ 0.01`.
+fn score_inverse(g: f64) -> f64 {
+    let h = |r: f64| r.powf(1.5) + 0.2 * r + SCORE_FLOOR;
+    if g <= SCORE_FLOOR {
+        return 0.0;
+    }
+    let (mut lo, mut hi) = (0.0, 1.0f64);
+    while h(hi) < g {
+        hi *= 2.0;
+    }
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        match h(mid) < g {
+            true => lo = mid,
+            false => hi = mid,
+        }
+    }
+    hi
+}
+
+/// What the design minimises within the box (module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Objective {
+    /// The least smoothing (issue 70's rule).
+    #[default]
+    LeastSmoothing,
+    /// Klipper's score (its own trade between vibrations and smoothing).
+    KlipperScore,
+}
+
+/// Tracks the best candidate within the box (module docs).
 struct Best {
+    objective: Objective,
     max_vibrations: f64,
     max_smoothing_mm: f64,
-    score: f64,
+    /// The best value of the objective so far.
+    value: f64,
     best: SpectrumDesign,
 }
 
@@ -206,15 +243,33 @@ impl Best {
         s: Shaper,
     ) -> Offer {
         let sm = smoothing_mm(&s, SMOOTHING_ACCEL_MM_S2, SQUARE_CORNER_VELOCITY_MM_S);
-        if sm > self.max_smoothing_mm || SCORE_FLOOR * sm >= self.score {
-            return Offer::Stop;
-        }
-        let m = metrics(&s, spec);
-        let sc = klipper::score(m.smoothing_mm, m.vibrations);
-        if m.vibrations > self.max_vibrations || sc >= self.score {
+        // The largest vibrations that could still win at this smoothing.
+        let limit = match self.objective {
+            Objective::LeastSmoothing if sm >= self.value => return Offer::Stop,
+            Objective::LeastSmoothing => self.max_vibrations,
+            Objective::KlipperScore
+                if sm > self.max_smoothing_mm || SCORE_FLOOR * sm >= self.value =>
+            {
+                return Offer::Stop
+            }
+            Objective::KlipperScore => self.max_vibrations.min(score_inverse(self.value / sm)),
+        };
+        let Some(v) = klipper::remaining_vibrations_within(&s, spec, limit) else {
+            return Offer::Scored;
+        };
+        let value = match self.objective {
+            Objective::LeastSmoothing => sm,
+            Objective::KlipperScore => klipper::score(sm, v),
+        };
+        if v > self.max_vibrations || value >= self.value {
             return Offer::Scored;
         }
-        self.score = sc;
+        let m = Metrics {
+            vibrations: v,
+            smoothing_mm: sm,
+            max_accel_mm_s2: max_accel_mm_s2(&s, SQUARE_CORNER_VELOCITY_MM_S),
+        };
+        self.value = value;
         self.best = SpectrumDesign {
             name: name(),
             modes,
@@ -226,8 +281,8 @@ impl Best {
 }
 
 /// Our design and Klipper's recommendation on `spec` (module docs). Errors: none; when
-/// nothing in the box scores lower, Klipper's recommendation is the design.
-pub fn design_for_spectrum(spec: &FitSpectrum) -> Comparison {
+/// nothing in the box does better on `objective`, Klipper's recommendation is the design.
+pub fn design_for_spectrum(spec: &FitSpectrum, objective: Objective) -> Comparison {
     let klipper = klipper::recommend(spec);
     let k = &klipper.best;
     let start = SpectrumDesign {
@@ -241,9 +296,15 @@ pub fn design_for_spectrum(spec: &FitSpectrum) -> Comparison {
         metrics: metrics(&k.shaper, spec),
     };
     let mut best = Best {
+        objective,
         max_vibrations: start.metrics.vibrations + VIBRATION_MARGIN,
         max_smoothing_mm: start.metrics.smoothing_mm,
-        score: klipper::score(start.metrics.smoothing_mm, start.metrics.vibrations),
+        value: match objective {
+            Objective::LeastSmoothing => start.metrics.smoothing_mm,
+            Objective::KlipperScore => {
+                klipper::score(start.metrics.smoothing_mm, start.metrics.vibrations)
+            }
+        },
         best: start,
     };
     let n = ((klipper::MAX_SHAPER_FREQ_HZ - MIN_SHAPER_FREQ_HZ) / FREQ_STEP_HZ).round() as usize;
@@ -345,11 +406,18 @@ mod tests {
     #[test]
     fn ours_is_in_the_box_and_scores_no_worse_than_klipper() {
         let s = spec(&[(48.0, 1.0)]);
-        let c = design_for_spectrum(&s);
-        let k = metrics(&c.klipper.best.shaper, &s);
-        assert!(c.ours.metrics.vibrations <= k.vibrations + VIBRATION_MARGIN);
-        assert!(c.ours.metrics.smoothing_mm <= k.smoothing_mm);
-        assert_eq!(c.peaks_hz.len(), 1);
+        for o in [Objective::LeastSmoothing, Objective::KlipperScore] {
+            let c = design_for_spectrum(&s, o);
+            let k = metrics(&c.klipper.best.shaper, &s);
+            assert!(c.ours.metrics.vibrations <= k.vibrations + VIBRATION_MARGIN);
+            assert!(c.ours.metrics.smoothing_mm <= k.smoothing_mm);
+            let ks = klipper::score(k.smoothing_mm, k.vibrations);
+            let os = klipper::score(c.ours.metrics.smoothing_mm, c.ours.metrics.vibrations);
+            if o == Objective::KlipperScore {
+                assert!(os <= ks);
+            }
+            assert_eq!(c.peaks_hz.len(), 1);
+        }
     }
 
     #[test]

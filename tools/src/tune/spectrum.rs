@@ -15,7 +15,7 @@ use super::{check_inputs, connect, TuneError, TuneOptions};
 use crate::board::steps::{program, read_board, restore, StepError};
 use crate::recording::psd::{read_spectrum, KlipperSpectrum};
 use crate::shaping::klipper::FitSpectrum;
-use crate::shaping::spectrum::{design_for_spectrum, Comparison};
+use crate::shaping::spectrum::{design_for_spectrum, Comparison, Objective};
 use crate::shaping::Candidate;
 use std::path::Path;
 
@@ -60,9 +60,13 @@ pub fn candidate(c: &Comparison) -> Candidate {
     }
 }
 
-/// Reads and designs (no board): the spectrum at `path`, its fitting bins and the comparison.
+/// Reads and designs for `objective` (no board): the spectrum at `path`, its fitting bins and
+/// the comparison.
 /// Errors: the spectrum file's (see [`read_spectrum`]).
-pub fn design_file(path: &Path) -> anyhow::Result<(KlipperSpectrum, FitSpectrum, Comparison)> {
+pub fn design_file(
+    path: &Path,
+    objective: Objective,
+) -> anyhow::Result<(KlipperSpectrum, FitSpectrum, Comparison)> {
     let s = read_spectrum(path)?;
     let fit = FitSpectrum::from_spectrum(&s);
     if fit.freq_hz.len() < 3 {
@@ -72,7 +76,7 @@ pub fn design_file(path: &Path) -> anyhow::Result<(KlipperSpectrum, FitSpectrum,
             crate::shaping::klipper::MAX_FREQ_HZ
         );
     }
-    let c = design_for_spectrum(&fit);
+    let c = design_for_spectrum(&fit, objective);
     Ok((s, fit, c))
 }
 
@@ -83,7 +87,8 @@ pub fn tune_spectrum(
 ) -> Result<SpectrumReport, TuneError> {
     let inputs = check_inputs(o)?;
     let path = o.recording.clone().unwrap_or_default();
-    let (spectrum, fit, comparison) = design_file(&path).map_err(|e| TuneError::Other(e.into()))?;
+    let (spectrum, fit, comparison) =
+        design_file(&path, Objective::default()).map_err(|e| TuneError::Other(e.into()))?;
     view.designed(&spectrum, &fit, &comparison)
         .map_err(TuneError::View)?;
     let mut bench = connect(o, &inputs)?;
