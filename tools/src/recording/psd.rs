@@ -122,6 +122,38 @@ pub fn read_spectrum(path: &Path) -> Result<KlipperSpectrum> {
     parse_spectrum(&text).with_context(|| format!("spectrum file {}", path.display()))
 }
 
+/// The first five cells of the row at 1-based `line_no`: frequency and four PSDs (finite,
+/// PSDs non-negative). Errors name the line and the column.
+fn parse_row(line_no: usize, line: &str, names: &[&str]) -> Result<[f64; 5]> {
+    let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+    if cells.len() < 5 {
+        bail!(
+            "line {line_no}: {} cells, expected at least 5 ({SPECTRUM_HEADER})",
+            cells.len()
+        );
+    }
+    let mut v = [0.0; 5];
+    for (c, (slot, cell)) in v.iter_mut().zip(&cells).enumerate() {
+        *slot = cell
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .with_context(|| {
+                format!(
+                    "line {line_no}, column `{}`: `{cell}` is not a finite number",
+                    names[c]
+                )
+            })?;
+        if c > 0 && *slot < 0.0 {
+            bail!(
+                "line {line_no}, column `{}`: negative power spectral density {cell}",
+                names[c]
+            );
+        }
+    }
+    Ok(v)
+}
+
 /// [`read_spectrum`] on the file's text.
 pub fn parse_spectrum(text: &str) -> Result<KlipperSpectrum> {
     let mut lines = text.lines().enumerate().filter(|(_, l)| {
@@ -154,35 +186,7 @@ pub fn parse_spectrum(text: &str) -> Result<KlipperSpectrum> {
         shaper_columns,
     };
     for (i, line) in lines {
-        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
-        if cells.len() < 5 {
-            bail!(
-                "line {}: {} cells, expected at least 5 ({SPECTRUM_HEADER})",
-                i + 1,
-                cells.len()
-            );
-        }
-        let mut v = [0.0; 5];
-        for (c, (slot, cell)) in v.iter_mut().zip(&cells).enumerate() {
-            *slot = cell
-                .parse::<f64>()
-                .ok()
-                .filter(|x| x.is_finite())
-                .with_context(|| {
-                    format!(
-                        "line {}, column `{}`: `{cell}` is not a finite number",
-                        i + 1,
-                        names[c]
-                    )
-                })?;
-            if c > 0 && *slot < 0.0 {
-                bail!(
-                    "line {}, column `{}`: negative power spectral density {cell}",
-                    i + 1,
-                    names[c]
-                );
-            }
-        }
+        let v = parse_row(i + 1, line, &names)?;
         if let Some(&last) = s.freq_hz.last() {
             if v[0] <= last {
                 bail!(
