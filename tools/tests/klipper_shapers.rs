@@ -12,7 +12,9 @@ use beamtools::shaping::klipper::{
     max_accel_mm_s2, recommend, remaining_vibrations, response, smoothing_mm, FitSpectrum,
     KlipperShaper, TARGET_SMOOTHING_MM,
 };
-use beamtools::shaping::spectrum::{design_for_spectrum, metrics, verdict, Objective};
+use beamtools::shaping::spectrum::{
+    design_for_spectrum, metrics, verdict, Objective, VIBRATION_MARGIN,
+};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -123,7 +125,7 @@ fn klipper_recommendation_matches_klipper_own_output() {
 fn the_design_finds_both_modes_and_is_not_worse_than_klipper() {
     let fit = FitSpectrum::from_spectrum(&read_spectrum(&data()).unwrap());
     for o in [Objective::LeastSmoothing, Objective::KlipperScore] {
-        let c = design_for_spectrum(&fit, o);
+        let c = design_for_spectrum(&fit, o, VIBRATION_MARGIN);
         assert_eq!(c.peaks_hz.len(), 2, "{:?}", c.peaks_hz);
         assert!((c.peaks_hz[0] - 42.0).abs() < 2.0 && (c.peaks_hz[1] - 98.0).abs() < 2.0);
         let k = metrics(&c.klipper.best.shaper, &fit);

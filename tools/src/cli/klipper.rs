@@ -9,7 +9,9 @@ use crate::recording::psd::KlipperSpectrum;
 use crate::shaping::klipper::{
     worst_response, FitSpectrum, Recommendation, SHAPER_VIBRATION_REDUCTION,
 };
-use crate::shaping::spectrum::{metrics, verdict, Comparison, Metrics, Objective};
+use crate::shaping::spectrum::{
+    metrics, verdict, Comparison, Metrics, Objective, VIBRATION_MARGIN,
+};
 use crate::tune::spectrum::{design_file, tune_spectrum as job, SpectrumView};
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -34,6 +36,10 @@ pub struct KlipperCompareArgs {
     /// rule) or `klipper-score` (Klipper's own trade of vibrations against smoothing).
     #[arg(long, value_enum, default_value_t = ObjectiveArg::LeastSmoothing)]
     pub objective: ObjectiveArg,
+    /// Remaining vibrations (percentage points) our design may leave above Klipper's
+    /// recommendation (issue 70's "not worse" margin is 1; 0 = never more than Klipper's).
+    #[arg(long, default_value_t = 100.0 * VIBRATION_MARGIN, value_parser = super::finite_f64)]
+    pub vibration_margin_pct: f64,
 }
 
 /// See [`Objective`].
@@ -311,9 +317,16 @@ pub fn klipper_compare(a: KlipperCompareArgs) -> Result<()> {
         ObjectiveArg::LeastSmoothing => Objective::LeastSmoothing,
         ObjectiveArg::KlipperScore => Objective::KlipperScore,
     };
+    if !(0.0..=100.0).contains(&a.vibration_margin_pct) {
+        bail!(
+            "--vibration-margin-pct must be between 0 and 100 (got {})",
+            a.vibration_margin_pct
+        );
+    }
+    let margin = a.vibration_margin_pct / 100.0;
     let (mut rows, mut failed) = (vec![], vec![]);
     for f in &a.files {
-        match design_file(f, objective) {
+        match design_file(f, objective, margin) {
             Ok((_, fit, c)) => rows.push(print_row(f, &fit, &c, a.verbose)),
             Err(e) => {
                 println!("{:<44} | error: {e:#}", short(f));

@@ -280,9 +280,15 @@ impl Best {
     }
 }
 
-/// Our design and Klipper's recommendation on `spec` (module docs). Errors: none; when
-/// nothing in the box does better on `objective`, Klipper's recommendation is the design.
-pub fn design_for_spectrum(spec: &FitSpectrum, objective: Objective) -> Comparison {
+/// Our design and Klipper's recommendation on `spec` (module docs), with the box's vibration
+/// margin `vibration_margin` (fraction; [`VIBRATION_MARGIN`] by default, 0 = no more
+/// vibrations than Klipper's). Errors: none; when nothing in the box does better on
+/// `objective`, Klipper's recommendation is the design.
+pub fn design_for_spectrum(
+    spec: &FitSpectrum,
+    objective: Objective,
+    vibration_margin: f64,
+) -> Comparison {
     let klipper = klipper::recommend(spec);
     let k = &klipper.best;
     let start = SpectrumDesign {
@@ -297,7 +303,7 @@ pub fn design_for_spectrum(spec: &FitSpectrum, objective: Objective) -> Comparis
     };
     let mut best = Best {
         objective,
-        max_vibrations: start.metrics.vibrations + VIBRATION_MARGIN,
+        max_vibrations: start.metrics.vibrations + vibration_margin,
         max_smoothing_mm: start.metrics.smoothing_mm,
         value: match objective {
             Objective::LeastSmoothing => start.metrics.smoothing_mm,
@@ -407,7 +413,7 @@ mod tests {
     fn ours_is_in_the_box_and_scores_no_worse_than_klipper() {
         let s = spec(&[(48.0, 1.0)]);
         for o in [Objective::LeastSmoothing, Objective::KlipperScore] {
-            let c = design_for_spectrum(&s, o);
+            let c = design_for_spectrum(&s, o, VIBRATION_MARGIN);
             let k = metrics(&c.klipper.best.shaper, &s);
             assert!(c.ours.metrics.vibrations <= k.vibrations + VIBRATION_MARGIN);
             assert!(c.ours.metrics.smoothing_mm <= k.smoothing_mm);

@@ -15,7 +15,7 @@ use super::{check_inputs, connect, TuneError, TuneOptions};
 use crate::board::steps::{program, read_board, restore, StepError};
 use crate::recording::psd::{read_spectrum, KlipperSpectrum};
 use crate::shaping::klipper::FitSpectrum;
-use crate::shaping::spectrum::{design_for_spectrum, Comparison, Objective};
+use crate::shaping::spectrum::{design_for_spectrum, Comparison, Objective, VIBRATION_MARGIN};
 use crate::shaping::Candidate;
 use std::path::Path;
 
@@ -60,12 +60,14 @@ pub fn candidate(c: &Comparison) -> Candidate {
     }
 }
 
-/// Reads and designs for `objective` (no board): the spectrum at `path`, its fitting bins and
+/// Reads and designs for `objective` with the box's `vibration_margin` (fraction; see
+/// [`design_for_spectrum`]) (no board): the spectrum at `path`, its fitting bins and
 /// the comparison.
 /// Errors: the spectrum file's (see [`read_spectrum`]).
 pub fn design_file(
     path: &Path,
     objective: Objective,
+    vibration_margin: f64,
 ) -> anyhow::Result<(KlipperSpectrum, FitSpectrum, Comparison)> {
     let s = read_spectrum(path)?;
     let fit = FitSpectrum::from_spectrum(&s);
@@ -76,7 +78,7 @@ pub fn design_file(
             crate::shaping::klipper::MAX_FREQ_HZ
         );
     }
-    let c = design_for_spectrum(&fit, objective);
+    let c = design_for_spectrum(&fit, objective, vibration_margin);
     Ok((s, fit, c))
 }
 
@@ -87,8 +89,8 @@ pub fn tune_spectrum(
 ) -> Result<SpectrumReport, TuneError> {
     let inputs = check_inputs(o)?;
     let path = o.recording.clone().unwrap_or_default();
-    let (spectrum, fit, comparison) =
-        design_file(&path, Objective::default()).map_err(|e| TuneError::Other(e.into()))?;
+    let (spectrum, fit, comparison) = design_file(&path, Objective::default(), VIBRATION_MARGIN)
+        .map_err(|e| TuneError::Other(e.into()))?;
     view.designed(&spectrum, &fit, &comparison)
         .map_err(TuneError::View)?;
     let mut bench = connect(o, &inputs)?;
