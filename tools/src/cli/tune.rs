@@ -31,8 +31,10 @@ pub enum SignalArg {
 /// `tune` arguments.
 #[derive(Args, Debug, Clone)]
 pub struct TuneArgs {
-    /// Recording (CSV, .npy free decay). Without it, the virtual rig's camera records an
-    /// excitation run on the board.
+    /// Recording (CSV, .npy free decay), or a Klipper spectrum (`resonances_*.csv`,
+    /// `calibration_data_*.csv`: designed from the PSD beside Klipper's own calibration, see
+    /// docs/klipper.md). Without it, the virtual rig's camera records an excitation run on
+    /// the board.
     pub recording: Option<PathBuf>,
     /// Rig file: the virtual rig's beam (without --port) and the model prediction (default:
     /// the embedded reference rig rigs/paper.toml).
