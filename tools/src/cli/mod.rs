@@ -10,6 +10,7 @@ pub mod board;
 pub mod diagnose;
 pub mod ident;
 mod identbench;
+pub mod klipper;
 pub mod model;
 pub mod paper;
 pub mod read;
@@ -68,6 +69,9 @@ pub enum Command {
     Truth(crate::cli::truth::TruthArgs),
     /// Benchmark reading a recording (rows/s, MB/s, peak RSS) beside a peer (python3's csv).
     BenchRead(crate::cli::read::BenchReadArgs),
+    /// Score our spectrum designs against Klipper's own recommendation on Klipper spectrum
+    /// files (resonances_*.csv, calibration_data_*.csv), by Klipper's metrics.
+    KlipperCompare(crate::cli::klipper::KlipperCompareArgs),
 }
 
 /// Runs one command: one arm per command (keep one line per arm where possible, append new
@@ -75,7 +79,7 @@ pub enum Command {
 pub fn run(command: Command) -> Result<()> {
     allocator::keep_freed_memory();
     match command {
-        Command::Tune(a) => tune::tune(a).map(|_| ()),
+        Command::Tune(a) => tune::run(a),
         Command::Vboard(a) => board::vboard(a),
         Command::Console(a) => board::console(a),
         Command::Shaper(a) => board::shaper(a),
@@ -107,6 +111,7 @@ pub fn run(command: Command) -> Result<()> {
             crate::cli::paper::bench_sim(a)
         }
         Command::BenchRead(a) => crate::cli::read::bench_read(a),
+        Command::KlipperCompare(a) => crate::cli::klipper::klipper_compare(a),
     }
 }
 

@@ -32,8 +32,10 @@ pub enum SignalArg {
 /// `tune` arguments.
 #[derive(Args, Debug, Clone)]
 pub struct TuneArgs {
-    /// Recording (CSV, .npy free decay). Without it, the virtual rig's camera records an
-    /// excitation run on the board.
+    /// Recording (CSV, .npy free decay), or a Klipper spectrum (`resonances_*.csv`,
+    /// `calibration_data_*.csv`: designed from the PSD beside Klipper's own calibration, see
+    /// docs/klipper.md). Without it, the virtual rig's camera records an excitation run on
+    /// the board.
     pub recording: Option<PathBuf>,
     /// Rig file: the virtual rig's beam (without --port) and the model prediction (default:
     /// the embedded reference rig rigs/paper.toml).
@@ -133,6 +135,15 @@ impl TuneArgs {
             accept_predicted: self.accept_predicted,
             read: self.read.options(),
         }
+    }
+}
+
+/// `beamtool tune`: a Klipper spectrum file (`resonances_*.csv`, `calibration_data_*.csv`) goes
+/// to the spectrum design ([`super::klipper::tune_spectrum`]); anything else to [`tune`].
+pub fn run(a: TuneArgs) -> Result<()> {
+    match a.recording.as_deref() {
+        Some(p) if crate::recording::psd::is_spectrum_file(p) => super::klipper::tune_spectrum(&a),
+        _ => tune(a).map(|_| ()),
     }
 }
 

@@ -38,6 +38,7 @@ pub mod klipper;
 pub mod multirate;
 pub mod orient;
 mod read;
+pub mod psd;
 pub mod regular;
 pub mod rowwise;
 pub mod zero;

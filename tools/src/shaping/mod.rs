@@ -8,6 +8,9 @@
 //! (tap table fits its history at its tick rate) wins. The core's `shaper` module stays the
 //! one place that designs and convolves; this module only designs through it and ranks.
 
+pub mod klipper;
+pub mod spectrum;
+
 use crate::ident::ModeEstimate;
 use beamshaper::config::{ModeSetting, Settings};
 use beamshaper::shaper::{design, residual_vibration, Shaper, ShaperKind};

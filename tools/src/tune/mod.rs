@@ -29,6 +29,7 @@
 
 pub mod inputs;
 pub mod recorded;
+pub mod spectrum;
 pub mod verify;
 
 pub use inputs::{check_inputs, connect, Bench, Excitation, Inputs};
