@@ -202,7 +202,10 @@ fn run_peer(a: &BenchReadArgs, program: &str, best: f64) -> Result<()> {
         .filter_map(|w| w.parse().ok())
         .collect();
     if v.len() != 3 {
-        bail!("the peer printed `{}`, not `seconds rows peak_kib`", text.trim());
+        bail!(
+            "the peer printed `{}`, not `seconds rows peak_kib`",
+            text.trim()
+        );
     }
     println!(
         "peer {} ({}): {} rows read in {:.3} s, {:.2} M rows/s; peak RSS {:.0} MiB",

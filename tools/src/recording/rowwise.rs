@@ -108,10 +108,7 @@ pub fn forward_fill(rec: Recording) -> Result<Recording> {
 /// channel's values with NaN where blank, rows merged, rows dropped).
 /// Errors: time going backwards (row named).
 #[allow(clippy::type_complexity)]
-fn merge_rows(
-    time_s: &[f64],
-    cols: &[&[f64]],
-) -> Result<(Vec<f64>, Vec<Vec<f64>>, usize, usize)> {
+fn merge_rows(time_s: &[f64], cols: &[&[f64]]) -> Result<(Vec<f64>, Vec<Vec<f64>>, usize, usize)> {
     let n = time_s.len();
     let mut time: Vec<f64> = Vec::with_capacity(n);
     let mut rows: Vec<Vec<f64>> = cols.iter().map(|_| Vec::with_capacity(n)).collect();
@@ -206,9 +203,15 @@ mod tests {
         assert_eq!(out.tip_pos_m.unwrap(), vec![10.0, 11.0, 11.0, 11.0, 12.0]);
         let note = &out.notes[0];
         assert!(note.starts_with("row-wise log"), "{note}");
-        assert!(note.contains("1 rows before every channel had a value dropped"), "{note}");
+        assert!(
+            note.contains("1 rows before every channel had a value dropped"),
+            "{note}"
+        );
         assert!(note.contains("1 rows without a value"), "{note}");
-        assert!(note.contains("1 rows of an earlier row's time merged"), "{note}");
+        assert!(
+            note.contains("1 rows of an earlier row's time merged"),
+            "{note}"
+        );
     }
 
     #[test]
@@ -216,15 +219,28 @@ mod tests {
         let n = 200;
         let rec = Recording {
             time_s: (0..n).map(|k| k as f64 * 0.01).collect(),
-            base_pos_m: Some((0..n).map(|k| if k % 2 == 0 { k as f64 } else { f64::NAN }).collect()),
+            base_pos_m: Some(
+                (0..n)
+                    .map(|k| if k % 2 == 0 { k as f64 } else { f64::NAN })
+                    .collect(),
+            ),
             tip_pos_m: Some(
                 (0..n)
-                    .map(|k| if k % 2 == 1 && !(50..150).contains(&k) { 1.0 } else { f64::NAN })
+                    .map(|k| {
+                        if k % 2 == 1 && !(50..150).contains(&k) {
+                            1.0
+                        } else {
+                            f64::NAN
+                        }
+                    })
                     .collect(),
             ),
             ..Default::default()
         };
         let e = forward_fill(rec).unwrap_err().to_string();
-        assert!(e.contains("tip_pos_m has no value for 1.02 s after t = 0.49"), "{e}");
+        assert!(
+            e.contains("tip_pos_m has no value for 1.02 s after t = 0.49"),
+            "{e}"
+        );
     }
 }
