@@ -60,7 +60,11 @@ fn klipper_raw_accelerometer_csv_reads_its_liveliest_axis_in_m_s2() {
     // read for identification: onto a uniform grid at the chip's rate, with a note
     let rec = Recording::read_any(&data("klipper_raw.csv"), &mut |_| {}).unwrap();
     assert!(rec.is_uniform());
-    assert!((rec.sample_rate_hz() - 3200.0).abs() < 5.0, "{}", rec.sample_rate_hz());
+    assert!(
+        (rec.sample_rate_hz() - 3200.0).abs() < 5.0,
+        "{}",
+        rec.sample_rate_hz()
+    );
     assert!(
         rec.notes.iter().any(|n| n.contains("time base mended")),
         "{:?}",
@@ -102,7 +106,10 @@ fn a_row_wise_ros_export_is_forward_filled_and_its_slow_topic_is_a_staircase() {
             .map(|c| num(&c[col]))
             .unwrap()
     };
-    let (base, tip) = (rec.base_pos_m.as_ref().unwrap(), rec.tip_pos_m.as_ref().unwrap());
+    let (base, tip) = (
+        rec.base_pos_m.as_ref().unwrap(),
+        rec.tip_pos_m.as_ref().unwrap(),
+    );
     for (k, &t) in rec.time_s.iter().enumerate() {
         assert!((base[k] - last_at(1, t) * 1e-3).abs() < 1e-12, "row {k}");
         assert!((tip[k] - last_at(2, t) * 0.45).abs() < 1e-12, "row {k}");
@@ -159,7 +166,10 @@ fn mapped_columns_are_scaled_to_si_and_unmapped_ones_ignored() {
     let e = Recording::read_csv(data("scaled_columns.csv"))
         .unwrap_err()
         .to_string();
-    assert!(e.contains("`t` has no unit") && e.contains("--columns"), "{e}");
+    assert!(
+        e.contains("`t` has no unit") && e.contains("--columns"),
+        "{e}"
+    );
 }
 
 fn beamtool(args: &[&str]) -> (bool, String) {
@@ -178,10 +188,19 @@ fn a_bad_columns_map_is_refused_by_name_on_the_command_line() {
     let file = data("scaled_columns.csv");
     let f = file.to_str().unwrap();
     for (cols, want) in [
-        ("tip=defl", "unknown channel `tip` (channels: time_s, base_cmd_m"),
+        (
+            "tip=defl",
+            "unknown channel `tip` (channels: time_s, base_cmd_m",
+        ),
         ("tip_pos_m=defl:mm", "bad scale `mm`"),
-        ("tip_pos_m=defl,tip_pos_m=theta", "channel `tip_pos_m` given twice"),
-        ("time_s=t:0.001,tip_pos_m=deflection", "no column `deflection` (for tip_pos_m); its columns: t, theta, defl, status"),
+        (
+            "tip_pos_m=defl,tip_pos_m=theta",
+            "channel `tip_pos_m` given twice",
+        ),
+        (
+            "time_s=t:0.001,tip_pos_m=deflection",
+            "no column `deflection` (for tip_pos_m); its columns: t, theta, defl, status",
+        ),
     ] {
         for cmd in ["identify", "frf"] {
             let (ok, err) = beamtool(&[cmd, f, "--columns", cols]);
@@ -191,7 +210,10 @@ fn a_bad_columns_map_is_refused_by_name_on_the_command_line() {
     }
     let (ok, err) = beamtool(&["identify", f, "--axis", "x"]);
     assert!(!ok);
-    assert!(err.contains("--axis applies to Klipper's raw accelerometer CSV"), "{err}");
+    assert!(
+        err.contains("--axis applies to Klipper's raw accelerometer CSV"),
+        "{err}"
+    );
     let (ok, err) = beamtool(&["identify", f, "--axis", "w"]);
     assert!(!ok);
     assert!(err.contains("want x, y or z"), "{err}");

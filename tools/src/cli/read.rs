@@ -101,6 +101,27 @@ pub fn peak_rss_mib() -> Option<f64> {
     Some(kib / 1024.0)
 }
 
+/// The time (s) of parsing every column of the CSV at `path` alone (nothing mended or noted);
+/// `None` when a column is not numeric.
+fn cells_only_s(path: &std::path::Path) -> Option<f64> {
+    use crate::recording::csvread::{layout, read_columns, Wanted};
+    let l = layout(path).ok()?;
+    let wanted: Vec<Wanted<'_>> = l
+        .names
+        .iter()
+        .enumerate()
+        .map(|(index, name)| Wanted {
+            index,
+            name,
+            scale: 1.0,
+            required: false,
+        })
+        .collect();
+    let t0 = Instant::now();
+    read_columns(path, &l, &wanted, &mut |_| {}).ok()?;
+    Some(t0.elapsed().as_secs_f64())
+}
+
 /// `beamtool bench-read`: reads the file `--repeat` times ([`Recording::read_any_with`], the
 /// whole reading: cells, row-wise fill, mending, notes), prints rows, MB, the fastest time,
 /// rows/s, MB/s and the peak RSS, then the peer's time and peak RSS on the same file and the
@@ -132,24 +153,7 @@ pub fn bench_read(a: BenchReadArgs) -> Result<()> {
     }
     super::print_notes(&a.file, &notes);
     let rss = peak_rss_mib().unwrap_or(f64::NAN);
-    // the cells alone: every column parsed, nothing mended or noted
-    let layout = crate::recording::csvread::layout(&a.file);
-    let cells_s = layout.ok().and_then(|l| {
-        let wanted: Vec<crate::recording::csvread::Wanted<'_>> = l
-            .names
-            .iter()
-            .enumerate()
-            .map(|(index, name)| crate::recording::csvread::Wanted {
-                index,
-                name,
-                scale: 1.0,
-                required: false,
-            })
-            .collect();
-        let t0 = Instant::now();
-        crate::recording::csvread::read_columns(&a.file, &l, &wanted, &mut |_| {}).ok()?;
-        Some(t0.elapsed().as_secs_f64())
-    });
+    let cells_s = cells_only_s(&a.file);
     let data_mb = shape.0 as f64 * (shape.1 + 1) as f64 * 8.0 / 1e6;
     println!(
         "beamtool: {} rows x {} channels + time, {:.1} MB file: read in {:.3} s (best of {}), {:.2} M rows/s, {:.0} MB/s; peak RSS {:.0} MiB (the data: {:.1} MB)",
@@ -169,9 +173,15 @@ pub fn bench_read(a: BenchReadArgs) -> Result<()> {
             bytes / 1e6 / c
         );
     }
-    let Some(program) = program else {
-        return Ok(());
-    };
+    match program {
+        Some(p) => run_peer(&a, p, best),
+        None => Ok(()),
+    }
+}
+
+/// Runs the peer `program` on the file of `a` and prints its time, rows and peak RSS, and the
+/// ratio of its time to beamtool's `best` (s).
+fn run_peer(a: &BenchReadArgs, program: &str, best: f64) -> Result<()> {
     let out = std::process::Command::new(&a.python)
         .arg("-c")
         .arg(program)
@@ -192,7 +202,10 @@ pub fn bench_read(a: BenchReadArgs) -> Result<()> {
         .filter_map(|w| w.parse().ok())
         .collect();
     if v.len() != 3 {
-        bail!("the peer printed `{}`, not `seconds rows peak_kib`", text.trim());
+        bail!(
+            "the peer printed `{}`, not `seconds rows peak_kib`",
+            text.trim()
+        );
     }
     println!(
         "peer {} ({}): {} rows read in {:.3} s, {:.2} M rows/s; peak RSS {:.0} MiB",

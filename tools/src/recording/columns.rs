@@ -175,7 +175,10 @@ mod tests {
         assert_eq!(m.entries[2].scale, 1.0);
         assert_eq!(m.resolve(&["defl", "t", "theta"]).unwrap(), vec![1, 2, 0]);
         let e = m.resolve(&["t", "angle"]).unwrap_err().to_string();
-        assert!(e.contains("no column `theta`") && e.contains("t, angle"), "{e}");
+        assert!(
+            e.contains("no column `theta`") && e.contains("t, angle"),
+            "{e}"
+        );
         for (spec, want) in [
             ("tip=x", "unknown channel `tip`"),
             ("tip_pos_m=x:mm", "bad scale `mm`"),

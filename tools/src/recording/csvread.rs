@@ -54,7 +54,8 @@ fn fields(line: &[u8], delimiter: u8) -> Vec<String> {
 
 /// True when `cell` reads as a number (with `;` as separator, a decimal comma too).
 fn is_number(cell: &str, delimiter: u8) -> bool {
-    parse_cell(cell.as_bytes(), delimiter == b';').is_some_and(|v| !v.is_nan() || cell.eq_ignore_ascii_case("nan"))
+    parse_cell(cell.as_bytes(), delimiter == b';')
+        .is_some_and(|v| !v.is_nan() || cell.eq_ignore_ascii_case("nan"))
 }
 
 /// Finds the header of the CSV at `path` (see the module header).
@@ -131,7 +132,11 @@ pub fn layout(path: &Path) -> Result<Layout> {
         delimiter,
         names,
         commented_header,
-        row_bytes: if rows == 0 { 0.0 } else { bytes as f64 / rows as f64 },
+        row_bytes: if rows == 0 {
+            0.0
+        } else {
+            bytes as f64 / rows as f64
+        },
         file_bytes,
     })
 }
@@ -204,14 +209,22 @@ pub fn read_columns(
     } else {
         16
     };
-    let mut cols: Vec<Vec<f64>> = wanted.iter().map(|_| Vec::with_capacity(estimate)).collect();
+    let mut cols: Vec<Vec<f64>> = wanted
+        .iter()
+        .map(|_| Vec::with_capacity(estimate))
+        .collect();
     let mut record = csv::ByteRecord::new();
     let decimal_comma = layout.delimiter == b';';
     let mut row = 0usize;
     let mut skip_header = !layout.commented_header;
     loop {
         let more = rdr.read_byte_record(&mut record).map_err(|e| {
-            anyhow!("{}: data row {}: {}", path.display(), row + 1, csv_error(&e))
+            anyhow!(
+                "{}: data row {}: {}",
+                path.display(),
+                row + 1,
+                csv_error(&e)
+            )
         })?;
         if !more {
             break;
@@ -283,7 +296,15 @@ mod tests {
 
     #[test]
     fn cells_parse_like_the_standard_library() {
-        for s in ["0", "-1.5", "1e-3", " 2.25 ", "+3", "1.7976931348623157e308", "4.9e-324"] {
+        for s in [
+            "0",
+            "-1.5",
+            "1e-3",
+            " 2.25 ",
+            "+3",
+            "1.7976931348623157e308",
+            "4.9e-324",
+        ] {
             let want: f64 = s.trim().parse().unwrap();
             assert_eq!(parse_cell(s.as_bytes(), false), Some(want), "{s}");
         }
@@ -299,7 +320,11 @@ mod tests {
     fn a_commented_header_before_data_is_the_header_and_other_comments_are_not() {
         let tmp = tempfile::tempdir().unwrap();
         let p = tmp.path().join("k.csv");
-        std::fs::write(&p, "##rate=3200\n#time,accel_x,accel_y,accel_z\n1.0,2,3,4\n").unwrap();
+        std::fs::write(
+            &p,
+            "##rate=3200\n#time,accel_x,accel_y,accel_z\n1.0,2,3,4\n",
+        )
+        .unwrap();
         let l = layout(&p).unwrap();
         assert!(l.commented_header);
         assert_eq!(l.names, ["time", "accel_x", "accel_y", "accel_z"]);

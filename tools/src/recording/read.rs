@@ -230,7 +230,11 @@ impl Recording {
                 rec.notes.extend(notes);
             }
         }
-        let source = if is_klipper { Source::Klipper } else { Source::Plain };
+        let source = if is_klipper {
+            Source::Klipper
+        } else {
+            Source::Plain
+        };
         Ok((rec, source))
     }
 }
@@ -259,7 +263,11 @@ fn plan(
         let mut out = Vec::new();
         match map.time() {
             Some(e) => {
-                let i = idx[map.entries.iter().position(|x| x.channel == "time_s").unwrap()];
+                let i = idx[map
+                    .entries
+                    .iter()
+                    .position(|x| x.channel == "time_s")
+                    .unwrap()];
                 out.push((i, "time_s", e.scale));
             }
             None => {

@@ -53,37 +53,7 @@ pub fn forward_fill(rec: Recording) -> Result<Recording> {
         .iter()
         .map(|v| v.iter().filter(|x| !x.is_nan()).count() as f64 / n.max(1) as f64)
         .collect();
-    // merge rows of one time (later cells win), drop rows with no value
-    let mut time: Vec<f64> = Vec::with_capacity(n);
-    let mut rows: Vec<Vec<f64>> = cols.iter().map(|_| Vec::with_capacity(n)).collect();
-    let (mut merged, mut empty) = (0usize, 0usize);
-    for k in 0..n {
-        let t = rec.time_s[k];
-        if k > 0 && t < rec.time_s[k - 1] {
-            bail!(
-                "time_s goes backwards at data row {} ({} -> {t}) in a row-wise log",
-                k + 1,
-                rec.time_s[k - 1]
-            );
-        }
-        if cols.iter().all(|c| c[k].is_nan()) {
-            empty += 1;
-            continue;
-        }
-        if time.last() == Some(&t) {
-            merged += 1;
-            for (r, c) in rows.iter_mut().zip(&cols) {
-                if !c[k].is_nan() {
-                    *r.last_mut().expect("a row") = c[k];
-                }
-            }
-            continue;
-        }
-        time.push(t);
-        for (r, c) in rows.iter_mut().zip(&cols) {
-            r.push(c[k]);
-        }
-    }
+    let (time, mut rows, merged, empty) = merge_rows(&rec.time_s, &cols)?;
     // the first row where every channel has had a value
     let start = rows
         .iter()
@@ -132,6 +102,45 @@ pub fn forward_fill(rec: Recording) -> Result<Recording> {
     }
     out.notes.push(note);
     Ok(out)
+}
+
+/// Rows of one time merged (later cells win) and rows with no value dropped: (time, each
+/// channel's values with NaN where blank, rows merged, rows dropped).
+/// Errors: time going backwards (row named).
+#[allow(clippy::type_complexity)]
+fn merge_rows(time_s: &[f64], cols: &[&[f64]]) -> Result<(Vec<f64>, Vec<Vec<f64>>, usize, usize)> {
+    let n = time_s.len();
+    let mut time: Vec<f64> = Vec::with_capacity(n);
+    let mut rows: Vec<Vec<f64>> = cols.iter().map(|_| Vec::with_capacity(n)).collect();
+    let (mut merged, mut empty) = (0usize, 0usize);
+    for k in 0..n {
+        let t = time_s[k];
+        if k > 0 && t < time_s[k - 1] {
+            bail!(
+                "time_s goes backwards at data row {} ({} -> {t}) in a row-wise log",
+                k + 1,
+                time_s[k - 1]
+            );
+        }
+        if cols.iter().all(|c| c[k].is_nan()) {
+            empty += 1;
+            continue;
+        }
+        if time.last() == Some(&t) {
+            merged += 1;
+            for (r, c) in rows.iter_mut().zip(cols) {
+                if !c[k].is_nan() {
+                    *r.last_mut().expect("a row") = c[k];
+                }
+            }
+            continue;
+        }
+        time.push(t);
+        for (r, c) in rows.iter_mut().zip(cols) {
+            r.push(c[k]);
+        }
+    }
+    Ok((time, rows, merged, empty))
 }
 
 /// Refuses a hold longer than [`MAX_FILL_RUN`] median update intervals of channel `name`
@@ -194,9 +203,15 @@ mod tests {
         assert_eq!(out.tip_pos_m.unwrap(), vec![10.0, 11.0, 11.0, 11.0, 12.0]);
         let note = &out.notes[0];
         assert!(note.starts_with("row-wise log"), "{note}");
-        assert!(note.contains("1 rows before every channel had a value dropped"), "{note}");
+        assert!(
+            note.contains("1 rows before every channel had a value dropped"),
+            "{note}"
+        );
         assert!(note.contains("1 rows without a value"), "{note}");
-        assert!(note.contains("1 rows of an earlier row's time merged"), "{note}");
+        assert!(
+            note.contains("1 rows of an earlier row's time merged"),
+            "{note}"
+        );
     }
 
     #[test]
@@ -204,15 +219,28 @@ mod tests {
         let n = 200;
         let rec = Recording {
             time_s: (0..n).map(|k| k as f64 * 0.01).collect(),
-            base_pos_m: Some((0..n).map(|k| if k % 2 == 0 { k as f64 } else { f64::NAN }).collect()),
+            base_pos_m: Some(
+                (0..n)
+                    .map(|k| if k % 2 == 0 { k as f64 } else { f64::NAN })
+                    .collect(),
+            ),
             tip_pos_m: Some(
                 (0..n)
-                    .map(|k| if k % 2 == 1 && !(50..150).contains(&k) { 1.0 } else { f64::NAN })
+                    .map(|k| {
+                        if k % 2 == 1 && !(50..150).contains(&k) {
+                            1.0
+                        } else {
+                            f64::NAN
+                        }
+                    })
                     .collect(),
             ),
             ..Default::default()
         };
         let e = forward_fill(rec).unwrap_err().to_string();
-        assert!(e.contains("tip_pos_m has no value for 1.02 s after t = 0.49"), "{e}");
+        assert!(
+            e.contains("tip_pos_m has no value for 1.02 s after t = 0.49"),
+            "{e}"
+        );
     }
 }

@@ -447,7 +447,7 @@ pub fn identify_step(
         ..Default::default()
     };
     let id = crate::ident::identify::identify_file(path, &opts, &mut |_| {})
-    .map_err(|e| TuneError::Other(e.into()))?;
+        .map_err(|e| TuneError::Other(e.into()))?;
     Ok(IdentifiedModes {
         description: crate::ident::report::identification_table(&id),
         modes: id.modes,
