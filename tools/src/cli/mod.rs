@@ -10,6 +10,7 @@ pub mod board;
 pub mod diagnose;
 pub mod ident;
 pub mod model;
+pub mod oma;
 pub mod paper;
 pub mod truth;
 pub mod tune;
@@ -64,6 +65,8 @@ pub enum Command {
     DiagnoseProof(crate::cli::diagnose::ProofArgs),
     /// Write one truth-generator case (rig + fit/validation recordings with a hidden effect).
     Truth(crate::cli::truth::TruthArgs),
+    /// Coverage of the output-only (SSI-cov) ±2σ on synthetic recordings with known modes.
+    OmaCoverage(crate::cli::oma::OmaCoverageArgs),
 }
 
 /// Runs one command: one arm per command (keep one line per arm where possible, append new
@@ -102,6 +105,7 @@ pub fn run(command: Command) -> Result<()> {
             default_rig(&mut a.rig)?;
             crate::cli::paper::bench_sim(a)
         }
+        Command::OmaCoverage(a) => crate::cli::oma::oma_coverage(a),
     }
 }
 

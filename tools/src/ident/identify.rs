@@ -46,6 +46,8 @@ pub enum PathChoice {
     Frf,
     /// Free decay of the tip (after the base's last move, if it moves).
     Decay,
+    /// Output-only (SSI-cov) identification of the tip response ([`super::ssi`]).
+    OutputOnly,
 }
 
 impl PathChoice {
@@ -55,7 +57,8 @@ impl PathChoice {
             "auto" => Ok(PathChoice::Auto),
             "frf" | "sweep" => Ok(PathChoice::Frf),
             "decay" | "free-decay" | "ringdown" | "ring-down" => Ok(PathChoice::Decay),
-            _ => bail!("unknown identification path `{s}` (auto, frf, decay)"),
+            "output-only" | "oma" | "ssi" => Ok(PathChoice::OutputOnly),
+            _ => bail!("unknown identification path `{s}` (auto, frf, decay, output-only)"),
         }
     }
 }
@@ -71,6 +74,8 @@ pub enum IdentPath {
     Frf,
     /// Peaks of a magnitude spectrum (LabVIEW `.lvm` of an impact test, [`super::magspec`]).
     Spectrum,
+    /// Output-only: SSI-cov of a stationary response with no usable input ([`super::ssi`]).
+    OutputOnly,
 }
 
 impl fmt::Display for IdentPath {
@@ -80,6 +85,7 @@ impl fmt::Display for IdentPath {
             IdentPath::RingDown => "ring-down after the last move",
             IdentPath::Frf => "FRF (input/output)",
             IdentPath::Spectrum => "magnitude spectrum",
+            IdentPath::OutputOnly => "output-only (SSI-cov)",
         })
     }
 }
@@ -321,6 +327,7 @@ pub fn identify(
         IdentPath::FreeDecay | IdentPath::RingDown | IdentPath::Spectrum => {
             decay_path(&seg, opts, &mut out, progress)?
         }
+        IdentPath::OutputOnly => output_only_path(&seg, opts, &mut out, progress)?,
     }
     if out.modes.is_empty() {
         bail!(
@@ -698,6 +705,10 @@ fn asked_path(choice: PathChoice, moves: bool, ring_s: f64) -> Option<(IdentPath
             format!("free decay asked for: tip deflection after the base's last move ({} s of ring-down)", fmt_sig(ring_s, 3)),
         )),
         PathChoice::Decay => Some((IdentPath::FreeDecay, "free decay asked for".into())),
+        PathChoice::OutputOnly => Some((
+            IdentPath::OutputOnly,
+            "output-only asked for: SSI-cov of the tip response".into(),
+        )),
         PathChoice::Auto => None,
     }
 }
@@ -722,10 +733,16 @@ pub fn choose_path(
                 "force input, no base channel: FRF of force -> tip".into(),
             )
         } else {
-            (
-                IdentPath::FreeDecay,
-                "no base or force channel: the tip signal is a free decay".into(),
-            )
+            match output_only_reason(rec, opts) {
+                Ok(why) => (
+                    IdentPath::OutputOnly,
+                    format!("no base or force channel, and the tip signal is {why}: output-only SSI-cov"),
+                ),
+                Err(_) => (
+                    IdentPath::FreeDecay,
+                    "no base or force channel: the tip signal is a free decay".into(),
+                ),
+            }
         };
     };
     let still = format!(
@@ -743,6 +760,12 @@ pub fn choose_path(
         );
     }
     if !moves {
+        if let Ok(why) = output_only_reason(rec, opts) {
+            return (
+                IdentPath::OutputOnly,
+                format!("the base never leaves {still} (range {} µm, within its noise: no usable input), and the tip deflection is {why}: output-only SSI-cov", fmt_sig(b.range_m * 1e6, 3)),
+            );
+        }
         return (
             IdentPath::FreeDecay,
             format!("the base never leaves {still} (range {} µm, within its noise): the tip deflection is a free decay", fmt_sig(b.range_m * 1e6, 3)),
@@ -775,6 +798,78 @@ pub fn choose_path(
             fmt_sig(ring_s, 3)
         ),
     )
+}
+
+/// `Ok(why)` when the tip response of `rec` is a stationary response for the output-only
+/// path ([`super::ssi::stationary_response`] in `opts.decay`'s band), else `Err(why not)`.
+fn output_only_reason(rec: &Recording, opts: &IdentifyOptions) -> std::result::Result<String, String> {
+    let (_, x) = response_signal(rec);
+    super::ssi::stationary_response(
+        &x,
+        rec.sample_rate_hz(),
+        opts.decay.f_min_hz,
+        opts.decay.f_max_hz,
+    )
+}
+
+/// The response of the output-only path: the tip deflection (tip − base, [`tip_signal`]) or
+/// the tip alone, and its name. (A tip accelerometer channel goes here when recordings carry
+/// one.)
+fn response_signal(rec: &Recording) -> (&'static str, Vec<f64>) {
+    let name = if base_channel(rec).is_some() {
+        "tip deflection (tip_pos_m - base)"
+    } else {
+        "tip_pos_m"
+    };
+    (name, tip_signal(rec, 0).1)
+}
+
+/// The output-only path: [`super::ssi::identify_output_only`] of the tip response, into `out`.
+fn output_only_path(
+    seg: &Recording,
+    opts: &IdentifyOptions,
+    out: &mut Identification,
+    progress: &mut dyn FnMut(Stage),
+) -> Result<()> {
+    let (name, y) = response_signal(seg);
+    if y.is_empty() {
+        bail!("no tip channel (tip_pos_m) to identify from");
+    }
+    progress(Stage::Estimating(out.path, y.len()));
+    let so = super::ssi::SsiOptions {
+        f_min_hz: opts.decay.f_min_hz,
+        f_max_hz: opts.decay.f_max_hz,
+        zeta_max: opts.frf.zeta_max,
+        ..Default::default()
+    };
+    let r = super::ssi::identify_output_only(&y, seg.sample_rate_hz(), &so)?;
+    out.reason = format!(
+        "{}; response: {name}, decimated by {} to {} Hz (band top {} Hz), {} block rows, orders 2..{}, 1-σ from {} blocks",
+        out.reason,
+        r.decimation,
+        fmt_sig(r.sample_rate_hz, 4),
+        fmt_sig(r.band_top_hz, 3),
+        r.block_rows,
+        so.max_order,
+        r.n_blocks
+    );
+    out.warnings.extend(r.warnings.iter().cloned());
+    out.rejected = r
+        .rejected
+        .iter()
+        .map(|j| RejectedMode {
+            mode: ModeEstimate {
+                freq_hz: j.freq_hz,
+                zeta: j.zeta,
+                freq_hz_std: f64::NAN,
+                zeta_std: f64::NAN,
+                method: "output-only SSI-cov".into(),
+            },
+            reason: j.reason.clone(),
+        })
+        .collect();
+    out.modes = r.modes;
+    Ok(())
 }
 
 /// Time and tip signal from sample `from`: tip − base (measured, else commanded) when both

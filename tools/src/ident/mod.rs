@@ -37,12 +37,14 @@ pub mod lsce;
 pub mod lscf;
 pub mod magspec;
 pub mod mlfit;
+pub mod oma_sim;
 pub mod peak;
 pub mod pipeline;
 pub mod poles;
 pub mod protocol;
 pub mod report;
 pub mod spectrum;
+pub mod ssi;
 pub mod stabilisation;
 pub mod sweep;
 
