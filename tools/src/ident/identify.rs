@@ -76,6 +76,8 @@ pub enum IdentPath {
     Spectrum,
     /// Output-only: SSI-cov of a stationary response with no usable input ([`super::ssi`]).
     OutputOnly,
+    /// Pooled ring-downs after the base's steps, base as input ([`super::ringdowns`]).
+    RingDowns,
 }
 
 impl fmt::Display for IdentPath {
@@ -86,6 +88,7 @@ impl fmt::Display for IdentPath {
             IdentPath::Frf => "FRF (input/output)",
             IdentPath::Spectrum => "magnitude spectrum",
             IdentPath::OutputOnly => "output-only (SSI-cov)",
+            IdentPath::RingDowns => "pooled ring-downs after steps",
         })
     }
 }
@@ -328,6 +331,7 @@ pub fn identify(
             decay_path(&seg, opts, &mut out, progress)?
         }
         IdentPath::OutputOnly => output_only_path(&seg, opts, &mut out, progress)?,
+        IdentPath::RingDowns => ringdowns_path(&seg, opts, &mut out, progress)?,
     }
     if out.modes.is_empty() {
         bail!(
@@ -713,8 +717,30 @@ fn asked_path(choice: PathChoice, moves: bool, ring_s: f64) -> Option<(IdentPath
     }
 }
 
-/// The path for `rec` and the reason.
+/// The path for `rec` and the reason: [`choose_path_io`], except that a base that steps
+/// between levels ([`super::ringdowns::step_excited`]: a square-wave reference under
+/// feedback, moves with rests) takes the pooled ring-downs instead of the FRF.
 pub fn choose_path(
+    rec: &Recording,
+    base: Option<&BaseMotion>,
+    opts: &IdentifyOptions,
+) -> (IdentPath, String) {
+    let (path, reason) = choose_path_io(rec, base, opts);
+    if path == IdentPath::Frf && opts.path == PathChoice::Auto {
+        if let (Some(b), Some(_)) = (base_channel(rec), rec.tip_pos_m.as_ref()) {
+            if let Some(why) = super::ringdowns::step_excited(b) {
+                return (
+                    IdentPath::RingDowns,
+                    format!("{why}: the tip rings after each step; pooled ring-downs with the measured base as input (the structure's mode, not the loop's poles)"),
+                );
+            }
+        }
+    }
+    (path, reason)
+}
+
+/// The path for `rec` and the reason, among free decay, ring-down, output-only and FRF.
+pub fn choose_path_io(
     rec: &Recording,
     base: Option<&BaseMotion>,
     opts: &IdentifyOptions,
@@ -869,6 +895,36 @@ fn output_only_path(
         })
         .collect();
     out.modes = r.modes;
+    Ok(())
+}
+
+/// The pooled ring-down path: [`super::ringdowns::identify_ringdowns`] of the base and the
+/// tip deflection (tip − base), into `out`.
+fn ringdowns_path(
+    seg: &Recording,
+    opts: &IdentifyOptions,
+    out: &mut Identification,
+    progress: &mut dyn FnMut(Stage),
+) -> Result<()> {
+    let b = base_channel(seg).ok_or_else(|| anyhow::anyhow!("no base channel"))?;
+    let (_, y) = tip_signal(seg, 0);
+    progress(Stage::Estimating(out.path, y.len()));
+    let r = super::ringdowns::identify_ringdowns(
+        b,
+        &y,
+        seg.sample_rate_hz(),
+        opts.decay.f_min_hz,
+        opts.decay.f_max_hz,
+        opts.frf.zeta_max,
+    )?;
+    out.reason = format!(
+        "{}; {} segments at {} Hz, the model explains {} % of the tip deflection's variance",
+        out.reason,
+        r.segments,
+        fmt_sig(r.sample_rate_hz, 4),
+        fmt_sig(100.0 * r.r2, 3)
+    );
+    out.modes = vec![r.mode];
     Ok(())
 }
 

@@ -42,6 +42,7 @@ pub mod peak;
 pub mod pipeline;
 pub mod poles;
 pub mod protocol;
+pub mod ringdowns;
 pub mod report;
 pub mod spectrum;
 pub mod ssi;
