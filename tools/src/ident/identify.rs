@@ -330,8 +330,8 @@ pub fn identify(
         IdentPath::FreeDecay | IdentPath::RingDown | IdentPath::Spectrum => {
             decay_path(&seg, opts, &mut out, progress)?
         }
-        IdentPath::OutputOnly => output_only_path(&seg, opts, &mut out, progress)?,
-        IdentPath::RingDowns => ringdowns_path(&seg, opts, &mut out, progress)?,
+        IdentPath::OutputOnly => super::identify_paths::output_only_path(&seg, opts, &mut out, progress)?,
+        IdentPath::RingDowns => super::identify_paths::ringdowns_path(&seg, opts, &mut out, progress)?,
     }
     if out.modes.is_empty() {
         bail!(
@@ -560,7 +560,7 @@ fn input_band_top_hz(x: &[f64], rate: f64) -> Option<f64> {
 }
 
 /// The base position channel: measured if present, else the command.
-fn base_channel(rec: &Recording) -> Option<&[f64]> {
+pub(crate) fn base_channel(rec: &Recording) -> Option<&[f64]> {
     rec.base_pos_m.as_deref().or(rec.base_cmd_m.as_deref())
 }
 
@@ -759,7 +759,7 @@ pub fn choose_path_io(
                 "force input, no base channel: FRF of force -> tip".into(),
             )
         } else {
-            match output_only_reason(rec, opts) {
+            match super::identify_paths::output_only_reason(rec, opts) {
                 Ok(why) => (
                     IdentPath::OutputOnly,
                     format!("no base or force channel, and the tip signal is {why}: output-only SSI-cov"),
@@ -786,7 +786,7 @@ pub fn choose_path_io(
         );
     }
     if !moves {
-        if let Ok(why) = output_only_reason(rec, opts) {
+        if let Ok(why) = super::identify_paths::output_only_reason(rec, opts) {
             return (
                 IdentPath::OutputOnly,
                 format!("the base never leaves {still} (range {} µm, within its noise: no usable input), and the tip deflection is {why}: output-only SSI-cov", fmt_sig(b.range_m * 1e6, 3)),
@@ -826,111 +826,9 @@ pub fn choose_path_io(
     )
 }
 
-/// `Ok(why)` when the tip response of `rec` is a stationary response for the output-only
-/// path ([`super::ssi::stationary_response`] in `opts.decay`'s band), else `Err(why not)`.
-fn output_only_reason(rec: &Recording, opts: &IdentifyOptions) -> std::result::Result<String, String> {
-    let (_, x) = response_signal(rec);
-    super::ssi::stationary_response(
-        &x,
-        rec.sample_rate_hz(),
-        opts.decay.f_min_hz,
-        opts.decay.f_max_hz,
-    )
-}
-
-/// The response of the output-only path: the tip deflection (tip − base, [`tip_signal`]) or
-/// the tip alone, and its name. (A tip accelerometer channel goes here when recordings carry
-/// one.)
-fn response_signal(rec: &Recording) -> (&'static str, Vec<f64>) {
-    let name = if base_channel(rec).is_some() {
-        "tip deflection (tip_pos_m - base)"
-    } else {
-        "tip_pos_m"
-    };
-    (name, tip_signal(rec, 0).1)
-}
-
-/// The output-only path: [`super::ssi::identify_output_only`] of the tip response, into `out`.
-fn output_only_path(
-    seg: &Recording,
-    opts: &IdentifyOptions,
-    out: &mut Identification,
-    progress: &mut dyn FnMut(Stage),
-) -> Result<()> {
-    let (name, y) = response_signal(seg);
-    if y.is_empty() {
-        bail!("no tip channel (tip_pos_m) to identify from");
-    }
-    progress(Stage::Estimating(out.path, y.len()));
-    let so = super::ssi::SsiOptions {
-        f_min_hz: opts.decay.f_min_hz,
-        f_max_hz: opts.decay.f_max_hz,
-        zeta_max: opts.frf.zeta_max,
-        ..Default::default()
-    };
-    let r = super::ssi::identify_output_only(&y, seg.sample_rate_hz(), &so)?;
-    out.reason = format!(
-        "{}; response: {name}, decimated by {} to {} Hz (band top {} Hz), {} block rows, orders 2..{}, 1-σ from {} blocks",
-        out.reason,
-        r.decimation,
-        fmt_sig(r.sample_rate_hz, 4),
-        fmt_sig(r.band_top_hz, 3),
-        r.block_rows,
-        so.max_order,
-        r.n_blocks
-    );
-    out.warnings.extend(r.warnings.iter().cloned());
-    out.rejected = r
-        .rejected
-        .iter()
-        .map(|j| RejectedMode {
-            mode: ModeEstimate {
-                freq_hz: j.freq_hz,
-                zeta: j.zeta,
-                freq_hz_std: f64::NAN,
-                zeta_std: f64::NAN,
-                method: "output-only SSI-cov".into(),
-            },
-            reason: j.reason.clone(),
-        })
-        .collect();
-    out.modes = r.modes;
-    Ok(())
-}
-
-/// The pooled ring-down path: [`super::ringdowns::identify_ringdowns`] of the base and the
-/// tip deflection (tip − base), into `out`.
-fn ringdowns_path(
-    seg: &Recording,
-    opts: &IdentifyOptions,
-    out: &mut Identification,
-    progress: &mut dyn FnMut(Stage),
-) -> Result<()> {
-    let b = base_channel(seg).ok_or_else(|| anyhow::anyhow!("no base channel"))?;
-    let (_, y) = tip_signal(seg, 0);
-    progress(Stage::Estimating(out.path, y.len()));
-    let r = super::ringdowns::identify_ringdowns(
-        b,
-        &y,
-        seg.sample_rate_hz(),
-        opts.decay.f_min_hz,
-        opts.decay.f_max_hz,
-        opts.frf.zeta_max,
-    )?;
-    out.reason = format!(
-        "{}; {} segments at {} Hz, the model explains {} % of the tip deflection's variance",
-        out.reason,
-        r.segments,
-        fmt_sig(r.sample_rate_hz, 4),
-        fmt_sig(100.0 * r.r2, 3)
-    );
-    out.modes = vec![r.mode];
-    Ok(())
-}
-
 /// Time and tip signal from sample `from`: tip − base (measured, else commanded) when both
 /// exist, else the tip alone.
-fn tip_signal(rec: &Recording, from: usize) -> (Vec<f64>, Vec<f64>) {
+pub(crate) fn tip_signal(rec: &Recording, from: usize) -> (Vec<f64>, Vec<f64>) {
     let t = rec.time_s[from..].to_vec();
     let x = match (rec.tip_pos_m.as_deref(), base_channel(rec)) {
         (Some(tip), Some(b)) => tip[from..]

@@ -33,6 +33,7 @@ pub mod estimator;
 pub mod freedecay;
 pub mod frf;
 pub mod identify;
+pub mod identify_paths;
 pub mod lsce;
 pub mod lscf;
 pub mod magspec;
