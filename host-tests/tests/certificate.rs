@@ -45,7 +45,12 @@ fn certify_shows_on_status_and_config_and_persists() {
 
 #[test]
 fn a_new_shaper_voids_the_certificate() {
-    for change in ["mode 1 zvd 1.2 0.0074", "clear 2", "clear all", "custom 0.5@0 0.5@0.01"] {
+    for change in [
+        "mode 1 zvd 1.2 0.0074",
+        "clear 2",
+        "clear all",
+        "custom 0.5@0 0.5@0.01",
+    ] {
         let mut b = Board::new();
         b.ok("mode 1 zv 1.1 0.0074");
         b.ok("mode 2 zv 6.9 0.0074");

@@ -6,8 +6,8 @@
 //! defaults (at boot) or the settings in force (on `load`) kept.
 
 use beamshaper::config::{
-    Certificate, ConfigError, ModeSetting, Verified, Settings, Source, MAX_CUSTOM_IMPULSES, SETTINGS_MAX_BYTES,
-    SETTINGS_VERSION,
+    Certificate, ConfigError, ModeSetting, Settings, Source, Verified, MAX_CUSTOM_IMPULSES,
+    SETTINGS_MAX_BYTES, SETTINGS_VERSION,
 };
 use beamshaper::console::Console;
 use beamshaper::engine::NumericPath;
@@ -204,8 +204,11 @@ fn any_settings() -> impl Strategy<Value = Settings> {
                 };
                 (s.move_speed_mm_s, s.move_accel_mm_s2, s.dac_span_mm) = floats;
                 s.certificate = Certificate {
-                    verified: [Verified::Unknown, Verified::Measured, Verified::PredictedOnly]
-                        [cert.0],
+                    verified: [
+                        Verified::Unknown,
+                        Verified::Measured,
+                        Verified::PredictedOnly,
+                    ][cert.0],
                     band_hz: cert.1,
                 };
                 s

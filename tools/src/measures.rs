@@ -289,7 +289,11 @@ pub fn superposed_check(
     let mean = x.iter().sum::<f64>() / n as f64;
     let peak = x.iter().map(|v| (v - mean).abs()).fold(0.0, f64::max);
     let amps = shaper.impulses();
-    let gain = amps.iter().map(|i| i.amplitude * i.amplitude).sum::<f64>().sqrt();
+    let gain = amps
+        .iter()
+        .map(|i| i.amplitude * i.amplitude)
+        .sum::<f64>()
+        .sqrt();
     let abs_sum = amps.iter().map(|i| i.amplitude.abs()).sum::<f64>();
     // The σ that would just fail the resolution on the largest excursion; the noise estimate
     // must not be inflated by the vibration itself by more than a tenth of it.

@@ -37,7 +37,10 @@ fn decimation_before_the_frf_keeps_the_modes_within_their_sigma() {
         let sf = a.freq_hz_std.hypot(b.freq_hz_std);
         let sz = a.zeta_std.hypot(b.zeta_std);
         assert!(sf > 0.0 && sz > 0.0, "{a:?} {b:?}");
-        assert!((a.freq_hz - b.freq_hz).abs() <= sf, "f {a:?} vs decimated {b:?}");
+        assert!(
+            (a.freq_hz - b.freq_hz).abs() <= sf,
+            "f {a:?} vs decimated {b:?}"
+        );
         assert!((a.zeta - b.zeta).abs() <= sz, "ζ {a:?} vs decimated {b:?}");
         // and both right: f within 0.2 %, ζ within 5 % of the model's
         for e in [a, b] {
@@ -62,7 +65,9 @@ fn a_long_1khz_sweep_is_decimated_and_identified() {
     assert_eq!(id.path, IdentPath::Frf, "{}", id.reason);
     assert!((id.sample_rate_hz - 1000.0 / q as f64).abs() < 1e-6);
     assert!(
-        id.warnings.iter().any(|w| w.contains(&format!("decimated by {q}"))),
+        id.warnings
+            .iter()
+            .any(|w| w.contains(&format!("decimated by {q}"))),
         "{:?}",
         id.warnings
     );

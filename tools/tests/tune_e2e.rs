@@ -66,7 +66,14 @@ fn board_with_unsaved_change(dir: &Path, camera: Option<&Path>) -> (String, Path
 fn paper_sweep(m: &beamtools::model::BeamModel) -> beamtools::recording::Recording {
     use beamtools::ident::protocol::simulate_sweep;
     use beamtools::ident::sweep::{SweepKind, SweepSpec};
-    simulate_sweep(m, &SweepSpec::paper(SweepKind::Exponential, 3.0), 100.0, 0.0, 1).unwrap()
+    simulate_sweep(
+        m,
+        &SweepSpec::paper(SweepKind::Exponential, 3.0),
+        100.0,
+        0.0,
+        1,
+    )
+    .unwrap()
 }
 
 #[test]
@@ -106,7 +113,10 @@ fn default_run_sweeps_on_the_board_identifies_from_the_camera_and_saves_after_th
         beamshaper::config::Verified::Measured
     );
     let (lo, hi) = saved.certificate.band_hz[0].expect("mode 1's certified band");
-    assert!(lo < f1 as f32 && (f1 as f32) < hi, "band {lo}..{hi} around {f1}");
+    assert!(
+        lo < f1 as f32 && (f1 as f32) < hi,
+        "band {lo}..{hi} around {f1}"
+    );
     assert_eq!(r["verified"], "measured");
     for f in [
         "verification.svg",
@@ -368,7 +378,11 @@ fn a_shaper_nothing_can_measure_is_refused_or_saved_as_predicted_only() {
     let r = json(&out);
     assert_eq!(r["passed"], false);
     assert!(r["verified"].is_null());
-    assert_eq!(load_flash(&out.join("vboard-flash.bin")).unwrap(), None, "nothing saved");
+    assert_eq!(
+        load_flash(&out.join("vboard-flash.bin")).unwrap(),
+        None,
+        "nothing saved"
+    );
 
     let out = dir.join("accepted");
     let mut args = TuneArgs::new(Some(path), &out);

@@ -77,8 +77,8 @@ fn a_crane_swing_logged_row_wise_at_22_hz_is_checked_on_itself_and_saved() {
         let log = tmp.path().join(format!("crane{seed}.csv"));
         crane_log(&log, seed);
         let out = tmp.path().join(format!("out{seed}"));
-        let report =
-            tune(TuneArgs::new(Some(log.clone()), &out)).unwrap_or_else(|e| panic!("seed {seed}: {e:#}"));
+        let report = tune(TuneArgs::new(Some(log.clone()), &out))
+            .unwrap_or_else(|e| panic!("seed {seed}: {e:#}"));
         assert!(report.passed, "seed {seed}");
         let r: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(out.join("tune.json")).unwrap()).unwrap();
@@ -89,7 +89,11 @@ fn a_crane_swing_logged_row_wise_at_22_hz_is_checked_on_itself_and_saved() {
             .as_f64()
             .expect("the recorded swing checks the shaper");
         assert!(v <= 2.0, "seed {seed}: {v} % on the recording");
-        let note = report.verification.recorded_note.clone().unwrap_or_default();
+        let note = report
+            .verification
+            .recorded_note
+            .clone()
+            .unwrap_or_default();
         assert!(note.contains("staircase"), "seed {seed}: {note}");
     }
 }

@@ -126,7 +126,10 @@ fn run_peer(
         .arg(script)
         .arg(file)
         .args(["--q", &q.to_string()])
-        .args(["--nperseg", &if whole { 0 } else { frf.nperseg }.to_string()])
+        .args([
+            "--nperseg",
+            &if whole { 0 } else { frf.nperseg }.to_string(),
+        ])
         .args(["--window", win])
         .args(["--band", &format!("{},{}", r.band_hz.0, r.band_hz.1)])
         .args(["--order", &max_order.to_string()])
@@ -145,7 +148,8 @@ fn run_peer(
     }
     let text = String::from_utf8_lossy(&out.stdout);
     let line = text.lines().last().unwrap_or("");
-    let v = serde_json::from_str(line).with_context(|| format!("peer output is not JSON: {line}"))?;
+    let v =
+        serde_json::from_str(line).with_context(|| format!("peer output is not JSON: {line}"))?;
     Ok((v, wall))
 }
 
@@ -177,13 +181,14 @@ pub fn print_bench(a: &BenchArgs, id: &Identification, clock: &StageClock, end: 
     });
     println!("  {:<52} {total:>8.3} s, {rss_text}", "total");
     let Some(python) = a.python else {
-        println!("peer: not run (give --peer-python PATH, a Python with numpy, scipy and sdypy-EMA)");
+        println!(
+            "peer: not run (give --peer-python PATH, a Python with numpy, scipy and sdypy-EMA)"
+        );
         return;
     };
     let q = clock.decimation();
-    let run = peer_script(a.script).and_then(|s| {
-        run_peer(python, &s, a.file, id, q, a.window, a.max_order)
-    });
+    let run = peer_script(a.script)
+        .and_then(|s| run_peer(python, &s, a.file, id, q, a.window, a.max_order));
     let (v, wall) = match run {
         Ok(x) => x,
         Err(e) => {
@@ -226,7 +231,11 @@ pub fn print_bench(a: &BenchArgs, id: &Identification, clock: &StageClock, end: 
         .iter()
         .map(|m| format!("{:.4} Hz zeta {:.5}", m.freq_hz, m.zeta))
         .collect();
-    println!("  modes near beamtool's ({}): {}", ours.join("; "), modes.join("; "));
+    println!(
+        "  modes near beamtool's ({}): {}",
+        ours.join("; "),
+        modes.join("; ")
+    );
     println!(
         "  ratio peer/beamtool: {:.2} (process) , {:.2} (work only); peak RSS {:.2}",
         wall / total,

@@ -295,7 +295,13 @@ pub fn tune_spectrum(a: &TuneArgs) -> Result<()> {
         "programmed {} and read the table back: {} impulses identical; saved as verified=predicted-only (checked on the measured spectrum only: no motion was measured)",
         r.port, r.programmed_impulses
     );
-    write_report(&report, &input, &r.fit, &r.comparison, Some((&r.port, r.saved)))?;
+    write_report(
+        &report,
+        &input,
+        &r.fit,
+        &r.comparison,
+        Some((&r.port, r.saved)),
+    )?;
     println!("report {}", report.display());
     Ok(())
 }

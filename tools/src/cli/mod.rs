@@ -12,6 +12,7 @@ pub mod ident;
 mod identbench;
 pub mod klipper;
 pub mod model;
+pub mod oma;
 pub mod paper;
 pub mod read;
 pub mod truth;
@@ -72,6 +73,8 @@ pub enum Command {
     /// Score our spectrum designs against Klipper's own recommendation on Klipper spectrum
     /// files (resonances_*.csv, calibration_data_*.csv), by Klipper's metrics.
     KlipperCompare(crate::cli::klipper::KlipperCompareArgs),
+    /// Coverage of the output-only (SSI-cov) ±2σ on synthetic recordings with known modes.
+    OmaCoverage(crate::cli::oma::OmaCoverageArgs),
 }
 
 /// Runs one command: one arm per command (keep one line per arm where possible, append new
@@ -112,6 +115,7 @@ pub fn run(command: Command) -> Result<()> {
         }
         Command::BenchRead(a) => crate::cli::read::bench_read(a),
         Command::KlipperCompare(a) => crate::cli::klipper::klipper_compare(a),
+        Command::OmaCoverage(a) => crate::cli::oma::oma_coverage(a),
     }
 }
 

@@ -12,8 +12,8 @@ use crate::tune::{
     Design, Excitation, Foreign, IdentifiedModes, Outcome, Signal, TuneError, TuneOptions,
     TuneReport, TuneView,
 };
-use beamshaper::config::Verified;
 use anyhow::{bail, Context, Result};
+use beamshaper::config::Verified;
 use clap::Args;
 use std::path::{Path, PathBuf};
 use std::time::Instant;

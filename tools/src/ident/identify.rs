@@ -28,8 +28,14 @@
 //!    half-power band in 16 lines, after an exploring pass at the band's resolution), never
 //!    longer than [`IdentifyOptions::max_segment`] samples (bounded memory).
 
-use super::freedecay::{identify_free_decay, FreeDecayOptions, FreeDecayResult};
+use super::freedecay::identify_free_decay;
 use super::frf::{Frf, InputChannel, Window};
+use super::identify_paths::{base_channel, identify_spectrum_file, tip_signal};
+use super::identify_types::rayleigh;
+pub use super::identify_types::{
+    BaseMotion, IdentPath, Identification, IdentifyOptions, PathChoice, RejectedMode, Stage,
+};
+pub use super::longrec::MAX_FULL_RATE_SAMPLES;
 use super::longrec::{
     explore_resolution_hz, half_power_resolution_hz, input_band_top_hz, resolution_note,
     segment_for_resolution, segmented,
@@ -40,183 +46,9 @@ use super::pipeline::{
 };
 use super::spectrum::{amplitude_spectrum, peaks};
 use super::ModeEstimate;
-pub use super::longrec::MAX_FULL_RATE_SAMPLES;
 use crate::recording::{check_time_unit, find_gaps, fmt_sig, split_at_gaps, Recording, F_MIN_HZ};
 use anyhow::{bail, Result};
-use serde::Serialize;
 use std::borrow::Cow;
-use std::fmt;
-
-/// Which path to take.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-pub enum PathChoice {
-    /// Decide from the recording ([`choose_path`]).
-    Auto,
-    /// FRF of the input/output recording and the FRF estimators.
-    Frf,
-    /// Free decay of the tip (after the base's last move, if it moves).
-    Decay,
-}
-
-impl PathChoice {
-    /// `auto`, `frf`, `decay`.
-    pub fn from_name(s: &str) -> Result<Self> {
-        match s.to_ascii_lowercase().as_str() {
-            "auto" => Ok(PathChoice::Auto),
-            "frf" | "sweep" => Ok(PathChoice::Frf),
-            "decay" | "free-decay" | "ringdown" | "ring-down" => Ok(PathChoice::Decay),
-            _ => bail!("unknown identification path `{s}` (auto, frf, decay)"),
-        }
-    }
-}
-
-/// The path taken.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-pub enum IdentPath {
-    /// The whole (clean) recording is a free decay of the tip.
-    FreeDecay,
-    /// Free decay of the tip deflection after the base's last move.
-    RingDown,
-    /// FRF of the input/output recording.
-    Frf,
-    /// Peaks of a magnitude spectrum (LabVIEW `.lvm` of an impact test, [`super::magspec`]).
-    Spectrum,
-}
-
-impl fmt::Display for IdentPath {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            IdentPath::FreeDecay => "free decay",
-            IdentPath::RingDown => "ring-down after the last move",
-            IdentPath::Frf => "FRF (input/output)",
-            IdentPath::Spectrum => "magnitude spectrum",
-        })
-    }
-}
-
-/// Options of [`identify`].
-#[derive(Clone, Debug)]
-pub struct IdentifyOptions {
-    /// Path (default: auto).
-    pub path: PathChoice,
-    /// FRF path options (estimators, channels, Welch, band, orders).
-    pub frf: IdentOptions,
-    /// Free-decay path options (band).
-    pub decay: FreeDecayOptions,
-    /// Longest FRF segment (samples): a longer one is Welch-averaged in Hamming segments of
-    /// this length (bounded memory); the segment itself follows resolution ([`super::longrec`]).
-    pub max_segment: usize,
-    /// How the recording file is read by [`identify_file`] (`--columns`, `--axis`).
-    pub read: crate::recording::ReadOptions,
-}
-
-impl Default for IdentifyOptions {
-    fn default() -> Self {
-        IdentifyOptions {
-            path: PathChoice::Auto,
-            frf: IdentOptions::default(),
-            decay: FreeDecayOptions::default(),
-            max_segment: 1 << 19,
-            read: Default::default(),
-        }
-    }
-}
-
-/// A stage of [`identify`], for progress reports.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Stage {
-    /// Reading the file (rows so far).
-    Reading(usize),
-    /// Checking the time base for gaps.
-    Gaps,
-    /// Classifying the excitation.
-    Excitation,
-    /// Estimating on the chosen path (with the number of samples).
-    Estimating(IdentPath, usize),
-    /// Screening the modes.
-    Screening,
-    /// Maximum-likelihood refinement of this many modes.
-    Refining(usize),
-    /// Anti-aliased decimation by this factor ([`decimation_factor`]).
-    Decimating(usize),
-    /// Welch FRF with segments of this many samples.
-    Welch(usize),
-    /// The FRF estimators on this many lines in the band.
-    Estimators(usize),
-}
-
-impl fmt::Display for Stage {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Stage::Reading(n) => write!(f, "reading: {n} rows"),
-            Stage::Gaps => write!(f, "checking the time base for gaps"),
-            Stage::Excitation => write!(f, "classifying the excitation"),
-            Stage::Estimating(p, n) => write!(f, "estimating modes: {p}, {n} samples"),
-            Stage::Screening => write!(f, "screening the modes"),
-            Stage::Refining(n) => write!(f, "maximum-likelihood refinement of {n} mode(s)"),
-            Stage::Decimating(q) => write!(f, "decimating by {q} (anti-aliased FIR)"),
-            Stage::Welch(n) => write!(f, "FRF: Welch segments of {n} samples"),
-            Stage::Estimators(n) => write!(f, "FRF estimators on {n} lines"),
-        }
-    }
-}
-
-/// A mode an estimator proposed that is not in the table, and why.
-#[derive(Clone, Debug, Serialize)]
-pub struct RejectedMode {
-    /// The estimate.
-    pub mode: ModeEstimate,
-    /// Why it is not a physical mode.
-    pub reason: String,
-}
-
-/// The base's motion ([`base_motion`]).
-#[derive(Clone, Debug, Serialize)]
-pub struct BaseMotion {
-    /// Noise of the still base (m, 1.4826 × MAD of the last 10 % of the recording).
-    pub noise_m: f64,
-    /// Still band half-width (m): 6 × noise (at least 10⁻⁷ of the range).
-    pub still_band_m: f64,
-    /// Range of the base position (m).
-    pub range_m: f64,
-    /// First sample from which the base stays within the still band of its final position.
-    pub still_from: usize,
-    /// Direction reversals beyond the still band (or 0.5 % of the range) before `still_from`.
-    pub reversals: usize,
-    /// True when the base's final 10 % is itself still (its noise < 5 % of the range), or the
-    /// base never moves beyond 20 × its noise (range against the larger of the tail's noise
-    /// and the sample-to-sample noise, 1.4826 × MAD of second differences / √6).
-    pub ends_still: bool,
-}
-
-/// The result of [`identify`].
-#[derive(Clone, Debug, Serialize)]
-pub struct Identification {
-    /// Physical modes, ascending in frequency, with 1-σ.
-    pub modes: Vec<ModeEstimate>,
-    /// The path taken.
-    pub path: IdentPath,
-    /// Why this path, and what it used (segment, channels, method).
-    pub reason: String,
-    /// Rayleigh α1 (1/s), α2 (s) from the first two modes (eq. 22).
-    pub rayleigh: Option<(f64, f64)>,
-    /// Estimates not in the table, with the reason.
-    pub rejected: Vec<RejectedMode>,
-    /// Warnings (gaps, jitter, resolution, refinement, …).
-    pub warnings: Vec<String>,
-    /// Time span used (s).
-    pub span_s: (f64, f64),
-    /// Sample rate (Hz) of the span used.
-    pub sample_rate_hz: f64,
-    /// The base's motion, when the recording has a base channel.
-    pub base: Option<BaseMotion>,
-    /// FRF path: the estimators' full result.
-    #[serde(skip)]
-    pub frf_result: Option<(IdentResult, Frf)>,
-    /// Free-decay paths: the analysis.
-    #[serde(skip)]
-    pub decay_result: Option<FreeDecayResult>,
-}
 
 /// Reads the file at `path` ([`Recording::read_any_with`] with `opts.read`: CSV, `.npy`; or a LabVIEW `.lvm`
 /// magnitude spectrum) and identifies it ([`identify`]; a spectrum by [`super::magspec`] in
@@ -241,64 +73,6 @@ pub fn identify_file(
     // what reading noted or mended (ignored columns, blank cells filled, …) heads the warnings
     id.warnings.splice(0..0, rec.notes.iter().cloned());
     Ok(id)
-}
-
-fn identify_spectrum_file(
-    path: &std::path::Path,
-    opts: &IdentifyOptions,
-) -> Result<Identification> {
-    let s = super::magspec::read_lvm(path)?;
-    let mm = super::magspec::identify_magnitude_spectrum(
-        &s,
-        opts.decay.f_min_hz,
-        opts.decay.f_max_hz,
-        10.0,
-        6,
-    )?;
-    let mut warnings = Vec::new();
-    let modes: Vec<ModeEstimate> = mm
-        .iter()
-        .map(|m| {
-            if m.resolution_limited {
-                warnings.push(format!(
-                    "{} Hz: damping resolution-limited (half-power band {} lines); ζ is an upper bound",
-                    fmt_sig(m.freq_hz, 5),
-                    fmt_sig(m.half_power_lines, 2)
-                ));
-            }
-            ModeEstimate {
-                freq_hz: m.freq_hz,
-                zeta: m.zeta,
-                freq_hz_std: m.freq_hz_std,
-                zeta_std: m.zeta_std,
-                method: "magnitude spectrum".into(),
-            }
-        })
-        .collect();
-    if modes.is_empty() {
-        bail!(
-            "{}: no peak ≥ 10 dB prominent in the spectrum",
-            path.display()
-        );
-    }
-    let df = s.freq_hz[1] - s.freq_hz[0];
-    Ok(Identification {
-        rayleigh: rayleigh(&modes, &mut warnings),
-        modes,
-        path: IdentPath::Spectrum,
-        reason: format!(
-            "a LabVIEW `.lvm` magnitude spectrum ({} lines, Δf = {} Hz): single-mode accelerance fits of its peaks",
-            s.freq_hz.len(),
-            fmt_sig(df, 3)
-        ),
-        rejected: vec![],
-        warnings,
-        span_s: (0.0, 1.0 / df),
-        sample_rate_hz: f64::NAN,
-        base: None,
-        frf_result: None,
-        decay_result: None,
-    })
 }
 
 /// Identifies the modes of `rec` (any recording: uniform or not, with gaps) along the path
@@ -345,6 +119,12 @@ pub fn identify(
         IdentPath::Frf => frf_path(&seg, opts, &mut out, progress)?,
         IdentPath::FreeDecay | IdentPath::RingDown | IdentPath::Spectrum => {
             decay_path(&seg, opts, &mut out, progress)?
+        }
+        IdentPath::OutputOnly => {
+            super::identify_paths::output_only_path(&seg, opts, &mut out, progress)?
+        }
+        IdentPath::RingDowns => {
+            super::identify_paths::ringdowns_path(&seg, opts, &mut out, progress)?
         }
     }
     if out.modes.is_empty() {
@@ -501,19 +281,33 @@ fn frf_by_resolution(
     let top = fo.band_hz.map(|b| b.1).or_else(|| input_band_top_hz(seg));
     let l1 = top.map(|t| segment_for_resolution(rate, explore_resolution_hz(t), max_segment));
     let Some(l1) = l1.filter(|l| 2 * l <= n) else {
-        return frf_pass(seg, &segmented(fo, n, n, max_segment, &mut out.warnings), progress);
+        return frf_pass(
+            seg,
+            &segmented(fo, n, n, max_segment, &mut out.warnings),
+            progress,
+        );
     };
-    let first = frf_pass(seg, &segmented(fo, l1, n, max_segment, &mut Vec::new()), progress);
+    let first = frf_pass(
+        seg,
+        &segmented(fo, l1, n, max_segment, &mut Vec::new()),
+        progress,
+    );
     let lowest = first.as_ref().ok().and_then(|p| p.kept.first().cloned());
     let l2 = lowest.as_ref().map_or(n, |m| {
         segment_for_resolution(rate, half_power_resolution_hz(m.freq_hz, m.zeta), n)
     });
     if let (Ok(p), true) = (&first, l2 <= l1) {
-        out.warnings.push(resolution_note(lowest.as_ref(), p.frf.nperseg, rate));
+        out.warnings
+            .push(resolution_note(lowest.as_ref(), p.frf.nperseg, rate));
         return first;
     }
-    let p = frf_pass(seg, &segmented(fo, l2, n, max_segment, &mut out.warnings), progress)?;
-    out.warnings.push(resolution_note(lowest.as_ref(), p.frf.nperseg, rate));
+    let p = frf_pass(
+        seg,
+        &segmented(fo, l2, n, max_segment, &mut out.warnings),
+        progress,
+    )?;
+    out.warnings
+        .push(resolution_note(lowest.as_ref(), p.frf.nperseg, rate));
     Ok(p)
 }
 
@@ -589,29 +383,6 @@ pub fn free_decay_of(path: &std::path::Path) -> Result<(Vec<f64>, Vec<f64>, Stri
     Ok((t, x, format!("{}: {what}", path.display())))
 }
 
-/// Rayleigh α1, α2 (eq. 22) of the first two modes; a negative coefficient is reported as a
-/// warning (the damping of these two modes is not of Rayleigh form).
-fn rayleigh(modes: &[ModeEstimate], warnings: &mut Vec<String>) -> Option<(f64, f64)> {
-    if modes.len() < 2 {
-        return None;
-    }
-    let w = |m: &ModeEstimate| 2.0 * std::f64::consts::PI * m.freq_hz;
-    let (a1, a2) = crate::model::galerkin::rayleigh_coefficients(
-        w(&modes[0]),
-        modes[0].zeta,
-        w(&modes[1]),
-        modes[1].zeta,
-    );
-    if a1 < 0.0 || a2 < 0.0 {
-        warnings.push(format!(
-            "Rayleigh coefficients α1 = {} 1/s, α2 = {} s: one is negative, so the damping of modes 1 and 2 is not of Rayleigh form (eq. 22)",
-            fmt_sig(a1, 4),
-            fmt_sig(a2, 4)
-        ));
-    }
-    Some((a1, a2))
-}
-
 /// Decimation factor of `rec` before `path` ([`super::longrec::decimation_factor`]: the FRF
 /// path keeps ≥ 4 × the top of `opts.frf.band_hz` or of the input's band; free-decay paths
 /// decimate only above [`MAX_FULL_RATE_SAMPLES`] samples, to `opts.decay.f_max_hz`).
@@ -622,11 +393,6 @@ pub fn decimation_factor(rec: &Recording, path: IdentPath, opts: &IdentifyOption
         opts.frf.band_hz,
         opts.decay.f_max_hz,
     )
-}
-
-/// The base position channel: measured if present, else the command.
-fn base_channel(rec: &Recording) -> Option<&[f64]> {
-    rec.base_pos_m.as_deref().or(rec.base_cmd_m.as_deref())
 }
 
 /// Gap threshold (s): max(5 × the median step, a tenth of the period of the strongest
@@ -774,12 +540,38 @@ fn asked_path(choice: PathChoice, moves: bool, ring_s: f64) -> Option<(IdentPath
             format!("free decay asked for: tip deflection after the base's last move ({} s of ring-down)", fmt_sig(ring_s, 3)),
         )),
         PathChoice::Decay => Some((IdentPath::FreeDecay, "free decay asked for".into())),
+        PathChoice::OutputOnly => Some((
+            IdentPath::OutputOnly,
+            "output-only asked for: SSI-cov of the tip response".into(),
+        )),
         PathChoice::Auto => None,
     }
 }
 
-/// The path for `rec` and the reason.
+/// The path for `rec` and the reason: [`choose_path_io`], except that a base that steps
+/// between levels ([`super::ringdowns::step_excited`]: a square-wave reference under
+/// feedback, moves with rests) takes the pooled ring-downs instead of the FRF.
 pub fn choose_path(
+    rec: &Recording,
+    base: Option<&BaseMotion>,
+    opts: &IdentifyOptions,
+) -> (IdentPath, String) {
+    let (path, reason) = choose_path_io(rec, base, opts);
+    if path == IdentPath::Frf && opts.path == PathChoice::Auto {
+        if let (Some(b), Some(_)) = (base_channel(rec), rec.tip_pos_m.as_ref()) {
+            if let Some(why) = super::ringdowns::step_excited(b) {
+                return (
+                    IdentPath::RingDowns,
+                    format!("{why}: the tip rings after each step; pooled ring-downs with the measured base as input (the structure's mode, not the loop's poles)"),
+                );
+            }
+        }
+    }
+    (path, reason)
+}
+
+/// The path for `rec` and the reason, among free decay, ring-down, output-only and FRF.
+pub fn choose_path_io(
     rec: &Recording,
     base: Option<&BaseMotion>,
     opts: &IdentifyOptions,
@@ -798,10 +590,16 @@ pub fn choose_path(
                 "force input, no base channel: FRF of force -> tip".into(),
             )
         } else {
-            (
-                IdentPath::FreeDecay,
-                "no base or force channel: the tip signal is a free decay".into(),
-            )
+            match super::identify_paths::output_only_reason(rec, opts) {
+                Ok(why) => (
+                    IdentPath::OutputOnly,
+                    format!("no base or force channel, and the tip signal is {why}: output-only SSI-cov"),
+                ),
+                Err(_) => (
+                    IdentPath::FreeDecay,
+                    "no base or force channel: the tip signal is a free decay".into(),
+                ),
+            }
         };
     };
     let still = if b.still_band_m > 6.0 * b.noise_m {
@@ -828,6 +626,12 @@ pub fn choose_path(
         );
     }
     if !moves {
+        if let Ok(why) = super::identify_paths::output_only_reason(rec, opts) {
+            return (
+                IdentPath::OutputOnly,
+                format!("the base never leaves {still} (range {} µm, within its noise: no usable input), and the tip deflection is {why}: output-only SSI-cov", fmt_sig(b.range_m * 1e6, 3)),
+            );
+        }
         return (
             IdentPath::FreeDecay,
             format!("the base never leaves {still} (range {} µm, within its noise): the tip deflection is a free decay", fmt_sig(b.range_m * 1e6, 3)),
@@ -860,22 +664,6 @@ pub fn choose_path(
             fmt_sig(ring_s, 3)
         ),
     )
-}
-
-/// Time and tip signal from sample `from`: tip − base (measured, else commanded) when both
-/// exist, else the tip alone.
-fn tip_signal(rec: &Recording, from: usize) -> (Vec<f64>, Vec<f64>) {
-    let t = rec.time_s[from..].to_vec();
-    let x = match (rec.tip_pos_m.as_deref(), base_channel(rec)) {
-        (Some(tip), Some(b)) => tip[from..]
-            .iter()
-            .zip(&b[from..])
-            .map(|(t, b)| t - b)
-            .collect(),
-        (Some(tip), None) => tip[from..].to_vec(),
-        (None, _) => vec![],
-    };
-    (t, x)
 }
 
 /// The FRF options for `rec`: force input when there is no base.

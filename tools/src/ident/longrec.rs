@@ -191,7 +191,10 @@ mod tests {
         let n = segment_for_resolution(rate, df, 1 << 24);
         assert!(n.is_power_of_two());
         let lines = 2.0 * 0.0074 * 1.1 / (rate / n as f64);
-        assert!((16.0..32.0).contains(&lines), "{lines} lines in the half-power band");
+        assert!(
+            (16.0..32.0).contains(&lines),
+            "{lines} lines in the half-power band"
+        );
         // Half the damping → twice the segment; ten times the frequency → a tenth (power of 2).
         assert_eq!(
             segment_for_resolution(rate, half_power_resolution_hz(1.1, 0.0037), 1 << 24),
@@ -228,7 +231,10 @@ mod tests {
         let top = input_band_top_hz(&rec).unwrap();
         assert!(top > 4.0 && top < 12.0, "{top}");
         let q = decimation_factor(&rec, true, None, 500.0);
-        assert_eq!(q, ((0.5 * rate / (4.0 * top)).floor() as usize).min(n >> 16));
+        assert_eq!(
+            q,
+            ((0.5 * rate / (4.0 * top)).floor() as usize).min(n >> 16)
+        );
         assert!(0.5 * rate / q as f64 >= 4.0 * top && n / q >= MIN_DECIMATED_SAMPLES);
         // An asked band above the input's energy widens what is kept.
         assert!(decimation_factor(&rec, true, Some((0.1, 40.0)), 500.0) <= 3);

@@ -39,10 +39,10 @@ pub use verify::{Outcome, Verification};
 use crate::board::plan::{plan_move, MovePlan, PlanError};
 use crate::board::steps::{program, read_board, restore, BoardState, StepError};
 use crate::ident::ModeEstimate;
-use beamshaper::config::{Certificate, Verified, MAX_MODES};
 use crate::shaping::{
     choose, settings_with, Candidate, ChoiceRules, NoShaperFits, RecordedVibration,
 };
+use beamshaper::config::{Certificate, Verified, MAX_MODES};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
 

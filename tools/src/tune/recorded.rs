@@ -45,7 +45,9 @@ pub fn free_vibration(path: &Path, opts: &ReadOptions) -> Result<FreeVibration, 
     let (tip, acceleration) = match (&rec.tip_pos_m, &rec.tip_acc_m_s2) {
         (Some(p), _) => (p, false),
         (None, Some(a)) => (a, true),
-        (None, None) => return Err("the recording has no tip channel (tip_pos_m or tip_acc_m_s2)".into()),
+        (None, None) => {
+            return Err("the recording has no tip channel (tip_pos_m or tip_acc_m_s2)".into())
+        }
     };
     let base = rec.base_pos_m.as_ref().or(rec.base_cmd_m.as_ref());
     let (sig, start): (Vec<f64>, usize) = match base {
@@ -96,7 +98,10 @@ pub fn free_vibration(path: &Path, opts: &ReadOptions) -> Result<FreeVibration, 
         }
     };
     if xu.len() < 16 {
-        return Err(format!("only {} sensor samples of free vibration", xu.len()));
+        return Err(format!(
+            "only {} sensor samples of free vibration",
+            xu.len()
+        ));
     }
     let mean = xu.iter().sum::<f64>() / xu.len() as f64;
     let half = &xu[..xu.len() / 2];
@@ -158,7 +163,10 @@ pub fn recorded_free_position(
     let fv = free_vibration(path, &inputs.read)?;
     let (pos, quantum_m) = match inputs.acceleration || fv.acceleration {
         // the quantum of an acceleration does not carry over to its double integral
-        true => (displacement_from_acceleration(&fv.x, fv.dt_s, 0.5 * f1_hz), 0.0),
+        true => (
+            displacement_from_acceleration(&fv.x, fv.dt_s, 0.5 * f1_hz),
+            0.0,
+        ),
         false => (fv.x, fv.quantum),
     };
     Ok(RecordedVibration {

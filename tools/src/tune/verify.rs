@@ -101,7 +101,9 @@ pub fn verify(
         Ok(r) => {
             let c = superposed_check(r, &d.best.shaper, d.window_s, o.tolerance_pct);
             if let Some(why) = c.why_not(o.tolerance_pct / 2.0) {
-                unmeasured_because.push(format!("the recorded free vibration cannot check it: {why}"));
+                unmeasured_because.push(format!(
+                    "the recorded free vibration cannot check it: {why}"
+                ));
             }
             c.pct
         }
