@@ -296,7 +296,7 @@ mod flash_tests {
         let mut boot = String::new();
         let mut b = VirtualBoard::boot(Some(flash.clone()), &mut boot);
         assert!(
-            boot.contains("stored settings are format version 1, this firmware reads version 2"),
+            boot.contains("stored settings are format version 1, this firmware reads version 3"),
             "{boot}"
         );
         assert!(
