@@ -71,16 +71,7 @@ pub fn oma_coverage(a: OmaCoverageArgs) -> Result<()> {
         bail!("--rate-hz and --duration-s must be > 0, --noise-rms >= 0");
     }
     if let Some(p) = &a.write_csv {
-        let y = crate::ident::oma_sim::simulate_output_only(&d, a.seed);
-        let mut rec = crate::recording::Recording::with_uniform_time(y.len(), d.rate_hz);
-        rec.tip_pos_m = Some(y);
-        rec.write_csv(p)?;
-        println!(
-            "synthetic output-only recording (seed {}) -> {}",
-            a.seed,
-            p.display()
-        );
-        return Ok(());
+        return write_synthetic(&d, a.seed, p);
     }
     if a.runs == 0 {
         bail!("--runs must be at least 1");
@@ -91,6 +82,30 @@ pub fn oma_coverage(a: OmaCoverageArgs) -> Result<()> {
             eprintln!("  .. {k}/{n} runs");
         }
     })?;
+    print_coverage(&c, &d);
+    if let Some(j) = &a.json {
+        std::fs::write(j, serde_json::to_string_pretty(&c)?)
+            .with_context(|| format!("cannot write {}", j.display()))?;
+        println!("JSON -> {}", j.display());
+    }
+    Ok(())
+}
+
+/// Writes one synthetic output-only recording of design `d` (seed `seed`) to `p`.
+fn write_synthetic(d: &SimDesign, seed: u64, p: &std::path::Path) -> Result<()> {
+    let y = crate::ident::oma_sim::simulate_output_only(d, seed);
+    let mut rec = crate::recording::Recording::with_uniform_time(y.len(), d.rate_hz);
+    rec.tip_pos_m = Some(y);
+    rec.write_csv(p)?;
+    println!(
+        "synthetic output-only recording (seed {seed}) -> {}",
+        p.display()
+    );
+    Ok(())
+}
+
+/// The coverage table of [`oma_coverage`].
+fn print_coverage(c: &crate::ident::oma_sim::Coverage, d: &SimDesign) {
     println!(
         "output-only SSI-cov coverage: {} runs ({} s at {} Hz, noise RMS {}), {} failed, {} with a spurious mode",
         c.runs, d.duration_s, d.rate_hz, d.noise_rms, c.failed, c.runs_with_spurious
@@ -127,10 +142,4 @@ pub fn oma_coverage(a: OmaCoverageArgs) -> Result<()> {
             m.zeta_rms_z
         );
     }
-    if let Some(j) = &a.json {
-        std::fs::write(j, serde_json::to_string_pretty(&c)?)
-            .with_context(|| format!("cannot write {}", j.display()))?;
-        println!("JSON -> {}", j.display());
-    }
-    Ok(())
 }

@@ -584,38 +584,9 @@ pub fn choose_path_io(
         return asked;
     }
     let Some(b) = base else {
-        return if force {
-            (
-                IdentPath::Frf,
-                "force input, no base channel: FRF of force -> tip".into(),
-            )
-        } else {
-            match super::identify_paths::output_only_reason(rec, opts) {
-                Ok(why) => (
-                    IdentPath::OutputOnly,
-                    format!("no base or force channel, and the tip signal is {why}: output-only SSI-cov"),
-                ),
-                Err(_) => (
-                    IdentPath::FreeDecay,
-                    "no base or force channel: the tip signal is a free decay".into(),
-                ),
-            }
-        };
+        return no_base_path(rec, opts, force);
     };
-    let still = if b.still_band_m > 6.0 * b.noise_m {
-        // the floor: a base that does not move at all at the recording's resolution
-        format!(
-            "±{} µm (10⁻⁷ of its range: its last 10 % does not move at the recording's resolution, noise {} µm)",
-            fmt_sig(b.still_band_m * 1e6, 3),
-            fmt_sig(b.noise_m * 1e6, 3)
-        )
-    } else {
-        format!(
-            "±{} µm (6 × its noise {} µm, 1.4826 × MAD of the last 10 %)",
-            fmt_sig(b.still_band_m * 1e6, 3),
-            fmt_sig(b.noise_m * 1e6, 3)
-        )
-    };
+    let still = still_band_text(b);
     if !b.ends_still {
         return (
             IdentPath::Frf,
@@ -664,6 +635,49 @@ pub fn choose_path_io(
             fmt_sig(ring_s, 3)
         ),
     )
+}
+
+/// The path when there is no base channel: the FRF of a force input, output-only SSI-cov
+/// of a stationary tip response, or the tip's free decay.
+fn no_base_path(rec: &Recording, opts: &IdentifyOptions, force: bool) -> (IdentPath, String) {
+    if force {
+        (
+            IdentPath::Frf,
+            "force input, no base channel: FRF of force -> tip".into(),
+        )
+    } else {
+        match super::identify_paths::output_only_reason(rec, opts) {
+            Ok(why) => (
+                IdentPath::OutputOnly,
+                format!(
+                    "no base or force channel, and the tip signal is {why}: output-only SSI-cov"
+                ),
+            ),
+            Err(_) => (
+                IdentPath::FreeDecay,
+                "no base or force channel: the tip signal is a free decay".into(),
+            ),
+        }
+    }
+}
+
+/// The still band of base motion `b` as the path's reason says it: 6 × its noise, or the
+/// resolution floor (10⁻⁷ of its range) when its end does not move at all.
+fn still_band_text(b: &BaseMotion) -> String {
+    if b.still_band_m > 6.0 * b.noise_m {
+        // the floor: a base that does not move at all at the recording's resolution
+        format!(
+            "±{} µm (10⁻⁷ of its range: its last 10 % does not move at the recording's resolution, noise {} µm)",
+            fmt_sig(b.still_band_m * 1e6, 3),
+            fmt_sig(b.noise_m * 1e6, 3)
+        )
+    } else {
+        format!(
+            "±{} µm (6 × its noise {} µm, 1.4826 × MAD of the last 10 %)",
+            fmt_sig(b.still_band_m * 1e6, 3),
+            fmt_sig(b.noise_m * 1e6, 3)
+        )
+    }
 }
 
 /// The FRF options for `rec`: force input when there is no base.

@@ -267,20 +267,7 @@ pub fn identify_ringdowns(
         .filter(|r| r.len() >= 8)
         .collect();
     // coarse search over f (0.5–2 × the ring) and ζ, then LM
-    let mut best = (f64::INFINITY, f_peak, 0.02);
-    for i in 0..41 {
-        let f = f_peak * 2f64.powf(-1.0 + i as f64 / 20.0);
-        if f < f_min || f > f_max {
-            continue;
-        }
-        for z in [0.005, 0.01, 0.02, 0.05, 0.1] {
-            if let Some((_, ss)) = projected(&bd, &yd, &segs, dt, f, z) {
-                if ss < best.0 {
-                    best = (ss, f, z);
-                }
-            }
-        }
-    }
+    let best = coarse_start(&bd, &yd, &segs, dt, f_peak, (f_min, f_max));
     let (f, z, ss) = fit(&bd, &yd, &segs, dt, best.1, best.2)
         .ok_or_else(|| anyhow::anyhow!("the pooled ring-down fit failed"))?;
     if !(f >= f_min && f <= f_max && z > 1e-4 && z < zeta_max) {
@@ -290,27 +277,8 @@ pub fn identify_ringdowns(
             fmt_sig(z, 3)
         );
     }
-    // jackknife over segments
     let n = segs.len();
-    let mut jf = Vec::with_capacity(n);
-    let mut jz = Vec::with_capacity(n);
-    for leave in 0..n {
-        let sub: Vec<Range<usize>> = segs
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| *i != leave)
-            .map(|(_, s)| s.clone())
-            .collect();
-        if let Some((fj, zj, _)) = fit(&bd, &yd, &sub, dt, f, z) {
-            jf.push(fj);
-            jz.push(zj);
-        }
-    }
-    let jack = |v: &[f64]| {
-        let k = v.len() as f64;
-        let m = v.iter().sum::<f64>() / k;
-        ((k - 1.0) / k * v.iter().map(|x| (x - m).powi(2)).sum::<f64>()).sqrt()
-    };
+    let (freq_hz_std, zeta_std) = jackknife_sigma(&bd, &yd, &segs, dt, f, z);
     let tot: f64 = segs
         .iter()
         .map(|s| {
@@ -322,12 +290,73 @@ pub fn identify_ringdowns(
         mode: ModeEstimate {
             freq_hz: f,
             zeta: z,
-            freq_hz_std: jack(&jf),
-            zeta_std: jack(&jz),
+            freq_hz_std,
+            zeta_std,
             method: format!("pooled ring-downs ({n} segments, base as input; jackknife σ)"),
         },
         segments: n,
         sample_rate_hz: rate,
         r2: 1.0 - ss / tot.max(1e-300),
     })
+}
+
+/// The coarse start of the pooled fit: the (residual, f, ζ) of the grid over f in
+/// 0.5–2 × `f_peak` (41 log steps, inside `band`) and ζ in {0.005 … 0.1} that leaves the
+/// least residual.
+fn coarse_start(
+    bd: &[f64],
+    yd: &[f64],
+    segs: &[Range<usize>],
+    dt: f64,
+    f_peak: f64,
+    band: (f64, f64),
+) -> (f64, f64, f64) {
+    let (f_min, f_max) = band;
+    let mut best = (f64::INFINITY, f_peak, 0.02);
+    for i in 0..41 {
+        let f = f_peak * 2f64.powf(-1.0 + i as f64 / 20.0);
+        if f < f_min || f > f_max {
+            continue;
+        }
+        for z in [0.005, 0.01, 0.02, 0.05, 0.1] {
+            if let Some((_, ss)) = projected(bd, yd, segs, dt, f, z) {
+                if ss < best.0 {
+                    best = (ss, f, z);
+                }
+            }
+        }
+    }
+    best
+}
+
+/// The jackknife σ of (f, ζ) over the segments (each left out once, refitted from (f, ζ)).
+fn jackknife_sigma(
+    bd: &[f64],
+    yd: &[f64],
+    segs: &[Range<usize>],
+    dt: f64,
+    f: f64,
+    z: f64,
+) -> (f64, f64) {
+    let n = segs.len();
+    let mut jf = Vec::with_capacity(n);
+    let mut jz = Vec::with_capacity(n);
+    for leave in 0..n {
+        let sub: Vec<Range<usize>> = segs
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| *i != leave)
+            .map(|(_, s)| s.clone())
+            .collect();
+        if let Some((fj, zj, _)) = fit(bd, yd, &sub, dt, f, z) {
+            jf.push(fj);
+            jz.push(zj);
+        }
+    }
+    let jack = |v: &[f64]| {
+        let k = v.len() as f64;
+        let m = v.iter().sum::<f64>() / k;
+        ((k - 1.0) / k * v.iter().map(|x| (x - m).powi(2)).sum::<f64>()).sqrt()
+    };
+    (jack(&jf), jack(&jz))
 }

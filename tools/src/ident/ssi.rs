@@ -267,18 +267,7 @@ fn band_top_hz(y: &[f64], rate_hz: f64, f_min: f64, f_max: f64) -> Result<(f64, 
 /// Errors: non-finite samples, fewer than 64 samples, no energy in the band, no stable mode,
 /// a record too short for [`MIN_BLOCKS`] blocks of [`MIN_BLOCK_CYCLES`] periods.
 pub fn identify_output_only(y: &[f64], rate_hz: f64, opts: &SsiOptions) -> Result<SsiResult> {
-    if y.len() < 64 {
-        bail!(
-            "output-only identification needs at least 64 samples (got {})",
-            y.len()
-        );
-    }
-    if let Some(k) = y.iter().position(|v| !v.is_finite()) {
-        bail!("the response is not finite at sample {k}");
-    }
-    if !(rate_hz.is_finite() && rate_hz > 0.0) {
-        bail!("sample rate {rate_hz} Hz: want a finite positive rate");
-    }
+    check_response(y, rate_hz)?;
     let mut warnings = Vec::new();
     let f_max = opts.f_max_hz.min(0.45 * rate_hz);
     let (top, f_peak) = band_top_hz(y, rate_hz, opts.f_min_hz, f_max)?;
@@ -338,6 +327,61 @@ pub fn identify_output_only(y: &[f64], rate_hz: f64, opts: &SsiOptions) -> Resul
                 .unwrap_or_default()
         })
         .collect();
+    let modes = modes_from_blocks(&candidates, &blocks, n_blocks, &mut rejected);
+    warnings.extend(few_blocks_warning(n_blocks, len as f64 * dt));
+    Ok(SsiResult {
+        modes,
+        rejected,
+        record_modes: record,
+        sample_rate_hz: rate,
+        decimation: q,
+        band_top_hz: top,
+        block_rows: i,
+        n_blocks,
+        warnings,
+    })
+}
+
+/// The warning when the record gives fewer than [`N_BLOCKS`] blocks (of `block_s` seconds):
+/// the ±2σ coverage that Student's t gives with that many degrees of freedom.
+fn few_blocks_warning(n_blocks: usize, block_s: f64) -> Option<String> {
+    (n_blocks < N_BLOCKS).then(|| {
+        format!(
+            "{n_blocks} blocks of {} s for the uncertainty (a longer record gives {N_BLOCKS}); ±2σ covers ~{}% with {} degrees of freedom",
+            fmt_sig(block_s, 3),
+            fmt_sig(100.0 * t_coverage_2sigma(n_blocks - 1), 2),
+            n_blocks - 1
+        )
+    })
+}
+
+/// Refuses a response shorter than 64 samples, with a non-finite sample, or a non-positive
+/// or non-finite sample rate (the message names which).
+fn check_response(y: &[f64], rate_hz: f64) -> Result<()> {
+    if y.len() < 64 {
+        bail!(
+            "output-only identification needs at least 64 samples (got {})",
+            y.len()
+        );
+    }
+    if let Some(k) = y.iter().position(|v| !v.is_finite()) {
+        bail!("the response is not finite at sample {k}");
+    }
+    if !(rate_hz.is_finite() && rate_hz > 0.0) {
+        bail!("sample rate {rate_hz} Hz: want a finite positive rate");
+    }
+    Ok(())
+}
+
+/// Each candidate of the whole record with the spread of its block estimates: its 1 σ is
+/// the standard deviation of the k block estimates / √k (batch means); a candidate found in
+/// fewer than half the `n_blocks` blocks (or fewer than 2) goes to `rejected`.
+fn modes_from_blocks(
+    candidates: &[StableMode],
+    blocks: &[Vec<StableMode>],
+    n_blocks: usize,
+    rejected: &mut Vec<SsiRejected>,
+) -> Vec<ModeEstimate> {
     let mut modes = Vec::new();
     // Each block cluster belongs to its nearest candidate (relative frequency).
     let rel = |a: f64, b: f64| (a / b - 1.0).abs();
@@ -381,25 +425,7 @@ pub fn identify_output_only(y: &[f64], rate_hz: f64, opts: &SsiOptions) -> Resul
             method: format!("output-only SSI-cov ({} of {n_blocks} blocks)", est.len()),
         });
     }
-    if n_blocks < N_BLOCKS {
-        warnings.push(format!(
-            "{n_blocks} blocks of {} s for the uncertainty (a longer record gives {N_BLOCKS}); ±2σ covers ~{}% with {} degrees of freedom",
-            fmt_sig(len as f64 * dt, 3),
-            fmt_sig(100.0 * t_coverage_2sigma(n_blocks - 1), 2),
-            n_blocks - 1
-        ));
-    }
-    Ok(SsiResult {
-        modes,
-        rejected,
-        record_modes: record,
-        sample_rate_hz: rate,
-        decimation: q,
-        band_top_hz: top,
-        block_rows: i,
-        n_blocks,
-        warnings,
-    })
+    modes
 }
 
 /// Shortest output-only record (periods of its dominant frequency): [`MIN_BLOCKS`] blocks of
