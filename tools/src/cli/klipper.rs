@@ -440,3 +440,13 @@ fn short(p: &Path) -> String {
         false => s,
     }
 }
+
+/// `beamtool tune`: a Klipper spectrum file (`resonances_*.csv`, `calibration_data_*.csv`) goes
+/// to the spectrum design ([`tune_spectrum`]); anything else to [`super::tune::tune`]. (Here,
+/// not in `cli/tune.rs`, so that the two modules do not import each other.)
+pub fn run_tune(a: TuneArgs) -> Result<()> {
+    match a.recording.as_deref() {
+        Some(p) if crate::recording::psd::is_spectrum_file(p) => tune_spectrum(&a),
+        _ => super::tune::tune(a).map(|_| ()),
+    }
+}

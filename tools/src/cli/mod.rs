@@ -82,7 +82,7 @@ pub enum Command {
 pub fn run(command: Command) -> Result<()> {
     allocator::keep_freed_memory();
     match command {
-        Command::Tune(a) => tune::run(a),
+        Command::Tune(a) => klipper::run_tune(a),
         Command::Vboard(a) => board::vboard(a),
         Command::Console(a) => board::console(a),
         Command::Shaper(a) => board::shaper(a),

@@ -138,15 +138,6 @@ impl TuneArgs {
     }
 }
 
-/// `beamtool tune`: a Klipper spectrum file (`resonances_*.csv`, `calibration_data_*.csv`) goes
-/// to the spectrum design ([`super::klipper::tune_spectrum`]); anything else to [`tune`].
-pub fn run(a: TuneArgs) -> Result<()> {
-    match a.recording.as_deref() {
-        Some(p) if crate::recording::psd::is_spectrum_file(p) => super::klipper::tune_spectrum(&a),
-        _ => tune(a).map(|_| ()),
-    }
-}
-
 /// `beamtool tune`: runs the job, printing each step, writing the plots and `tune.json`.
 /// A failed verification prints what was done with the board and is an error.
 pub fn tune(a: TuneArgs) -> Result<TuneReport> {
