@@ -119,6 +119,26 @@ pub fn wait_board(s: &mut Session, until_tick: u64, timeout: Duration) -> Result
     }
 }
 
+/// Longest wait (s, wall clock) for a board to become quiet before it is restored: the
+/// longest shaper the board holds (its history, a few seconds) at real time, with margin.
+pub const RESTORE_WAIT_S: u64 = 60;
+
+/// Polls until the board is still, has no pending change and at most one shaper in flight
+/// (no transition running), so that a new configuration is accepted.
+pub fn wait_quiet(s: &mut Session, timeout: Duration) -> Result<(), StepError> {
+    let end = Instant::now() + timeout;
+    loop {
+        let st = s.status()?;
+        if !st.moving && !st.pending && st.stages <= 1 {
+            return Ok(());
+        }
+        if Instant::now() > end {
+            return Err(StepError::Timeout(timeout.as_secs_f64()));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
 /// A move run by [`run_move`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct MoveRun {
@@ -230,6 +250,9 @@ pub fn restore(s: &mut Session, before: &BoardState) -> String {
 /// [`restore`]'s steps: `load` (when modes and a custom list were both set) or reprogram,
 /// then compare the running configuration with the one read at the start.
 fn restore_config(s: &mut Session, before: &BoardState) -> Result<&'static str, StepError> {
+    // A failed job may leave a move or a shaper transition running; the board refuses a new
+    // shaper while its transition budget is taken, so wait until it is quiet first.
+    wait_quiet(s, Duration::from_secs(RESTORE_WAIT_S))?;
     let modes: Vec<_> = before.config.modes.iter().flatten().copied().collect();
     let how = if before.config.custom_len > 0 && !modes.is_empty() {
         s.load()
