@@ -251,7 +251,10 @@ impl Console {
     ) -> CmdResult {
         let mut new = self.settings.clone();
         // A certificate describes the shaper it was issued for: a new shaper voids it.
-        if matches!(command, Command::Mode(..) | Command::Clear(_) | Command::Custom(_)) {
+        if matches!(
+            command,
+            Command::Mode(..) | Command::Clear(_) | Command::Custom(_)
+        ) {
             new.certificate = crate::config::Certificate::NONE;
         }
         let slot_range = || Refusal::new("range", "mode slot must be 1..4");
@@ -437,11 +440,7 @@ impl Console {
                 "# stored record refused: {e}; not in use until `save` replaces it"
             );
         }
-        let _ = writeln!(
-            out,
-            "{}",
-            StatusReply::new(&s, &self.settings)
-        );
+        let _ = writeln!(out, "{}", StatusReply::new(&s, &self.settings));
         Ok(())
     }
 
