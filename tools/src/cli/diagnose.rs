@@ -105,40 +105,11 @@ impl Progress for StageProgress {
     }
 }
 
-/// Reads and prepares one recording of `rig`: camera glitches on the tip mended
-/// ([`crate::recording::glitch`]), sensor directions brought to the format's
-/// ([`crate::recording::orient`], low-pass corners at ¼ and 10 × the rig's first clamped
-/// natural frequency), then sensor zeros from the rest ([`crate::recording::zero`]).
+/// Reads and prepares one recording of `rig` ([`crate::diagnose::load`]), printing its notes.
 pub fn load(path: &Path, rig: &Rig) -> Result<Prepared> {
-    // a tip camera or a force reading may lose its signal for a while: left out, not refused
-    let (rec, gaps) =
-        crate::recording::Recording::read_csv_leaving_gaps(path, &["tip_pos_m", "force_n"])?;
-    super::print_notes(path, &rec.notes);
-    let read = rec.notes.len();
-    let rec = crate::recording::glitch::mend_tip_glitches(rec);
-    let rec = match first_natural_freq_hz(rig) {
-        Some(f1) => crate::recording::orient::orient(rec, f1 / 4.0, 10.0 * f1),
-        None => rec,
-    };
-    let rec = crate::recording::zero::zero_at_rest(rec);
-    super::print_notes(path, &rec.notes[read..]);
-    let mut d = Prepared::new(&path.display().to_string(), &rec)?.with_gaps(&gaps)?;
-    d.free_start = !crate::recording::zero::starts_at_rest(&rec);
-    Ok(d)
-}
-
-/// The rig file's first clamped natural frequency (Hz); `None` for a carriage-only rig or a
-/// beam the model refuses (the diagnosis then reports why).
-fn first_natural_freq_hz(rig: &Rig) -> Option<f64> {
-    use crate::model::{BeamModel, ModelOptions};
-    let modes = BeamModel::new(rig, &ModelOptions::default())
-        .ok()?
-        .clamped_modes()
-        .ok()?;
-    modes
-        .omega_rad_s
-        .first()
-        .map(|w| w / (2.0 * std::f64::consts::PI))
+    let loaded = crate::diagnose::load::load(path, rig)?;
+    super::print_notes(path, &loaded.notes);
+    Ok(loaded.prepared)
 }
 
 /// Runs a diagnosis on files, with progress shown when `show`.

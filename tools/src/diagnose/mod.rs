@@ -30,6 +30,7 @@ pub mod fit;
 mod forward;
 pub mod honesty;
 pub mod lengths;
+pub mod load;
 pub mod locate;
 pub mod lookalike;
 pub mod proof;
