@@ -16,5 +16,6 @@ pub mod output;
 pub mod protocol;
 pub mod reference;
 pub mod runtime;
+pub mod sensor;
 pub mod shaper;
 pub mod storage;
