@@ -9,6 +9,7 @@
 //! Every fit draws on one [`Budget`] of model evaluations, never on the clock, so the same
 //! recordings give the same answer on any machine.
 
+use super::decision::Rule;
 use super::effects::{Calib, Candidate, Transform};
 use super::fit::{self, channel_rss, residuals, FitResult, FORCE_CHANNEL};
 use super::rate::welch_power;
@@ -132,6 +133,9 @@ pub(crate) struct Ctx<'a> {
     /// Step of the counts of the position sensor the drive is read from (`base_pos_m`, else
     /// the command), m; `None` when not quantised ([`crate::numeric::stats::quantum`]).
     pub(crate) drive_quantum_m: Option<f64>,
+    /// Tests of one diagnosis, the family of the decision rule's level
+    /// ([`super::decision::per_test_level`]): the catalogue's candidates × [`MAX_EFFECTS`].
+    pub(crate) tests: usize,
     /// Selection trace, one entry per line ([`super::Diagnosis::trace`]).
     pub(crate) trace: std::cell::RefCell<Vec<String>>,
 }
@@ -364,7 +368,7 @@ impl Ctx<'_> {
             best_channel,
             &self.driving(&r, best_channel),
         );
-        let mut fails = guard(&Evidence {
+        let evidence = Evidence {
             delta_bic,
             delta_val,
             reduction,
@@ -373,15 +377,28 @@ impl Ctx<'_> {
             significance,
             structure_explained: share,
             implausible: implausible(cand, &f, off, self.resolution()),
-        });
-        fails.extend(white_before(whiteness.0));
+        };
+        let predictive = super::decision::predictive_test(&r.vres, &base.vres);
+        let rule = super::decision::rule();
+        let mut fails = match rule {
+            Rule::Guard => {
+                let mut fails = guard(&evidence);
+                fails.extend(white_before(whiteness.0));
+                fails
+            }
+            Rule::Predictive => {
+                super::decision::predictive_guard(&evidence, predictive.as_ref(), self.tests)
+            }
+        };
         let (matter, beside) = self.calibration_matter(set, &f, off);
         fails.extend(matter);
         fails.extend(self.below_model_accuracy(set, &f));
         fails.extend(self.deflection_scale_disagreement(set, &r, off));
         let passed = fails.is_empty();
         let beside_mode = beside && fails.len() == 1;
-        let partial = fails.len() == 1 && share.is_some_and(|f| !(f >= MIN_STRUCTURE_EXPLAINED));
+        let partial = rule == Rule::Guard
+            && fails.len() == 1
+            && share.is_some_and(|f| !(f >= MIN_STRUCTURE_EXPLAINED));
         CandidateOutcome {
             id: cand.id,
             words: cand.words.to_string(),
@@ -396,6 +413,7 @@ impl Ctx<'_> {
             reduction,
             whiteness,
             significance,
+            predictive,
             passed,
             reason: if passed {
                 "passes every guard".into()
@@ -3096,6 +3114,7 @@ pub(crate) mod tests {
             allowance: 0.1,
             whiteness: (100.0, 10.0),
             significance: 10.0,
+            predictive: None,
             passed,
             reason: reason.into(),
             val_pred: Prediction {

@@ -25,6 +25,7 @@
 //! clock, so the same recordings give the same answer on any machine.
 
 pub mod backward;
+pub mod decision;
 pub mod effects;
 pub mod fit;
 mod forward;
@@ -84,6 +85,9 @@ pub struct CandidateOutcome {
     pub whiteness: (f64, f64),
     /// Largest |value|/σ over null-at-zero parameters (∞ if none).
     pub significance: f64,
+    /// The Diebold–Mariano test of its validation prediction against the model it extends
+    /// ([`decision`]): the evidence the decision rule reads, `None` without validation residuals.
+    pub predictive: Option<crate::numeric::predictive::PredictiveTest>,
     /// Passed the guard.
     pub passed: bool,
     /// Why it lost or passed.
@@ -799,6 +803,7 @@ fn diagnose_with(
         calib: &su.calib,
         model_freqs: &facts.freqs_hz,
         drive_quantum_m: su.drive_quantum_m,
+        tests: cands.len() * forward::MAX_EFFECTS,
         trace: Default::default(),
     };
     // the reference of the first round: the calibrated nominal model

@@ -238,6 +238,7 @@ fn candidates_json(d: &Diagnosis) -> Vec<Value> {
                 "validation_delta_neg2loglik": o.delta_val, "validation_nrmse_reduction": o.reduction, "model_form_allowance": o.allowance,
                 "channel": CHANNEL_NAMES[o.best_channel], "ljung_box_before_after": [o.whiteness.0, o.whiteness.1],
                 "significance_sigma": if o.significance.is_finite() { json!(o.significance) } else { Value::Null },
+                "predictive_z": o.predictive.map(|t| t.z), "p_value": o.predictive.map(|t| t.p_value),
                 "passed": o.passed, "reason": o.reason, "parameters": pm,
             })
         })

@@ -4,6 +4,8 @@
 //!   Jacobian, a deterministic evaluation budget, covariance at the optimum) over the
 //!   `levenberg-marquardt` crate;
 //! - [`cores`]: the machine's spare cores, lent to work that can run beside its thread;
+//! - [`predictive`]: equal predictive accuracy of two models on never-fitted data
+//!   (Diebold–Mariano with a HAC long-run variance), the diagnosis's decision statistic;
 //! - [`stats`]: likelihood, information criterion and whiteness statistics;
 //! - [`arx`]: a physics-free linear correction of a residual (least squares on lagged inputs),
 //!   the yardstick of the diagnosis' model-form allowance.
@@ -11,4 +13,5 @@
 pub mod arx;
 pub mod cores;
 pub mod lm;
+pub mod predictive;
 pub mod stats;
