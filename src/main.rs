@@ -29,6 +29,8 @@
 
 #[path = "fw/accel.rs"]
 mod accel;
+#[path = "fw/board.rs"]
+mod board;
 
 use beamshaper::console::{Action, Console, LineBuffer, RuntimeAccess};
 use beamshaper::protocol::LINE_TOO_LONG;
@@ -49,7 +51,7 @@ use embassy_stm32::mode::Blocking as BlockingMode;
 use embassy_stm32::pac;
 use embassy_stm32::spi::Spi;
 use embassy_stm32::usart::{BufferedUart, BufferedUartTx, Config as UartConfig};
-use embassy_stm32::{bind_interrupts, dma, peripherals, usart, Config};
+use embassy_stm32::{bind_interrupts, dma, peripherals, usart};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embedded_io_async::Read;
@@ -58,11 +60,6 @@ use {defmt_rtt as _, panic_probe as _};
 
 /// Timer kernel clock of TIM6/TIM4/TIM8 (APB1/APB2 prescaler 1 at 170 MHz).
 const TIMER_CLOCK_HZ: u32 = 170_000_000;
-/// Settings flash (offsets from the flash base): the last eight 2 KiB pages of bank 2
-/// (dual-bank mode, the G474RE's factory setting), 0x0807C000..0x08080000. The image is
-/// confined to bank 1 by `memory.x`, so erasing these pages never stalls the tick
-/// (read-while-write); the whole-flash `Flash` driver erases without a critical section.
-const SETTINGS_FLASH: core::ops::Range<u32> = (512 - 16) * 1024..512 * 1024;
 
 /// Storage of the runtime: uninitialised, so it sits in `.bss` (its 80 KiB of buffers are
 /// never an image in flash); [`Runtime::init_in_place`] initialises it where it is, at boot.
@@ -289,22 +286,7 @@ fn init_timers() {
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
-    let mut config = Config::default();
-    {
-        use embassy_stm32::rcc::*;
-        config.rcc.hsi = true;
-        config.rcc.pll = Some(Pll {
-            source: PllSource::HSI,
-            prediv: PllPreDiv::DIV4,
-            mul: PllMul::MUL85,
-            divp: None,
-            divq: None,
-            divr: Some(PllRDiv::DIV2),
-        });
-        config.rcc.sys = Sysclk::PLL1_R;
-    }
-    // DMA completions (the accelerometer's SPI) below the tick.
-    config.bdma_interrupt_priority = Priority::P1;
+    let config = board::clock_config();
     let p = embassy_stm32::init(config);
 
     // Peripheral clocks and pin functions for the raw timers and the DAC.
@@ -357,7 +339,7 @@ async fn main(spawner: Spawner) {
     let mut flash: BlockingAsync<Flash<'static, Blocking>> =
         BlockingAsync::new(Flash::new_blocking(p.FLASH));
     let mut sbuf = [0u8; STORAGE_BUFFER_BYTES];
-    let loaded = load_settings(&mut flash, SETTINGS_FLASH, &mut sbuf).await;
+    let loaded = load_settings(&mut flash, board::SETTINGS_FLASH, &mut sbuf).await;
     let rt = Runtime::init_in_place(RUNTIME_CELL.uninit());
     RUNTIME.lock(|r| *r.borrow_mut() = Some(rt));
     let stepdir_now = pac::TIM4.cnt().read().cnt() as u16;
@@ -399,13 +381,17 @@ async fn main(spawner: Spawner) {
             Ok(line) => match console.handle_line(&line, &mut Shared, &mut out) {
                 Action::None => {}
                 Action::Save => {
-                    let r =
-                        save_settings(&mut flash, SETTINGS_FLASH, &mut sbuf, console.settings())
-                            .await;
+                    let r = save_settings(
+                        &mut flash,
+                        board::SETTINGS_FLASH,
+                        &mut sbuf,
+                        console.settings(),
+                    )
+                    .await;
                     console.finish_save(r, &mut out);
                 }
                 Action::Load => {
-                    let r = load_settings(&mut flash, SETTINGS_FLASH, &mut sbuf).await;
+                    let r = load_settings(&mut flash, board::SETTINGS_FLASH, &mut sbuf).await;
                     console.finish_load(r, &mut Shared, &mut out);
                 }
             },
