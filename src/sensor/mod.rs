@@ -6,12 +6,15 @@
 //! Units are SI: accelerations in m/s², rates in Hz.
 //!
 //! - [`adxl345`]: the ADXL345 driver (SPI, FIFO in stream mode, 3 200 Hz, ±16 g).
+//! - [`adxl357`]: the ADXL357 driver (SPI, 20 bits, FIFO, 4 000 Hz, ±10 g), host-tested;
+//!   the firmware reads the ADXL345.
 //! - [`EventGate`]: the producer's side of a bounded queue of events: a sample that does not
 //!   fit marks the stream broken ([`SensorEvent::Lost`]) instead of vanishing.
 //! - [`SensorHealth`]: counters over a stream of events (the firmware's consumer until the
 //!   watch drains the stream).
 
 pub mod adxl345;
+pub mod adxl357;
 
 /// How the chip is configured: what one sample means.
 #[derive(Clone, Copy, Debug, PartialEq)]
