@@ -35,7 +35,10 @@ mod board;
 use beamshaper::console::{Action, Console, LineBuffer, RuntimeAccess};
 use beamshaper::protocol::LINE_TOO_LONG;
 use beamshaper::runtime::{Runtime, TickInput, TickOutput};
-use beamshaper::sensor::adxl345::{Adxl345, Adxl345Config};
+#[cfg(not(feature = "adxl357"))]
+use beamshaper::sensor::adxl345::{Adxl345 as Chip, Adxl345Config as ChipConfig};
+#[cfg(feature = "adxl357")]
+use beamshaper::sensor::adxl357::{Adxl357 as Chip, Adxl357Config as ChipConfig};
 use beamshaper::sensor::SensorHealth;
 use beamshaper::storage::{load_settings, save_settings, STORAGE_BUFFER_BYTES};
 use core::cell::RefCell;
@@ -99,9 +102,10 @@ unsafe fn UART4() {
     unsafe { ACCEL_EXECUTOR.on_interrupt() }
 }
 
-/// The ADXL345 reader (`accel::run`), on [`ACCEL_EXECUTOR`].
+/// The accelerometer reader (`accel::run`), on [`ACCEL_EXECUTOR`]: the ADXL345, or the
+/// ADXL357 with the `adxl357` feature.
 #[embassy_executor::task]
-async fn accel_task(mut chip: Adxl345<accel::ExclusiveSpi>) -> ! {
+async fn accel_task(mut chip: Chip<accel::ExclusiveSpi>) -> ! {
     accel::run(&mut chip).await
 }
 
@@ -128,7 +132,7 @@ async fn accel_drain_task() -> ! {
     }
 }
 
-/// Starts the ADXL345 reader on SPI2 (PB13 SCK, PB14 MISO, PB15 MOSI, PB12 CS; DMA1
+/// Starts the accelerometer reader on SPI2 (PB13 SCK, PB14 MISO, PB15 MOSI, PB12 CS; DMA1
 /// channels 2 TX / 1 RX) on its interrupt executor.
 fn start_accel(
     spi2: embassy_stm32::Peri<'static, peripherals::SPI2>,
@@ -144,18 +148,13 @@ fn start_accel(
     ),
 ) {
     let (sck, miso, mosi, cs) = pins;
-    let bus = Spi::new(
-        spi2,
-        sck,
-        mosi,
-        miso,
-        dma.0,
-        dma.1,
-        Irqs,
-        accel::spi_config(),
-    );
+    #[cfg(not(feature = "adxl357"))]
+    let spi_config = accel::spi_config();
+    #[cfg(feature = "adxl357")]
+    let spi_config = accel::spi_config_adxl357();
+    let bus = Spi::new(spi2, sck, mosi, miso, dma.0, dma.1, Irqs, spi_config);
     let cs = Output::new(cs, Level::High, Speed::VeryHigh);
-    let chip = Adxl345::new(accel::ExclusiveSpi::new(bus, cs), Adxl345Config::DEFAULT);
+    let chip = Chip::new(accel::ExclusiveSpi::new(bus, cs), ChipConfig::DEFAULT);
     interrupt::UART4.set_priority(Priority::P2);
     let spawner = ACCEL_EXECUTOR.start(interrupt::UART4);
     match accel_task(chip) {

@@ -16,8 +16,7 @@
 //! **Consumer (the drift watch):** drain [`accel_events`] in thread mode (`receive().await`
 //! or `try_receive()`), with [`accel_config`] for what one sample means.
 
-use beamshaper::sensor::adxl345::Adxl345;
-use beamshaper::sensor::{AccelConfig, EventGate, SensorEvent};
+use beamshaper::sensor::{AccelConfig, EventGate, FifoAccelerometer, SensorEvent};
 use core::cell::Cell;
 use embassy_stm32::gpio::{Output, Pull};
 use embassy_stm32::mode::Async;
@@ -60,13 +59,25 @@ pub fn accel_config() -> Option<AccelConfig> {
     ACCEL_CONFIG.lock(|c| c.get())
 }
 
-/// SPI settings for the ADXL345: mode 3, 4 MHz requested (the divider gives 2.66 MHz at
-/// 170 MHz), pull-up on MISO so an absent chip reads 0xFF.
+/// SPI settings for the ADXL345: mode 3, 4 MHz requested (embassy's divider picks 170 MHz
+/// / 64 = 2.66 MHz; 5 MHz would pick / 32 = 5.31 MHz, over the chip's 5 MHz), pull-up on
+/// MISO so an absent chip reads 0xFF.
 pub fn spi_config() -> spi::Config {
     let mut c = spi::Config::default();
     c.mode = spi::MODE_3;
     c.frequency = Hertz(4_000_000);
     c.miso_pull = Pull::Up;
+    c
+}
+
+/// SPI settings for the ADXL357 (firmware feature `adxl357`): mode 0, 5 MHz requested
+/// (170 MHz / 32 = 5.31 MHz; the chip allows 10 MHz, and 8 MHz would pick / 16 = 10.6 MHz),
+/// pull-up on MISO.
+#[allow(dead_code)]
+pub fn spi_config_adxl357() -> spi::Config {
+    let mut c = spi_config();
+    c.mode = spi::MODE_0;
+    c.frequency = Hertz(5_000_000);
     c
 }
 
@@ -122,17 +133,17 @@ fn push(gate: &mut EventGate, event: SensorEvent) {
 /// The reader: initialises the chip (retrying every [`RETRY_PERIOD`] while it fails), then
 /// drains its FIFO every [`POLL_PERIOD`]; an error is one [`SensorEvent::Lost`] (a chip absent
 /// at boot: one Lost, not one per retry) and a fresh init. Never returns.
-pub async fn run(chip: &mut Adxl345<ExclusiveSpi>) -> ! {
+pub async fn run<C: FifoAccelerometer>(chip: &mut C) -> ! {
     let mut gate = EventGate::new();
     // One Lost per break: a chip that stays absent is not a Lost every retry.
     let mut broken = false;
     loop {
         match chip.init().await {
             Ok(config) => ACCEL_CONFIG.lock(|c| c.set(Some(config))),
-            Err(e) => {
+            Err(_) => {
                 ACCEL_CONFIG.lock(|c| c.set(None));
                 if !broken {
-                    push(&mut gate, e.event());
+                    push(&mut gate, SensorEvent::Lost);
                     broken = true;
                 }
                 Timer::after(RETRY_PERIOD).await;
@@ -142,8 +153,8 @@ pub async fn run(chip: &mut Adxl345<ExclusiveSpi>) -> ! {
         let mut ticker = Ticker::every(POLL_PERIOD);
         loop {
             ticker.next().await;
-            if let Err(e) = chip.read_fifo(&mut |ev| push(&mut gate, ev)).await {
-                push(&mut gate, e.event());
+            if chip.read_fifo(&mut |ev| push(&mut gate, ev)).await.is_err() {
+                push(&mut gate, SensorEvent::Lost);
                 broken = true;
                 break;
             }

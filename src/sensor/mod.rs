@@ -8,6 +8,7 @@
 //! - [`adxl345`]: the ADXL345 driver (SPI, FIFO in stream mode, 3 200 Hz, ±16 g).
 //! - [`adxl357`]: the ADXL357 driver (SPI, 20 bits, FIFO, 4 000 Hz, ±10 g), host-tested;
 //!   the firmware reads the ADXL345.
+//! - [`FifoAccelerometer`]: what a reader loop needs of either driver.
 //! - [`EventGate`]: the producer's side of a bounded queue of events: a sample that does not
 //!   fit marks the stream broken ([`SensorEvent::Lost`]) instead of vanishing.
 //! - [`SensorHealth`]: counters over a stream of events (the firmware's consumer until the
@@ -44,6 +45,48 @@ pub enum SensorEvent {
     /// The chip stopped answering (wrong device id, no data for longer than its FIFO holds,
     /// a bus error) or samples were lost (FIFO overrun): the sample stream is broken here.
     Lost,
+}
+
+/// A chip that a reader loop (re)initialises and drains: implemented by
+/// [`adxl345::Adxl345`] and [`adxl357::Adxl357`] on any async SPI device.
+#[allow(async_fn_in_trait)] // used with concrete types on one executor; no `Send` bound needed
+pub trait FifoAccelerometer {
+    /// Why a call failed; any error breaks the stream (the reader reports
+    /// [`SensorEvent::Lost`] and calls [`FifoAccelerometer::init`] again).
+    type Error;
+    /// Checks the device id and configures the chip; the [`AccelConfig`] of what follows.
+    async fn init(&mut self) -> Result<AccelConfig, Self::Error>;
+    /// Drains the chip's FIFO once (bounded: one FIFO's worth), events to `sink` in order.
+    async fn read_fifo(
+        &mut self,
+        sink: &mut impl FnMut(SensorEvent),
+    ) -> Result<adxl345::FifoRead, Self::Error>;
+}
+
+impl<S: embedded_hal_async::spi::SpiDevice> FifoAccelerometer for adxl345::Adxl345<S> {
+    type Error = adxl345::Adxl345Error<S::Error>;
+    async fn init(&mut self) -> Result<AccelConfig, Self::Error> {
+        adxl345::Adxl345::init(self).await
+    }
+    async fn read_fifo(
+        &mut self,
+        sink: &mut impl FnMut(SensorEvent),
+    ) -> Result<adxl345::FifoRead, Self::Error> {
+        adxl345::Adxl345::read_fifo(self, sink).await
+    }
+}
+
+impl<S: embedded_hal_async::spi::SpiDevice> FifoAccelerometer for adxl357::Adxl357<S> {
+    type Error = adxl345::Adxl345Error<S::Error>;
+    async fn init(&mut self) -> Result<AccelConfig, Self::Error> {
+        adxl357::Adxl357::init(self).await
+    }
+    async fn read_fifo(
+        &mut self,
+        sink: &mut impl FnMut(SensorEvent),
+    ) -> Result<adxl345::FifoRead, Self::Error> {
+        adxl357::Adxl357::read_fifo(self, sink).await
+    }
 }
 
 /// The producer's side of a bounded event queue (e.g. a channel of 512 events): pushes
