@@ -10,7 +10,8 @@
 //!   `memory.x`); loaded at boot, the console says whether defaults were used and why.
 //!
 //! - **Accelerometer task** (interrupt executor on the otherwise unused `UART4` vector at
-//!   priority P2, below the tick and the UART): ADXL345 on SPI2 with DMA, its FIFO drained
+//!   priority P2, below the tick and the UART): ADXL345 (ADXL357 with the feature `adxl357`)
+//!   on SPI2 with DMA, its FIFO drained
 //!   every 4 ms into the queue `accel::ACCEL_EVENTS` (`src/fw/accel.rs`); a thread-mode task
 //!   drains the queue into [`SensorHealth`] counters until the drift watch consumes it.
 //!
@@ -133,8 +134,10 @@ async fn accel_drain_task() -> ! {
 }
 
 /// Starts the accelerometer reader on SPI2 (PB13 SCK, PB14 MISO, PB15 MOSI, PB12 CS; DMA1
-/// channels 2 TX / 1 RX) on its interrupt executor.
+/// channels 2 TX / 1 RX) on its interrupt executor, and the queue's consumer on `spawner`
+/// (thread mode).
 fn start_accel(
+    spawner: Spawner,
     spi2: embassy_stm32::Peri<'static, peripherals::SPI2>,
     pins: (
         embassy_stm32::Peri<'static, peripherals::PB13>,
@@ -156,10 +159,13 @@ fn start_accel(
     let cs = Output::new(cs, Level::High, Speed::VeryHigh);
     let chip = Chip::new(accel::ExclusiveSpi::new(bus, cs), ChipConfig::DEFAULT);
     interrupt::UART4.set_priority(Priority::P2);
-    let spawner = ACCEL_EXECUTOR.start(interrupt::UART4);
     match accel_task(chip) {
-        Ok(token) => spawner.spawn(token),
+        Ok(token) => ACCEL_EXECUTOR.start(interrupt::UART4).spawn(token),
         Err(_) => defmt::panic!("accelerometer task already running"),
+    }
+    match accel_drain_task() {
+        Ok(token) => spawner.spawn(token),
+        Err(_) => defmt::panic!("accelerometer drain task already running"),
     }
 }
 
@@ -353,14 +359,11 @@ async fn main(spawner: Spawner) {
     // SAFETY: the handler only touches RUNTIME/OUTPUTS through critical-section mutexes.
     unsafe { interrupt::TIM6_DAC.enable() };
     start_accel(
+        spawner,
         p.SPI2,
         (p.PB13, p.PB14, p.PB15, p.PB12),
         (p.DMA1_CH2, p.DMA1_CH1),
     );
-    match accel_drain_task() {
-        Ok(token) => spawner.spawn(token),
-        Err(_) => defmt::panic!("accelerometer drain task already running"),
-    }
     defmt::info!("beamshaper firmware up");
 
     let mut lines = LineBuffer::new();
