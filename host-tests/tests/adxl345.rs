@@ -279,6 +279,27 @@ fn full_fifo_is_an_overrun_lost_before_the_samples() {
 }
 
 #[test]
+fn status_33_is_a_full_fifo_read_whole_and_34_is_refused() {
+    let mut t = read(reg::FIFO_STATUS, 33);
+    for k in 0..33 {
+        t.extend(entry(k, 0, 0));
+    }
+    let mut spi = Mock::new(&t);
+    let mut chip = Adxl345::new(spi.clone(), Adxl345Config::DEFAULT);
+    let mut events = Vec::new();
+    let r = block_on(chip.read_fifo(&mut |e| events.push(e))).unwrap();
+    assert_eq!((r.samples, r.overrun), (33, true));
+    assert_eq!(events[0], SensorEvent::Lost);
+    assert_eq!(events.len(), 34);
+    spi.done();
+    let mut spi = Mock::new(&read(reg::FIFO_STATUS, 34));
+    let mut chip = Adxl345::new(spi.clone(), Adxl345Config::DEFAULT);
+    let r = block_on(chip.read_fifo(&mut |_| {}));
+    assert_eq!(r, Err(Adxl345Error::Status(34)));
+    spi.done();
+}
+
+#[test]
 fn bus_error_mid_burst_keeps_the_samples_before_it() {
     let mut fake = FakeChip::new(DEVICE_ID);
     fake.fifo.extend((0..5).map(|k| [k, 0, 0]));

@@ -59,8 +59,11 @@ pub const POWER_MEASURE: u8 = 0x08;
 pub const FORMAT_FULL_RES_16G: u8 = 0x0B;
 /// FIFO_CTL mode bits for stream mode (bits 7:6 = 10).
 pub const FIFO_STREAM: u8 = 0x80;
-/// Entries the FIFO holds.
+/// Entries the FIFO holds ("FIFO": 32, plus one more held at the output, so up to 33 can
+/// be read at a time). FIFO_STATUS at 32 or more means the FIFO is full.
 pub const FIFO_ENTRIES: u8 = 32;
+/// The most entries FIFO_STATUS can plausibly report (32 in the FIFO + 1 at the output).
+pub const FIFO_MAX_READABLE: u8 = 33;
 /// Data sheet minimum between the end of a FIFO data read and the next FIFO or FIFO_STATUS
 /// read (ns); appended to every FIFO pop as an `Operation::DelayNs`.
 pub const FIFO_POP_GAP_NS: u32 = 5_000;
@@ -183,8 +186,8 @@ pub enum Adxl345Error<E> {
         /// Value read back.
         read: u8,
     },
-    /// FIFO_STATUS reported more entries than the FIFO holds (the byte read): the bus is not
-    /// talking to an ADXL345.
+    /// FIFO_STATUS reported more than 33 entries (the byte read): the bus is not talking to
+    /// an ADXL345.
     Status(u8),
     /// The FIFO was empty on [`Adxl345Config::stall_after_empty_reads`] reads in a row:
     /// the chip is not measuring (reset, power loss, or no chip on a bus stuck at 0x00).
@@ -201,9 +204,9 @@ impl<E> Adxl345Error<E> {
 /// What one [`Adxl345::read_fifo`] delivered.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct FifoRead {
-    /// Samples delivered (0 ..= 32).
+    /// Samples delivered (0 ..= 33).
     pub samples: u8,
-    /// The FIFO was full (32 entries): in stream mode the oldest entries may have been
+    /// The FIFO was full (32 or 33 entries): in stream mode the oldest entries may have been
     /// overwritten, so a [`SensorEvent::Lost`] was delivered before the samples.
     pub overrun: bool,
     /// Samples at or beyond full scale on the watched axis.
@@ -317,13 +320,13 @@ impl<S: SpiDevice> Adxl345<S> {
 
     /// Drains the FIFO once: reads FIFO_STATUS, then each of its entries (one 6-byte
     /// multi-byte read of DATAX0..DATAZ1 per entry, each followed by the 5 µs gap), and hands
-    /// `sink` one [`SensorEvent::Sample`] per entry, oldest first. A full FIFO (32 entries)
-    /// may have overwritten samples: `sink` gets [`SensorEvent::Lost`] first. At most 32
+    /// `sink` one [`SensorEvent::Sample`] per entry, oldest first. A full FIFO (≥ 32 entries)
+    /// may have overwritten samples: `sink` gets [`SensorEvent::Lost`] first. At most 33
     /// entries per call, so the work is bounded; call it at least once per 32 sample periods
     /// (10 ms at 3 200 Hz).
     ///
     /// Errors (the caller reports [`SensorEvent::Lost`] and calls [`Adxl345::init`]):
-    /// [`Adxl345Error::Bus`]; [`Adxl345Error::Status`] (more than 32 entries);
+    /// [`Adxl345Error::Bus`]; [`Adxl345Error::Status`] (more than 33 entries);
     /// [`Adxl345Error::Stalled`] (empty too many times in a row). Samples delivered before a
     /// bus error mid-burst are valid.
     pub async fn read_fifo(
@@ -332,7 +335,7 @@ impl<S: SpiDevice> Adxl345<S> {
     ) -> Result<FifoRead, Adxl345Error<S::Error>> {
         let status = self.read_register(reg::FIFO_STATUS).await?;
         let entries = status & 0x3F;
-        if entries > FIFO_ENTRIES {
+        if entries > FIFO_MAX_READABLE {
             return Err(Adxl345Error::Status(status));
         }
         if entries == 0 {
