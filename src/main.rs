@@ -112,6 +112,11 @@ async fn accel_task(mut chip: Chip<accel::ExclusiveSpi>) -> ! {
 
 /// The accelerometer queue's consumer until the drift watch takes its place: counts the
 /// events (thread mode) and logs the counts over defmt every 10 s.
+///
+/// **The drift watch plugs in here:** it replaces this task's body (there must be exactly one
+/// consumer): `accel::accel_events().receive().await` (or `try_receive()`) gives the
+/// `SensorEvent`s in order, `accel::accel_config()` what one sample means (`None`: no chip,
+/// i.e. `state=no_sensor`).
 #[embassy_executor::task]
 async fn accel_drain_task() -> ! {
     let events = accel::accel_events();
