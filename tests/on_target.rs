@@ -414,8 +414,9 @@ mod tests {
     }
 
     /// The reader (`accel::run`, as the firmware runs it) for 1.5 s, its queue drained
-    /// concurrently: with a chip, about 3 200 samples per second (4 300..4 900 in 1.5 s, init
-    /// included) and no `Lost`; without, exactly one `Lost` and no samples.
+    /// concurrently: with a chip, about 3 200 samples per second (4 000..5 300 in 1.5 s: init
+    /// included, and the chip's own oscillator sets the rate within some %) and no `Lost`;
+    /// without, exactly one `Lost` and no samples.
     #[test]
     async fn accel_reader_stream(p: Peripherals) {
         let mut chip = adxl345(p);
@@ -442,7 +443,7 @@ mod tests {
         );
         if present {
             assert!(accel::accel_config().is_some());
-            assert!(health.samples > 4300 && health.samples < 4900);
+            assert!(health.samples >= 4000 && health.samples <= 5300);
             assert_eq!(health.lost, 0);
         } else {
             defmt::warn!("no ADXL345 on SPI2: checked the absent-chip report only");
