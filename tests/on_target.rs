@@ -152,6 +152,63 @@ impl<F: embedded_storage_async::nor_flash::NorFlash> embedded_storage_async::nor
     }
 }
 
+/// Stack depth, measured: the G474 has no stack guard (an overflow would run silently into
+/// `.bss`, and the runtime alone takes 91 KiB of the 128), so [`stack::paint`] fills the free
+/// stack region with a pattern before each test and [`stack::check`] at its end logs how deep
+/// the stack went and fails with less than 1 KiB to spare.
+mod stack {
+    extern "C" {
+        /// Bottom of the stack region = end of `.uninit` (cortex-m-rt's `link.x`).
+        static _stack_end: u32;
+        /// Top of the stack region (end of RAM).
+        static _stack_start: u32;
+    }
+
+    const PAINT: u32 = 0xA5A5_5A5A;
+
+    fn bounds() -> (usize, usize) {
+        // Only the addresses of the linker symbols are taken, never their values.
+        (
+            core::ptr::addr_of!(_stack_end) as usize,
+            core::ptr::addr_of!(_stack_start) as usize,
+        )
+    }
+
+    /// Fills the stack region from its bottom to 512 bytes below the current stack pointer,
+    /// with interrupts masked (no handler's frame can be below the stack pointer meanwhile).
+    pub fn paint() {
+        cortex_m::interrupt::free(|_| {
+            let (bottom, _) = bounds();
+            let sp = cortex_m::register::msp::read() as usize;
+            let mut p = bottom;
+            while p + 512 < sp {
+                // SAFETY: `p` is word-aligned RAM between the end of `.uninit` and the stack
+                // pointer minus 512 bytes: no live data (interrupts are masked).
+                unsafe { core::ptr::write_volatile(p as *mut u32, PAINT) };
+                p += 4;
+            }
+        });
+    }
+
+    /// Logs the deepest stack use since [`paint`] (bytes) and asserts ≥ 1 KiB never touched.
+    pub fn check(test: &str) {
+        let (bottom, top) = bounds();
+        let mut p = bottom;
+        // SAFETY: reads of word-aligned RAM inside the stack region.
+        while p < top && unsafe { core::ptr::read_volatile(p as *const u32) } == PAINT {
+            p += 4;
+        }
+        let untouched = p - bottom;
+        defmt::info!(
+            "{}: stack used {} of {} bytes",
+            test,
+            top - bottom - untouched,
+            top - bottom
+        );
+        assert!(untouched >= 1024, "{}: stack nearly exhausted", test);
+    }
+}
+
 #[cfg(test)]
 #[embedded_test::tests]
 mod tests {
@@ -179,6 +236,7 @@ mod tests {
 
     #[init]
     fn init() -> Peripherals {
+        stack::paint();
         embassy_stm32::init(board::clock_config())
     }
 
@@ -202,6 +260,7 @@ mod tests {
             "golden output has a different length"
         );
         defmt::info!("golden vectors bit-identical ({} bytes)", c.at);
+        stack::check("golden");
     }
 
     fn zvdd(f: f64) -> Option<ModeSetting> {
@@ -246,6 +305,7 @@ mod tests {
             worst
         );
         assert!(worst < 17_000, "tick too slow: {} cycles", worst);
+        stack::check("tick");
     }
 
     /// The console boots on the defaults (`ok boot`), answers `help`, `mode` (5 taps for a
@@ -281,6 +341,7 @@ mod tests {
         assert!(matches!(action, Action::Save));
         assert!(!out.overflow);
         assert!(console.settings().modes[0].is_some());
+        stack::check("console");
     }
 
     fn settings_at(f1: f64) -> Settings {
@@ -316,6 +377,7 @@ mod tests {
                 Ok(Some(s))
             );
         }
+        stack::check("settings");
     }
 
     /// Power lost during a save: the save of B over A is cut after 0, 8, 16, …, 160 bytes of
@@ -362,6 +424,7 @@ mod tests {
             got_b
         );
         assert!(kept_a > 0 && got_b > 0);
+        stack::check("power loss");
     }
 
     fn adxl345(p: Peripherals) -> Adxl345<accel::ExclusiveSpi> {
@@ -394,6 +457,7 @@ mod tests {
                 id
             );
             assert_eq!(chip.init().await, Err(Adxl345Error::WrongId(id)));
+            stack::check("accel id");
             return;
         }
         let Ok(cfg) = chip.init().await else {
@@ -411,6 +475,7 @@ mod tests {
             health.last_m_s2
         );
         assert!(r.samples >= 8 && !r.overrun, "{} samples", r.samples);
+        stack::check("accel id");
     }
 
     /// The reader (`accel::run`, as the firmware runs it) for 1.5 s, its queue drained
@@ -451,5 +516,6 @@ mod tests {
             assert_eq!((health.samples, health.lost), (0, 1));
             assert!(accel::accel_events().try_receive().is_err());
         }
+        stack::check("accel reader");
     }
 }
