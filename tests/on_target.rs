@@ -359,6 +359,7 @@ mod tests {
 
     /// Settings round trip in real flash; an erased range loads as "nothing saved".
     #[test]
+    #[timeout(120)]
     async fn settings_round_trip_in_flash(p: Peripherals) {
         let mut flash = BlockingAsync::new(Flash::new_blocking(p.FLASH));
         let mut buf = [0u8; STORAGE_BUFFER_BYTES];
@@ -367,8 +368,10 @@ mod tests {
             load_settings(&mut flash, SCRATCH_FLASH, &mut buf).await,
             Ok(None)
         );
-        for k in 0..40 {
-            let s = settings_at(1.0 + k as f64 * 0.01);
+        // ~56 bytes per item (a 42-byte record, key and item header, in 8-byte words): 400
+        // saves go round the eight 2 KiB pages, so pages are erased (garbage collection).
+        for k in 0..400 {
+            let s = settings_at(1.0 + k as f64 * 0.001);
             assert!(save_settings(&mut flash, SCRATCH_FLASH, &mut buf, &s)
                 .await
                 .is_ok());
