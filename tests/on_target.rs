@@ -385,8 +385,9 @@ mod tests {
     }
 
     /// Power lost during a save: the save of B over A is cut after 0, 8, 16, …, 160 bytes of
-    /// writes (the cut write leaves its first double-words programmed; a save writes 72 bytes); the load then gives A, or B once B was completely written,
-    /// never anything else or an error; a full save after it works.
+    /// writes (a save writes 72 bytes; the cut write leaves its first double-words
+    /// programmed); the load then gives A, or B once B was completely written, never anything
+    /// else or an error; a full save after it works.
     #[test]
     #[timeout(180)]
     async fn power_loss_during_save_keeps_the_previous_record(p: Peripherals) {
