@@ -9,7 +9,15 @@ fn main() {
         println!("cargo:rustc-link-arg-bins=--nmagic");
         println!("cargo:rustc-link-arg-bins=-Tlink.x");
         println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
+        // The on-target test suite (tests/on_target.rs, embedded-test): the same scripts and
+        // embedded-test's table of test cases.
+        println!("cargo:rustc-link-arg-tests=--nmagic");
+        println!("cargo:rustc-link-arg-tests=-Tlink.x");
+        println!("cargo:rustc-link-arg-tests=-Tdefmt.x");
+        println!("cargo:rustc-link-arg-tests=-Tembedded-test.x");
     }
+    // embedded-test's macro emits `cfg(rust_analyzer)`.
+    println!("cargo:rustc-check-cfg=cfg(rust_analyzer)");
     println!("cargo:rerun-if-changed=memory.x");
     println!("cargo:rerun-if-changed=build.rs");
 }

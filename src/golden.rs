@@ -45,8 +45,17 @@ fn fnv(h: u64, v: i32) -> u64 {
     h
 }
 
-/// Writes all golden vectors to `out`.
+/// Writes all golden vectors to `out`. Builds its runtime (~90 KiB) on the stack: fine on
+/// the host and under QEMU; on the 128 KiB G474 use [`write_golden_in`].
 pub fn write_golden(out: &mut impl Write) -> Result {
+    let mut slot = core::mem::MaybeUninit::uninit();
+    write_golden_in(out, &mut slot)
+}
+
+/// [`write_golden`] with the runtime in `slot` (e.g. a `.bss` static, as the firmware keeps
+/// it), initialised in place for each case ([`Runtime::init_in_place`], the same state as
+/// [`Runtime::new`]), so the stack stays small.
+pub fn write_golden_in(out: &mut impl Write, slot: &mut core::mem::MaybeUninit<Runtime>) -> Result {
     for &(f, z) in DESIGN_CASES.iter() {
         for kind in ShaperKind::all(0.05) {
             match design(kind, f, z) {
@@ -100,7 +109,7 @@ pub fn write_golden(out: &mut impl Write) -> Result {
             write!(out, " {}:{}:{:08x}", t.delay, t.w_q30, t.w_f32.to_bits())?;
         }
         writeln!(out)?;
-        let mut rt = Runtime::new();
+        let rt = Runtime::init_in_place(slot);
         rt.configure_at_boot(params, 0);
         let mut h = 0xcbf2_9ce4_8422_2325u64;
         write!(out, "move rate={rate} path={}", path.name())?;
@@ -149,7 +158,7 @@ pub fn write_golden(out: &mut impl Write) -> Result {
             writeln!(out, "switch err")?;
             continue;
         };
-        let mut rt = Runtime::new();
+        let rt = Runtime::init_in_place(slot);
         rt.configure_at_boot(pa.clone(), 0);
         let mut h = 0xcbf2_9ce4_8422_2325u64;
         write!(out, "switch path={}", path.name())?;

@@ -9,25 +9,43 @@
 //! - **Settings** in the last 16 KiB of flash (bank 2) via `sequential-storage` (see
 //!   `memory.x`); loaded at boot, the console says whether defaults were used and why.
 //!
+//! - **Accelerometer task** (interrupt executor on the otherwise unused `UART4` vector at
+//!   priority P2, below the tick and the UART): ADXL345 (ADXL357 with the feature `adxl357`)
+//!   on SPI2 with DMA, its FIFO drained
+//!   every 4 ms into the queue `accel::ACCEL_EVENTS` (`src/fw/accel.rs`); a thread-mode task
+//!   drains the queue into [`SensorHealth`] counters until the drift watch consumes it.
+//!
 //! Pins: PC6 = STEP (TIM8_CH1, one-pulse train of N pulses per tick using the repetition
 //! counter), PC7 = DIR, PB6 = upstream DIR in (TIM4_CH1 = direction input of the timer's
 //! clock + direction encoder mode), PB7 = upstream STEP in (TIM4_CH2 = clock input),
-//! PA4 = DAC1_OUT1 (setpoint mirror), PA2/PA3 = console.
+//! PA4 = DAC1_OUT1 (setpoint mirror), PA2/PA3 = console, PB12 = accelerometer CS,
+//! PB13/PB14/PB15 = SPI2 SCK/MISO/MOSI (AF5).
 //!
 //! Timers: TIM6 = tick, TIM4 = step/dir input counter, TIM8 = step pulse train, TIM15 = the
 //! embassy time driver (feature `time-driver-tim15`, pinned so it can never take TIM4/TIM8).
-//! Interrupt priorities: TIM6 at P0 (pre-empts everything else), LPUART1 and TIM15 at P1.
+//! Interrupt priorities: TIM6 at P0 (pre-empts everything else), LPUART1, TIM15 and the DMA
+//! channels at P1, the accelerometer's executor (UART4 vector) at P2.
 #![no_std]
 #![no_main]
+
+#[path = "fw/accel.rs"]
+mod accel;
+#[path = "fw/board.rs"]
+mod board;
 
 use beamshaper::console::{Action, Console, LineBuffer, RuntimeAccess};
 use beamshaper::protocol::LINE_TOO_LONG;
 use beamshaper::runtime::{Runtime, TickInput, TickOutput};
+#[cfg(not(feature = "adxl357"))]
+use beamshaper::sensor::adxl345::{Adxl345 as Chip, Adxl345Config as ChipConfig};
+#[cfg(feature = "adxl357")]
+use beamshaper::sensor::adxl357::{Adxl357 as Chip, Adxl357Config as ChipConfig};
+use beamshaper::sensor::SensorHealth;
 use beamshaper::storage::{load_settings, save_settings, STORAGE_BUFFER_BYTES};
 use core::cell::RefCell;
 use core::fmt::Write as _;
 use embassy_embedded_hal::adapter::BlockingAsync;
-use embassy_executor::Spawner;
+use embassy_executor::{InterruptExecutor, Spawner};
 use embassy_stm32::dac::{DacChannel, Value};
 use embassy_stm32::flash::{Blocking, Flash};
 use embassy_stm32::gpio::{Level, Output, Speed};
@@ -35,8 +53,9 @@ use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::mode::Blocking as BlockingMode;
 use embassy_stm32::pac;
+use embassy_stm32::spi::Spi;
 use embassy_stm32::usart::{BufferedUart, BufferedUartTx, Config as UartConfig};
-use embassy_stm32::{bind_interrupts, peripherals, usart, Config};
+use embassy_stm32::{bind_interrupts, dma, peripherals, usart};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embedded_io_async::Read;
@@ -45,11 +64,6 @@ use {defmt_rtt as _, panic_probe as _};
 
 /// Timer kernel clock of TIM6/TIM4/TIM8 (APB1/APB2 prescaler 1 at 170 MHz).
 const TIMER_CLOCK_HZ: u32 = 170_000_000;
-/// Settings flash (offsets from the flash base): the last eight 2 KiB pages of bank 2
-/// (dual-bank mode, the G474RE's factory setting), 0x0807C000..0x08080000. The image is
-/// confined to bank 1 by `memory.x`, so erasing these pages never stalls the tick
-/// (read-while-write); the whole-flash `Flash` driver erases without a critical section.
-const SETTINGS_FLASH: core::ops::Range<u32> = (512 - 16) * 1024..512 * 1024;
 
 /// Storage of the runtime: uninitialised, so it sits in `.bss` (its 80 KiB of buffers are
 /// never an image in flash); [`Runtime::init_in_place`] initialises it where it is, at boot.
@@ -74,7 +88,91 @@ impl RuntimeAccess for Shared {
 
 bind_interrupts!(struct Irqs {
     LPUART1 => usart::BufferedInterruptHandler<peripherals::LPUART1>;
+    DMA1_CHANNEL1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
+    DMA1_CHANNEL2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
 });
+
+/// The accelerometer's executor: runs on the (otherwise unused) UART4 vector at P2, so the
+/// reader pre-empts thread mode (a settings `save` busy-waits there for ~22 ms per page
+/// erase) but never the tick (P0).
+static ACCEL_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
+
+#[interrupt]
+unsafe fn UART4() {
+    // SAFETY: the vector is used by nothing else; `start` bound it to this executor.
+    unsafe { ACCEL_EXECUTOR.on_interrupt() }
+}
+
+/// The accelerometer reader (`accel::run`), on [`ACCEL_EXECUTOR`]: the ADXL345, or the
+/// ADXL357 with the `adxl357` feature.
+#[embassy_executor::task]
+async fn accel_task(mut chip: Chip<accel::ExclusiveSpi>) -> ! {
+    accel::run(&mut chip).await
+}
+
+/// The accelerometer queue's consumer until the drift watch takes its place: counts the
+/// events (thread mode) and logs the counts over defmt every 10 s.
+///
+/// **The drift watch plugs in here:** it replaces this task's body (there must be exactly one
+/// consumer): `accel::accel_events().receive().await` (or `try_receive()`) gives the
+/// `SensorEvent`s in order, `accel::accel_config()` what one sample means (`None`: no chip,
+/// i.e. `state=no_sensor`).
+#[embassy_executor::task]
+async fn accel_drain_task() -> ! {
+    let events = accel::accel_events();
+    let mut health = SensorHealth::new();
+    let mut next_log = embassy_time::Instant::now();
+    loop {
+        health.record(&events.receive().await);
+        if embassy_time::Instant::now() >= next_log {
+            next_log += embassy_time::Duration::from_secs(10);
+            defmt::info!(
+                "accel: samples={} lost={} saturated={} last={} m/s2 configured={}",
+                health.samples,
+                health.lost,
+                health.saturated,
+                health.last_m_s2,
+                accel::accel_config().is_some()
+            );
+        }
+    }
+}
+
+/// Starts the accelerometer reader on SPI2 (PB13 SCK, PB14 MISO, PB15 MOSI, PB12 CS; DMA1
+/// channels 2 TX / 1 RX) on its interrupt executor, and the queue's consumer on `spawner`
+/// (thread mode).
+fn start_accel(
+    spawner: Spawner,
+    spi2: embassy_stm32::Peri<'static, peripherals::SPI2>,
+    pins: (
+        embassy_stm32::Peri<'static, peripherals::PB13>,
+        embassy_stm32::Peri<'static, peripherals::PB14>,
+        embassy_stm32::Peri<'static, peripherals::PB15>,
+        embassy_stm32::Peri<'static, peripherals::PB12>,
+    ),
+    dma: (
+        embassy_stm32::Peri<'static, peripherals::DMA1_CH2>,
+        embassy_stm32::Peri<'static, peripherals::DMA1_CH1>,
+    ),
+) {
+    let (sck, miso, mosi, cs) = pins;
+    #[cfg(not(feature = "adxl357"))]
+    let spi_config = accel::spi_config();
+    #[cfg(feature = "adxl357")]
+    let spi_config = accel::spi_config_adxl357();
+    let bus = Spi::new(spi2, sck, mosi, miso, dma.0, dma.1, Irqs, spi_config);
+    let cs = Output::new(cs, Level::High, Speed::VeryHigh);
+    let chip = Chip::new(accel::ExclusiveSpi::new(bus, cs), ChipConfig::DEFAULT);
+    interrupt::UART4.set_priority(Priority::P2);
+    match accel_task(chip) {
+        Ok(token) => ACCEL_EXECUTOR.start(interrupt::UART4).spawn(token),
+        Err(_) => defmt::panic!("accelerometer task already running"),
+    }
+    match accel_drain_task() {
+        Ok(token) => spawner.spawn(token),
+        Err(_) => defmt::panic!("accelerometer drain task already running"),
+    }
+}
 
 /// Console replies, streamed to the UART while they are formatted (blocking while the TX
 /// ring is full; the UART interrupt drains it), so a reply of any length goes out whole
@@ -197,21 +295,8 @@ fn init_timers() {
 }
 
 #[embassy_executor::main]
-async fn main(_spawner: Spawner) {
-    let mut config = Config::default();
-    {
-        use embassy_stm32::rcc::*;
-        config.rcc.hsi = true;
-        config.rcc.pll = Some(Pll {
-            source: PllSource::HSI,
-            prediv: PllPreDiv::DIV4,
-            mul: PllMul::MUL85,
-            divp: None,
-            divq: None,
-            divr: Some(PllRDiv::DIV2),
-        });
-        config.rcc.sys = Sysclk::PLL1_R;
-    }
+async fn main(spawner: Spawner) {
+    let config = board::clock_config();
     let p = embassy_stm32::init(config);
 
     // Peripheral clocks and pin functions for the raw timers and the DAC.
@@ -264,7 +349,7 @@ async fn main(_spawner: Spawner) {
     let mut flash: BlockingAsync<Flash<'static, Blocking>> =
         BlockingAsync::new(Flash::new_blocking(p.FLASH));
     let mut sbuf = [0u8; STORAGE_BUFFER_BYTES];
-    let loaded = load_settings(&mut flash, SETTINGS_FLASH, &mut sbuf).await;
+    let loaded = load_settings(&mut flash, board::SETTINGS_FLASH, &mut sbuf).await;
     let rt = Runtime::init_in_place(RUNTIME_CELL.uninit());
     RUNTIME.lock(|r| *r.borrow_mut() = Some(rt));
     let stepdir_now = pac::TIM4.cnt().read().cnt() as u16;
@@ -278,6 +363,12 @@ async fn main(_spawner: Spawner) {
     interrupt::TIM6_DAC.unpend();
     // SAFETY: the handler only touches RUNTIME/OUTPUTS through critical-section mutexes.
     unsafe { interrupt::TIM6_DAC.enable() };
+    start_accel(
+        spawner,
+        p.SPI2,
+        (p.PB13, p.PB14, p.PB15, p.PB12),
+        (p.DMA1_CH2, p.DMA1_CH1),
+    );
     defmt::info!("beamshaper firmware up");
 
     let mut lines = LineBuffer::new();
@@ -297,13 +388,17 @@ async fn main(_spawner: Spawner) {
             Ok(line) => match console.handle_line(&line, &mut Shared, &mut out) {
                 Action::None => {}
                 Action::Save => {
-                    let r =
-                        save_settings(&mut flash, SETTINGS_FLASH, &mut sbuf, console.settings())
-                            .await;
+                    let r = save_settings(
+                        &mut flash,
+                        board::SETTINGS_FLASH,
+                        &mut sbuf,
+                        console.settings(),
+                    )
+                    .await;
                     console.finish_save(r, &mut out);
                 }
                 Action::Load => {
-                    let r = load_settings(&mut flash, SETTINGS_FLASH, &mut sbuf).await;
+                    let r = load_settings(&mut flash, board::SETTINGS_FLASH, &mut sbuf).await;
                     console.finish_load(r, &mut Shared, &mut out);
                 }
             },
