@@ -112,6 +112,9 @@ pub(crate) struct Reference {
     /// Per channel, the integrated autocorrelation time of this model's residual on the fit
     /// recordings (length-weighted mean) and on the validation recording.
     pub(crate) tau_fit: [f64; 3],
+    /// Per fit recording, this model's residuals per channel (the decision rule's in-sample
+    /// part, [`super::decision::predictive_test`]).
+    pub(crate) fres: Vec<[Option<Vec<f64>>; 3]>,
     pub(crate) tau_val: [f64; 3],
     /// Per channel, how much the validation rms residual changes when this model is refitted
     /// to one fit recording alone (the smallest |relative change| over the fit recordings;
@@ -230,6 +233,7 @@ impl Ctx<'_> {
             split: [0.0; 3],
             generic,
             tau_fit,
+            fres: res,
             tau_val,
             fit: f,
             rss,
@@ -378,7 +382,11 @@ impl Ctx<'_> {
             structure_explained: share,
             implausible: implausible(cand, &f, off, self.resolution()),
         };
-        let predictive = super::decision::predictive_test(&r.vres, &base.vres);
+        let predictive = super::decision::predictive_test(
+            [&r.fres[..], std::slice::from_ref(&r.vres)],
+            [&base.fres[..], std::slice::from_ref(&base.vres)],
+            super::decision::in_sample_optimism(k, &base.tau_fit),
+        );
         let rule = super::decision::rule();
         let mut fails = match rule {
             Rule::Guard => {
