@@ -6,11 +6,18 @@
 //! The loss differential of sample t is d_t = (r0_t² − r1_t²) / s0², the drop of the squared
 //! residual from model 0 (the null) to model 1 (the alternative) in units of model 0's residual
 //! variance s0² = Σ r0² / n: Σ_t d_t ≈ −n ln(RSS1/RSS0), the Gaussian profile log-likelihood
-//! ratio of the two predictions. Under the null "model 1 predicts no better than model 0"
-//! E[d] ≤ 0 and z = d̄ / √(Ω̂ / n) is asymptotically N(0, 1), Ω̂ the long-run variance of d: the
-//! residual's own autocorrelation sets the scale, so a slow model-form residual sampled fast
-//! is not counted as many independent samples. Several channels are pooled as independent
-//! series: z = Σ_c Σ_t d_{c,t} / √(Σ_c n_c Ω̂_c) (cross-channel covariance is not estimated).
+//! ratio of the two predictions. With δ = r0 − r1 the change of the prediction,
+//! d_t = (2 r1_t δ_t + δ_t²) / s0²: the δ² part is the change itself, deterministic, and only the
+//! cross term is what noise makes of it. So Σ d is standardised by the cross term's long-run
+//! variance, Var(Σ d) = 4 n Ω̂(r1 δ) / s0⁴ — the alternative's residual along the change, as a
+//! heteroscedasticity-and-autocorrelation-consistent test scales by the unrestricted model's
+//! residual (Newey & West 1987). (Diebold & Mariano's Ω̂(d) also counts the deterministic
+//! variation of δ² between moves as noise: a loop that removed 84 % of a validation residual
+//! held z < 4.) Under the null "model 1 predicts no better" z = Σ d / √Var is at most N(0, 1)
+//! on data model 1 was not fitted to; the residual's own autocorrelation sets the scale, so a
+//! slow model-form residual sampled fast is not counted as many independent samples. Series
+//! (channels, recordings) are pooled as independent: z = Σ Σ_t d / √(Σ Var) (their covariance
+//! is not estimated).
 
 use statrs::distribution::{ContinuousCDF, Normal};
 
@@ -70,9 +77,12 @@ pub fn diebold_mariano(pairs: &[(&[f64], &[f64])], optimism: f64) -> Option<Pred
         if !(s0 > 0.0) {
             continue;
         }
-        let d: Vec<f64> = (0..n).map(|t| (r0[t] * r0[t] - r1[t] * r1[t]) / s0).collect();
-        sum += d.iter().sum::<f64>();
-        var += n as f64 * long_run_variance(&d);
+        // d_t = (r0² − r1²)/s0² = (2 r1 δ + δ²)/s0² with δ = r0 − r1 the change of the
+        // prediction: δ² is the change itself, not noise; what noise makes of Σ d is the cross
+        // term, whose variance is 4 n Ω(r1 δ) / s0⁴
+        let cross: Vec<f64> = (0..n).map(|t| r1[t] * (r0[t] - r1[t])).collect();
+        sum += (0..n).map(|t| r0[t] * r0[t] - r1[t] * r1[t]).sum::<f64>() / s0;
+        var += 4.0 * n as f64 * long_run_variance(&cross) / (s0 * s0);
     }
     if !(var > 0.0) || !var.is_finite() {
         return None;
