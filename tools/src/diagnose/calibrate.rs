@@ -3,11 +3,11 @@
 //! calibrated to the fit recordings ([`calibrate`]), its residual required to be within
 //! [`MAX_CALIBRATED_NRMSE`] and the stiffness scale plausible.
 
-use crate::diagnose::effects::{calibration_defs, Candidate, Channels};
-use crate::diagnose::fit::{channel_rss, fit, residuals, FitResult};
-use crate::diagnose::model::{Prediction, Prepared};
-use crate::diagnose::selection::{Budget, Ctx};
-use crate::diagnose::{nrmse, stage};
+use super::effects::{calibration_defs, Candidate, Channels};
+use super::fit::{channel_rss, fit, residuals, FitResult};
+use super::model::{Prediction, Prepared};
+use super::selection::{Budget, Ctx};
+use super::{nrmse, stage};
 use crate::model::Rig;
 use anyhow::{bail, Result};
 

@@ -3,13 +3,11 @@
 //! putting its simpler form in its place), and the [`Diagnosis`](super::Diagnosis) assembled
 //! ([`conclude`]).
 
-use crate::diagnose::effects::Candidate;
-use crate::diagnose::fit::{residuals, FitResult};
-use crate::diagnose::model::Prediction;
-use crate::diagnose::selection::{Budget, Ctx};
-use crate::diagnose::{
-    assumptions, mount_resonance, stage, CandidateOutcome, Diagnosis, ReadingChoice,
-};
+use super::effects::Candidate;
+use super::fit::{residuals, FitResult};
+use super::model::Prediction;
+use super::selection::{Budget, Ctx};
+use super::{assumptions, mount_resonance, stage, CandidateOutcome, Diagnosis, ReadingChoice};
 
 /// Long-run 1-σ of the calibration `cal` and the final model `reference` (replacing their
 /// linearised σ), raised to the recordings' disagreement and widened by the discretisation

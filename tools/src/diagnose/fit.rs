@@ -16,11 +16,9 @@ pub use super::fit_problem::{
 };
 pub use super::fit_starts::SAFETY_NET_S;
 
-use crate::diagnose::effects::{Calib, Candidate, ParamDef, Transform};
-use crate::diagnose::fit_starts::{
-    run_starts, scan_points, scan_starts, start_grid, stiffness_scan,
-};
-use crate::diagnose::model::Prepared;
+use super::effects::{Calib, Candidate, ParamDef, Transform};
+use super::fit_starts::{run_starts, scan_points, scan_starts, start_grid, stiffness_scan};
+use super::model::Prepared;
 use crate::model::Rig;
 pub use crate::numeric::lm::covariance;
 use crate::numeric::lm::{self};

@@ -3,8 +3,8 @@
 //! (calibration + effects, [`params_of_values`]), evaluated in parallel batches for the
 //! forward-difference Jacobian.
 
-use crate::diagnose::effects::{apply_calibration, apply_effect, Calib, Candidate, ParamDef};
-use crate::diagnose::model::{predict, BeamCache, Params, Prediction, Prepared};
+use super::effects::{apply_calibration, apply_effect, Calib, Candidate, ParamDef};
+use super::model::{predict, BeamCache, Params, Prediction, Prepared};
 use crate::model::Rig;
 use crate::numeric::cores;
 use crate::numeric::lm::{self, LmOptions};

@@ -3,9 +3,9 @@
 //! ([`start_grid`]) run with successive halving under one budget and the wall-clock safety net
 //! ([`SAFETY_NET_S`], [`run_starts`]).
 
-use crate::diagnose::effects::{Calib, Candidate, ParamDef};
-use crate::diagnose::fit_problem::Problem;
-use crate::diagnose::model::Prepared;
+use super::effects::{Calib, Candidate, ParamDef};
+use super::fit_problem::Problem;
+use super::model::Prepared;
 use crate::model::Rig;
 use crate::numeric::lm::{self, LmOptions};
 use nalgebra::DVector;

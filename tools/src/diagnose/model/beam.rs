@@ -6,8 +6,8 @@
 //! frequency shifts the structural parameters cause ([`frequency_shift_rel`]). How the modes
 //! respond to a drive is [`super::beam_response`].
 
-use crate::diagnose::model::discrete::bounded_expm;
-use crate::diagnose::model::params::Params;
+use super::discrete::bounded_expm;
+use super::params::Params;
 use crate::model::sim::{mode_ramp, mode_zoh};
 use crate::model::{BeamModel, ModelOptions, Orientation, Rig};
 use anyhow::Result;

@@ -8,9 +8,9 @@
 //! ([`cubic_moment`], bounded; `cubic_stiffness`, with the linear k_r in the modes), the tip
 //! moved by the same static correction; motor force from eq. (5), `u = J ÿ + hᵀ q̈ − ∫ drag`.
 
-use crate::diagnose::model::beam::BeamCache;
-use crate::diagnose::model::discrete::{accel_at, at_rest, velocity_step};
-use crate::diagnose::model::params::Params;
+use super::beam::BeamCache;
+use super::discrete::{accel_at, at_rest, velocity_step};
+use super::params::Params;
 use nalgebra::Vector2;
 
 /// Cubic part of a clamp moment, `k₃ θ · min(θ², θ_c²)` (N·m): exactly k₃θ³ up to the bound

@@ -3,8 +3,8 @@
 //! ([`CarriageLoad`]), in the force channel and inside the position loop alike, and the force
 //! channel's latency ([`carriage_forces`]).
 
-use crate::diagnose::model::params::Params;
-use crate::diagnose::model::sensor::delayed;
+use super::params::Params;
+use super::sensor::delayed;
 
 /// Velocity over which Coulomb friction is smoothed (m/s): `F_c tanh(v / v_s)`, in the force
 /// channel and inside the position loop alike.

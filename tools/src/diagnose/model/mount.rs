@@ -7,9 +7,9 @@
 //! `mount_resonance` with `mount_mass_kg`), or a massless filter of the root motion (a mount the
 //! beam does not load). [`root_motion`] composes them.
 
-use crate::diagnose::model::beam::{beam_cache, root_transition, BeamCache};
-use crate::diagnose::model::discrete::{advance, second_order};
-use crate::diagnose::model::params::Params;
+use super::beam::{beam_cache, root_transition, BeamCache};
+use super::discrete::{advance, second_order};
+use super::params::Params;
 use crate::model::Rig;
 
 /// The play (backlash) operator of total width `width_m` (m): the output stays put while the

@@ -4,15 +4,15 @@
 //! chain lives here: the beam is driven by the *measured* base position when recorded (so
 //! carriage effects do not leak into the tip channel), else by the predicted one ([`drives`]).
 
-use crate::diagnose::model::beam::{beam_cache, structural_key, BeamCache};
-use crate::diagnose::model::beam_response::beam_response;
-use crate::diagnose::model::carriage::{carriage_forces, CarriageLoad};
-use crate::diagnose::model::discrete::{accel_at, spline_accel};
-use crate::diagnose::model::mount::root_motion;
-use crate::diagnose::model::params::{DriveReading, Params, FOURTH_ORDER_HALF};
-use crate::diagnose::model::prepared::Prepared;
-use crate::diagnose::model::sensor::tip_sensor;
-use crate::diagnose::model::servo::ServoLaw;
+use super::beam::{beam_cache, structural_key, BeamCache};
+use super::beam_response::beam_response;
+use super::carriage::{carriage_forces, CarriageLoad};
+use super::discrete::{accel_at, spline_accel};
+use super::mount::root_motion;
+use super::params::{DriveReading, Params, FOURTH_ORDER_HALF};
+use super::prepared::Prepared;
+use super::sensor::tip_sensor;
+use super::servo::ServoLaw;
 use crate::model::Rig;
 use anyhow::{bail, Result};
 

@@ -3,8 +3,8 @@
 //! or, for a sensor riding on the carriage, on the deflection only: `y + g · w`; a resonance
 //! between the tip and its sensor ([`tip_sensor`]).
 
-use crate::diagnose::model::discrete::second_order;
-use crate::diagnose::model::params::Params;
+use super::discrete::second_order;
+use super::params::Params;
 
 /// Half-length (samples) of the [`delayed`] interpolation kernel (2 × this many taps).
 const DELAY_HALF: usize = 8;

@@ -9,10 +9,10 @@
 //! forces of [`super::carriage`], which the loop must overcome ([`CarriageLoad`]); predicted
 //! `base_pos_m`.
 
-use crate::diagnose::model::beam::{root_generator, BeamCache};
-use crate::diagnose::model::carriage::{CarriageLoad, FRICTION_SMOOTHING_M_S};
-use crate::diagnose::model::discrete::{advance, at_rest, bounded_expm, second_order};
-use crate::diagnose::model::params::Params;
+use super::beam::{root_generator, BeamCache};
+use super::carriage::{CarriageLoad, FRICTION_SMOOTHING_M_S};
+use super::discrete::{advance, at_rest, bounded_expm, second_order};
+use super::params::Params;
 
 /// Carriage position under a position loop that carries the beam: the loop force
 /// `F = M [k_a r̈ + 2ζω (k_v ṙ − ẏ) + ω² (r − y)]` (M the total moving mass the drive is tuned

@@ -4,9 +4,9 @@
 //! [`BASE_WITHOUT_LOOP`]), the split-refit spread's share, and the reduction credited to a
 //! candidate per channel.
 
+use super::guard::*;
+use super::state::Reference;
 use crate::diagnose::model::{Prediction, Prepared};
-use crate::diagnose::selection::guard::*;
-use crate::diagnose::selection::state::Reference;
 use crate::effect::Effect;
 use crate::numeric::arx;
 

@@ -3,15 +3,15 @@
 //! counts, and the calibration-matter rules (a shift below the model's own accuracy, a
 //! deflection scale the mode bands disagree on, a resonant loop at a beam mode).
 
+use super::allowance::{allowance, credited_reduction, q_of};
+use super::context::Ctx;
+use super::evidence::structure_evidence;
+use super::guard::*;
+use super::placement::{split_off_peak, RESONANT_LOOP_ZETA};
+use super::plausibility::{implausible, significance};
+use super::state::{n_of, Reference};
 use crate::diagnose::effects::Candidate;
 use crate::diagnose::fit::{self, FitResult};
-use crate::diagnose::selection::allowance::{allowance, credited_reduction, q_of};
-use crate::diagnose::selection::context::Ctx;
-use crate::diagnose::selection::evidence::structure_evidence;
-use crate::diagnose::selection::guard::*;
-use crate::diagnose::selection::placement::{split_off_peak, RESONANT_LOOP_ZETA};
-use crate::diagnose::selection::plausibility::{implausible, significance};
-use crate::diagnose::selection::state::{n_of, Reference};
 use crate::diagnose::unexplained::LJUNG_BOX_CRITICAL;
 use crate::diagnose::CandidateOutcome;
 

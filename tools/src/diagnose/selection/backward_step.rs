@@ -2,11 +2,11 @@
 //! chosen before it must still earn its place beside it; the candidates are judged again against
 //! the better reference that leaves ([`rejudge`]).
 
+use super::budget::Budget;
+use super::context::Ctx;
+use super::state::{set_of, Reference};
 use crate::diagnose::effects::Candidate;
 use crate::diagnose::fit::FitResult;
-use crate::diagnose::selection::budget::Budget;
-use crate::diagnose::selection::context::Ctx;
-use crate::diagnose::selection::state::{set_of, Reference};
 use crate::diagnose::CandidateOutcome;
 
 /// Backward check: the effects already chosen (in the first round: the calibration alone),

@@ -3,12 +3,12 @@
 //! a gravity axial load or a tip mass against a local compliance, searched over octaves and
 //! refined by golden section ([`octave_search`]).
 
+use super::budget::Budget;
+use super::context::Ctx;
+use super::guard::*;
+use super::state::{joint_set, n_of, set_of};
 use crate::diagnose::effects::Candidate;
 use crate::diagnose::fit::FitResult;
-use crate::diagnose::selection::budget::Budget;
-use crate::diagnose::selection::context::Ctx;
-use crate::diagnose::selection::guard::*;
-use crate::diagnose::selection::state::{joint_set, n_of, set_of};
 use crate::diagnose::CandidateOutcome;
 use crate::effect::Effect;
 

@@ -2,12 +2,12 @@
 //! trace; fitting a set of candidates, turning a fit into a [`Reference`], the split-refit
 //! spread, and evaluating a candidate (fit, then [`Ctx::assess`]).
 
+use super::allowance::{generic_column_count, generic_columns, split_change};
+use super::guard::*;
+use super::state::Reference;
 use crate::diagnose::effects::{Calib, Candidate};
 use crate::diagnose::fit::{self, channel_rss, residuals, FitResult};
 use crate::diagnose::model::Prepared;
-use crate::diagnose::selection::allowance::{generic_column_count, generic_columns, split_change};
-use crate::diagnose::selection::guard::*;
-use crate::diagnose::selection::state::Reference;
 use crate::diagnose::{nrmse, CandidateOutcome};
 use crate::model::Rig;
 use crate::numeric::arx;

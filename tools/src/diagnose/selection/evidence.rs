@@ -4,9 +4,9 @@
 //! ([`driven_share`], [`MAX_DRIVEN_SHARE`]), judged outside the residual's bursts
 //! ([`burst_samples`]).
 
+use super::guard::*;
 use crate::diagnose::fit::FORCE_CHANNEL;
 use crate::diagnose::rate::welch_power;
-use crate::diagnose::selection::guard::*;
 use crate::ident::frf::{welch, Frf, WelchOptions, Window};
 use crate::numeric::stats::{innovation_variance, median};
 

@@ -9,12 +9,12 @@
 //! Every fit draws on one [`Budget`] of model evaluations, never on the clock, so the same
 //! recordings give the same answer on any machine.
 
+use super::budget::Budget;
+use super::context::Ctx;
+use super::pairs::pair_step;
+use super::rounds::{accept, play_round};
+use super::state::{Reference, Selection};
 use crate::diagnose::effects::Candidate;
-use crate::diagnose::selection::budget::Budget;
-use crate::diagnose::selection::context::Ctx;
-use crate::diagnose::selection::pairs::pair_step;
-use crate::diagnose::selection::rounds::{accept, play_round};
-use crate::diagnose::selection::state::{Reference, Selection};
 use crate::progress::Progress;
 
 /// Most effects forward selection adds.

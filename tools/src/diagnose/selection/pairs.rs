@@ -2,14 +2,14 @@
 //! part of the structured residual, it is tried as the first of a pair; a structural pair that a
 //! local compliance explains better is reported as one ([`structural_pair_as_crack`]).
 
+use super::budget::Budget;
+use super::context::Ctx;
+use super::evidence::structure_explained;
+use super::guard::*;
+use super::placement::resonance_to_place;
+use super::rounds::{accept, play_round};
+use super::state::{set_of, Reference, Selection};
 use crate::diagnose::effects::Candidate;
-use crate::diagnose::selection::budget::Budget;
-use crate::diagnose::selection::context::Ctx;
-use crate::diagnose::selection::evidence::structure_explained;
-use crate::diagnose::selection::guard::*;
-use crate::diagnose::selection::placement::resonance_to_place;
-use crate::diagnose::selection::rounds::{accept, play_round};
-use crate::diagnose::selection::state::{set_of, Reference, Selection};
 use crate::diagnose::CandidateOutcome;
 use crate::effect::Effect;
 use crate::progress::Progress;

@@ -3,14 +3,14 @@
 //! [`placement_guard`]), a mount beside the beam's modes, and the resonance forms of a round
 //! ([`place_resonances`]).
 
+use super::allowance::{allowance, best_reduction};
+use super::budget::Budget;
+use super::context::Ctx;
+use super::evidence::structure_evidence;
+use super::guard::*;
+use super::state::{joint_set, n_of, Reference};
 use crate::diagnose::effects::Candidate;
 use crate::diagnose::fit::FitResult;
-use crate::diagnose::selection::allowance::{allowance, best_reduction};
-use crate::diagnose::selection::budget::Budget;
-use crate::diagnose::selection::context::Ctx;
-use crate::diagnose::selection::evidence::structure_evidence;
-use crate::diagnose::selection::guard::*;
-use crate::diagnose::selection::state::{joint_set, n_of, Reference};
 use crate::diagnose::CandidateOutcome;
 
 impl Ctx<'_> {

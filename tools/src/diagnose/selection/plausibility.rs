@@ -4,9 +4,9 @@
 //! ([`significance`], [`sigmas_from_null`]), and which chosen effects the final model does not
 //! identify ([`unidentified_in_final`]).
 
+use super::guard::*;
 use crate::diagnose::effects::{Candidate, Transform};
 use crate::diagnose::fit::FitResult;
-use crate::diagnose::selection::guard::*;
 
 /// Largest command → base gain (10 dB) of a position loop a drive is tuned to
 /// ([`crate::diagnose::model::ServoLaw::peak_gain`]): closed-loop peaking is held below about 3 dB for

@@ -2,14 +2,14 @@
 //! the calibration and the effects chosen so far ([`fit_round`], with refits from better
 //! points and larger forms and the placements), the best that passes accepted ([`accept`]).
 
+use super::backward_step::backward_check;
+use super::budget::Budget;
+use super::compliance::place_compliances;
+use super::context::Ctx;
+use super::placement::{judge_mounts_beside_modes, place_resonances};
+use super::state::{joint_set, pool_of, set_of, Reference, Selection};
 use crate::diagnose::effects::Candidate;
-use crate::diagnose::fit::{self};
-use crate::diagnose::selection::backward_step::backward_check;
-use crate::diagnose::selection::budget::Budget;
-use crate::diagnose::selection::compliance::place_compliances;
-use crate::diagnose::selection::context::Ctx;
-use crate::diagnose::selection::placement::{judge_mounts_beside_modes, place_resonances};
-use crate::diagnose::selection::state::{joint_set, pool_of, set_of, Reference, Selection};
+use crate::diagnose::fit;
 use crate::diagnose::{stage, CandidateOutcome};
 use crate::progress::Progress;
 

@@ -1,9 +1,9 @@
 //! Tests of the selection's rounds, evidence measures, placement and plausibility rules.
 
+use super::guard::*;
 use crate::diagnose::effects::{Candidate, Transform};
 use crate::diagnose::fit::FitResult;
 use crate::diagnose::model::Prediction;
-use crate::diagnose::selection::guard::*;
 use crate::diagnose::CandidateOutcome;
 use crate::effect::Effect;
 use crate::numeric::arx;
