@@ -110,18 +110,18 @@ pub struct CandidateOutcome {
     /// Validation predictions.
     pub val_pred: Prediction,
     /// Why a resonance that passes every other guard cannot be placed where the candidate puts
-    /// it (a mount that a loose tip sensor explains as well; [`select`] condition 8), if so.
+    /// it (a mount that a loose tip sensor explains as well; [`selection::guard`] condition 8), if so.
     pub unplaced: Option<String>,
-    /// The effect the recordings cannot tell this one from, if so ([`lookalike`]).
+    /// The effect the recordings cannot tell this one from, if so ([`selection::lookalike`]).
     pub look_alike: Option<selection::lookalike::LookAlike>,
-    /// It failed only condition 6 of [`select`]: it removes part, not most, of the structured
-    /// residual — what the first effect of a pair does beside the second ([`forward`]'s
+    /// It failed only condition 6 of [`selection::guard`]: it removes part, not most, of the structured
+    /// residual — what the first effect of a pair does beside the second ([`selection`]'s
     /// pair step).
     pub partial: bool,
     /// It failed only the calibration-matter rule, as a coupled mount whose resonance lies
     /// beside a model mode: apart by more than its half-power half-width (and 2 σ), within the
     /// full width. Such a split-off resonance is judged against a local compliance of the beam
-    /// instead ([`forward`]'s `judge_mounts_beside_modes`).
+    /// instead (`selection::placement::judge_mounts_beside_modes`).
     pub beside_mode: bool,
 }
 

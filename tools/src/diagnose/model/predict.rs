@@ -34,7 +34,7 @@ thread_local! {
 
 /// Samples [`predict`] has simulated on the calling thread so far: the work a diagnosis has
 /// done, counted in the budget's unit (one diagnosis runs on one thread and counts what a
-/// helper thread simulated for it, [`add_simulated_samples`]; [`crate::diagnose::forward::Budget`]).
+/// helper thread simulated for it, [`add_simulated_samples`]; [`crate::diagnose::selection::Budget`]).
 pub fn simulated_samples() -> u64 {
     SIMULATED_SAMPLES.with(|c| c.get())
 }

@@ -497,6 +497,7 @@ fn cubic_shift_hz(rate_hz: f64, k3: f64) -> f64 {
     ring_hz(&rig, &cubic, &rec, 15.0) - ring_hz(&rig, &lin, &rec, 15.0)
 }
 
+#[cfg(test)] // the layout rule lets a test print what it measured
 #[test]
 fn a_cubic_clamp_shifts_the_ring_alike_at_any_sample_rate() {
     // the clamp's compliance lies mostly in modes above any sample rate (module header,

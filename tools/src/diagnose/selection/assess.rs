@@ -16,7 +16,7 @@ use crate::diagnose::unexplained::LJUNG_BOX_CRITICAL;
 use crate::diagnose::CandidateOutcome;
 
 impl Ctx<'_> {
-    /// Applies every guard ([`select::guard`] and the calibration-matter rules) to candidate
+    /// Applies every guard ([`super::guard::guard`] and the calibration-matter rules) to candidate
     /// `ci` (last of `set`), fitted as `r`, against the model `base` it extends.
     pub(crate) fn assess(
         &self,
@@ -97,7 +97,7 @@ impl Ctx<'_> {
 
     /// ΔBIC on the fit recordings and Δ(−2 ln L) on the validation recording of the model `r`
     /// (with a candidate of `k` parameters) against `base`, the model it extends
-    /// ([`select`](crate::diagnose::select) module docs, 1–2). Every channel's samples count as n / τ
+    /// ([`guard`](super::guard) module docs, 1–2). Every channel's samples count as n / τ
     /// independent ones, τ of `r`'s own residual (fit, resp. validation): a
     /// heteroscedasticity-and-autocorrelation-consistent test scales by the unrestricted
     /// model's residual (Newey & West 1987). The null's residual holds the very signature under

@@ -12,7 +12,7 @@
 //! (Efroymson 1960), once no candidate passes, each chosen effect in turn (the earliest first)
 //! is removed, the rest refitted from the final optimum, and the effect is kept only if the
 //! final model beats that refit by the margins of the guard's conditions 1 and 2
-//! ([`super::select`]): ΔBIC < −[`BIC_MARGIN`] on the fit recordings and
+//! ([`super::guard`]): ΔBIC < −[`BIC_MARGIN`] on the fit recordings and
 //! Δ(−2 ln L) < −[`VALIDATION_MARGIN`] on the validation recording, with the final model's
 //! effective sample counts. One that does not is dropped, the refit becomes the final model, and
 //! its round's table says why.

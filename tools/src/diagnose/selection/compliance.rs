@@ -13,7 +13,7 @@ use crate::diagnose::CandidateOutcome;
 use crate::effect::Effect;
 
 impl Ctx<'_> {
-    /// Where a root spring sits (condition 9 of [`crate::diagnose::select`]): the candidate `o` (last of
+    /// Where a root spring sits (condition 9 of [`super::guard`]): the candidate `o` (last of
     /// `set`, a [`Effect::RootCompliance`]) is named only if the recordings do not reject its
     /// place at the clamp: the same rotational spring placed along the beam
     /// ([`crate::diagnose::effects::along_beam_of`], [`Self::fit_along_beam`]) nests it (position → 0),

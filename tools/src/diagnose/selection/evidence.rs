@@ -11,7 +11,7 @@ use crate::ident::frf::{welch, Frf, WelchOptions, Window};
 use crate::numeric::stats::{innovation_variance, median};
 
 /// The validation residuals `before` and `after` (one channel) as conditions 4 and 6 of
-/// [`crate::diagnose::select`] judge them. On `force_n` (`channel` [`FORCE_CHANNEL`]) the residual's
+/// [`super::guard`] judge them. On `force_n` (`channel` [`FORCE_CHANNEL`]) the residual's
 /// **bursts** ([`burst_samples`]: outliers of `before` that `after` leaves as outliers too) are
 /// replaced by each residual's median: the force a drive reports around an acceleration step is
 /// its loop's transient between samples, which the samples do not resolve and no catalogue
@@ -49,7 +49,7 @@ pub(crate) fn judged(
 
 /// Fraction of the structured validation residual (variance above the white-noise floor, the
 /// smaller innovation variance of the two, [`innovation_variance`]) that `after` removes from
-/// `before` ([`crate::diagnose::select`] condition 6), both as [`judged`] on `channel`; `None` without
+/// `before` ([`super::guard`] condition 6), both as [`judged`] on `channel`; `None` without
 /// both.
 pub(crate) fn structure_explained(
     before: Option<&[f64]>,

@@ -1,6 +1,6 @@
 //! Forward selection ([`select_forward`]): each round fits every remaining candidate jointly
 //! with the calibration and the effects already chosen, applies every guard
-//! ([`super::select::guard`] and the calibration-matter rules) against the current model, adds
+//! ([`super::guard::guard`] and the calibration-matter rules) against the current model, adds
 //! the best that passes and stops when none does (at most [`MAX_EFFECTS`]). When none passes
 //! but the best fails only for removing part of the structured residual, it is tried as the
 //! first of a pair ([`pair_step`]). When the final model later drops an effect the recordings do

@@ -301,7 +301,7 @@ fn convergence(
 /// chosen) by more than model-form freedom: on the channel it helps most, its validation rms
 /// reduction exceeds the look-alike's by more than the larger of
 /// - the physics-free correction with as many parameters on the final model's residual there
-///   ([`super::select`] condition 3), and
+///   ([`super::guard`] condition 3), and
 /// - the spread of that reduction among the fitted forms of one effect in the same round
 ///   ([`form_spread`]): the loop's orders are the same physics in different model form, so
 ///   the difference between them is what model form alone moves the gain by on these data.
@@ -444,7 +444,7 @@ pub(crate) fn within_partner_form(
 /// `reduction` does not exceed the spread. `None`: `id` may be physics of its own.
 ///
 /// Evidence of its own is the likelihood margins *and* a validation reduction beyond the
-/// round's model-form allowance (conditions 1–3 of [`super::select`]): a gain that a
+/// round's model-form allowance (conditions 1–3 of [`super::guard`]): a gain that a
 /// physics-free correction with as many parameters earns as well is the model form's, not the
 /// look-alike's. Second simulator, seed 21, case23 (a null, no `base_pos_m`, the simulator's
 /// 1 kHz PID loop with its derivative filter and ZOH): a latency alone gained ΔBIC −33,

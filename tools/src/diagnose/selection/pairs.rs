@@ -14,7 +14,7 @@ use crate::diagnose::CandidateOutcome;
 use crate::effect::Effect;
 use crate::progress::Progress;
 
-/// Condition 6 of [`crate::diagnose::select`] read for a pair: when no candidate of round `round`
+/// Condition 6 of [`super::guard`] read for a pair: when no candidate of round `round`
 /// (outcomes `outs`) passes, but the best one fails only for removing part, not most, of the
 /// structured residual ([`CandidateOutcome::partial`]) — the first effect of a pair leaves the
 /// second's share of that structure — it is added on trial and the next round played (not a

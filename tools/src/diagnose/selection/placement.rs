@@ -14,7 +14,7 @@ use crate::diagnose::fit::FitResult;
 use crate::diagnose::CandidateOutcome;
 
 impl Ctx<'_> {
-    /// Where a resonance on the command → tip path sits (condition 8 of [`crate::diagnose::select`]): a
+    /// Where a resonance on the command → tip path sits (condition 8 of [`super::guard`]): a
     /// mount, or a lightly damped position loop ([`resonance_to_place`]). A massless mount
     /// filters the root motion; on `tip_pos_m` that is the same linear filter as a resonance
     /// between the tip and its sensor (a loose sensor mount: filters in series commute), and

@@ -120,7 +120,7 @@ pub(crate) struct NullEvidence {
 }
 
 /// The effect of the final model (`set` after `calib_len` calibration parameters, fitted as
-/// `f`) that fails the guard's significance condition ([`crate::diagnose::select`] 5: ≥ [`MIN_SIGMAS`] σ
+/// `f`) that fails the guard's significance condition ([`super::guard`] 5: ≥ [`MIN_SIGMAS`] σ
 /// from "no effect", [`sigmas_from_null`]) once judged with the σ the recordings give
 /// (`evidence.std`: long-run, split refits, the model's stated accuracy) at its fitted value
 /// **and at the value of every model-form alternative** (`evidence.alternatives`) — the
@@ -195,7 +195,7 @@ pub(crate) fn unidentified_in_final(
     ))
 }
 
-/// Parameters that sign- or range-limited physics forbids ([`crate::diagnose::select`] condition 7);
+/// Parameters that sign- or range-limited physics forbids ([`super::guard`] condition 7);
 /// `lowest_resolved_hz` is the lowest frequency the fit recordings resolve (1 / duration): a
 /// position loop slower than that never brings the carriage to its command within a recording
 /// (as its bandwidth → 0 the loop becomes a constant gain on the command, k_v or k_a): it is

@@ -276,7 +276,7 @@ fn showed_evidence_last_round(sel: &Selection, i: usize) -> bool {
 }
 
 /// Whether outcome `o` passed, or passed the likelihood conditions of the guard (1–2 of
-/// [`crate::diagnose::select`]: ΔBIC on the fit recordings, Δ(−2 ln L) on the validation recording),
+/// [`super::guard`]: ΔBIC on the fit recordings, Δ(−2 ln L) on the validation recording),
 /// whatever the others said. The other conditions are worth judging again against the
 /// augmented model: an effect beside a larger one removes only part of a residual the larger
 /// one dominates, and its fit, pulled by that residual, may stop at a limit of its range. So is
