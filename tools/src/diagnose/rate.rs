@@ -57,7 +57,7 @@
 //!    sample); the ends are held at their first/last values.
 //!    Kaiser, "Nonrecursive digital filter design using the I0-sinh window function", 1974.
 
-use super::model::Prepared;
+use super::model::prepared::Prepared;
 use crate::recording::windowed_sinc;
 
 /// Lowest working rate (Hz): see the module header, step 2.
