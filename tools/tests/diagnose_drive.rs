@@ -4,7 +4,7 @@
 //! twice at 1000 Hz outweighs the motion's acceleration, and the force calibration then fitted
 //! a carriage without mass (`base_friction+mount_resonance` 65050, 76050 of the tuning seeds).
 
-use beamtools::diagnose::sim::{accel_at, Prepared};
+use beamtools::diagnose::model::{accel_at, Prepared};
 use beamtools::recording::Recording;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};

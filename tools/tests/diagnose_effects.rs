@@ -37,7 +37,7 @@ fn cubic_stiffness_is_named_with_its_cubic_compliance() {
 /// A mount at the top of the band the model's own modes cover (40.0 Hz on 100 Hz recordings:
 /// the truth generator's ceiling, 0.4 × the rate; held-out seed 118700) is a mount, not "beyond
 /// the observable band": the mount's search reaches the band edge of the calibration, 0.45 × the
-/// rate ([`beamtools::diagnose::sim::band_edge_hz`]). Before, the fit at 40.9 Hz was refused
+/// rate ([`beamtools::diagnose::model::band_edge_hz`]). Before, the fit at 40.9 Hz was refused
 /// and the diagnosis was `none`. The frequency compared is the resonance as the rig shows it
 /// (the coupled mount + beam with the carriage held, [`beamtools::model::mount`]): 44.2 Hz in
 /// the truth, 43.5 ± 1.2 Hz reported.

@@ -2,7 +2,7 @@
 //! is the force of the motion, not of a stop that never happened (a −v/dt kick there bent the
 //! force calibration's mass and latency).
 
-use beamtools::diagnose::sim::{predict, Params, Prepared};
+use beamtools::diagnose::model::{predict, Params, Prepared};
 use beamtools::model::Rig;
 use beamtools::recording::Recording;
 

@@ -7,7 +7,7 @@
 
 mod common;
 
-use beamtools::diagnose::sim::{predict, Params, Prepared};
+use beamtools::diagnose::model::{predict, Params, Prepared};
 use beamtools::model::Rig;
 use beamtools::truth::unmodelled::Unmodelled;
 use beamtools::truth::TruthOptions;

@@ -2,8 +2,8 @@
 //! `beamtool diagnose-proof`, recorded in docs/diagnose.md).
 
 use beamtools::diagnose::diagnose;
+use beamtools::diagnose::model::Prepared;
 use beamtools::diagnose::proof::{proof_table, run_proof, ProofRow};
-use beamtools::diagnose::sim::Prepared;
 use beamtools::model::Rig;
 
 mod common;

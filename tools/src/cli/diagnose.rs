@@ -2,8 +2,8 @@
 //! and printing around the library in [`crate::diagnose`].
 
 use crate::diagnose::fit::{residuals, CHANNEL_NAMES};
+use crate::diagnose::model::Prepared;
 use crate::diagnose::report::{to_json, words};
-use crate::diagnose::sim::Prepared;
 use crate::diagnose::{diagnose as run_diagnosis, Diagnosis};
 use crate::ident::spectrum::amplitude_spectrum;
 use crate::model::Rig;

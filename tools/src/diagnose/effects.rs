@@ -1,11 +1,11 @@
 //! The catalogue of candidate physics: each an extension of the nominal model with physical
-//! parameters, mapped onto [`Params`] of the augmented simulator ([`super::sim`]).
+//! parameters, mapped onto [`Params`] of the augmented simulator ([`super::model`]).
 //!
 //! Every candidate is fitted *together with* the calibration parameters (stiffness scale,
 //! damping ratios, carriage-mass correction; [`calibration_defs`]) so that the first-order
 //! mismatch a recalibration absorbs is never credited to an effect.
 
-use super::sim::Params;
+use super::model::Params;
 use crate::effect::Effect;
 use crate::model::{Orientation, Rig};
 
@@ -171,20 +171,20 @@ pub struct Calib {
     pub defs: Vec<ParamDef>,
     /// Galerkin basis functions (every in-band mode converged).
     pub n_basis: usize,
-    /// Lowest clamped modes simulated ([`super::sim::BasisChoice::simulated_modes`]; `None` =
+    /// Lowest clamped modes simulated ([`super::model::BasisChoice::simulated_modes`]; `None` =
     /// those below each recording's band edge).
     pub simulated_modes: Option<usize>,
     /// The drive between samples is the cubic spline through them ([`Params::smooth_drive`];
     /// only in the 1-σ's model-form alternative).
     pub smooth_drive: bool,
     /// How the drive is read between samples at the recording's own rate
-    /// ([`super::sim::DriveReading`], chosen by the recordings).
-    pub drive_reading: super::sim::DriveReading,
+    /// ([`super::model::DriveReading`], chosen by the recordings).
+    pub drive_reading: super::model::DriveReading,
 }
 
 impl Calib {
     /// This calibration with the drive read as `reading`.
-    pub fn with_reading(&self, reading: super::sim::DriveReading) -> Calib {
+    pub fn with_reading(&self, reading: super::model::DriveReading) -> Calib {
         Calib {
             drive_reading: reading,
             ..self.clone()
@@ -251,7 +251,7 @@ pub fn calibration_defs(rig: &Rig, ch: &Channels, in_band_modes: usize, n_basis:
         n_basis,
         simulated_modes: None,
         smooth_drive: false,
-        drive_reading: super::sim::DriveReading::PiecewiseLinear,
+        drive_reading: super::model::DriveReading::PiecewiseLinear,
     }
 }
 
@@ -315,7 +315,7 @@ pub fn apply_calibration(calib: &Calib, values: &[f64], p: &mut Params) {
 }
 
 /// The `servo_lag` candidate of one order of the command → base transfer function
-/// ([`super::sim::ServoLaw`]) with velocity and acceleration feed-forward, for recordings at
+/// ([`super::model::ServoLaw`]) with velocity and acceleration feed-forward, for recordings at
 /// `rate_hz`: order 1 (bandwidth, k_v), 2 (+ damping ratio, k_a), 3 (+ integral pole ratio α),
 /// 4 (+ drive-force lag ratio β).
 pub fn servo_candidate(order: usize, rate_hz: f64) -> Candidate {
@@ -481,7 +481,7 @@ fn servo_candidates(rate_hz: f64) -> Vec<Candidate> {
     // a position loop with velocity and acceleration feed-forward (how drives are tuned):
     // the same loop, the following error driven only by the parts of ṙ and r̈ the
     // feed-forward misses; orders 1, 3 and 4 of the command → base transfer function
-    // ([`super::sim::ServoLaw`]) besides; the selection keeps the form of lowest BIC
+    // ([`super::model::ServoLaw`]) besides; the selection keeps the form of lowest BIC
     for order in [2, 1, 3, 4] {
         c.push(servo_candidate(order, f0));
     }
@@ -708,12 +708,12 @@ pub fn mount_scan_hz(mode_freqs_hz: &[f64], fmax: f64) -> Vec<f64> {
 /// The `mount_resonance` candidate: a spring–damper between the carriage and the beam root
 /// (frequency + damping ratio), either as a massless filter of the root motion (a mount much
 /// heavier than the beam: the beam does not load it) or, `coupled`, as a mount mass carrying
-/// the beam ([`super::sim`]'s `coupled_mount`, the mass a structural part of the carriage:
+/// the beam ([`super::model`]'s `coupled_mount`, the mass a structural part of the carriage:
 /// 5–95 % of its mass). The frequency is scanned over the band before the fit, up to the band
-/// edge of the model's own modes ([`super::sim::band_edge_hz`], 0.45 × the sample rate): a
+/// edge of the model's own modes ([`super::model::band_edge_hz`], 0.45 × the sample rate): a
 /// resonance the recording can show as a mode it can show as a mount.
 pub fn mount_candidate(h: &StartHints, coupled: bool) -> Candidate {
-    let fmax = super::sim::band_edge_hz(1.0 / h.rate_hz);
+    let fmax = super::model::band_edge_hz(1.0 / h.rate_hz);
     let mut freq = def(
         "mount_frequency_hz",
         Transform::Log,
@@ -756,7 +756,7 @@ pub fn mount_candidate(h: &StartHints, coupled: bool) -> Candidate {
 /// The alternative placement of a resonance on the command → tip path (`cand`: a mount of either
 /// form, or a position loop with a damping ratio): the same frequency and damping ratio as a
 /// resonance between the tip and its sensor (a loose sensor mount,
-/// [`super::sim::Params::tip_filter`]). On `tip_pos_m` it is the same linear filter as a
+/// [`super::model::Params::tip_filter`]). On `tip_pos_m` it is the same linear filter as a
 /// massless mount or a resonant loop with full velocity feed-forward (filters in series
 /// commute); only the channels that see the beam root or the carriage move (`force_n`, and
 /// `base_pos_m` for a loop) tell them apart. Not a catalogue effect: the yardstick of the
@@ -794,7 +794,7 @@ pub const SPRING_POSITION_MAX_REL: f64 = 0.9;
 
 /// The alternative placement of a root spring (`cand`: [`Effect::RootCompliance`]): the same
 /// rotational spring at a point along the beam of length `length_m`, `spring_position_m` in
-/// (0, [`SPRING_POSITION_MAX_REL`] l) ([`super::sim::Params::spring_position_m`], its last
+/// (0, [`SPRING_POSITION_MAX_REL`] l) ([`super::model::Params::spring_position_m`], its last
 /// parameter): a local compliance such as a crack, a notch or
 /// a loose joint, which lowers each mode by its curvature *there* (Dimarogonas, Eng. Fract.
 /// Mech. 55, 1996), where a compliant clamp lowers each by its curvature at the root. Not a

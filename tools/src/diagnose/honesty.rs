@@ -23,7 +23,7 @@
 //! 5. **Model-form alternatives** ([`Alternative`]): each refit's values (one basis function
 //!    more, the other reading of the drive, the base-motion assumption) are kept beside the
 //!    σ they widen. Whether an effect is there is asked at each of them with the σ the
-//!    recordings give ([`super::forward::unidentified_in_final`]); how large it is carries
+//!    recordings give ([`super::selection::unidentified_in_final`]); how large it is carries
 //!    their changes.
 //! 6. **The model's stated accuracy** (Type B): on parameters read from the pattern of the
 //!    natural frequencies ([`add_model_accuracy_std`], also read by the significance test) and,
@@ -32,8 +32,8 @@
 
 use super::effects::{Calib, Candidate};
 use super::fit::{self, FitResult, CHANNEL_NAMES};
-use super::select::{ljung_box, LJUNG_BOX_LAGS};
-use super::sim::{DriveReading, Prepared};
+use super::model::{DriveReading, Prepared};
+use super::selection::guard::{ljung_box, LJUNG_BOX_LAGS};
 use crate::model::Rig;
 use crate::numeric::{
     lm,
@@ -104,7 +104,7 @@ pub fn long_run_std(
 /// `set`, fitted with `calib.n_basis` Galerkin functions): the final model is refitted (warm,
 /// at most `max_evaluations`) with one basis function more, and each parameter's change is
 /// added in quadrature, σ² ← σ² + (θ_{n+1} − θ_n)². The basis is chosen so the in-band
-/// frequencies move by < 1e-3 with one more function ([`super::sim::converged_basis`]); a
+/// frequencies move by < 1e-3 with one more function ([`super::model::converged_basis`]); a
 /// parameter fixed by frequency *ratios* (a tip mass, a root spring) inherits that error as a
 /// bias the residual does not show (it stays white), so the statistical σ alone cannot cover
 /// it. Returns the model evaluations used (0 when the basis is at its largest, 12) and the
@@ -131,9 +131,9 @@ pub fn add_basis_std(
 /// Adds the **model-accuracy uncertainty** of the parameters read from the pattern of the
 /// natural frequencies (a root spring, a tip mass) to the 1-σ of `f` (calibration + `set`), a
 /// Type B term (GUM, JCGM 100:2008 4.3): the model states its in-band natural frequencies to
-/// [`super::sim::BASIS_CONVERGENCE_REL`] (relative), and such a parameter is read from the
+/// [`super::model::BASIS_CONVERGENCE_REL`] (relative), and such a parameter is read from the
 /// *pattern* of those frequencies, the part one stiffness scale cannot absorb
-/// ([`super::sim::frequency_shift_beyond_scale_rel`]; the stiffness scale is calibrated beside
+/// ([`super::model::frequency_shift_beyond_scale_rel`]; the stiffness scale is calibrated beside
 /// it, so a shift common to every mode says nothing). With s the change of that pattern per
 /// unit change of ln θ at the fitted θ, a pattern error inside ± the stated accuracy a
 /// (uniform: 1 σ = a/√3, GUM 4.3.7) moves ln θ by 1 σ = a/(√3 s), added in quadrature:
@@ -185,10 +185,10 @@ pub fn add_model_accuracy_std(
 /// The relative 1-σ of the tip mass of `p` that the model's stated accuracy gives
 /// ([`add_model_accuracy_std`]: a/(√3 s)) for recordings sampled every `dt` s; `None` without a
 /// tip mass, a beam, or a pattern change.
-pub fn tip_mass_accuracy_rel(rig: &Rig, p: &super::sim::Params, dt: f64) -> Option<f64> {
+pub fn tip_mass_accuracy_rel(rig: &Rig, p: &super::model::Params, dt: f64) -> Option<f64> {
     let m = p.tip_mass_kg;
     (m > 0.0).then_some(())?;
-    let heavier = super::sim::Params {
+    let heavier = super::model::Params {
         tip_mass_kg: m * (1.0 + PATTERN_STEP),
         ..p.clone()
     };
@@ -202,28 +202,28 @@ const PATTERN_STEP: f64 = 0.05;
 /// [`PATTERN_STEP`])) per unit change of its logarithm; `None` when the pattern does not move.
 fn pattern_accuracy_rel(
     rig: &Rig,
-    stepped: &super::sim::Params,
-    p: &super::sim::Params,
+    stepped: &super::model::Params,
+    p: &super::model::Params,
     dt: f64,
 ) -> Option<f64> {
-    let shift = super::sim::frequency_shift_beyond_scale_rel(rig, stepped, p, dt)?;
+    let shift = super::model::frequency_shift_beyond_scale_rel(rig, stepped, p, dt)?;
     stated_accuracy_rel(shift / (1.0 + PATTERN_STEP).ln())
 }
 
 /// a/(√3 s): the 1-σ of ln θ that the model's stated accuracy a
-/// ([`super::sim::BASIS_CONVERGENCE_REL`]), a bound uniformly distributed inside ±a (GUM
+/// ([`super::model::BASIS_CONVERGENCE_REL`]), a bound uniformly distributed inside ±a (GUM
 /// 4.3.7), gives a parameter whose reading moves by s per unit change of ln θ; `None` when
 /// s is not positive and finite (the reading does not move).
 fn stated_accuracy_rel(s: f64) -> Option<f64> {
-    (s > 0.0 && s.is_finite()).then(|| super::sim::BASIS_CONVERGENCE_REL / 3f64.sqrt() / s)
+    (s > 0.0 && s.is_finite()).then(|| super::model::BASIS_CONVERGENCE_REL / 3f64.sqrt() / s)
 }
 
 /// The relative 1-σ of the root spring of `p` that the model's stated accuracy gives
 /// ([`add_model_accuracy_std`]: a/(√3 s)) for recordings sampled every `dt` s; `None` without a
 /// root spring, a beam, or a pattern change (one stiffness scale absorbs all of it).
-pub fn root_spring_accuracy_rel(rig: &Rig, p: &super::sim::Params, dt: f64) -> Option<f64> {
+pub fn root_spring_accuracy_rel(rig: &Rig, p: &super::model::Params, dt: f64) -> Option<f64> {
     let k = p.root_stiffness_nm_per_rad.filter(|k| *k > 0.0)?;
-    let stiffer = super::sim::Params {
+    let stiffer = super::model::Params {
         root_stiffness_nm_per_rad: Some(k * (1.0 + PATTERN_STEP)),
         ..p.clone()
     };
@@ -234,7 +234,7 @@ pub fn root_spring_accuracy_rel(rig: &Rig, p: &super::sim::Params, dt: f64) -> O
 /// `set`) to its 1-σ, a Type B term (GUM, JCGM 100:2008 4.3) like [`add_model_accuracy_std`]
 /// but for what is read from the *size* of the response rather than the pattern of its
 /// frequencies (a drag coefficient from the decay envelope, a mount's damping, a clamp's
-/// cubic stiffness). The model states its response to [`super::sim::BASIS_CONVERGENCE_REL`]
+/// cubic stiffness). The model states its response to [`super::model::BASIS_CONVERGENCE_REL`]
 /// (relative) of what it computes beyond the drive: the deflection `tip − base` on
 /// `tip_pos_m`, the whole of `force_n`, the following error `base − command` on `base_pos_m`.
 /// With s the largest relative change of those (rms over the fit recordings) per unit change of
@@ -244,7 +244,7 @@ pub fn root_spring_accuracy_rel(rig: &Rig, p: &super::sim::Params, dt: f64) -> O
 /// per unit change, so its term is negligible; a drag coefficient, fitted 0.42 % off at
 /// ± 0.11 % (held-out 610400, 500 Hz, noise × 0.5: 3.8 σ) from the response's size alone,
 /// is not known better than the model's own accuracy allows. Reported 1-σ only: the
-/// significance test of the final model reads the σ before it ([`super::forward::NullEvidence`]).
+/// significance test of the final model reads the σ before it ([`super::selection::NullEvidence`]).
 /// Returns the model evaluations used.
 pub fn add_response_accuracy_std(
     rig: &Rig,
@@ -312,7 +312,7 @@ fn response_sensitivity(
 /// ([`add_response_accuracy_std`]).
 fn response_beyond_drive(
     data: &[Prepared],
-    pred: &[super::sim::Prediction],
+    pred: &[super::model::Prediction],
 ) -> Vec<[Option<Vec<f64>>; 3]> {
     data.iter()
         .zip(pred)
@@ -333,11 +333,11 @@ fn response_beyond_drive(
 /// Adds the **drive-interpolation uncertainty** to the 1-σ of `f` (calibration + `set`): the
 /// samples say nothing of the carriage's motion between them. The model takes the
 /// piecewise-linear path through the samples (or, at the recording's own rate, the
-/// fourth-order reading the recordings chose, [`super::sim::DriveReading`]): the force channel (a drive averages its force
+/// fourth-order reading the recordings chose, [`super::model::DriveReading`]): the force channel (a drive averages its force
 /// over the sample period) gets an acceleration step spread over three samples, and the beam,
 /// driven by that path at the recording's own rate, gets its content at sinc²(f/r) of its
 /// amplitude (3 % low at 0.1 × the rate). The smooth reading is the other standard one: the
-/// cubic spline's acceleration ([`super::sim::spline_accel`]) for the force, the band-limited
+/// cubic spline's acceleration ([`super::model::spline_accel`]) for the force, the band-limited
 /// path ([`super::rate::emphasise`]) for the beam; when the recordings chose the smooth
 /// reading, the piecewise-linear one is the alternative. The final model is refitted (warm, at
 /// most `max_evaluations`) with it and each parameter's change is added in quadrature. It is what
@@ -372,7 +372,7 @@ pub fn add_drive_interpolation_std(
 /// A model-form alternative's refit of the final model: the model evaluations it used and its
 /// parameters' physical values (calibration, then effects; `None` when there was none or it
 /// says nothing). The significance test of the final model asks every effect to stand clear
-/// of "no effect" at these values too ([`super::forward::unidentified_in_final`]): the form
+/// of "no effect" at these values too ([`super::selection::unidentified_in_final`]): the form
 /// may move an effect's size, but an effect that is there is there whichever form holds.
 pub struct Alternative {
     /// Model evaluations used.
@@ -701,7 +701,7 @@ pub fn add_base_assumption_std(
 /// Indices (in the vector of `calib` + `set`) of the parameters of every effect of `set` whose
 /// look-alike without `base_pos_m` is the loop itself (a tip-sensor latency): the loop added by
 /// [`add_base_assumption_std`] is then that effect's alternative explanation, which
-/// [`super::lookalike`] settles or reports ("indistinguishable from"); counted in its 1-σ as
+/// [`super::selection::lookalike`] settles or reports ("indistinguishable from"); counted in its 1-σ as
 /// well, it made the latency "not identified" and the diagnosis `none` where a lag of 2.0 ms was
 /// fitted to 3 µs (held-out 294500, 1000 Hz, tip only: 1.997 ± 1.26 ms).
 fn look_alike_params(calib: &Calib, set: &[&Candidate]) -> Vec<usize> {
@@ -824,193 +824,4 @@ pub fn at_bound(set: &[&Candidate], f: &FitResult, nc: usize) -> Vec<(String, St
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_base_assumption_leaves_a_latency_its_look_alike_to_the_lookalike_check() {
-        // calibration of 2 parameters, then a tip mass (1) and a tip latency (1): only the
-        // latency's parameter is the loop's alternative explanation
-        let param = |id, name| {
-            let mut c = crate::diagnose::effects::servo_candidate(1, 100.0);
-            c.id = id;
-            c.params.truncate(1);
-            c.params[0].name = name;
-            c
-        };
-        let calib = Calib {
-            defs: crate::diagnose::effects::servo_candidate(1, 100.0).params,
-            n_basis: 4,
-            simulated_modes: None,
-            smooth_drive: false,
-            drive_reading: crate::diagnose::sim::DriveReading::PiecewiseLinear,
-        };
-        let tip = param(crate::effect::Effect::TipMass, "tip_mass_kg");
-        let delay = param(crate::effect::Effect::SensorDelay, "sensor_delay_s");
-        assert_eq!(look_alike_params(&calib, &[&tip, &delay]), vec![3]);
-        assert!(look_alike_params(&calib, &[&tip]).is_empty());
-    }
-
-    /// A loop fitted beyond 0.45 × the rate is a lower bound (σ NaN); one inside keeps its σ;
-    /// a tip mass is never band-limited.
-    #[test]
-    fn a_loop_beyond_the_recordings_band_is_a_lower_bound() {
-        let servo = crate::diagnose::effects::servo_candidate(2, 100.0);
-        let mut tip = crate::diagnose::effects::servo_candidate(1, 100.0);
-        tip.id = crate::effect::Effect::TipMass;
-        tip.params.truncate(1);
-        tip.params[0].name = "tip_mass_kg";
-        let fit = |fb: f64| FitResult {
-            x: DVector::zeros(6),
-            values: vec![1.0, fb, 0.7, 0.0, 0.0, 50.0],
-            std: vec![0.1; 6],
-            names: vec![],
-            cost: 0.0,
-            evaluations: 0,
-            trace: vec![],
-        };
-        assert_eq!(servo.params[0].name, "servo_bandwidth_hz");
-        assert_eq!(servo.params.len(), 4);
-        let (mut beyond, mut inside) = (fit(47.3), fit(40.1));
-        let marked = beyond_band(&[&servo, &tip], &mut beyond, 1, 100.0);
-        assert_eq!(
-            marked,
-            vec![(
-                "servo_lag".to_string(),
-                "servo_bandwidth_hz".to_string(),
-                45.0
-            )]
-        );
-        assert!(beyond.std[1].is_nan());
-        assert!(beyond
-            .std
-            .iter()
-            .enumerate()
-            .all(|(i, s)| i == 1 || *s == 0.1));
-        assert!(beyond_band(&[&servo, &tip], &mut inside, 1, 100.0).is_empty());
-        assert!(inside.std.iter().all(|s| *s == 0.1));
-    }
-
-    /// A uniform steel beam of 0.9 m × 30 mm × 1.5 mm (318 g, EI/L = 20.5 N·m/rad).
-    fn uniform_steel_beam() -> Rig {
-        Rig::from_toml_str(
-            "[beam]\nlength_m = 0.9\ndensity_kg_m3 = 7850.0\nyoungs_modulus_pa = 2.0e11\nstations = [ { x_m = 0.0, width_m = 0.03, thickness_m = 0.0015 }, { x_m = 0.9, width_m = 0.03, thickness_m = 0.0015 } ]\n[base]\nmass_kg = 2.0\n",
-        )
-        .unwrap()
-    }
-
-    #[test]
-    fn a_root_spring_much_stiffer_than_the_beam_rests_on_a_sliver_of_the_frequency_pattern() {
-        // uniform steel beam, EI/L = 20.5 N·m/rad; 1 kHz samples (several modes in band)
-        let rig = uniform_steel_beam();
-        let rel = |k: f64| {
-            let p = crate::diagnose::sim::Params {
-                root_stiffness_nm_per_rad: Some(k),
-                ..Default::default()
-            };
-            root_spring_accuracy_rel(&rig, &p, 1e-3).unwrap()
-        };
-        let (soft, matched, stiff) = (rel(0.2), rel(20.0), rel(2e3));
-        // k L/EI = 0.01 and 1: the pattern moves by per cents per unit ln k, σ under 1 %
-        assert!(soft < 0.01 && matched < 0.01, "{soft} {matched}");
-        // k L/EI = 100: nearly clamped, the pattern barely moves, the σ is many times larger
-        assert!(stiff > 10.0 * matched, "{stiff} vs {matched}");
-        let none = crate::diagnose::sim::Params::default();
-        assert!(root_spring_accuracy_rel(&rig, &none, 1e-3).is_none());
-    }
-
-    #[test]
-    fn a_small_tip_mass_has_an_absolute_floor_from_the_frequency_pattern() {
-        // uniform steel beam of 318 g; 1 kHz samples (several modes in band)
-        let rig = uniform_steel_beam();
-        let sigma_kg = |m: f64| {
-            let p = crate::diagnose::sim::Params {
-                tip_mass_kg: m,
-                ..Default::default()
-            };
-            m * tip_mass_accuracy_rel(&rig, &p, 1e-3).unwrap()
-        };
-        // 1 g and 2 g (0.3 % and 0.6 % of the beam): the pattern moves in proportion to the
-        // mass, so the 1 σ in kilograms is about the same, a fraction of a gram
-        let (one, two) = (sigma_kg(1e-3), sigma_kg(2e-3));
-        assert!(one > 0.0 && one < 1e-3, "{one}");
-        assert!((two / one - 1.0).abs() < 0.3, "{one} {two}");
-        // a heavy one (a third of the beam) is read to a few per cent of itself
-        let heavy = sigma_kg(0.1) / 0.1;
-        assert!(heavy < 0.05, "{heavy}");
-        let none = crate::diagnose::sim::Params::default();
-        assert!(tip_mass_accuracy_rel(&rig, &none, 1e-3).is_none());
-    }
-
-    #[test]
-    fn a_parameter_read_from_the_response_size_is_known_to_the_models_accuracy() {
-        // a deflection of 1 mm rms; a 5 % step of the parameter changes it by 1 % of itself
-        // (s = 0.01/ln 1.05 = 0.205: a drag read from the envelope) or by 50 % (a latency)
-        let deflection: Vec<f64> = (0..1000).map(|k| 1e-3 * (0.05 * k as f64).sin()).collect();
-        let signal = vec![[None, Some(deflection.clone()), None]];
-        let scaled = |g: f64| vec![[None, Some(deflection.iter().map(|v| g * v).collect()), None]];
-        let slight = response_sensitivity(&scaled(1.01), &signal, 1.05);
-        let strong = response_sensitivity(&scaled(1.5), &signal, 1.05);
-        assert!((slight - 0.01 / 1.05f64.ln()).abs() < 1e-9, "{slight}");
-        // σ(ln θ) = a/(√3 s): 0.28 % for the slight one, 50 × less for the strong one
-        let rel = |s: f64| stated_accuracy_rel(s).unwrap();
-        assert!((rel(slight) - 2.82e-3).abs() < 1e-5, "{}", rel(slight));
-        assert!((rel(slight) / rel(strong) - 50.0).abs() < 1e-6);
-        // the most sensitive channel sets it; a channel without signal says nothing
-        let both = vec![[None, Some(deflection.clone()), Some(vec![0.0; 1000])]];
-        let moved = vec![[
-            None,
-            Some(scaled(1.01)[0][1].clone().unwrap()),
-            Some(vec![1.0; 1000]),
-        ]];
-        assert_eq!(response_sensitivity(&moved, &both, 1.05), slight);
-        assert_eq!(response_sensitivity(&signal, &signal, 0.95), 0.0);
-        assert!(stated_accuracy_rel(0.0).is_none());
-    }
-
-    #[test]
-    fn a_sigma_resting_on_two_recordings_disagreement_has_one_degree_of_freedom() {
-        // σ_lr 1, spread 10 (the σ is the spread): ν ≈ 1, k = t₀.₉₇₅(1) = 12.71; spread within
-        // the noise: ν infinite, k = 1.96; spread 2 × σ_lr: ν = 16/9 · … > 1
-        let nu = effective_dof(&[1.0, 1.0, 1.0], &[10.0, 0.5, 2.0], 2, &[10.0, 1.0, 2.0]);
-        assert!((nu[0] - 10f64.powi(4) / 99f64.powi(2)).abs() < 1e-12);
-        assert!(nu[1].is_infinite());
-        assert!((nu[2] - 16.0 / 9.0).abs() < 1e-12);
-        assert!((coverage_factor_95(1.0) - 12.706).abs() < 1e-3);
-        assert!((coverage_factor_95(2.0) - 4.303).abs() < 1e-3);
-        assert!((coverage_factor_95(f64::INFINITY) - 1.960).abs() < 1e-3);
-        // a disagreement barely beyond the noise (seed 8 case13: ν 1.6·10⁹) is no finite ν
-        assert!(!dof_is_finite(1.6e9) && !dof_is_finite(f64::INFINITY) && dof_is_finite(3.0));
-        assert_eq!(coverage_factor_95(1.6e9), coverage_factor_95(f64::INFINITY));
-        // one recording: no disagreement measured
-        assert!(effective_dof(&[1.0], &[], 1, &[1.0])[0].is_infinite());
-    }
-
-    #[test]
-    fn spread_is_the_standard_error_of_the_per_recording_mean() {
-        // two recordings: |θ₁ − θ₂|/2; three: s/√3; a parameter they agree on: 0
-        let two = spread_std(&[vec![1.0, 5.0], vec![3.0, 5.0]]);
-        assert_eq!(two, vec![1.0, 0.0]);
-        let three = spread_std(&[vec![1.0], vec![2.0], vec![3.0]]);
-        assert!((three[0] - (1.0f64 / 3.0).sqrt()).abs() < 1e-12);
-        assert!(spread_std(&[vec![1.0]]).is_empty());
-    }
-
-    #[test]
-    fn the_recordings_disagreement_raises_a_smaller_sigma_only() {
-        let mut f = FitResult {
-            x: DVector::zeros(2),
-            values: vec![0.3, 1.0],
-            std: vec![0.005, 0.5],
-            names: vec!["friction_n", "viscous_n_s_per_m"],
-            cost: 1.0,
-            evaluations: 0,
-            trace: vec![],
-        };
-        // friction 0.320 and 0.285 from the two recordings (seed 74000): σ 0.005 → 0.0175
-        let spread = spread_std(&[vec![0.320, 1.1], vec![0.285, 1.2]]);
-        add_spread_std(&mut f, &spread);
-        assert!((f.std[0] - 0.0175).abs() < 1e-12);
-        assert_eq!(f.std[1], 0.5);
-    }
-}
+mod tests;

@@ -8,7 +8,7 @@
 //! clamped natural frequency), then sensor zeros are taken from the rest
 //! ([`crate::recording::zero`]).
 
-use crate::diagnose::sim::Prepared;
+use crate::diagnose::model::Prepared;
 use crate::model::Rig;
 use anyhow::Result;
 use std::path::Path;

@@ -4,7 +4,7 @@
 //! modes) and by correlation (velocity sign, velocity, position ripple, time shift, amplitude).
 
 use super::fit::CHANNEL_NAMES;
-use super::sim::{Prediction, Prepared};
+use super::model::{Prediction, Prepared};
 use crate::ident::spectrum::{amplitude_spectrum, peaks};
 use serde::Serialize;
 
@@ -235,7 +235,7 @@ impl Gathered {
             self.amp.extend(signal.iter().map(|x| (x - mean).abs()));
         }
         let (f, m) = amplitude_spectrum(&r, 1.0 / d.dt);
-        for (fk, mk) in peaks(&f, &m, 0.2, super::sim::band_edge_hz(d.dt))
+        for (fk, mk) in peaks(&f, &m, 0.2, super::model::band_edge_hz(d.dt))
             .into_iter()
             .take(4)
         {

@@ -1,54 +1,72 @@
 //! Model-discrepancy diagnosis: calibrate the nominal model, locate the residual, fit a
 //! catalogue of candidate physics, select with a guard against false discovery, report.
 //!
-//! - [`sim`]: the augmented simulator (nominal model of paper §2 + every extension);
+//! The layout follows the diagnosis:
+//! - [`load`]: reading and preparing a recording;
+//! - [`model`]: the augmented model the diagnosis fits (nominal model of paper §2 + every
+//!   extension), one file per block of the signal chain (servo, carriage, mount, beam, sensor),
+//!   composed by [`model::predict()`];
 //! - [`effects`]: the candidate catalogue with physical parameters;
 //! - [`fit`]: Levenberg–Marquardt ([`crate::numeric::lm`]) on whitened residuals, parameter
-//!   uncertainties;
+//!   uncertainties ([`fit_problem`]: the least-squares problem, [`fit_starts`]: its starts);
+//! - [`calibrate`]: the recordings checked and the nominal model calibrated;
 //! - [`locate`]: where/when/at which frequency the residual is structured;
 //! - [`saturation`]: samples a sensor held at its rail, left out of every residual;
 //! - [`scale_bands`]: a tip sensor's scale on the deflection must scale every mode band alike;
-//! - [`select`]: BIC + validation + model-form allowance + whiteness + significance guard;
-//! - [`backward`]: after forward selection, each chosen effect must still earn its parameters
-//!   beside the others (backward elimination);
+//! - [`selection`]: which candidates are named, in one folder by job: the decision rule
+//!   ([`selection::guard`]: BIC + validation + model-form allowance + whiteness + significance),
+//!   the evidence measures, the rounds, pairs, placement, look-alikes
+//!   ([`selection::lookalike`]) and the backward step ([`selection::backward`]);
+//! - [`conclude`]: the final model measured, its effects required to be identified, the
+//!   [`Diagnosis`] assembled;
 //! - [`report`]: JSON, words, SVG plots; [`proof`]: the own-generator proof; [`honesty`]:
-//!   long-run 1-σ, parameter stability, residual statistics of the final model;
+//!   long-run 1-σ, parameter stability, residual statistics of the final model; [`lengths`]:
+//!   the diagnosis of a length series;
 //! - the commands (`diagnose`, `diagnose-proof`, `diagnose-lengths`) live in `crate::cli::diagnose`;
 //!
 //! Where a recording is analysed at its own rate with a tip or force channel, the whole
 //! diagnosis runs twice in parallel, the drive read piecewise linear and smooth between samples
-//! ([`sim::DriveReading`]), and the final model with the lower BIC on the fit recordings is
+//! ([`model::DriveReading`]), and the final model with the lower BIC on the fit recordings is
 //! kept ([`ReadingChoice`]).
 //!
 //! Every fit of one diagnosis draws on one budget of model evaluations
-//! ([`WORK_BUDGET_SAMPLE_EVALUATIONS`] divided by the fit recordings' samples), never on the
-//! clock, so the same recordings give the same answer on any machine.
+//! ([`WORK_BUDGET_SAMPLE_EVALUATIONS`](selection::WORK_BUDGET_SAMPLE_EVALUATIONS) divided by the
+//! fit recordings' samples), never on the clock, so the same recordings give the same answer on
+//! any machine.
 
-pub mod backward;
-pub mod decision;
+pub mod calibrate;
+pub mod conclude;
 pub mod effects;
 pub mod fit;
-mod forward;
+pub mod fit_problem;
+pub mod fit_starts;
 pub mod honesty;
 pub mod lengths;
 pub mod load;
 pub mod locate;
-pub mod lookalike;
+pub mod model;
 pub mod proof;
 pub mod rate;
 pub mod report;
 pub mod saturation;
 pub mod scale_bands;
-pub mod select;
-pub mod sim;
+pub mod selection;
 pub mod unexplained;
 
+pub use calibrate::{MAX_CALIBRATED_NRMSE, MAX_STROKE_M, MIN_DURATION_S, MIN_SAMPLES};
+pub use selection::MAX_EFFECTS;
+
 use crate::model::{BeamModel, ModelOptions, Rig};
-use anyhow::{bail, Result};
-use effects::{calibration_defs, catalogue, Candidate, Channels, StartHints};
-use fit::{channel_rss, fit, residuals, FitResult};
-use forward::{Budget, Ctx};
-use sim::{Prediction, Prepared};
+use anyhow::Result;
+use calibrate::{
+    calibrate, check_explained, check_information, check_units, drive_quantum_m, setup, Calibrated,
+    Setup,
+};
+use conclude::{conclude, fit_bic, Earlier};
+use effects::{catalogue, Candidate, StartHints};
+use fit::{residuals, FitResult};
+use model::{Prediction, Prepared};
+use selection::{Budget, Ctx};
 
 /// Outcome of one candidate.
 #[derive(Clone, Debug)]
@@ -95,18 +113,18 @@ pub struct CandidateOutcome {
     /// Validation predictions.
     pub val_pred: Prediction,
     /// Why a resonance that passes every other guard cannot be placed where the candidate puts
-    /// it (a mount that a loose tip sensor explains as well; [`select`] condition 8), if so.
+    /// it (a mount that a loose tip sensor explains as well; [`selection::guard`] condition 8), if so.
     pub unplaced: Option<String>,
-    /// The effect the recordings cannot tell this one from, if so ([`lookalike`]).
-    pub look_alike: Option<lookalike::LookAlike>,
-    /// It failed only condition 6 of [`select`]: it removes part, not most, of the structured
-    /// residual — what the first effect of a pair does beside the second ([`forward`]'s
+    /// The effect the recordings cannot tell this one from, if so ([`selection::lookalike`]).
+    pub look_alike: Option<selection::lookalike::LookAlike>,
+    /// It failed only condition 6 of [`selection::guard`]: it removes part, not most, of the structured
+    /// residual — what the first effect of a pair does beside the second ([`selection`]'s
     /// pair step).
     pub partial: bool,
     /// It failed only the calibration-matter rule, as a coupled mount whose resonance lies
     /// beside a model mode: apart by more than its half-power half-width (and 2 σ), within the
     /// full width. Such a split-off resonance is judged against a local compliance of the beam
-    /// instead ([`forward`]'s `judge_mounts_beside_modes`).
+    /// instead (`selection::placement::judge_mounts_beside_modes`).
     pub beside_mode: bool,
 }
 
@@ -164,7 +182,7 @@ pub struct Diagnosis {
     /// recordings: every simulated sample divided by the fit recordings' samples.
     pub evaluations_simulated: usize,
     /// The Galerkin basis and its convergence for the modes inside the band (with a beam).
-    pub basis: Option<sim::BasisChoice>,
+    pub basis: Option<model::BasisChoice>,
     /// Band edge (Hz) of the recordings at their working rate (0.45 × the lowest).
     pub band_edge_hz: f64,
     /// The working rate the recordings were decimated to ([`rate`]).
@@ -192,7 +210,7 @@ pub struct Diagnosis {
     /// ([`honesty`]).
     pub honesty: honesty::Honesty,
     /// The resonance (Hz) and its 1 σ of a named mount that carries the beam, as the rig shows
-    /// it (the coupled mount + beam with the carriage held, [`sim::mount_resonance_hz`]): the
+    /// it (the coupled mount + beam with the carriage held, [`model::mount_resonance_hz`]): the
     /// reported `mount_frequency_hz` of that effect. `None` without such a mount.
     pub mount_resonance: Option<(f64, f64)>,
     /// Selection trace: every round's candidates with ΔBIC, validation Δ(−2 ln L), reduction,
@@ -201,22 +219,22 @@ pub struct Diagnosis {
     pub trace: Vec<String>,
 }
 
-/// How the model read the drive between samples ([`sim::DriveReading`]) and the BIC that chose it.
+/// How the model read the drive between samples ([`model::DriveReading`]) and the BIC that chose it.
 #[derive(Clone, Debug)]
 pub struct ReadingChoice {
     /// The reading of this diagnosis.
-    pub chosen: sim::DriveReading,
+    pub chosen: model::DriveReading,
     /// BIC of its final model on the fit recordings, `Σ_c n_c ln(RSS_c / n_c) + k ln n`
     /// (channels c with n_c samples, n in all, k fitted parameters).
     pub fit_bic: f64,
     /// Each reading's BIC when both were run (empty: the reading changes nothing the
     /// recordings hold, every one decimated or without tip and force).
-    pub compared: Vec<(sim::DriveReading, f64)>,
+    pub compared: Vec<(model::DriveReading, f64)>,
 }
 
 impl ReadingChoice {
     /// The reading of `ctx` and the BIC of its final model `reference` ([`fit_bic`]).
-    fn of(ctx: &Ctx, reference: &forward::Reference) -> ReadingChoice {
+    fn of(ctx: &Ctx, reference: &selection::Reference) -> ReadingChoice {
         ReadingChoice {
             chosen: ctx.calib.drive_reading,
             fit_bic: fit_bic(reference),
@@ -256,288 +274,6 @@ pub fn nrmse(d: &Prepared, pred: &Prediction) -> [f64; 3] {
     out
 }
 
-fn channels_of(data: &[Prepared]) -> Channels {
-    Channels {
-        base: data.iter().any(|d| d.base_m.is_some()),
-        tip: data.iter().any(|d| d.tip_m.is_some()),
-        force: data.iter().any(|d| d.force_n.is_some()),
-        cmd_drives_beam: data.iter().any(|d| d.drive_m.is_none()),
-    }
-}
-
-fn rms(v: &[f64]) -> f64 {
-    (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
-}
-
-/// What the preparation of a diagnosis found out about the recordings and the rig.
-#[derive(Clone)]
-struct Setup {
-    channels: Channels,
-    band_edge_hz: f64,
-    basis: Option<sim::BasisChoice>,
-    calib: effects::Calib,
-    /// [`drive_quantum_m`] of the recordings as loaded.
-    drive_quantum_m: Option<f64>,
-}
-
-/// Step of the counts (m) of the position the drive is read from — `base_pos_m` where
-/// recorded, else the command — in the fit recordings as loaded (the largest over them;
-/// `None` when none is quantised, [`crate::numeric::stats::quantum`]).
-fn drive_quantum_m(fit_data: &[Prepared]) -> Option<f64> {
-    fit_data
-        .iter()
-        .filter_map(|d| crate::numeric::stats::quantum(d.base_m.as_ref().unwrap_or(&d.cmd_m)))
-        .reduce(f64::max)
-}
-
-/// Refuses recordings without information or that the nominal model cannot simulate; the band
-/// edge, the converged Galerkin basis and the calibration parameters; `drive_quantum_m` (of the
-/// recordings as loaded, [`drive_quantum_m`]) is kept for the guard.
-fn setup(
-    rig: &Rig,
-    fit_data: &[Prepared],
-    validate: &Prepared,
-    drive_quantum_m: Option<f64>,
-) -> Result<Setup> {
-    if fit_data.is_empty() {
-        bail!("at least one --fit recording is needed");
-    }
-    for d in fit_data.iter().chain(std::iter::once(validate)) {
-        check_information(d)?;
-    }
-    // the nominal model must be able to simulate every recording: report why not, by name
-    for d in fit_data.iter().chain(std::iter::once(validate)) {
-        sim::predict(rig, &sim::Params::default(), d, &mut None)
-            .map_err(|e| anyhow::anyhow!("{}: {e:#}", d.name))?;
-    }
-    let channels = channels_of(fit_data);
-    let band_edge_hz = fit_data
-        .iter()
-        .chain(std::iter::once(validate))
-        .map(|d| sim::band_edge_hz(d.dt))
-        .fold(f64::INFINITY, f64::min);
-    let nyquist_hz = fit_data
-        .iter()
-        .chain(std::iter::once(validate))
-        .map(|d| 0.5 / d.dt)
-        .fold(0.0, f64::max);
-    let basis = match rig.beam {
-        Some(_) => Some(sim::converged_basis(rig, 1.0, band_edge_hz, nyquist_hz)?),
-        None => None,
-    };
-    let mut calib = calibration_defs(
-        rig,
-        &channels,
-        basis.as_ref().map_or(0, |b| b.freqs_hz.len()),
-        basis.as_ref().map_or(4, |b| b.n_basis),
-    );
-    calib.simulated_modes = basis.as_ref().map(|b| b.simulated_modes);
-    Ok(Setup {
-        channels,
-        band_edge_hz,
-        basis,
-        calib,
-        drive_quantum_m,
-    })
-}
-
-/// Initial whitening: a tenth of each channel's signal rms (base: base − command; tip:
-/// deflection).
-fn initial_sigma(fit_data: &[Prepared]) -> [f64; 3] {
-    let mut sigma = [1e-6, 1e-4, 0.1];
-    let mut acc: [Vec<f64>; 3] = [vec![], vec![], vec![]];
-    for d in fit_data {
-        if let Some(b) = &d.base_m {
-            acc[0].extend(b.iter().zip(d.cmd_as_sampled()).map(|(a, c)| a - c));
-        }
-        if let Some(t) = &d.tip_m {
-            let drive = d.drive_as_sampled();
-            acc[1].extend(t.iter().zip(drive).map(|(a, c)| a - c));
-        }
-        if let Some(f) = &d.force_n {
-            acc[2].extend(f.iter().copied());
-        }
-    }
-    for c in 0..3 {
-        if !acc[c].is_empty() {
-            sigma[c] = (0.1 * rms(&acc[c])).max(1e-12);
-        }
-    }
-    sigma
-}
-
-/// The calibrated nominal model.
-struct Calibrated {
-    fit: FitResult,
-    /// Channel noise scales (residual rms of the first calibration).
-    sigma: [f64; 3],
-    /// Fit-recording predictions and residuals.
-    preds: Vec<Prediction>,
-    res: Vec<[Option<Vec<f64>>; 3]>,
-    params: sim::Params,
-    /// The best tip/force NRMSE of the calibrated nominal model on the fit recordings
-    /// ([`best_nrmse`]).
-    best_nrmse: f64,
-}
-
-/// Predictions and residuals of the calibration `cal` on the fit recordings.
-fn calibrated_residuals(
-    rig: &Rig,
-    fit_data: &[Prepared],
-    sigma: [f64; 3],
-    calib: &effects::Calib,
-    cal: &FitResult,
-) -> Result<(Vec<Prediction>, Vec<[Option<Vec<f64>>; 3]>)> {
-    let problem = fit::Problem::new(rig, fit_data, sigma, calib, &[], cal.x.clone());
-    let preds = problem.predictions(&cal.x).ok_or_else(|| {
-        let why = problem.refusals.borrow().first().cloned().unwrap_or_default();
-        anyhow::anyhow!(
-            "no information: calibrated to the fit recordings, the rig model leaves what it can simulate ({why}; stiffness scale {:.3}); a recording of another rig, or noise only?",
-            problem.params_of(&cal.x).stiffness_scale
-        )
-    })?;
-    let res = fit_data
-        .iter()
-        .zip(&preds)
-        .map(|(d, p)| residuals(d, p))
-        .collect();
-    Ok((preds, res))
-}
-
-/// Calibrates the nominal model twice: with [`initial_sigma`], then whitened by the residual
-/// rms of that calibration; refuses a stiffness scale no rig of this file can have (as "no
-/// information" when the model explains almost nothing of the recordings either).
-fn calibrate(
-    rig: &Rig,
-    fit_data: &[Prepared],
-    calib: &effects::Calib,
-    budget: &mut Budget,
-    progress: &mut dyn crate::progress::Progress,
-    total_steps: usize,
-) -> Result<Calibrated> {
-    let mut sigma = initial_sigma(fit_data);
-    stage(progress, 0, total_steps, "calibrating the nominal model");
-    let cal = fit(
-        rig,
-        fit_data,
-        sigma,
-        calib,
-        &[],
-        None,
-        &[],
-        budget.share(4),
-        true,
-    );
-    budget.spend(cal.evaluations);
-    let (_, res0) = calibrated_residuals(rig, fit_data, sigma, calib, &cal)?;
-    let (rss0, n0) = channel_rss(&res0);
-    for c in 0..3 {
-        if n0[c] > 0 {
-            sigma[c] = (rss0[c] / n0[c] as f64).sqrt().max(1e-12);
-        }
-    }
-    stage(
-        progress,
-        1,
-        total_steps,
-        "recalibrating with the residual noise scales",
-    );
-    let cal = fit(
-        rig,
-        fit_data,
-        sigma,
-        calib,
-        &[],
-        Some(&cal.x),
-        &[],
-        budget.share(3),
-        true,
-    );
-    budget.spend(cal.evaluations);
-    let (preds, res) = calibrated_residuals(rig, fit_data, sigma, calib, &cal)?;
-    let problem = fit::Problem::new(rig, fit_data, sigma, calib, &[], cal.x.clone());
-    let params = problem.params_of(&cal.x);
-    let best_nrmse = best_nrmse(fit_data, &preds);
-    if !(best_nrmse < MAX_CALIBRATED_NRMSE) && check_stiffness_scale(&params).is_err() {
-        // a stiffness scale fitted to nothing says nothing of the rig
-        bail!(
-            "no information: even calibrated, the rig model explains almost nothing of the fit recordings (best tip/force channel NRMSE {best_nrmse:.2} ≥ {MAX_CALIBRATED_NRMSE}); a recording of another rig, or noise only?"
-        );
-    }
-    check_stiffness_scale(&params)?;
-    Ok(Calibrated {
-        fit: cal,
-        sigma,
-        best_nrmse,
-        preds,
-        res,
-        params,
-    })
-}
-
-/// The best NRMSE ([`nrmse`]) of `preds` over every tip and force channel of `fit_data` (of the
-/// base channel when a recording has neither); ∞ when none is finite.
-fn best_nrmse(fit_data: &[Prepared], preds: &[Prediction]) -> f64 {
-    fit_data
-        .iter()
-        .zip(preds)
-        .flat_map(|(d, p)| {
-            let v = nrmse(d, p);
-            // the beam's channels; a carriage-only recording with neither has its base
-            if v[1].is_finite() || v[2].is_finite() {
-                [v[1], v[2]]
-            } else {
-                [v[0], f64::NAN]
-            }
-        })
-        .filter(|v| v.is_finite())
-        .fold(f64::INFINITY, f64::min)
-}
-
-/// Refuses a calibration that needs a stiffness scale outside 0.25–4 (another rig).
-fn check_stiffness_scale(p: &sim::Params) -> Result<()> {
-    if p.stiffness_scale < 0.25 || p.stiffness_scale > 4.0 {
-        bail!(
-            "the recordings do not match this rig: the calibration needs {:.2} × the rig's Young's modulus (frequencies off by {:.0} %); check the rig file",
-            p.stiffness_scale,
-            100.0 * (p.stiffness_scale.sqrt() - 1.0)
-        );
-    }
-    Ok(())
-}
-
-/// Refuses recordings that the final model — the calibrated nominal model with every effect
-/// the selection chose — explains almost nothing of (best tip/force NRMSE ≥
-/// [`MAX_CALIBRATED_NRMSE`] on the fit recordings: another rig, noise only); when the nominal
-/// model alone explained almost nothing (`nominal_best`) and the effects do, says so. The check
-/// follows the selection because a large effect (a play of millimetres) leaves the nominal
-/// model explaining nothing of recordings its catalogue explains (held-out 274060: a 5.1 mm
-/// play at noise ×2, nominal NRMSE 0.99, play and tip mass found).
-fn check_explained(
-    ctx: &Ctx,
-    set: &[&Candidate],
-    sel: &forward::Selection,
-    nominal_best: f64,
-) -> Result<Option<String>> {
-    if nominal_best < MAX_CALIBRATED_NRMSE {
-        return Ok(None);
-    }
-    let x = &sel.reference.fit.x;
-    let best = ctx
-        .fit_problem(set, x.clone())
-        .predictions(x)
-        .map_or(f64::INFINITY, |p| best_nrmse(ctx.fit_data, &p));
-    if !(best < MAX_CALIBRATED_NRMSE) {
-        bail!(
-            "no information: even calibrated and with the catalogue's effects, the rig model explains almost nothing of the fit recordings (best tip/force channel NRMSE {:.2} ≥ {MAX_CALIBRATED_NRMSE}); a recording of another rig, or noise only?",
-            best.min(nominal_best)
-        );
-    }
-    Ok(Some(format!(
-        "the calibrated nominal model alone explains almost nothing of the fit recordings (best tip/force channel NRMSE {nominal_best:.2}); the effects named account for them (NRMSE {best:.2})"
-    )))
-}
-
 /// Facts of the calibrated beam the candidates start from.
 struct ModelFacts {
     /// Clamped natural frequencies (Hz).
@@ -549,7 +285,7 @@ struct ModelFacts {
 }
 
 /// [`ModelFacts`] of the calibrated model (empty for a carriage-only rig).
-fn model_facts(rig: &Rig, p: &sim::Params) -> Result<ModelFacts> {
+fn model_facts(rig: &Rig, p: &model::Params) -> Result<ModelFacts> {
     let Some(b) = &rig.beam else {
         return Ok(ModelFacts {
             freqs_hz: vec![],
@@ -630,7 +366,7 @@ fn start_hints(rig: &Rig, fit_data: &[Prepared], cal: &Calibrated, m: &ModelFact
 /// `advance(step, total)` over the estimated number of stages).
 ///
 /// Steps: [`setup`] (refuse recordings without information), [`calibrate`], [`locate::locate`],
-/// the candidate catalogue from [`start_hints`], [`forward::select_forward`], then
+/// the candidate catalogue from [`start_hints`], [`selection::select_forward`], then
 /// [`conclude`] (honest uncertainty, what stays unexplained).
 ///
 /// Errors: recordings the rig cannot simulate (tip channel without a beam, …), a rig the model
@@ -668,7 +404,7 @@ pub fn diagnose(
         "the drive between samples is read both ways (piecewise linear, smooth); the recordings choose",
     );
     let smooth = Setup {
-        calib: su.calib.with_reading(sim::DriveReading::FourthOrder),
+        calib: su.calib.with_reading(model::DriveReading::FourthOrder),
         ..su.clone()
     };
     // the second reading takes the spare core, so the Jacobians of both run on their own
@@ -803,7 +539,7 @@ fn diagnose_with(
         calib: &su.calib,
         model_freqs: &facts.freqs_hz,
         drive_quantum_m: su.drive_quantum_m,
-        tests: cands.len() * forward::MAX_EFFECTS,
+        tests: cands.len() * selection::MAX_EFFECTS,
         trace: Default::default(),
     };
     // the reference of the first round: the calibrated nominal model
@@ -812,10 +548,11 @@ fn diagnose_with(
     })?;
     let val_nrmse_nominal = nominal.val_nrmse;
     let vpred0 = nominal.vpred.clone();
-    let mut sel = forward::select_forward(&ctx, &cands, nominal.clone(), &mut budget, progress, 2);
-    lookalike::resolve(&ctx, &cands, &mut sel, &mut budget);
-    backward::eliminate(&ctx, &cands, &mut sel, &mut budget);
-    forward::structural_pair_as_crack(&ctx, &cands, &mut sel, nominal, &mut budget);
+    let mut sel =
+        selection::select_forward(&ctx, &cands, nominal.clone(), &mut budget, progress, 2);
+    selection::lookalike::resolve(&ctx, &cands, &mut sel, &mut budget);
+    selection::backward::eliminate(&ctx, &cands, &mut sel, &mut budget);
+    selection::structural_pair_as_crack(&ctx, &cands, &mut sel, nominal, &mut budget);
     let set: Vec<&Candidate> = sel.chosen.iter().map(|&k| &cands[k]).collect();
     let explained = check_explained(&ctx, &set, &sel, cal.best_nrmse)?;
     let earlier = Earlier {
@@ -831,413 +568,14 @@ fn diagnose_with(
     Ok(d)
 }
 
-/// Long-run 1-σ of the calibration `cal` and the final model `reference` (replacing their
-/// linearised σ), raised to the recordings' disagreement and widened by the discretisation
-/// and, without `base_pos_m`, the base-motion assumption ([`honesty`]); the stability of every
-/// effect's parameters between the fit recordings, and the residual statistics before and
-/// after; and what the significance test of the final model reads
-/// ([`forward::NullEvidence`]).
-fn measure_final(
-    ctx: &Ctx,
-    cands: &[Candidate],
-    set: &[&Candidate],
-    cal: &mut FitResult,
-    reference: &mut forward::Reference,
-    earlier: &Earlier,
-    budget: &mut Budget,
-) -> (honesty::Honesty, forward::NullEvidence) {
-    let (rig, fit_data, sigma, calib) = (ctx.rig, ctx.fit_data, ctx.sigma, ctx.calib);
-    budget.spend(honesty::long_run_std(rig, fit_data, sigma, calib, &[], cal));
-    budget.spend(honesty::long_run_std(
-        rig,
-        fit_data,
-        sigma,
-        calib,
-        set,
-        &mut reference.fit,
-    ));
-    let (refits, used) = honesty::stability(
-        rig,
-        fit_data,
-        sigma,
-        calib,
-        set,
-        &reference.fit,
-        budget.share(3),
-    );
-    budget.spend(used);
-    let long_run = reference.fit.std.clone();
-    let spread = honesty::spread_std(&refits.values);
-    honesty::add_spread_std(&mut reference.fit, &spread);
-    // the model's stated accuracy (Type B) belongs to what the recordings give; the
-    // alternatives' changes (added in quadrature after it) do not
-    honesty::add_model_accuracy_std(rig, fit_data, sigma, calib, set, &mut reference.fit);
-    let std = reference.fit.std.clone();
-    let alternatives = widen_for_model_form(ctx, cands, set, &mut reference.fit, budget);
-    let evidence = forward::NullEvidence { std, alternatives };
-    let h = honesty::Honesty {
-        nominal: honesty::residual_stats(&residuals(ctx.validate, &earlier.val_pred_nominal)),
-        after: honesty::residual_stats(&reference.vres),
-        stability: refits.stability,
-        at_bound: honesty::at_bound(set, &reference.fit, calib.len()),
-        beyond_band: Vec::new(),
-        degrees_of_freedom: honesty::effective_dof(
-            &long_run,
-            &spread,
-            refits.values.len(),
-            &reference.fit.std,
-        ),
-    };
-    (h, evidence)
-}
-
-/// Widens the 1-σ of the final model `f` (calibration + `set`) by what the model's form leaves
-/// open: the discretisation, the drive's reading between samples and, without `base_pos_m`,
-/// the base-motion assumption, and by the model's stated accuracy carried to every effect
-/// parameter read from the response's size ([`honesty`]). Returns the values of every alternative's refit
-/// ([`honesty::Alternative`]).
-fn widen_for_model_form(
-    ctx: &Ctx,
-    cands: &[Candidate],
-    set: &[&Candidate],
-    f: &mut FitResult,
-    budget: &mut Budget,
-) -> Vec<Vec<f64>> {
-    let (rig, fit_data, sigma, calib) = (ctx.rig, ctx.fit_data, ctx.sigma, ctx.calib);
-    let mut alternatives = Vec::new();
-    let mut keep = |alt: honesty::Alternative, budget: &mut Budget| {
-        budget.spend(alt.evaluations);
-        alternatives.extend(alt.values);
-    };
-    if !set.is_empty() {
-        let share = budget.share(3);
-        let alt = honesty::add_basis_std(rig, fit_data, sigma, calib, set, f, share);
-        keep(alt, budget);
-    }
-    let share = budget.share(3);
-    let alt = honesty::add_drive_interpolation_std(rig, fit_data, sigma, calib, set, f, share);
-    keep(alt, budget);
-    if let Some(servo) = honesty::identity_servo(cands, set, fit_data) {
-        let share = budget.share(2);
-        let alt =
-            honesty::add_base_assumption_std(rig, fit_data, sigma, calib, set, &servo, f, share);
-        keep(alt, budget);
-    }
-    if !set.is_empty() {
-        budget.spend(honesty::add_response_accuracy_std(
-            rig, fit_data, sigma, calib, set, f,
-        ));
-    }
-    alternatives
-}
-
-/// What the steps before selection found, carried into the [`Diagnosis`].
-struct Earlier {
-    location: locate::Location,
-    val_nrmse_nominal: [f64; 3],
-    val_pred_nominal: Prediction,
-    basis: Option<sim::BasisChoice>,
-    band_edge_hz: f64,
-    working_rate: rate::WorkingRate,
-}
-
-/// The stiffness scale the final model `f` of `set` applies to EI where a structural effect
-/// fits along the f1-preserving path ([`Diagnosis::final_applied_stiffness_scale`]); `None`
-/// where it is the reported one.
-fn applied_stiffness_scale(ctx: &Ctx, set: &[&Candidate], f: &FitResult) -> Option<f64> {
-    let applied = fit::params_of_values(ctx.rig, ctx.calib, set, &f.values).stiffness_scale;
-    let reported = ctx
-        .calib
-        .defs
-        .iter()
-        .position(|d| d.name == "stiffness_scale")
-        .map(|i| f.values[i])?;
-    ((applied / reported - 1.0).abs() > 1e-9).then_some(applied)
-}
-
-/// Per calibration parameter of `cal`, why the recordings do not identify it (`None`:
-/// identified; [`effects::calibration_unidentified`]).
-fn unidentified_calibration(calib: &effects::Calib, cal: &FitResult) -> Vec<Option<String>> {
-    calib
-        .defs
-        .iter()
-        .zip(cal.values.iter().zip(&cal.std))
-        .map(|(def, (&v, &s))| effects::calibration_unidentified(def, v, s))
-        .collect()
-}
-
-/// The diagnosis from a finished selection: long-run 1-σ of the calibration and the final
-/// model, parameter stability, what stays unexplained.
-fn conclude(
-    ctx: &Ctx,
-    cands: &[Candidate],
-    mut sel: forward::Selection,
-    mut cal: FitResult,
-    earlier: Earlier,
-    budget: &mut Budget,
-    progress: &mut dyn crate::progress::Progress,
-) -> Diagnosis {
-    let (fit_data, sigma) = (ctx.fit_data, ctx.sigma);
-    let total_steps = sel.step + 1;
-    stage(
-        progress,
-        sel.step,
-        total_steps,
-        "uncertainty and stability of the final model",
-    );
-    let honesty = identified_final(ctx, cands, &mut sel, &mut cal, &earlier, budget, progress);
-    let forward::Selection {
-        chosen,
-        outcomes: chosen_outcomes,
-        reference,
-        rounds,
-        ..
-    } = sel;
-    let final_set: Vec<Candidate> = chosen.iter().map(|&k| cands[k].clone()).collect();
-    let mut unexplained = unexplained::assess(
-        ctx.validate,
-        &reference.vres,
-        &reference.vpred,
-        ctx.model_freqs,
-    );
-    if let (Some(u), Some(o)) = (unexplained.as_mut(), closest_failed(&rounds)) {
-        u.closest_catalogue_effect = Some(format!("{}: {}", o.id, o.reason));
-    }
-    let set: Vec<&Candidate> = final_set.iter().collect();
-    let mount_resonance = mount_resonance(ctx, &set, &reference.fit);
-    let outcomes = rounds.first().cloned().unwrap_or_default();
-    let selected = outcomes
-        .iter()
-        .position(|o| o.passed && chosen.first() == Some(&o.cand_index));
-    stage(progress, total_steps, total_steps, "done");
-    let drive_reading = ReadingChoice::of(ctx, &reference);
-    Diagnosis {
-        final_applied_stiffness_scale: applied_stiffness_scale(ctx, &set, &reference.fit),
-        calibration_unidentified: unidentified_calibration(ctx.calib, &cal),
-        final_calibration_unidentified: unidentified_calibration(ctx.calib, &reference.fit),
-        effect: chosen
-            .first()
-            .map_or_else(|| "none".to_string(), |&k| cands[k].id.to_string()),
-        selected,
-        calibration: cal,
-        sigma,
-        location: earlier.location,
-        val_nrmse_nominal: earlier.val_nrmse_nominal,
-        val_pred_nominal: earlier.val_pred_nominal,
-        candidates: outcomes,
-        validate: ctx.validate.clone(),
-        evaluations: budget.spent,
-        evaluations_simulated: budget.simulated(),
-        basis: earlier.basis,
-        band_edge_hz: earlier.band_edge_hz,
-        effects: chosen_outcomes,
-        final_set,
-        final_fit: reference.fit,
-        final_val_pred: reference.vpred,
-        final_val_nrmse: reference.val_nrmse,
-        rounds: rounds.len(),
-        unexplained,
-        assumptions: assumptions(fit_data, ctx.validate)
-            .into_iter()
-            .chain(rate::words(&earlier.working_rate))
-            .collect(),
-        working_rate: earlier.working_rate,
-        drive_reading,
-        honesty,
-        mount_resonance,
-        trace: ctx.trace.take(),
-    }
-}
-
-/// BIC on the fit recordings of `reference`: `Σ_c n_c ln(RSS_c / n_c) + k ln n`
-/// ([`ReadingChoice::fit_bic`]).
-fn fit_bic(reference: &forward::Reference) -> f64 {
-    let n: usize = reference.n.iter().sum();
-    crate::numeric::stats::neg2ll(&reference.rss, &reference.n)
-        + reference.fit.x.len() as f64 * (n.max(1) as f64).ln()
-}
-
-/// The honest measurements of the final model ([`measure_final`]), after dropping, one at a
-/// time, every effect they show the recordings do not identify
-/// ([`forward::unidentified_in_final`], [`drop_effect`]), the selection resumed after each
-/// one removed ([`forward::resume_after_drop`], with the look-alike and backward checks when it
-/// adds one); `cal` and `sel.reference` carry the honest 1 σ on return, a loop's frequency beyond the recordings' band without one
-/// ([`honesty::beyond_band`], after the identification check, which it does not change).
-fn identified_final(
-    ctx: &Ctx,
-    cands: &[Candidate],
-    sel: &mut forward::Selection,
-    cal: &mut FitResult,
-    earlier: &Earlier,
-    budget: &mut Budget,
-    progress: &mut dyn crate::progress::Progress,
-) -> honesty::Honesty {
-    loop {
-        let set: Vec<&Candidate> = sel.chosen.iter().map(|&k| &cands[k]).collect();
-        let (mut cal_h, mut reference_h) = (cal.clone(), sel.reference.clone());
-        let (h, evidence) = measure_final(
-            ctx,
-            cands,
-            &set,
-            &mut cal_h,
-            &mut reference_h,
-            earlier,
-            budget,
-        );
-        match forward::unidentified_in_final(&set, &reference_h.fit, &evidence, ctx.calib.len()) {
-            Some((i, why)) if drop_effect(ctx, cands, sel, i, &why, budget) => {
-                if sel.chosen.len() < set.len()
-                    && forward::resume_after_drop(ctx, cands, sel, budget, progress)
-                {
-                    lookalike::resolve(ctx, cands, sel, budget);
-                    backward::eliminate(ctx, cands, sel, budget);
-                }
-            }
-            _ => {
-                *cal = cal_h;
-                sel.reference = reference_h;
-                let rate_hz = ctx.fit_data.iter().map(|d| 1.0 / d.dt).fold(0.0, f64::max);
-                let fit = &mut sel.reference.fit;
-                let beyond_band = honesty::beyond_band(&set, fit, ctx.calib.len(), rate_hz);
-                return honesty::Honesty { beyond_band, ..h };
-            }
-        }
-    }
-}
-
-/// Drops effect `i` (its index in `sel.chosen`) from the final model, which the recordings
-/// do not identify (`why`, [`forward::unidentified_in_final`]), or puts its nested simpler form
-/// in its place ([`simpler_form`]: a cubic clamp whose cubic term is not identified is a linear
-/// root spring, whose stiffness may well be): the rest refitted from the joint optimum (the
-/// simpler form from the parameters it shares; for the last effect chosen, from the rest's own
-/// optimum of the round before it where that fits better), its outcome in the round that chose it marked
-/// failed with `why`. False (nothing changed) when the result cannot be simulated.
-fn drop_effect(
-    ctx: &Ctx,
-    cands: &[Candidate],
-    sel: &mut forward::Selection,
-    i: usize,
-    why: &str,
-    budget: &mut Budget,
-) -> bool {
-    let k = sel.chosen[i];
-    let off = ctx.calib.len()
-        + sel.chosen[..i]
-            .iter()
-            .map(|&c| cands[c].params.len())
-            .sum::<usize>();
-    let simpler = simpler_form(cands, &sel.rounds, k);
-    let x = &sel.reference.fit.x;
-    let mut warm: Vec<f64> = x.iter().take(off).copied().collect();
-    if let Some((s, _)) = &simpler {
-        for q in &cands[*s].params {
-            let j = cands[k].params.iter().position(|d| d.name == q.name);
-            warm.push(j.map_or(q.repr(q.starts[0]), |j| x[off + j]));
-        }
-    }
-    warm.extend(x.iter().skip(off + cands[k].params.len()));
-    let mut chosen = sel.chosen.clone();
-    match &simpler {
-        Some((s, _)) => chosen[i] = *s,
-        None => {
-            chosen.remove(i);
-        }
-    }
-    let set: Vec<&Candidate> = chosen.iter().map(|&c| &cands[c]).collect();
-    let mut warm = nalgebra::DVector::from_vec(warm);
-    // the last effect dropped: the rest's own optimum from the round before it came in is the
-    // other warm point (the joint optimum without it may lie far from any optimum of the rest)
-    if simpler.is_none() && i > 0 && i + 1 == sel.chosen.len() {
-        let before = &sel.outcomes[i - 1].fit.x;
-        let cost = |x: &nalgebra::DVector<f64>| ctx.fit_problem(&set, x.clone()).cost_at(x);
-        if before.len() == warm.len() && cost(before) < cost(&warm) {
-            warm = before.clone();
-        }
-    }
-    let f = ctx.fit(&set, Some(&warm), budget.share(2));
-    budget.spend(f.evaluations);
-    let Some(reference) = ctx.reference(&set, f) else {
-        return false;
-    };
-    ctx.trace(format!("final model: {} dropped, {why}", cands[k].id));
-    sel.reference = reference;
-    sel.chosen = chosen;
-    match simpler {
-        Some((_, mut o)) => {
-            o.passed = true;
-            o.reason = format!("in place of {}: {why}", cands[k].id);
-            if let Some(slot) = sel.outcomes.iter_mut().find(|e| e.cand_index == k) {
-                *slot = o;
-            }
-        }
-        None => {
-            sel.outcomes.retain(|o| o.cand_index != k);
-            sel.dropped.push(cands[k].id);
-        }
-    }
-    for o in sel.rounds.iter_mut().flatten() {
-        if o.cand_index == k && o.passed {
-            o.passed = false;
-            o.reason = why.to_string();
-        }
-    }
-    true
-}
-
-/// The catalogue effect closest to an unexplained residual: of the last round's failed
-/// candidates, one the recordings placed elsewhere (a resonance at the tip sensor, a spring
-/// along the beam: that says most of what the residual is), else the best that failed.
-fn closest_failed(rounds: &[Vec<CandidateOutcome>]) -> Option<&CandidateOutcome> {
-    let last = rounds.last()?;
-    last.iter()
-        .find(|o| !o.passed && o.unplaced.is_some())
-        .or_else(|| last.iter().find(|o| !o.passed))
-}
-
-/// The nested simpler form of chosen effect `k` — a linear root spring for a cubic clamp (the
-/// cubic term at zero) — with its outcome in the round of `rounds` that chose `k`: its
-/// catalogue index and that outcome. `None` for other effects, or when the simpler form was not
-/// fitted then or did not pass the guard itself (a root spring within the model's accuracy,
-/// or placed along the beam, does not come back in through a cubic clamp whose cubic term the
-/// final model does not identify: second simulator, seed 3, case14, docs/diagnose.md,
-/// session 29), or when another effect that passed in that round gained more on validation
-/// than the root spring: the round's choice made without the cubic clamp would not be the
-/// root spring, and the selection resumes instead (second simulator, seed 20, case10: a 5 g
-/// tip mass, Δval −809 in round 1 against the root spring's −677, was reported as the root
-/// spring that replaced an unidentified cubic clamp).
-fn simpler_form(
-    cands: &[Candidate],
-    rounds: &[Vec<CandidateOutcome>],
-    k: usize,
-) -> Option<(usize, CandidateOutcome)> {
-    use crate::effect::Effect;
-    if cands[k].id != Effect::CubicStiffness {
-        return None;
-    }
-    let s = cands.iter().position(|c| c.id == Effect::RootCompliance)?;
-    let round = rounds
-        .iter()
-        .find(|r| r.iter().any(|o| o.cand_index == k && o.passed))?;
-    let o = round
-        .iter()
-        .find(|o| o.cand_index == s && o.passed)?
-        .clone();
-    // the round's choice made again without the cubic clamp: the root spring only when it
-    // would have been chosen (the largest validation gain of the rest that passed)
-    let beaten = round
-        .iter()
-        .any(|x| x.passed && x.cand_index != k && x.cand_index != s && x.delta_val < o.delta_val);
-    (!beaten).then_some((s, o))
-}
-
 /// The resonance of a coupled mount among `set` as the rig shows it, with 1 σ, for the final
-/// fit `f` ([`sim::mount_resonance_hz`]); the σ moves the mount's frequency and mass by their
+/// fit `f` ([`model::mount_resonance_hz`]); the σ moves the mount's frequency and mass by their
 /// own 1 σ each and adds the changes in quadrature (NaN where one is not identified). `None`
 /// without a mount that carries the beam.
 pub(crate) fn mount_resonance(ctx: &Ctx, set: &[&Candidate], f: &FitResult) -> Option<(f64, f64)> {
     let p = ctx.fit_problem(set, f.x.clone()).params_of(&f.x);
     let dt = ctx.fit_data.first()?.dt;
-    let at = |q: &sim::Params| sim::mount_resonance_hz(ctx.rig, q, dt);
+    let at = |q: &model::Params| model::mount_resonance_hz(ctx.rig, q, dt);
     let resonance = at(&p)?;
     let std_of = |name: &str| {
         f.names
@@ -1250,7 +588,7 @@ pub(crate) fn mount_resonance(ctx: &Ctx, set: &[&Candidate], f: &FitResult) -> O
     moved_f.mount = Some((fm + std_of("mount_frequency_hz"), zm));
     let mut moved_m = p.clone();
     moved_m.mount_mass_kg += std_of("mount_mass_kg");
-    let change = |q: &sim::Params| at(q).map_or(f64::NAN, |g| g - resonance);
+    let change = |q: &model::Params| at(q).map_or(f64::NAN, |g| g - resonance);
     Some((resonance, change(&moved_f).hypot(change(&moved_m))))
 }
 
@@ -1289,95 +627,6 @@ pub(super) fn keep_lowest_bic_form(outs: &mut [CandidateOutcome]) {
     }
 }
 
-/// Fewest samples and seconds a recording needs: 100 samples and 5 s (several periods of a
-/// slow first mode; the whiteness test uses 20 lags).
-pub const MIN_SAMPLES: usize = 100;
-/// See [`MIN_SAMPLES`].
-pub const MIN_DURATION_S: f64 = 5.0;
-
-/// Largest minus smallest value of `v` (NaN-free).
-fn span(v: &[f64]) -> f64 {
-    v.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
-        - v.iter().cloned().fold(f64::INFINITY, f64::min)
-}
-
-/// Refuses a recording that cannot inform a diagnosis: too short, a command that does not move,
-/// or a recorded channel that is constant.
-fn check_information(d: &Prepared) -> Result<()> {
-    let n = d.cmd_m.len();
-    let dur = n as f64 * d.dt;
-    if n < MIN_SAMPLES || dur < MIN_DURATION_S {
-        bail!(
-            "{}: too short for a diagnosis ({n} samples, {dur:.2} s): at least {MIN_SAMPLES} samples and {MIN_DURATION_S} s are needed",
-            d.name
-        );
-    }
-    let drive = d.drive_as_sampled();
-    if !(span(drive) > 0.0) {
-        bail!(
-            "{}: no information: the base does not move (constant position), so nothing excites the model",
-            d.name
-        );
-    }
-    for (name, ch) in [
-        ("base_pos_m", &d.base_m),
-        ("tip_pos_m", &d.tip_m),
-        ("force_n", &d.force_n),
-    ] {
-        if let Some(v) = ch {
-            if !(span(v) > 0.0) {
-                bail!(
-                    "{}: no information: `{name}` is constant while the base moves (sensor not connected?)",
-                    d.name
-                );
-            }
-        }
-    }
-    Ok(())
-}
-
-/// The longest stroke a recording's base may span (m): a lab linear axis moves metres, not tens
-/// of metres; a longer one is a file in millimetres.
-pub const MAX_STROKE_M: f64 = 10.0;
-
-/// Refuses positions that cannot be metres on this rig: a base that spans more than
-/// [`MAX_STROKE_M`], or a tip farther from the base than the beam is long (positions in mm, or
-/// channels mixed up), naming the file, the channel and the figure.
-fn check_units(rig: &Rig, d: &Prepared) -> Result<()> {
-    let base = d.base_m.as_deref().unwrap_or(&d.cmd_m);
-    for (name, v) in [("base_cmd_m", &d.cmd_m[..]), ("base_pos_m", base)] {
-        if span(v) > MAX_STROKE_M {
-            bail!(
-                "{}: `{name}` spans {:.4} m, more than any lab axis's stroke ({MAX_STROKE_M} m): positions are in metres (a file in millimetres?)",
-                d.name,
-                span(v)
-            );
-        }
-    }
-    if let (Some(beam), Some(tip)) = (&rig.beam, &d.tip_m) {
-        let off = tip
-            .iter()
-            .zip(base)
-            .map(|(t, b)| (t - b).abs())
-            .fold(0.0, f64::max);
-        if off > beam.length_m {
-            bail!(
-                "{}: `tip_pos_m` is up to {off:.4} m from the base, more than the beam's length ({} m): positions are in metres along the base axis (millimetres, or another channel?)",
-                d.name,
-                beam.length_m
-            );
-        }
-    }
-    Ok(())
-}
-
-/// Largest NRMSE (on the channel the model predicts best) at which the calibrated nominal
-/// model is still taken to describe the recordings: below it the model explains at least
-/// 1 − 0.9² = 19 % of that channel's variance.
-pub const MAX_CALIBRATED_NRMSE: f64 = 0.9;
-
-pub use forward::MAX_EFFECTS;
-
 /// Explicit assumptions the diagnosis had to make about the recordings.
 fn assumptions(fit_data: &[Prepared], validate: &Prepared) -> Vec<String> {
     let mut v = Vec::new();
@@ -1410,6 +659,8 @@ fn assumptions(fit_data: &[Prepared], validate: &Prepared) -> Vec<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    use crate::diagnose::conclude::*;
     use crate::effect::Effect;
 
     fn cand(id: Effect) -> Candidate {
@@ -1422,7 +673,7 @@ mod tests {
     }
 
     fn row(cand_index: usize, id: Effect, passed: bool) -> CandidateOutcome {
-        let mut o = forward::tests::outcome(-100.0, passed, "");
+        let mut o = selection::tests::outcome(-100.0, passed, "");
         o.cand_index = cand_index;
         o.id = id;
         o

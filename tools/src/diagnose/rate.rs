@@ -32,7 +32,7 @@
 //!    correction). At the recording's own rate this emphasis is not applied: tried in session 9, a
 //!    boosted command let a lightly damped position loop take a loose tip sensor's resonance
 //!    on tip-only 50 Hz recordings (docs/diagnose.md); there the recordings choose between the
-//!    piecewise-linear reading and a milder three-tap one ([`super::sim::DriveReading`]). (b) is what the emphasis leaves at r_w beyond the
+//!    piecewise-linear reading and a milder three-tap one ([`super::model::DriveReading`]). (b) is what the emphasis leaves at r_w beyond the
 //!    recording's own interpolation error. Measured without the emphasis: a 1000 Hz sensor-delay case (tip
 //!    content to 27 Hz) decimated to 200 Hz got a spurious 60 Hz `mount_resonance` (ζ 0.06, a
 //!    resonant boost that undoes the droop) worth 10 % of the noise power, as (b) predicted;
@@ -57,7 +57,7 @@
 //!    sample); the ends are held at their first/last values.
 //!    Kaiser, "Nonrecursive digital filter design using the I0-sinh window function", 1974.
 
-use super::sim::Prepared;
+use super::model::prepared::Prepared;
 use crate::recording::windowed_sinc;
 
 /// Lowest working rate (Hz): see the module header, step 2.
@@ -121,7 +121,7 @@ fn channels(d: &Prepared) -> Vec<(Vec<f64>, Option<Vec<f64>>)> {
 
 /// `force` less its least-squares fit by the commanded rigid carriage: a constant, the
 /// commanded acceleration (second difference / dt², as the model's piecewise-linear path),
-/// velocity and smoothed sign of velocity (friction, as [`super::sim`]'s carriage forces).
+/// velocity and smoothed sign of velocity (friction, as [`super::model`]'s carriage forces).
 /// What is left is what the model cannot get from the command as a rigid body. `None` when
 /// the fit is singular.
 pub fn force_beyond_rigid_body(force: &[f64], cmd: &[f64], dt: f64) -> Option<Vec<f64>> {

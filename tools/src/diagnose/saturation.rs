@@ -200,7 +200,7 @@ mod tests {
         let mut rec = crate::recording::Recording::with_uniform_time(y.len(), 100.0);
         rec.base_cmd_m = Some(vec![0.0; y.len()]);
         rec.tip_pos_m = Some(y.iter().map(|v| v.clamp(-0.002, 0.002)).collect());
-        let e = super::super::sim::Prepared::new("swing.csv", &rec).unwrap_err();
+        let e = super::super::model::Prepared::new("swing.csv", &rec).unwrap_err();
         let text = format!("{e:#}");
         assert!(
             text.contains("swing.csv") && text.contains("tip_pos_m") && text.contains("rail"),
@@ -208,7 +208,7 @@ mod tests {
         );
         // clipped on a few swings only: prepared, those samples marked
         rec.tip_pos_m = Some(y.iter().map(|v| v.clamp(-0.009, 0.009)).collect());
-        let d = super::super::sim::Prepared::new("swing.csv", &rec).unwrap();
+        let d = super::super::model::Prepared::new("swing.csv", &rec).unwrap();
         assert!(d.rails[1].samples() > 0 && d.rails[2].runs.is_empty());
     }
 

@@ -1,7 +1,7 @@
 //! Does a scale error of a tip sensor on the deflection scale every mode alike?
 //!
 //! A sensor that rides on the carriage (a camera on the carriage, a strain gauge at the root)
-//! reports `root + (1 + g) · w`, `w` the deflection ([`super::sim`], `sensor_gain`). Fitted to
+//! reports `root + (1 + g) · w`, `w` the deflection ([`super::model`], `sensor_gain`). Fitted to
 //! one validation recording, such a `g` also takes up anything else that changes the
 //! deflection's size in *one* part of the band: a crack that moves one mode against the others
 //! (the stiffness scale keeps the first in place and `g` shrinks the mismatched second), a
@@ -36,7 +36,7 @@
 //!    whole size (one mode changed, the others not) give a τ of the scale's own size and drop
 //!    it.
 
-use super::select::MIN_SIGMAS;
+use super::selection::guard::MIN_SIGMAS;
 use crate::ident::frf::Window;
 use realfft::num_complex::Complex64;
 use realfft::RealFftPlanner;

@@ -26,8 +26,8 @@
 //! commanded speed and acceleration.
 
 use super::fit::CHANNEL_NAMES;
-use super::select::{ljung_box, LJUNG_BOX_LAGS};
-use super::sim::{Prediction, Prepared};
+use super::model::{Prediction, Prepared};
+use super::selection::guard::{ljung_box, LJUNG_BOX_LAGS};
 use crate::ident::spectrum::amplitude_spectrum;
 use crate::numeric::stats::noise_variance;
 use serde::Serialize;

@@ -112,7 +112,7 @@ pub struct Servo {
 
 impl Servo {
     /// The loop's natural frequency √(K_p/M)/2π (Hz), the diagnosis' `servo_bandwidth_hz`
-    /// (`diagnose::sim::ServoLaw::natural_frequency_rad_s`). With the gains of
+    /// (`diagnose::model::ServoLaw::natural_frequency_rad_s`). With the gains of
     /// `Plant::servo_gains` (velocity gain M ω_v, its integral M ω_v²/4, position gain ω_p)
     /// the rigid closed loop has the characteristic polynomial
     /// `M s³ + Mω_v s² + M(ω_v ω_p + ω_v²/4) s + M ω_v² ω_p/4`, whose proportional coefficient

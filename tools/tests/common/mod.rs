@@ -1,8 +1,8 @@
 //! Shared by the diagnosis integration tests: one generated case, diagnosed.
 
 use beamtools::diagnose::diagnose;
+use beamtools::diagnose::model::Prepared;
 use beamtools::diagnose::report::to_json;
-use beamtools::diagnose::sim::Prepared;
 use beamtools::model::Rig;
 use beamtools::truth::{generate, TruthOptions};
 

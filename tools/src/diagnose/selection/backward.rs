@@ -12,15 +12,17 @@
 //! (Efroymson 1960), once no candidate passes, each chosen effect in turn (the earliest first)
 //! is removed, the rest refitted from the final optimum, and the effect is kept only if the
 //! final model beats that refit by the margins of the guard's conditions 1 and 2
-//! ([`super::select`]): ΔBIC < −[`BIC_MARGIN`] on the fit recordings and
+//! ([`super::guard`]): ΔBIC < −[`BIC_MARGIN`] on the fit recordings and
 //! Δ(−2 ln L) < −[`VALIDATION_MARGIN`] on the validation recording, with the final model's
 //! effective sample counts. One that does not is dropped, the refit becomes the final model, and
 //! its round's table says why.
 
-use super::effects::Candidate;
-use super::forward::{n_of, Budget, Ctx, Selection};
-use super::select::{delta_neg2ll_effective, BIC_MARGIN, VALIDATION_MARGIN};
-use super::CandidateOutcome;
+use super::budget::Budget;
+use super::context::Ctx;
+use super::guard::{delta_neg2ll_effective, BIC_MARGIN, VALIDATION_MARGIN};
+use super::state::{n_of, Selection};
+use crate::diagnose::effects::Candidate;
+use crate::diagnose::CandidateOutcome;
 use nalgebra::DVector;
 
 /// Drops every chosen effect of `sel` that the final model without it does as well as (module
@@ -87,7 +89,7 @@ fn without(
     p: usize,
     failed_alone: Option<&str>,
     budget: &mut Budget,
-) -> Option<(super::forward::Reference, String)> {
+) -> Option<(super::state::Reference, String)> {
     let set: Vec<&Candidate> = (sel.chosen.iter().enumerate())
         .filter(|(q, _)| *q != p)
         .map(|(_, &k)| &cands[k])
@@ -110,7 +112,7 @@ fn without(
     let seeds: Vec<DVector<f64>> = same_set_outcomes(&sel.rounds, original, &rest)
         .map(|o| o.fit.x.clone())
         .collect();
-    let f = super::fit::fit(
+    let f = crate::diagnose::fit::fit(
         ctx.rig,
         ctx.fit_data,
         ctx.sigma,
@@ -188,7 +190,7 @@ fn mark_dropped(rounds: &mut [Vec<CandidateOutcome>], id: usize, words: &str) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagnose::forward::tests::outcome;
+    use crate::diagnose::selection::tests::outcome;
 
     fn at(cand_index: usize) -> CandidateOutcome {
         let mut o = outcome(-100.0, true, "passes every guard");

@@ -17,7 +17,7 @@
 //! alarms over ~60 null recordings is the expected outcome (0.999⁶⁰ ≈ 94 %).
 //!
 //! Beside the test stand only comparisons and physical bounds, no tuned margin:
-//! - the **model-form comparison** (condition 3 of [`super::select`]): the candidate must gain
+//! - the **model-form comparison** (condition 3 of [`super::guard`]): the candidate must gain
 //!   more on the validation recording than a physics-free correction with as many coefficients
 //!   fitted on the same data (a yardstick measured on this recording, not a constant);
 //! - the **Wald test** of an effect parameter whose zero means "no effect", at the same per-test
@@ -25,7 +25,7 @@
 //! - **physical bounds** (condition 7: wrong sign, at a search limit, slower than the recordings
 //!   resolve; the model's stated accuracy; a resonance the channels cannot place).
 //!
-//! [`Rule::Guard`] is the earlier conjunction (ΔBIC and validation margins of 10, a decreasing
+//! [`Rule::Guard`] is the earlier conjunction ([`super::guard`]: ΔBIC and validation margins of 10, a decreasing
 //! Ljung–Box numerator, ≥ 50 % of the structured residual, a 3 σ parameter), kept for the
 //! ablation table in `docs/diagnose.md`; `DIAG_RULE=guard` selects it.
 
@@ -117,7 +117,7 @@ pub fn predictive_failure(t: Option<&PredictiveTest>, tests: usize) -> Option<St
 /// evidence of new physics): the predictive test, the model-form comparison, the Wald test of
 /// an effect parameter at the per-test level of `tests` tests, and the physical bounds.
 pub fn predictive_guard(
-    e: &super::select::Evidence,
+    e: &super::guard::Evidence,
     t: Option<&PredictiveTest>,
     tests: usize,
 ) -> Vec<String> {

@@ -38,11 +38,14 @@
 //! residual by no more than the spread among the partner's forms there; the partner is then
 //! reported indistinguishable from it.
 
-use super::effects::Candidate;
-use super::fit::CHANNEL_NAMES;
-use super::forward::{allowance, n_of, Budget, Ctx, Reference, Selection};
-use super::select::{delta_neg2ll_effective, BIC_MARGIN, VALIDATION_MARGIN};
-use super::CandidateOutcome;
+use super::allowance::allowance;
+use super::budget::Budget;
+use super::context::Ctx;
+use super::guard::{delta_neg2ll_effective, BIC_MARGIN, VALIDATION_MARGIN};
+use super::state::{n_of, Reference, Selection};
+use crate::diagnose::effects::Candidate;
+use crate::diagnose::fit::CHANNEL_NAMES;
+use crate::diagnose::CandidateOutcome;
 use crate::effect::Effect;
 use nalgebra::DVector;
 
@@ -235,7 +238,7 @@ fn refit_with(
         .copied()
         .collect();
     let share = check_share(budget) / 2;
-    let mut best: Option<super::fit::FitResult> = None;
+    let mut best: Option<crate::diagnose::fit::FitResult> = None;
     for warm in [from_alt, from_final] {
         let warm = DVector::from_vec(warm);
         let f = ctx.fit(&set, Some(&warm), share);
@@ -278,7 +281,7 @@ fn refit_with(
 fn convergence(
     ctx: &Ctx,
     set: &[&Candidate],
-    f: &super::fit::FitResult,
+    f: &crate::diagnose::fit::FitResult,
     budget: &mut Budget,
 ) -> Option<String> {
     let problem = ctx.fit_problem(set, f.x.clone());
@@ -298,7 +301,7 @@ fn convergence(
 /// chosen) by more than model-form freedom: on the channel it helps most, its validation rms
 /// reduction exceeds the look-alike's by more than the larger of
 /// - the physics-free correction with as many parameters on the final model's residual there
-///   ([`super::select`] condition 3), and
+///   ([`super::guard`] condition 3), and
 /// - the spread of that reduction among the fitted forms of one effect in the same round
 ///   ([`form_spread`]): the loop's orders are the same physics in different model form, so
 ///   the difference between them is what model form alone moves the gain by on these data.
@@ -441,7 +444,7 @@ pub(crate) fn within_partner_form(
 /// `reduction` does not exceed the spread. `None`: `id` may be physics of its own.
 ///
 /// Evidence of its own is the likelihood margins *and* a validation reduction beyond the
-/// round's model-form allowance (conditions 1–3 of [`super::select`]): a gain that a
+/// round's model-form allowance (conditions 1–3 of [`super::guard`]): a gain that a
 /// physics-free correction with as many parameters earns as well is the model form's, not the
 /// look-alike's. Second simulator, seed 21, case23 (a null, no `base_pos_m`, the simulator's
 /// 1 kHz PID loop with its derivative filter and ZOH): a latency alone gained ΔBIC −33,
@@ -527,7 +530,7 @@ mod tests {
 
     /// Validation reduction `r` on `tip_pos_m` of an outcome of effect `id`.
     fn with(id: Effect, delta_bic: f64, r: f64) -> CandidateOutcome {
-        let mut o = crate::diagnose::forward::tests::outcome(delta_bic, true, "");
+        let mut o = crate::diagnose::selection::tests::outcome(delta_bic, true, "");
         o.id = id;
         o.nrmse_before = [f64::NAN, 0.1559, f64::NAN];
         o.val_nrmse = [f64::NAN, 0.1559 * (1.0 - r), f64::NAN];

@@ -24,9 +24,9 @@
 //!    k-term linear filter of the model's prediction and the base motion — on `force_n` without
 //!    the carriage velocity, which is not model-form freedom but viscous friction, a catalogue
 //!    effect: a yardstick made of the candidate's own physics can never be beaten by it, see
-//!    `forward::FORCE_WITHOUT`; on `base_pos_m` of a model without a loop without the
+//!    `allowance::FORCE_WITHOUT`; on `base_pos_m` of a model without a loop without the
 //!    command's derivatives, a lag of the command being a position loop's physics,
-//!    `forward::BASE_WITHOUT_LOOP`; a correction larger than the dictionary's rank counts as
+//!    `allowance::BASE_WITHOUT_LOOP`; a correction larger than the dictionary's rank counts as
 //!    the largest solvable one; for a length series
 //!    the best k-term smooth trend of the relative frequency error in the length); for
 //!    recordings also at least the *split-refit spread*: how much the validation rms residual
@@ -47,18 +47,18 @@
 //!    it). An effect that removes a sliver of a large structured residual is not what that
 //!    residual is; the residual is reported unexplained instead of being given its name. The
 //!    share is also taken in the effect's own band (the bins holding 90 % of the change it makes,
-//!    `forward::share_in_effect_band`) and the larger stands, when what the effect leaves outside
+//!    `evidence::share_in_effect_band`) and the larger stands, when what the effect leaves outside
 //!    that band is no response to the motion (coherent with neither the command nor the model's
-//!    prediction, `forward::driven_share`): a drive's loop hunting near the Nyquist rate beside
+//!    prediction, `evidence::driven_share`): a drive's loop hunting near the Nyquist rate beside
 //!    friction on a real axis is another thing, reported unexplained; a loose sensor's ring
 //!    driven by every move is the rest of the same signature, and the whole band decides. On
 //!    `force_n` conditions 4 and 6 are judged outside the residual's bursts (samples beyond 6
-//!    robust σ, `forward::judged`): a drive's loop transient at an acceleration step, which the
+//!    robust σ, `evidence::judged`): a drive's loop transient at an acceleration step, which the
 //!    samples do not resolve and no catalogue effect models, is not what a force effect must
 //!    account for. In
 //!    `diagnose` the explanation may be a pair: an effect failing only this condition goes in on
 //!    trial when it is a round's best, and is named with the next round's passing effect if
-//!    the two together remove most of that structure (`forward::pair_step`);
+//!    the two together remove most of that structure (`pairs::pair_step`);
 //! 7. **physically possible** (recordings): no parameter sits on the wrong side of a physical
 //!    limit by more than 2 σ (a negative sensor delay — the sensor reporting before the motion —,
 //!    or negative Coulomb friction), and no parameter sits at a search limit of
@@ -77,7 +77,7 @@
 //!    to sit anywhere along the beam nests the root spring; when it wins by the margins of
 //!    conditions 1–2 at a position whose 2 σ interval lies beyond the clamp's region, the
 //!    recordings reject the clamp as its place: a local compliance of the beam (a crack), outside
-//!    the catalogue, reported unexplained with its position (`forward::Ctx::compliance_placement`).
+//!    the catalogue, reported unexplained with its position (`compliance`, `Ctx::compliance_placement`).
 //!
 //! Among those, the largest validation likelihood gain wins; if none passes, the answer is
 //! `none`. In `diagnose` forward selection applies the guard once per round against the model
