@@ -1,7 +1,7 @@
 //! `diagnose`: the CLI's `beamtool diagnose` in-process, its JSON report as Python objects.
 
 use crate::arrays::json_to_py;
-use crate::guard::{run_released, SignalCheck};
+use crate::guard::run_cancellable;
 use crate::model::PyRig;
 use beamtools::diagnose::load::load;
 use beamtools::diagnose::report::to_json;
@@ -23,8 +23,7 @@ pub fn diagnose<'py>(
         ));
     }
     let r = rig.rig.clone();
-    let mut check = SignalCheck::new();
-    let (report, notes) = run_released(py, move || {
+    let (report, notes) = run_cancellable(py, move |cancel| {
         let mut notes = Vec::new();
         let mut prepared = |p: &PathBuf| -> anyhow::Result<_> {
             let l = load(p, &r)?;
@@ -36,7 +35,7 @@ pub fn diagnose<'py>(
             .map(&mut prepared)
             .collect::<anyhow::Result<_>>()?;
         let val = prepared(&validate)?;
-        let d = beamtools::diagnose::diagnose(&r, &fit, &val, &mut check)?;
+        let d = beamtools::diagnose::diagnose(&r, &fit, &val, cancel)?;
         Ok((to_json(&d), notes))
     })?;
     // what reading noted, as the CLI prints it: Python warnings

@@ -3,6 +3,9 @@
 use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{channel, RecvTimeoutError};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// The payload a progress callback unwinds with when Python has a pending signal (Ctrl-C):
@@ -93,5 +96,66 @@ impl beamtools::progress::Progress for SignalCheck {
     }
     fn advance(&mut self, _done: u64, _total: u64) {
         self.poll();
+    }
+}
+
+/// The payload a [`Cancel`] sink unwinds with once the caller gave up (Ctrl-C).
+struct Cancelled;
+
+/// A progress sink for [`run_cancellable`]: unwinds the worker at its next progress report
+/// once the caller was interrupted.
+pub struct Cancel {
+    flag: Arc<AtomicBool>,
+}
+
+impl beamtools::progress::Progress for Cancel {
+    fn stage(&mut self, _name: &str) {
+        self.advance(0, 0);
+    }
+    fn advance(&mut self, _done: u64, _total: u64) {
+        if self.flag.load(Ordering::Relaxed) {
+            resume_unwind(Box::new(Cancelled));
+        }
+    }
+}
+
+/// Runs `f` on a worker thread while the caller waits without the GIL and looks for Ctrl-C
+/// every 50 ms: a pending signal returns its exception (`KeyboardInterrupt`) at once, and the
+/// worker stops at its next progress report ([`Cancel`]; work the library runs beside it on
+/// threads of its own ends first). Errors and panics as [`run_released`].
+pub fn run_cancellable<T: Send + 'static>(
+    py: Python<'_>,
+    f: impl FnOnce(&mut Cancel) -> anyhow::Result<T> + Send + 'static,
+) -> PyResult<T> {
+    let flag = Arc::new(AtomicBool::new(false));
+    let mut sink = Cancel { flag: flag.clone() };
+    let (tx, mut rx) = channel();
+    std::thread::Builder::new()
+        .name("beamshaper-call".into())
+        .stack_size(64 << 20)
+        .spawn(move || {
+            let _ = tx.send(catch_unwind(AssertUnwindSafe(|| f(&mut sink))));
+        })
+        .map_err(|e| PyRuntimeError::new_err(format!("cannot start a worker thread: {e}")))?;
+    loop {
+        // the receiver is moved in and out: it is Send, not Sync
+        let (got, back) = py.allow_threads(move || (rx.recv_timeout(Duration::from_millis(50)), rx));
+        rx = back;
+        match got {
+            Ok(Ok(Ok(v))) => return Ok(v),
+            Ok(Ok(Err(e))) => return Err(to_py(e)),
+            Ok(Err(payload)) => return Err(from_panic(payload)),
+            Err(RecvTimeoutError::Timeout) => {
+                if let Err(e) = py.check_signals() {
+                    flag.store(true, Ordering::Relaxed);
+                    return Err(e);
+                }
+            }
+            Err(RecvTimeoutError::Disconnected) => {
+                return Err(PyRuntimeError::new_err(
+                    "internal error in beamshaper: the worker thread ended without a result",
+                ))
+            }
+        }
     }
 }
