@@ -139,7 +139,8 @@ pub fn run_cancellable<T: Send + 'static>(
         .map_err(|e| PyRuntimeError::new_err(format!("cannot start a worker thread: {e}")))?;
     loop {
         // the receiver is moved in and out: it is Send, not Sync
-        let (got, back) = py.allow_threads(move || (rx.recv_timeout(Duration::from_millis(50)), rx));
+        let (got, back) =
+            py.allow_threads(move || (rx.recv_timeout(Duration::from_millis(50)), rx));
         rx = back;
         match got {
             Ok(Ok(Ok(v))) => return Ok(v),
