@@ -1,6 +1,7 @@
 """Type stubs of the Rust extension ``beamshaper._beamshaper`` (PyO3). The public names are
 re-exported by ``beamshaper``; the functions there carry the full documentation."""
 
+import os
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union, overload
 
 import numpy as np
@@ -57,7 +58,7 @@ class Spectrum:
     @property
     def kind(self) -> str: ...
     @property
-    def path(self) -> str: ...
+    def path(self) -> "os.PathLike[str]": ...
     @property
     def freq_hz(self) -> F64Array:
         """Frequency bins (Hz), shape (M,)."""
@@ -143,14 +144,13 @@ class Shaper:
     def refused_on_recording(self) -> List[str]:
         """Shorter designs refused because they leave too much of the recorded vibration."""
     @overload
-    def vibration_pct(self, freq_hz: float, zeta: float) -> float: ...
-    @overload
-    def vibration_pct(self, freq_hz: ArrayLike, zeta: float) -> F64Array: ...
-    def vibration_pct(self, freq_hz: Any, zeta: float) -> Any:
+    def vibration_pct(self, freq_hz: float, zeta: float) -> float:
         """Percentage vibration V (%) left at natural frequency ``freq_hz`` (Hz, scalar or
         shape (M,)) and damping ratio ``zeta``: 100 · e^{−ζωt_n} √(C² + S²) with
         C = Σ Aᵢ e^{ζωtᵢ} cos(ω_d tᵢ), S the same with sin (paper eq. 27; Singer & Seering 1990).
         Raises ValueError: freq_hz ≤ 0 or NaN, zeta outside [0, 1)."""
+    @overload
+    def vibration_pct(self, freq_hz: ArrayLike, zeta: float) -> F64Array: ...
     def apply(self, signal: ArrayLike, rate_hz: float, path: str = "fixed") -> F64Array:
         """``signal`` (m, shape (N,), one sample per tick at ``rate_hz``) shaped by the firmware
         core's run-time engine exactly as the board runs it: the shaper sampled into a tap
@@ -163,7 +163,7 @@ class Rig:
     """A rig file (TOML, e.g. ``rigs/paper.toml``): the beam, its base and sensors."""
 
     @staticmethod
-    def from_toml(path: str) -> "Rig":
+    def from_toml(path: "str | os.PathLike[str]") -> "Rig":
         """Raises OSError (unreadable), ValueError (invalid TOML or parameters)."""
     @staticmethod
     def from_toml_str(text: str) -> "Rig": ...

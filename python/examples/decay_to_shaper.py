@@ -39,6 +39,7 @@ def main() -> int:
     out.mkdir(parents=True, exist_ok=True)
 
     rec = bs.read_recording(a.data)
+    assert isinstance(rec, bs.Recording), "a time recording (.npy or CSV), not a spectrum"
     print(rec)
     ident = bs.identify(rec)
     print(f"path: {ident.path} ({ident.reason})")

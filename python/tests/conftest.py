@@ -41,7 +41,8 @@ def beamtool() -> Optional[Path]:
     found = [p for p in found if p.parent.name in ("release", "debug")]
     if found:
         return max(found, key=lambda p: p.stat().st_mtime)
-    return Path(shutil.which("beamtool")) if shutil.which("beamtool") else None
+    on_path = shutil.which("beamtool")
+    return Path(on_path) if on_path else None
 
 
 @pytest.fixture
