@@ -145,6 +145,7 @@ def design_shaper(
     move_mm: Optional[float] = None,
     speed_mm_s: float = 150.0,
     accel_mm_s2: float = 2000.0,
+    board: Optional[Dict[str, int]] = None,
 ) -> Shaper:
     """Design the shortest robust input shaper: ``beamtool tune``'s design step.
 
@@ -154,8 +155,9 @@ def design_shaper(
     with b = max(2σ_f/f̂, ``min_band_pct``/100), ζ ∈ [ζ̂ − 2σ_ζ, ζ̂ + 2σ_ζ]. The shortest
     candidate within ``tolerance_pct`` wins; with ``recording`` it must also leave the
     recorded free vibration within the tolerance (model-free, by superposition); with
-    ``move_mm`` the board (firmware default settings: tick rate, step size, step-rate limit)
-    must be able to run a move of that length with it (step-rate rule, capture).
+    ``move_mm`` the board (the firmware's default settings, with ``board``'s entries) must be
+    able to run a move of that length with it (the step-rate rule with the shaper's
+    amplitudes, the capture length), planned as ``beamtool tune`` plans its verification move.
 
     A Klipper PSD :class:`Spectrum` is designed for instead by ``beamtool tune``'s spectrum
     path: the least smoothing within Klipper's remaining-vibrations budget; Klipper's own
@@ -171,7 +173,10 @@ def design_shaper(
         signal: what the recording's tip signal is: ``"position"`` or ``"acceleration"``
             (integrated twice); default acceleration for a ``.npy`` file or a recording with
             only ``tip_acc_m_s2``, else position.
-        move_mm, speed_mm_s, accel_mm_s2: the verification move the board must be able to run.
+        move_mm, speed_mm_s, accel_mm_s2: the verification move the board must be able to run
+            (mm, mm/s, mm/s²); without ``move_mm`` no board plan is checked.
+        board: the board's settings for that plan, overriding the firmware's defaults:
+            ``{"tick_rate_hz": …, "step_nm": …, "max_step_rate_hz": …}`` (integers).
 
     Returns:
         :class:`Shaper`: ``.name``, ``.impulses`` (n, 2) [time_s, amplitude], ``.duration_s``,
@@ -179,11 +184,12 @@ def design_shaper(
         ``.apply(signal, rate_hz)``.
 
     Raises:
-        ValueError: no mode, bad numbers, no shaper meets the tolerance (the message gives the
-            first three reasons), a recording without free vibration.
+        ValueError: no mode, bad numbers, board settings the firmware refuses, no shaper meets
+            the tolerance and runs on the board (the message gives the first three reasons), a
+            recording without free vibration.
     """
     return _beamshaper.design_shaper(
-        modes, tolerance_pct, min_band_pct, recording, signal, move_mm, speed_mm_s, accel_mm_s2
+        modes, tolerance_pct, min_band_pct, recording, signal, move_mm, speed_mm_s, accel_mm_s2, board
     )
 
 

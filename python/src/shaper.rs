@@ -15,6 +15,7 @@ use beamtools::shaping::spectrum::{design_for_spectrum, Objective, VIBRATION_MAR
 use beamtools::shaping::{choose, settings_with, Candidate, ChoiceRules, RecordedVibration};
 use numpy::PyArray2;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
 /// A designed input shaper (impulse sequence) and how it was chosen.
 #[pyclass(name = "Shaper", module = "beamshaper", frozen)]
@@ -174,9 +175,11 @@ fn modes_of(modes: &Bound<'_, PyAny>) -> PyResult<Vec<ModeEstimate>> {
     Ok(out)
 }
 
-/// The board plan of `design_shaper(move_mm=…)`: the firmware's default settings.
-#[derive(Clone, Copy)]
+/// The board plan of `design_shaper(move_mm=…)`: the firmware's default settings with the
+/// caller's `board` entries.
+#[derive(Clone)]
 struct BoardMove {
+    settings: Settings,
     move_mm: f64,
     speed_mm_s: f64,
     accel_mm_s2: f64,
@@ -197,10 +200,9 @@ fn design_modes(
         recorded,
         window_s,
     };
-    let base = Settings::default();
     let runs = |c: &Candidate| -> Result<(), String> {
-        let Some(b) = board else { return Ok(()) };
-        let s = settings_with(&base, c);
+        let Some(b) = &board else { return Ok(()) };
+        let s = settings_with(&b.settings, c);
         plan_move(&s, 0.0, b.move_mm, b.speed_mm_s, b.accel_mm_s2, window_s)
             .map(|_| ())
             .map_err(|e| e.to_string())
@@ -231,6 +233,31 @@ fn design_spectrum(s: &beamtools::recording::psd::KlipperSpectrum) -> anyhow::Re
     Ok(best)
 }
 
+/// The firmware's default settings with `board`'s `tick_rate_hz`, `step_nm`,
+/// `max_step_rate_hz` (integers). Errors: another key, a value the firmware refuses.
+fn board_settings(board: Option<&Bound<'_, PyDict>>) -> PyResult<Settings> {
+    let mut s = Settings::default();
+    for (k, v) in board.into_iter().flat_map(|d| d.iter()) {
+        let key: String = k.extract()?;
+        let v: u32 = v
+            .extract()
+            .map_err(|_| value_error(format!("board[{key:?}]: want an integer >= 0")))?;
+        match key.as_str() {
+            "tick_rate_hz" => s.tick_rate_hz = v,
+            "step_nm" => s.step_nm = v,
+            "max_step_rate_hz" => s.max_step_rate_hz = v,
+            _ => {
+                return Err(value_error(format!(
+                    "board: unknown setting `{key}` (tick_rate_hz, step_nm, max_step_rate_hz)"
+                )))
+            }
+        }
+    }
+    s.validate()
+        .map_err(|e| value_error(format!("board: the firmware refuses these settings: {e:?}")))?;
+    Ok(s)
+}
+
 /// The recorded free vibration of `rec` for the model-free check.
 fn recorded_of(
     rec: &PyRecording,
@@ -259,7 +286,7 @@ fn recorded_of(
 
 /// Designs the shortest robust shaper (see the stub).
 #[pyfunction]
-#[pyo3(signature = (modes, tolerance_pct=2.0, min_band_pct=2.0, recording=None, signal=None, move_mm=None, speed_mm_s=150.0, accel_mm_s2=2000.0))]
+#[pyo3(signature = (modes, tolerance_pct=2.0, min_band_pct=2.0, recording=None, signal=None, move_mm=None, speed_mm_s=150.0, accel_mm_s2=2000.0, board=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn design_shaper(
     py: Python<'_>,
@@ -271,6 +298,7 @@ pub fn design_shaper(
     move_mm: Option<f64>,
     speed_mm_s: f64,
     accel_mm_s2: f64,
+    board: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<PyShaper> {
     if let Ok(s) = modes.downcast::<PySpectrum>() {
         let SpectrumData::Klipper(k) = &s.get().data else {
@@ -296,6 +324,7 @@ pub fn design_shaper(
     let board = match move_mm {
         None => None,
         Some(m) if m.is_finite() && m != 0.0 => Some(BoardMove {
+            settings: board_settings(board)?,
             move_mm: m,
             speed_mm_s: positive("speed_mm_s", speed_mm_s)?,
             accel_mm_s2: positive("accel_mm_s2", accel_mm_s2)?,

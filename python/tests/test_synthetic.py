@@ -139,3 +139,14 @@ def test_ctrl_c_interrupts_a_long_call(tmp_path):
     with pytest.raises(KeyboardInterrupt):
         bs.diagnose(rig, [path], path)
     assert time.perf_counter() - t0 < 10.0
+
+
+def test_board_plan_refuses_what_the_board_cannot_run():
+    modes = [(1.1, 0.0074, 0.001, 0.0005), (6.9, 0.0074, 0.01, 0.0005)]
+    free = bs.design_shaper(modes)
+    planned = bs.design_shaper(modes, move_mm=50.0)
+    assert planned.duration_s >= free.duration_s
+    with pytest.raises(ValueError, match="no shaper keeps"):
+        bs.design_shaper(modes, move_mm=50.0, speed_mm_s=150.0, board={"max_step_rate_hz": 1000})
+    with pytest.raises(ValueError, match="unknown setting"):
+        bs.design_shaper(modes, move_mm=50.0, board={"ticks": 1})
