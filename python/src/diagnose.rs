@@ -8,7 +8,7 @@ use beamtools::diagnose::report::to_json;
 use pyo3::prelude::*;
 use std::path::PathBuf;
 
-/// Diagnoses `rig` against recordings (see the stub).
+/// Diagnoses `rig` against recordings (documented in `beamshaper/__init__.py`).
 #[pyfunction]
 #[pyo3(signature = (rig, fit, validate))]
 pub fn diagnose<'py>(

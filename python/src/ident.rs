@@ -93,6 +93,7 @@ pub struct PyIdentification {
 
 #[pymethods]
 impl PyIdentification {
+    /// Physical modes, ascending in frequency.
     #[getter]
     fn modes(&self) -> Vec<PyMode> {
         self.id
@@ -101,10 +102,12 @@ impl PyIdentification {
             .map(|m| PyMode { m: m.clone() })
             .collect()
     }
+    /// The path taken (``free decay``, ``FRF (input/output)``, …).
     #[getter]
     fn path(&self) -> String {
         self.id.path.to_string()
     }
+    /// Why this path, and what it used.
     #[getter]
     fn reason(&self) -> String {
         self.id.reason.clone()
@@ -113,16 +116,19 @@ impl PyIdentification {
     fn warnings(&self) -> Vec<String> {
         self.id.warnings.clone()
     }
+    /// Estimates that are not physical modes, with the reason.
     #[getter]
     fn rejected(&self) -> Vec<(PyMode, String)> {
         let r = self.id.rejected.iter();
         r.map(|r| (PyMode { m: r.mode.clone() }, r.reason.clone()))
             .collect()
     }
+    /// Rayleigh α1 (1/s), α2 (s) of the first two modes (paper eq. 22).
     #[getter]
     fn rayleigh(&self) -> Option<(f64, f64)> {
         self.id.rayleigh
     }
+    /// Time span used (s).
     #[getter]
     fn span_s(&self) -> (f64, f64) {
         self.id.span_s
@@ -131,11 +137,12 @@ impl PyIdentification {
     fn sample_rate_hz(&self) -> f64 {
         self.id.sample_rate_hz
     }
-    /// The CLI's `--json` as Python objects.
+    /// The CLI's ``identify --json`` as Python objects.
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         json_to_py(py, &self.id)
     }
-    /// The FRF path's stabilisation diagram (`None` on other paths).
+    /// FRF path: ``{"diagram": {method, orders: [{order, poles: [[{freq_hz, zeta}, label]]}],
+    /// modes}, "freq_hz": (M,), "h1_abs": (M,), "band_hz": (lo, hi)}``; ``None`` otherwise.
     fn stabilisation<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
         let Some((r, frf)) = &self.id.frf_result else {
             return Ok(None);
@@ -204,7 +211,7 @@ fn options(
     })
 }
 
-/// Identifies the modes of a recording or `.lvm` magnitude spectrum (see the stub).
+/// Identifies the modes of a recording or `.lvm` magnitude spectrum (documented in `beamshaper/__init__.py`).
 #[pyfunction]
 #[pyo3(signature = (recording, f_min_hz=None, f_max_hz=None, path="auto", method="lscf", band_hz=None, n_modes=None))]
 #[allow(clippy::too_many_arguments)]

@@ -31,6 +31,7 @@ fn model(rig: &Rig, n: usize) -> anyhow::Result<BeamModel> {
 
 #[pymethods]
 impl PyRig {
+    /// Raises OSError (unreadable), ValueError (invalid TOML or parameters).
     #[staticmethod]
     fn from_toml(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
         let p = path.clone();
@@ -47,7 +48,10 @@ impl PyRig {
         Ok(PyRig { rig, path: None })
     }
 
-    /// The CLI's `beamtool modes --json` (see the stub).
+    /// ``beamtool modes --json``: ``beam_mass_kg``, Rayleigh ``rayleigh_alpha1_per_s`` /
+    /// ``rayleigh_alpha2_s`` and per mode ``freq_hz_clamped_base``, ``freq_hz_free_base``
+    /// (Hz), ``damping_ratio``, ``participation_kg_sqrt``, ``tip_per_modal_coordinate``, from
+    /// the Galerkin model with ``n`` basis functions (paper eqs. 10–24).
     #[pyo3(signature = (n=6))]
     fn modes<'py>(&self, py: Python<'py>, n: usize) -> PyResult<Bound<'py, PyAny>> {
         let rig = self.rig.clone();
@@ -75,6 +79,7 @@ impl PyRig {
         json_to_py(py, &v)
     }
 
+    /// The rig's sensor sample rate (Hz).
     #[getter]
     fn sample_rate_hz(&self) -> f64 {
         self.rig.sample_rate_hz()
@@ -88,7 +93,7 @@ impl PyRig {
     }
 }
 
-/// Simulates the beam under a base position command (see the stub).
+/// Simulates the beam under a base position command (documented in `beamshaper/__init__.py`).
 #[pyfunction]
 #[pyo3(signature = (rig, base_cmd_m, rate_hz, n_modes=4))]
 pub fn simulate(

@@ -22,6 +22,10 @@ pub struct PyRecording {
 
 #[pymethods]
 impl PyRecording {
+    /// A recording from numpy arrays of shape (N,) (float64 or float32, any strides; the
+    /// values are copied once into the library). Raises ValueError: an array not 1-D, no
+    /// channel besides ``time_s``, N < 2, lengths that differ, NaN or inf, time not strictly
+    /// increasing (the message names the row).
     #[staticmethod]
     #[pyo3(signature = (time_s, tip_pos_m=None, base_pos_m=None, base_cmd_m=None, force_n=None, tip_acc_m_s2=None))]
     fn from_arrays(
@@ -55,6 +59,7 @@ impl PyRecording {
         })
     }
 
+    /// ``{"time_s": (N,), <each present channel>: (N,)}`` as new float64 arrays (SI).
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
         d.set_item("time_s", to_numpy(py, self.rec.time_s.clone()))?;
@@ -66,11 +71,13 @@ impl PyRecording {
         Ok(d)
     }
 
+    /// Sample times (s), shape (N,).
     #[getter]
     fn time_s<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
         to_numpy(py, self.rec.time_s.clone()).into_any()
     }
 
+    /// Names of the channels present besides ``time_s``.
     #[getter]
     fn channels(&self) -> Vec<&'static str> {
         CHANNELS
@@ -80,11 +87,13 @@ impl PyRecording {
             .collect()
     }
 
+    /// What reading noted or mended (columns ignored, units converted, …).
     #[getter]
     fn notes(&self) -> Vec<String> {
         self.rec.notes.clone()
     }
 
+    /// 1 / median sample interval (Hz).
     #[getter]
     fn sample_rate_hz(&self) -> f64 {
         self.rec.sample_rate_hz()
@@ -136,6 +145,7 @@ impl PySpectrum {
         self.path.clone()
     }
 
+    /// Frequency bins (Hz), shape (M,).
     #[getter]
     fn freq_hz<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
         let f = match &self.data {
@@ -145,6 +155,7 @@ impl PySpectrum {
         to_numpy(py, f).into_any()
     }
 
+    /// The columns as float64 arrays of shape (M,) (and ``unit`` / ``normalized``).
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
         match &self.data {
@@ -211,7 +222,7 @@ fn read_options(columns: Option<&Bound<'_, PyAny>>, axis: Option<&str>) -> PyRes
     Ok(ReadOptions { columns, axis })
 }
 
-/// Reads a recording or spectrum file (see the stub's docstring).
+/// Reads a recording or spectrum file (documented in `beamshaper/__init__.py`).
 #[pyfunction]
 #[pyo3(signature = (path, columns=None, axis=None))]
 pub fn read_recording(

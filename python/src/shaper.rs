@@ -42,10 +42,12 @@ impl PyShaper {
 
 #[pymethods]
 impl PyShaper {
+    /// E.g. ``ZVD(6.055 Hz)`` or ``ZV(1.100 Hz) * EI(6.900 Hz)``.
     #[getter]
     fn name(&self) -> String {
         self.name.clone()
     }
+    /// Shape (n, 2): column 0 ``time_s`` (s, first 0), column 1 ``amplitude`` (sums to 1).
     #[getter]
     fn impulses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let rows: Vec<Vec<f64>> = self
@@ -56,24 +58,32 @@ impl PyShaper {
             .collect();
         Ok(PyArray2::from_vec2(py, &rows)?)
     }
+    /// Time of the last impulse (s): the delay the shaper adds to a move.
     #[getter]
     fn duration_s(&self) -> f64 {
         self.shaper.duration_s()
     }
+    /// Worst-case percentage vibration over the modes' bands (%), or Klipper's remaining
+    /// vibrations (%) for a design on a PSD.
     #[getter]
     fn worst_pct(&self) -> f64 {
         self.worst_pct
     }
+    /// Feasible longer designs (at most 5, by duration).
     #[getter]
     fn runners_up(&self) -> Vec<PyShaper> {
         self.runners_up.clone()
     }
+    /// Shorter designs refused because they leave too much of the recorded vibration.
     #[getter]
     fn refused_on_recording(&self) -> Vec<String> {
         self.refused_on_recording.clone()
     }
 
-    /// V (%) at `freq_hz` (scalar or array) and `zeta` (paper eq. 27).
+    /// Percentage vibration V (%) left at natural frequency ``freq_hz`` (Hz, scalar or
+    /// shape (M,)) and damping ratio ``zeta``: 100 · e^{−ζωt_n} √(C² + S²) with
+    /// C = Σ Aᵢ e^{ζωtᵢ} cos(ω_d tᵢ), S the same with sin (paper eq. 27; Singer & Seering 1990).
+    /// Raises ValueError: freq_hz ≤ 0 or NaN, zeta outside [0, 1).
     fn vibration_pct<'py>(
         &self,
         py: Python<'py>,
@@ -95,7 +105,12 @@ impl PyShaper {
         Ok(to_numpy(py, out).into_any())
     }
 
-    /// The signal shaped by the firmware core's engine at `rate_hz` (see the stub).
+    /// ``signal`` (m, shape (N,), one sample per tick at ``rate_hz``) shaped by the firmware
+    /// core's run-time engine exactly as the board runs it: the shaper sampled into a tap
+    /// table at ``rate_hz``, the signal in nanometre counts, ``path`` ``"fixed"`` (Q2.30
+    /// weights, exact unity DC gain) or ``"f32"``; the history starts at ``signal[0]``.
+    /// Returns float64 (m), shape (N,). Raises ValueError: empty, NaN, |signal| ≥ 1 m (the
+    /// engine's counts are below 2³⁰ nm), ``rate_hz`` ≤ 0, a shaper too long for the history.
     #[pyo3(signature = (signal, rate_hz, path="fixed"))]
     fn apply<'py>(
         &self,
@@ -185,7 +200,7 @@ struct BoardMove {
     accel_mm_s2: f64,
 }
 
-/// `tune`'s design step on `modes` (see the stub).
+/// `tune`'s design step on `modes` (documented in `beamshaper/__init__.py`).
 fn design_modes(
     modes: &[ModeEstimate],
     tolerance_pct: f64,
@@ -284,7 +299,7 @@ fn recorded_of(
     ))
 }
 
-/// Designs the shortest robust shaper (see the stub).
+/// Designs the shortest robust shaper (documented in `beamshaper/__init__.py`).
 #[pyfunction]
 #[pyo3(signature = (modes, tolerance_pct=2.0, min_band_pct=2.0, recording=None, signal=None, move_mm=None, speed_mm_s=150.0, accel_mm_s2=2000.0, board=None))]
 #[allow(clippy::too_many_arguments)]
