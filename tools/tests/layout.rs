@@ -1,4 +1,5 @@
-//! The layout rules of `tools/src` (`docs/architecture.md`, issue 13), checked on the source:
+//! The layout rules of `tools/src` and `python/src` (`docs/architecture.md`, issue 13), checked
+//! on the source:
 //! - only `cli/` and `main.rs` print, draw progress bars or import the CLI: no other file may
 //!   contain `crate::cli`, `beamtools::cli`, `println!`, `print!`, `eprintln!`, `eprint!` or
 //!   `indicatif` (comments, string literals and `#[cfg(test)]` items aside: a test may print
@@ -42,23 +43,39 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
 }
 
 fn sources() -> Vec<(String, String)> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let mut files = Vec::new();
-    rust_files(&root, &mut files);
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut out = sources_under(&manifest.join("src"), "");
     assert!(
-        files.len() > 10,
+        out.len() > 10,
         "tools/src not found at {}",
-        root.display()
+        manifest.join("src").display()
     );
+    // The Python package's crate (a member of this workspace) keeps the same rules.
+    out.extend(sources_under(
+        &manifest.join("../python/src"),
+        "../python/src/",
+    ));
+    out
+}
+
+/// Every `.rs` file under `root`, as (`prefix` + path relative to `root`, text).
+fn sources_under(root: &Path, prefix: &str) -> Vec<(String, String)> {
+    let mut files = Vec::new();
+    if root.is_dir() {
+        rust_files(root, &mut files);
+    }
     files
         .into_iter()
         .map(|p| {
             let rel = p
-                .strip_prefix(&root)
+                .strip_prefix(root)
                 .unwrap()
                 .to_string_lossy()
                 .replace('\\', "/");
-            (rel, std::fs::read_to_string(&p).unwrap())
+            (
+                format!("{prefix}{rel}"),
+                std::fs::read_to_string(&p).unwrap(),
+            )
         })
         .collect()
 }

@@ -143,7 +143,11 @@ pub(crate) fn tip_signal(rec: &Recording, from: usize) -> (Vec<f64>, Vec<f64>) {
     (t, x)
 }
 
-pub(crate) fn identify_spectrum_file(
+/// Identifies the LabVIEW `.lvm` magnitude spectrum at `path` ([`super::magspec`]: at most 6
+/// peaks >= 10 dB prominent in `opts.decay`'s band), as `identify_file` does for an `.lvm`.
+///
+/// Errors: the file cannot be read or parsed, no prominent peak in the band.
+pub fn identify_spectrum_file(
     path: &std::path::Path,
     opts: &IdentifyOptions,
 ) -> Result<Identification> {

@@ -42,6 +42,12 @@ pub struct FreeVibration {
 /// moving).
 pub fn free_vibration(path: &Path, opts: &ReadOptions) -> Result<FreeVibration, String> {
     let rec = Recording::read_any_with(path, opts, &mut |_| {}).map_err(|e| format!("{e:#}"))?;
+    free_vibration_of(&rec)
+}
+
+/// [`free_vibration`] of a recording already read (e.g. one built from arrays by the Python
+/// package). Errors: as [`free_vibration`], except reading.
+pub fn free_vibration_of(rec: &Recording) -> Result<FreeVibration, String> {
     let (tip, acceleration) = match (&rec.tip_pos_m, &rec.tip_acc_m_s2) {
         (Some(p), _) => (p, false),
         (None, Some(a)) => (a, true),
@@ -161,7 +167,19 @@ pub fn recorded_free_position(
         .as_deref()
         .ok_or("no user recording (the excitation was generated)")?;
     let fv = free_vibration(path, &inputs.read)?;
-    let (pos, quantum_m) = match inputs.acceleration || fv.acceleration {
+    Ok(recorded_position(fv, inputs.acceleration, f1_hz, f_max_hz))
+}
+
+/// A [`FreeVibration`] as tip position (m) for the model-free check: integrated twice
+/// (high-passed at half `f1_hz`) when `acceleration` or the signal is the tip acceleration;
+/// `f_max_hz` the highest identified natural frequency ([`recorded_free_position`]).
+pub fn recorded_position(
+    fv: FreeVibration,
+    acceleration: bool,
+    f1_hz: f64,
+    f_max_hz: f64,
+) -> RecordedVibration {
+    let (pos, quantum_m) = match acceleration || fv.acceleration {
         // the quantum of an acceleration does not carry over to its double integral
         true => (
             displacement_from_acceleration(&fv.x, fv.dt_s, 0.5 * f1_hz),
@@ -169,13 +187,13 @@ pub fn recorded_free_position(
         ),
         false => (fv.x, fv.quantum),
     };
-    Ok(RecordedVibration {
+    RecordedVibration {
         position_m: pos,
         dt_s: fv.dt_s,
         quantum_m,
         content_hz: f_max_hz,
         note: fv.note,
-    })
+    }
 }
 
 /// The reference-rig recording the earlier `tune` generated (unshaped 0 → 50 mm move and 30 s
