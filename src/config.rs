@@ -15,7 +15,9 @@ pub const MAX_MODES: usize = 4;
 /// Impulses of a custom list loaded by the host.
 pub const MAX_CUSTOM_IMPULSES: usize = 16;
 /// Bytes of an encoded [`Settings`] record, at most.
-pub const SETTINGS_MAX_BYTES: usize = 512;
+pub const SETTINGS_MAX_BYTES: usize = 768;
+/// Entries of the payload schedule ([`WatchSettings::schedule`]).
+pub const PAYLOAD_ENTRIES: usize = 8;
 /// Accepted tick rates (Hz).
 pub const TICK_RATE_RANGE_HZ: (u32, u32) = (500, 10_000);
 
@@ -118,6 +120,69 @@ impl Certificate {
     }
 }
 
+/// The drift watch's settings ([`crate::watch`]) and the payload schedule.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct WatchSettings {
+    /// `watch on|off`.
+    pub enabled: bool,
+    /// `watch auto on|off`: retune each shaped mode to its measured frequency between moves.
+    pub auto: bool,
+    /// `watch limits <lo_hz> <hi_hz>`: an automatic retune never leaves this range (Hz);
+    /// `(0, 0)` = not set (`watch auto on` needs it) ([`WatchSettings::limits`]).
+    pub limits_hz: (f32, f32),
+    /// The payload entry in force (`payload N`), if one was selected.
+    pub payload: Option<u8>,
+    /// Frequency (Hz) per mode slot for each payload index (`payload N store` fills entry N
+    /// with the shaper's frequencies; `tune --payload N` does it after tuning).
+    /// 0 = no frequency for that slot (plain numbers: a smaller record and decoder than
+    /// options).
+    pub schedule: [[f32; MAX_MODES]; PAYLOAD_ENTRIES],
+}
+
+impl WatchSettings {
+    /// Off, no limits, empty schedule.
+    pub const OFF: WatchSettings = WatchSettings {
+        enabled: false,
+        auto: false,
+        limits_hz: (0.0, 0.0),
+        payload: None,
+        schedule: [[0.0; MAX_MODES]; PAYLOAD_ENTRIES],
+    };
+
+    /// The limits, if set (Hz).
+    pub fn limits(&self) -> Option<(f32, f32)> {
+        (self.limits_hz != (0.0, 0.0)).then_some(self.limits_hz)
+    }
+
+    /// Checks the limits (finite, 0 < low < high), the schedule (finite, ≥ 0), the payload
+    /// index (< [`PAYLOAD_ENTRIES`]) and that `auto` has limits.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let pos = |v: f32| v.is_finite() && v > 0.0;
+        if let Some((lo, hi)) = self.limits() {
+            if !(pos(lo) && pos(hi) && lo < hi) {
+                return Err(ConfigError::Range("watch limits (0 < low < high Hz)"));
+            }
+        }
+        if self.auto && self.limits().is_none() {
+            return Err(ConfigError::Range(
+                "watch auto needs limits (watch limits <lo_hz> <hi_hz>)",
+            ));
+        }
+        if self
+            .schedule
+            .iter()
+            .flatten()
+            .any(|&f| !(f.is_finite() && f >= 0.0))
+        {
+            return Err(ConfigError::Range("payload schedule frequency (>= 0 Hz)"));
+        }
+        if self.payload.is_some_and(|p| p as usize >= PAYLOAD_ENTRIES) {
+            return Err(ConfigError::Range("payload index (0..7)"));
+        }
+        Ok(())
+    }
+}
+
 /// All persistent parameters (stored as a record of format [`SETTINGS_VERSION`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Settings {
@@ -147,44 +212,8 @@ pub struct Settings {
     pub dac_span_mm: f32,
     /// What `tune` certified for the shaper of [`Settings::modes`] and [`Settings::custom`].
     pub certificate: Certificate,
-}
-
-/// The settings as format version 2 stored them (everything but the certificate): read
-/// only, to migrate a record the previous firmware saved ([`Settings::decode`]).
-#[derive(Deserialize)]
-struct SettingsV2 {
-    modes: [Option<ModeSetting>; MAX_MODES],
-    custom: heapless::Vec<Impulse, MAX_CUSTOM_IMPULSES>,
-    shaping_enabled: bool,
-    path: NumericPath,
-    tick_rate_hz: u32,
-    step_nm: u32,
-    max_step_rate_hz: u32,
-    input_nm_per_count: u32,
-    source: Source,
-    move_speed_mm_s: f32,
-    move_accel_mm_s2: f32,
-    dac_span_mm: f32,
-}
-
-impl From<SettingsV2> for Settings {
-    fn from(v: SettingsV2) -> Settings {
-        Settings {
-            modes: v.modes,
-            custom: v.custom,
-            shaping_enabled: v.shaping_enabled,
-            path: v.path,
-            tick_rate_hz: v.tick_rate_hz,
-            step_nm: v.step_nm,
-            max_step_rate_hz: v.max_step_rate_hz,
-            input_nm_per_count: v.input_nm_per_count,
-            source: v.source,
-            move_speed_mm_s: v.move_speed_mm_s,
-            move_accel_mm_s2: v.move_accel_mm_s2,
-            dac_span_mm: v.dac_span_mm,
-            certificate: Certificate::NONE,
-        }
-    }
+    /// The drift watch and the payload schedule (format 4).
+    pub watch: WatchSettings,
 }
 
 impl Default for Settings {
@@ -273,6 +302,7 @@ impl Settings {
         move_accel_mm_s2: 1000.0,
         dac_span_mm: 100.0,
         certificate: Certificate::NONE,
+        watch: WatchSettings::OFF,
     };
 
     /// Checks every scalar field's range (not the shaper; see [`Settings::tap_table`]).
@@ -300,7 +330,8 @@ impl Settings {
         if !pos(self.dac_span_mm) || self.dac_span_mm > 1000.0 {
             return Err(ConfigError::Range("dac span (0..1000 mm)"));
         }
-        self.certificate.validate(&self.modes)
+        self.certificate.validate(&self.modes)?;
+        self.watch.validate()
     }
 
     /// The shaper these settings describe: the convolution of every set mode, then the
@@ -360,18 +391,32 @@ impl Settings {
     }
 
     /// Parses a record written by [`Settings::encode`] (or by the previous firmware, format
-    /// version 2, migrated: the same settings with [`Certificate::NONE`]) and validates it
+    /// versions 3 and 2, migrated: the same settings with the watch off and, from 2,
+    /// [`Certificate::NONE`]) and validates it
     /// (including the shaper design). Errors: [`ConfigError::Corrupt`] for a bad length,
     /// checksum, magic or body; [`ConfigError::Version`] for an intact record of another
     /// format version (a version-1 record of the old hand-written format, or a newer one);
     /// any validation error for a record that decodes but is out of range.
     pub fn decode(bytes: &[u8]) -> Result<Settings, ConfigError> {
         let (version, body) = record_body(bytes)?;
-        let (s, rest) = match version {
-            SETTINGS_VERSION => postcard::take_from_bytes::<Settings>(body),
-            _ => postcard::take_from_bytes::<SettingsV2>(body).map(|(v, r)| (v.into(), r)),
+        // An older record is the current body without the fields added since, which postcard
+        // writes last, in order and without framing: the body with those fields' defaults
+        // appended (format 2: `Certificate::NONE`, then `WatchSettings::OFF`; format 3: the
+        // latter) is a current body (no second deserialiser in the image).
+        let mut buf = [0u8; SETTINGS_MAX_BYTES + 64];
+        let n = body.len();
+        buf.get_mut(..n)
+            .ok_or(ConfigError::Corrupt)?
+            .copy_from_slice(body);
+        let mut end = n;
+        if version == SETTINGS_VERSION_MIGRATED_V2 {
+            end += append(&Certificate::NONE, buf.get_mut(end..))?;
         }
-        .map_err(|_| ConfigError::Corrupt)?;
+        if version != SETTINGS_VERSION {
+            end += append(&WatchSettings::OFF, buf.get_mut(end..))?;
+        }
+        let (s, rest) = postcard::take_from_bytes::<Settings>(buf.get(..end).unwrap_or(&[]))
+            .map_err(|_| ConfigError::Corrupt)?;
         if !rest.is_empty() {
             return Err(ConfigError::Corrupt);
         }
@@ -381,8 +426,16 @@ impl Settings {
     }
 }
 
+/// Writes `v` in postcard into `buf`; its length.
+fn append<T: Serialize>(v: &T, buf: Option<&mut [u8]>) -> Result<usize, ConfigError> {
+    let buf = buf.ok_or(ConfigError::Corrupt)?;
+    postcard::to_slice(v, buf)
+        .map(|b| b.len())
+        .map_err(|_| ConfigError::Corrupt)
+}
+
 /// The format version and body of a record whose checksum and magic are right and whose
-/// version this firmware reads ([`SETTINGS_VERSION`] or [`SETTINGS_VERSION_MIGRATED`]).
+/// version this firmware reads ([`SETTINGS_VERSION`] or an older one it migrates).
 fn record_body(bytes: &[u8]) -> Result<(u8, &[u8]), ConfigError> {
     let signed_len = bytes
         .len()
@@ -398,7 +451,9 @@ fn record_body(bytes: &[u8]) -> Result<(u8, &[u8]), ConfigError> {
         return Err(ConfigError::Corrupt);
     }
     match header[MAGIC.len()] {
-        v @ (SETTINGS_VERSION | SETTINGS_VERSION_MIGRATED) => Ok((v, body)),
+        v @ (SETTINGS_VERSION | SETTINGS_VERSION_MIGRATED | SETTINGS_VERSION_MIGRATED_V2) => {
+            Ok((v, body))
+        }
         found => Err(ConfigError::Version { found }),
     }
 }
@@ -408,15 +463,18 @@ fn record_body(bytes: &[u8]) -> Result<(u8, &[u8]), ConfigError> {
 /// little-endian floats, enums by variant index), then the CRC-32/ISO-HDLC of everything
 /// before it (4 bytes, little-endian).
 ///
-/// Version 3 added the [`Certificate`]. Version 2 (the same layout without it) is still read
-/// and migrated ([`SETTINGS_VERSION_MIGRATED`]): a firmware update keeps the user's saved
-/// shaper. Version 1 was a hand-written little-endian layout; its records are refused with
+/// Version 4 added the [`WatchSettings`]; version 3 added the [`Certificate`]. Versions 3
+/// and 2 (the same layout without them) are still read and migrated
+/// ([`SETTINGS_VERSION_MIGRATED`], [`SETTINGS_VERSION_MIGRATED_V2`], the watch off and, from
+/// 2, no certificate): a firmware update keeps the user's saved shaper. Version 1 was a hand-written little-endian layout; its records are refused with
 /// [`ConfigError::Version`] (the defaults stay in force until the next `save`). Any change of
 /// [`Settings`] or the types in it changes the body, so it must bump this version and keep
 /// reading the one before.
-pub const SETTINGS_VERSION: u8 = 3;
+pub const SETTINGS_VERSION: u8 = 4;
 /// The previous format version, read and migrated by [`Settings::decode`].
-pub const SETTINGS_VERSION_MIGRATED: u8 = 2;
+pub const SETTINGS_VERSION_MIGRATED: u8 = 3;
+/// The version before it, read and migrated through version 3 by [`Settings::decode`].
+pub const SETTINGS_VERSION_MIGRATED_V2: u8 = 2;
 const HEADER_LEN: usize = MAGIC.len() + 1;
 const CRC_LEN: usize = 4;
 const MAGIC: [u8; 3] = *b"BSH";

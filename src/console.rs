@@ -17,9 +17,12 @@ use crate::protocol::{
     CaptureReply, Command, ConfigReply, DumpReply, ModeLine, MoveReply, Refusal, StatusReply,
     SweepArgs, SweepReply, DUMP_MAX,
 };
+use crate::protocol::{PayloadCommand, WatchCommand, WatchReply};
 use crate::runtime::{RunParams, Runtime};
+use crate::sensor::{AccelConfig, SensorEvent};
 use crate::shaper::residual_vibration;
 use crate::storage::StorageError;
+use crate::watch::{Watch, WatchState, QUEUE_LEN};
 use core::fmt::Write;
 
 /// Longest accepted line (bytes, without the terminator).
@@ -106,6 +109,33 @@ pub enum Action {
 pub struct Console {
     settings: Settings,
     refused_record: Option<StorageError>,
+    watch: Watch,
+    /// Tick rate the watch was configured for (Hz).
+    watch_tick_hz: u32,
+    /// Automatic retunes since boot.
+    retunes: u32,
+    /// What the watch did on its own since the last `watch` (reported then).
+    notes: heapless::Vec<WatchNote, 8>,
+}
+
+/// Something the watch did between two `watch` queries.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum WatchNote {
+    /// Mode slot (0-based) retuned from, to (Hz).
+    Retuned(usize, f64, f64),
+    /// Mode slot measured at (Hz) outside the limits: not retuned.
+    OutsideLimits(usize, f64),
+    /// The retune was refused by the runtime (e.g. the tap budget of a transition in flight).
+    Refused(&'static str),
+}
+
+/// A writer that drops everything (the reply of a change the watch makes on its own).
+struct Discard;
+
+impl Write for Discard {
+    fn write_str(&mut self, _: &str) -> core::fmt::Result {
+        Ok(())
+    }
 }
 /// The result of executing one command.
 type CmdResult = Result<(), Refusal>;
@@ -120,6 +150,8 @@ const HELP: &[&str] = &[
     "rate <tick_hz> | step <nm_per_step> | maxrate <steps_per_s> | input <nm_per_count>",
     "source internal|stepdir | save | load | defaults",
     "capture <every_n_ticks> | dump <first> <count<=32>   (setpoints in nm)",
+    "watch | watch on|off | watch limits <lo_hz> <hi_hz> | watch auto on|off",
+    "payload | payload <0-7> | payload <0-7> store",
 ];
 
 impl Console {
@@ -128,6 +160,107 @@ impl Console {
         Console {
             settings,
             refused_record: None,
+            watch: Watch::new(),
+            watch_tick_hz: 0,
+            retunes: 0,
+            notes: heapless::Vec::new(),
+        }
+    }
+
+    /// The drift watch.
+    pub fn watch(&self) -> &Watch {
+        &self.watch
+    }
+
+    /// The sensor driver found a chip configured as `accel` (or none: `None`); the watch uses
+    /// it from now on.
+    pub fn set_accel(&mut self, accel: Option<AccelConfig>, rt: &mut impl RuntimeAccess) {
+        self.watch.set_accel(accel);
+        self.configure_watch(rt);
+    }
+
+    /// One event from the sensor driver, in order (thread mode; a few additions).
+    pub fn watch_event(&mut self, event: SensorEvent) {
+        self.watch.push(event);
+    }
+
+    /// Advances the watch with the setpoints the tick recorded (copied out of the runtime in
+    /// one short critical section; the fit runs outside it). After a move that drifted, with
+    /// `watch auto on`, retunes. Call at least every 0.2 s while watching (64 queued block
+    /// means: 0.256 s at the highest rate, 250 Hz). Returns the state
+    /// when a move was just measured.
+    pub fn watch_poll(&mut self, rt: &mut impl RuntimeAccess) -> Option<WatchState> {
+        let from = self.watch.next_setpoint();
+        let mut buf = [0i32; QUEUE_LEN];
+        let mut steps = [0i32; QUEUE_LEN];
+        let (n, first, written, tick_hz) = rt.with(|r| {
+            let ring = r.watch_ring();
+            let (n, first) = ring.copy_since(from, &mut buf, &mut steps);
+            (n, first, ring.written(), r.tick_rate_hz())
+        });
+        if tick_hz != self.watch_tick_hz {
+            self.configure_watch(rt);
+            return None;
+        }
+        let state = self.watch.poll(
+            buf.get(..n).unwrap_or(&[]),
+            steps.get(..n).unwrap_or(&[]),
+            first,
+            written,
+        );
+        if state == Some(WatchState::Drift) && self.settings.watch.auto {
+            self.auto_retune(rt);
+        }
+        state
+    }
+
+    /// Configures the watch for the settings and tick rate in force and arms the tick's ring.
+    fn configure_watch(&mut self, rt: &mut impl RuntimeAccess) {
+        let tick_hz = rt.with(|r| r.tick_rate_hz());
+        let decimation = self.watch.configure(&self.settings, tick_hz);
+        self.watch_tick_hz = tick_hz;
+        rt.with(|r| r.arm_watch_ring(decimation));
+    }
+
+    /// Retunes each drifted mode to its measured frequency (the mean of its last two
+    /// measurements, when they agree within [`crate::watch::CONFIRM_FRACTION`]) if it lies
+    /// within the limits,
+    /// through [`Console::commit`] (the shaper change the engine applies at the next tick by
+    /// superposition: no setpoint jump). The certificate, issued for the old shaper, is cleared.
+    fn auto_retune(&mut self, rt: &mut impl RuntimeAccess) {
+        let Some((lo, hi)) = self.settings.watch.limits() else {
+            return;
+        };
+        let mut new = self.settings.clone();
+        let mut changed: heapless::Vec<WatchNote, MAX_MODES> = heapless::Vec::new();
+        for m in self.watch.report().modes.iter().flatten() {
+            // A drifted mode whose last two measurements confirm each other.
+            let Some(f) = m.confirmed_hz().filter(|_| m.drifted()) else {
+                continue;
+            };
+            if !(lo as f64..=hi as f64).contains(&f) {
+                let _ = self.notes.push(WatchNote::OutsideLimits(m.slot, f));
+                continue;
+            }
+            if let Some(Some(mode)) = new.modes.get_mut(m.slot) {
+                let _ = changed.push(WatchNote::Retuned(m.slot, mode.freq_hz, f));
+                mode.freq_hz = f;
+            }
+        }
+        if changed.is_empty() {
+            return;
+        }
+        new.certificate = crate::config::Certificate::NONE;
+        match self.commit(new, rt, &mut Discard, "retune") {
+            Ok(()) => {
+                self.retunes = self.retunes.saturating_add(changed.len() as u32);
+                for n in changed {
+                    let _ = self.notes.push(n);
+                }
+            }
+            Err(r) => {
+                let _ = self.notes.push(WatchNote::Refused(r.message));
+            }
         }
     }
 
@@ -172,6 +305,7 @@ impl Console {
         let _ = writeln!(out, "ok boot");
         let mut console = Console::new(settings);
         console.refused_record = refused;
+        console.configure_watch(rt);
         console
     }
 
@@ -237,6 +371,8 @@ impl Console {
             Command::Save => return Ok(Action::Save),
             Command::Load => return Ok(Action::Load),
             Command::Defaults => self.commit(Settings::DEFAULT, rt, out, "defaults"),
+            Command::Watch(w) => self.cmd_watch(w, rt, out),
+            Command::Payload(p) => self.cmd_payload(p, rt, out),
             change => self.change_settings(change, rt, out),
         }
         .map(|()| Action::None)
@@ -409,6 +545,7 @@ impl Console {
             }
         };
         self.settings = new;
+        self.configure_watch(rt);
         let _ = write!(
             out,
             "ok {what} taps={taps} duration_ticks={dur} applies={}",
@@ -621,6 +758,163 @@ impl Console {
             .map_err(|e| runtime_err(e, out))?;
         let _ = writeln!(out, "{}", SweepReply { args: *a, ticks });
         Ok(())
+    }
+}
+
+/// The drift watch's and the payload schedule's commands.
+impl Console {
+    /// Adopts `new` (validated) without touching the runtime's shaper; reconfigures the watch.
+    fn adopt(&mut self, new: Settings, rt: &mut impl RuntimeAccess) -> CmdResult {
+        new.validate()
+            .map_err(|e| Refusal::new(e.code(), config_message(&e)))?;
+        self.settings = new;
+        self.configure_watch(rt);
+        Ok(())
+    }
+
+    fn cmd_watch(
+        &mut self,
+        command: WatchCommand,
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
+        let mut new = self.settings.clone();
+        match command {
+            WatchCommand::Show => {
+                for note in core::mem::take(&mut self.notes) {
+                    let _ = match note {
+                        WatchNote::Retuned(slot, from, to) => writeln!(
+                            out,
+                            "# watch: retuned mode {} from {} Hz to {} Hz (next tick, by superposition)",
+                            slot + 1,
+                            Num(from, 5),
+                            Num(to, 5)
+                        ),
+                        WatchNote::OutsideLimits(slot, f) => writeln!(
+                            out,
+                            "# watch: mode {} measured at {} Hz, outside the limits: not retuned",
+                            slot + 1,
+                            Num(f, 5)
+                        ),
+                        WatchNote::Refused(why) => writeln!(out, "# watch: retune refused: {why}"),
+                    };
+                }
+                let reply =
+                    WatchReply::new(self.watch.report(), self.settings.watch.auto, self.retunes);
+                let _ = writeln!(out, "{reply}");
+                return Ok(());
+            }
+            WatchCommand::Enable(on) => new.watch.enabled = on,
+            WatchCommand::Limits(lo, hi) => new.watch.limits_hz = (lo, hi),
+            WatchCommand::Auto(on) => new.watch.auto = on,
+        }
+        let restart = matches!(command, WatchCommand::Enable(true));
+        self.adopt(new, rt)?;
+        if restart {
+            self.watch.restart();
+        }
+        let w = self.settings.watch;
+        if w.auto {
+            let _ = writeln!(
+                out,
+                "# watch auto: drifted modes retuned between moves within the limits, next tick \
+                 by superposition: no setpoint jump"
+            );
+        }
+        let _ = write!(
+            out,
+            "ok watch enabled={} auto={} state={} limits_hz=",
+            crate::protocol::on_off(w.enabled),
+            crate::protocol::on_off(w.auto),
+            self.watch.report().state.name()
+        );
+        let _ = match w.limits() {
+            Some((lo, hi)) => writeln!(out, "{lo}:{hi}"),
+            None => writeln!(out, "-"),
+        };
+        Ok(())
+    }
+
+    fn cmd_payload(
+        &mut self,
+        command: PayloadCommand,
+        rt: &mut impl RuntimeAccess,
+        out: &mut impl Write,
+    ) -> CmdResult {
+        let mut new = self.settings.clone();
+        match command {
+            PayloadCommand::Show => {
+                let mut entries = 0;
+                for (n, e) in self.settings.watch.schedule.iter().enumerate() {
+                    if e.iter().all(|&f| f == 0.0) {
+                        continue;
+                    }
+                    entries += 1;
+                    let _ = write!(out, "# payload {n} f_hz=");
+                    write_freqs(out, e);
+                    let _ = writeln!(out);
+                }
+                let _ = match self.settings.watch.payload {
+                    Some(p) => writeln!(out, "ok payload selected={p} entries={entries}"),
+                    None => writeln!(out, "ok payload selected=- entries={entries}"),
+                };
+                Ok(())
+            }
+            PayloadCommand::Store(n) => {
+                let mut entry = [0.0f32; MAX_MODES];
+                for (e, m) in entry.iter_mut().zip(self.settings.modes.iter()) {
+                    *e = m.map_or(0.0, |m| m.freq_hz as f32);
+                }
+                if entry.iter().all(|&f| f == 0.0) {
+                    return Err(Refusal::new("range", "no mode set: nothing to store"));
+                }
+                if let Some(slot) = new.watch.schedule.get_mut(n as usize) {
+                    *slot = entry;
+                }
+                new.watch.payload = Some(n);
+                self.adopt(new, rt)?;
+                let _ = write!(out, "ok payload n={n} stored f_hz=");
+                write_freqs(out, &entry);
+                let _ = writeln!(out);
+                Ok(())
+            }
+            PayloadCommand::Select(n) => {
+                let entry = new
+                    .watch
+                    .schedule
+                    .get(n as usize)
+                    .copied()
+                    .unwrap_or_default();
+                if entry.iter().all(|&f| f == 0.0) {
+                    return Err(Refusal::new(
+                        "range",
+                        "payload entry empty (payload <n> store)",
+                    ));
+                }
+                for (m, &f) in new.modes.iter_mut().zip(entry.iter()) {
+                    if let (Some(m), true) = (m.as_mut(), f > 0.0) {
+                        if m.freq_hz != f as f64 {
+                            m.freq_hz = f as f64;
+                            new.certificate = crate::config::Certificate::NONE;
+                        }
+                    }
+                }
+                new.watch.payload = Some(n);
+                self.commit(new, rt, out, "payload")
+            }
+        }
+    }
+}
+
+/// `f1,f2,-,-` (Hz) of a schedule entry (0 = none: `-`).
+fn write_freqs(out: &mut impl Write, e: &[f32; MAX_MODES]) {
+    for (i, &f) in e.iter().enumerate() {
+        let sep = if i == 0 { "" } else { "," };
+        let _ = if f > 0.0 {
+            write!(out, "{sep}{f}")
+        } else {
+            write!(out, "{sep}-")
+        };
     }
 }
 

@@ -19,3 +19,4 @@ pub mod runtime;
 pub mod sensor;
 pub mod shaper;
 pub mod storage;
+pub mod watch;

@@ -12,8 +12,8 @@
 //! - **Accelerometer task** (interrupt executor on the otherwise unused `UART4` vector at
 //!   priority P2, below the tick and the UART): ADXL345 (ADXL357 with the feature `adxl357`)
 //!   on SPI2 with DMA, its FIFO drained
-//!   every 4 ms into the queue `accel::ACCEL_EVENTS` (`src/fw/accel.rs`); a thread-mode task
-//!   drains the queue into [`SensorHealth`] counters until the drift watch consumes it.
+//!   every 4 ms into the queue `accel::ACCEL_EVENTS` (`src/fw/accel.rs`); the console loop
+//!   hands the queue to the drift watch between lines (`serve_watch`, thread mode).
 //!
 //! Pins: PC6 = STEP (TIM8_CH1, one-pulse train of N pulses per tick using the repetition
 //! counter), PC7 = DIR, PB6 = upstream DIR in (TIM4_CH1 = direction input of the timer's
@@ -40,7 +40,7 @@ use beamshaper::runtime::{Runtime, TickInput, TickOutput};
 use beamshaper::sensor::adxl345::{Adxl345 as Chip, Adxl345Config as ChipConfig};
 #[cfg(feature = "adxl357")]
 use beamshaper::sensor::adxl357::{Adxl357 as Chip, Adxl357Config as ChipConfig};
-use beamshaper::sensor::SensorHealth;
+use beamshaper::sensor::AccelConfig;
 use beamshaper::storage::{load_settings, save_settings, STORAGE_BUFFER_BYTES};
 use core::cell::RefCell;
 use core::fmt::Write as _;
@@ -58,6 +58,7 @@ use embassy_stm32::usart::{BufferedUart, BufferedUartTx, Config as UartConfig};
 use embassy_stm32::{bind_interrupts, dma, peripherals, usart};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
+use embassy_time::{with_timeout, Duration, Instant};
 use embedded_io_async::Read;
 use static_cell::StaticCell;
 use {defmt_rtt as _, panic_probe as _};
@@ -110,39 +111,34 @@ async fn accel_task(mut chip: Chip<accel::ExclusiveSpi>) -> ! {
     accel::run(&mut chip).await
 }
 
-/// The accelerometer queue's consumer until the drift watch takes its place: counts the
-/// events (thread mode) and logs the counts over defmt every 10 s.
-///
-/// **The drift watch plugs in here:** it replaces this task's body (there must be exactly one
-/// consumer): `accel::accel_events().receive().await` (or `try_receive()`) gives the
-/// `SensorEvent`s in order, `accel::accel_config()` what one sample means (`None`: no chip,
-/// i.e. `state=no_sensor`).
-#[embassy_executor::task]
-async fn accel_drain_task() -> ! {
+/// Serves the drift watch between console lines (thread mode, never in the tick): hands the
+/// console the chip's configuration when it changes (`None`: no chip, `state=no_sensor`), every
+/// queued `SensorEvent` in order, and a poll at least every [`WATCH_POLL`] (the setpoints the
+/// tick wrote; the fit at the end of a move runs here, outside any critical section).
+fn serve_watch(console: &mut Console, known: &mut Option<AccelConfig>, next_poll: &mut Instant) {
+    let config = accel::accel_config();
+    if config != *known {
+        *known = config;
+        console.set_accel(config, &mut Shared);
+    }
     let events = accel::accel_events();
-    let mut health = SensorHealth::new();
-    let mut next_log = embassy_time::Instant::now();
-    loop {
-        health.record(&events.receive().await);
-        if embassy_time::Instant::now() >= next_log {
-            next_log += embassy_time::Duration::from_secs(10);
-            defmt::info!(
-                "accel: samples={} lost={} saturated={} last={} m/s2 configured={}",
-                health.samples,
-                health.lost,
-                health.saturated,
-                health.last_m_s2,
-                accel::accel_config().is_some()
-            );
-        }
+    while let Ok(event) = events.try_receive() {
+        console.watch_event(event);
+    }
+    if Instant::now() >= *next_poll {
+        *next_poll = Instant::now() + WATCH_POLL;
+        let _ = console.watch_poll(&mut Shared);
     }
 }
 
+/// Longest wait for a console byte before the watch is served again: the queue holds
+/// `accel::ACCEL_QUEUE_LEN` samples (160 ms at 3 200 Hz), the watch wants a poll every 0.2 s.
+const WATCH_POLL: Duration = Duration::from_millis(20);
+
 /// Starts the accelerometer reader on SPI2 (PB13 SCK, PB14 MISO, PB15 MOSI, PB12 CS; DMA1
-/// channels 2 TX / 1 RX) on its interrupt executor, and the queue's consumer on `spawner`
-/// (thread mode).
+/// channels 2 TX / 1 RX) on its interrupt executor; the console loop consumes its queue
+/// ([`serve_watch`]).
 fn start_accel(
-    spawner: Spawner,
     spi2: embassy_stm32::Peri<'static, peripherals::SPI2>,
     pins: (
         embassy_stm32::Peri<'static, peripherals::PB13>,
@@ -167,10 +163,6 @@ fn start_accel(
     match accel_task(chip) {
         Ok(token) => ACCEL_EXECUTOR.start(interrupt::UART4).spawn(token),
         Err(_) => defmt::panic!("accelerometer task already running"),
-    }
-    match accel_drain_task() {
-        Ok(token) => spawner.spawn(token),
-        Err(_) => defmt::panic!("accelerometer drain task already running"),
     }
 }
 
@@ -295,7 +287,7 @@ fn init_timers() {
 }
 
 #[embassy_executor::main]
-async fn main(spawner: Spawner) {
+async fn main(_spawner: Spawner) {
     let config = board::clock_config();
     let p = embassy_stm32::init(config);
 
@@ -364,7 +356,6 @@ async fn main(spawner: Spawner) {
     // SAFETY: the handler only touches RUNTIME/OUTPUTS through critical-section mutexes.
     unsafe { interrupt::TIM6_DAC.enable() };
     start_accel(
-        spawner,
         p.SPI2,
         (p.PB13, p.PB14, p.PB15, p.PB12),
         (p.DMA1_CH2, p.DMA1_CH1),
@@ -373,9 +364,12 @@ async fn main(spawner: Spawner) {
 
     let mut lines = LineBuffer::new();
     let mut byte = [0u8; 1];
+    let (mut accel_known, mut next_poll) = (None, Instant::now());
     loop {
-        if rx.read_exact(&mut byte).await.is_err() {
-            continue;
+        serve_watch(&mut console, &mut accel_known, &mut next_poll);
+        match with_timeout(WATCH_POLL, rx.read_exact(&mut byte)).await {
+            Ok(Ok(())) => {}
+            _ => continue,
         }
         let Some(line) = lines.push(byte[0]) else {
             continue;

@@ -29,6 +29,7 @@ use crate::output::{check_move_step_rate, DacMirror, StepCommand, StepOutput, St
 use crate::reference::{
     MoveError, SineSweep, StepDirCounter, SweepError, SweepKind, TrapezoidMove, POSITION_LIMIT,
 };
+use crate::watch::ring::SetpointRing;
 
 /// History length (samples): 16384 × 4 B = 64 KiB of RAM; 16.4 s of shaper duration at
 /// 1 kHz, 1.6 s at 10 kHz.
@@ -43,6 +44,8 @@ pub const CAPTURE_LEN: usize = 4096;
 pub struct Buffers {
     history: [i32; HISTORY_LEN],
     capture: [i32; CAPTURE_LEN],
+    /// Decimated setpoints for the drift watch ([`crate::watch`]), off until armed.
+    watch: SetpointRing,
 }
 
 impl Buffers {
@@ -50,6 +53,7 @@ impl Buffers {
         Buffers {
             history: [0; HISTORY_LEN],
             capture: [0; CAPTURE_LEN],
+            watch: SetpointRing::new(),
         }
     }
 }
@@ -568,8 +572,8 @@ impl Runtime {
         let p = slot.as_mut_ptr();
         // SAFETY: `p` is valid for writes and properly aligned (it comes from a
         // `&mut MaybeUninit<Runtime>`). Both fields of `Runtime` are written before the
-        // reference is created: `bufs` (arrays of i32, for which all-zero bytes are a valid
-        // value) by `write_bytes`, `st` by value. `addr_of_mut!` creates no intermediate
+        // reference is created: `bufs` (arrays of i32 and the watch's ring of i32/u32, for
+        // which all-zero bytes are a valid value: empty and off) by `write_bytes`, `st` by value. `addr_of_mut!` creates no intermediate
         // reference to uninitialised memory.
         unsafe {
             core::ptr::addr_of_mut!((*p).bufs).write_bytes(0, 1);
@@ -772,8 +776,10 @@ impl Runtime {
         if st.pending.is_some() {
             st.apply_pending(input.stepdir_count);
         }
+        let previous = st.setpoint;
         st.setpoint = st.engine.tick(&mut self.bufs.history, x);
         st.capture.record(&mut self.bufs.capture, st.setpoint);
+        self.bufs.watch.record(st.setpoint, previous);
         TickOutput {
             reference_counts: x,
             setpoint_counts: st.setpoint,
@@ -793,6 +799,17 @@ impl Runtime {
     /// Starts capturing one setpoint every `decimation` ticks.
     pub fn arm_capture(&mut self, decimation: u32) {
         self.st.capture.arm(decimation);
+    }
+
+    /// The drift watch's setpoint ring (read in thread mode by [`crate::watch::Watch::poll`]).
+    pub fn watch_ring(&self) -> &SetpointRing {
+        &self.bufs.watch
+    }
+
+    /// Arms the watch's setpoint ring: one setpoint every `decimation` ticks (0 = off); its
+    /// count restarts at 0.
+    pub fn arm_watch_ring(&mut self, decimation: u32) {
+        self.bufs.watch.arm(decimation);
     }
 
     /// Tick rate in force (Hz); the glue reprograms its timer when this changes.

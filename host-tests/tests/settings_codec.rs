@@ -1,5 +1,5 @@
-//! The settings record (format version 3: magic, version, postcard body, CRC-32; version 2
-//! is migrated, see tests/certificate.rs): round trip
+//! The settings record (format version 4: magic, version, postcard body, CRC-32; versions 3 and 2
+//! are migrated, see tests/certificate.rs and the format-3 golden record below): round trip
 //! of any settings (proptest), every corrupted or truncated record refused as corrupt, and
 //! an intact record of the old hand-written version 1 (or of an unknown version) refused
 //! with its version named — by the codec, by the flash storage and by the console, with the
@@ -383,7 +383,7 @@ fn at_boot_a_version_1_record_leaves_the_defaults_and_the_console_names_the_vers
         lines,
         [
             "# boot: stored settings unusable (stored settings are format version 1, this \
-             firmware reads version 3 (save to replace them))",
+             firmware reads version 4 (save to replace them))",
             "# boot: using defaults",
             "ok boot",
         ],
@@ -429,7 +429,7 @@ fn v2_record() -> Vec<u8> {
 
 #[test]
 fn a_record_of_the_previous_firmware_is_migrated_with_the_shaper_intact() {
-    assert_eq!(SETTINGS_VERSION, 3);
+    assert_eq!(SETTINGS_VERSION, 4);
     let v2 = v2_record();
     assert_eq!(v2[3], 2, "the fixture is a format-2 record");
     let s = Settings::decode(&v2).expect("a format-2 record is read");
@@ -454,4 +454,63 @@ fn a_record_of_the_previous_firmware_is_migrated_with_the_shaper_intact() {
     let mut bad = v2.clone();
     bad[12] ^= 1;
     assert!(Settings::decode(&bad).is_err());
+}
+
+/// The record the format-3 firmware (commit fa3fe4c) saved for [`tuned`] with a certificate,
+/// byte for byte (printed by that commit's `Settings::encode`, built from its tree).
+const V3_RECORD_HEX: &str = "4253480301029a9999999999f13facadd85f764f7e3f000105b81e85eb51b89e3f9a99999999991b407b14ae47e17a843f0002000000000000e03f0000000000000000000000000000e03f7b14ae47e17a843f0101d00fe807c09a0ce807010080164300007a440000c84201016666863fe17a943f00010000d0409a99e940006850a7df";
+
+fn tuned_v3() -> Settings {
+    let mut s = tuned();
+    s.certificate = Certificate {
+        verified: Verified::Measured,
+        band_hz: [Some((1.05, 1.16)), None, Some((6.5, 7.3)), None],
+    };
+    s
+}
+
+#[test]
+fn a_format_3_record_is_migrated_with_shaper_and_certificate_intact_and_the_watch_off() {
+    let v3: Vec<u8> = (0..V3_RECORD_HEX.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(&V3_RECORD_HEX[i..i + 2], 16).unwrap())
+        .collect();
+    assert_eq!(v3[3], 3, "the fixture is a format-3 record");
+    let s = Settings::decode(&v3).expect("a format-3 record is read");
+    assert_eq!(s, tuned_v3());
+    assert_eq!(s.watch, beamshaper::config::WatchSettings::OFF);
+    // Through the flash layer and the boot path, as a firmware update meets it.
+    let mut flash = Flash::new(WriteCountCheck::OnceOnly, None, true);
+    store_raw(&mut flash, &v3);
+    let loaded = load(&mut flash);
+    assert_eq!(loaded, Ok(Some(tuned_v3())));
+    let mut rt = Box::new(Runtime::new());
+    let mut out = String::new();
+    let console = Console::boot(loaded, &mut *rt, 0, &mut out);
+    assert!(out.contains("# boot: settings loaded from flash"), "{out}");
+    // Saved again, it is format 4 and reads back the same.
+    let mut rec = [0u8; SETTINGS_MAX_BYTES];
+    let n = console.settings().encode(&mut rec).unwrap();
+    assert_eq!(rec[3], 4);
+    assert_eq!(Settings::decode(&rec[..n]), Ok(tuned_v3()));
+    // A flipped bit is still corrupt, not migrated.
+    let mut bad = v3.clone();
+    bad[12] ^= 1;
+    assert!(Settings::decode(&bad).is_err());
+}
+
+/// The watch's settings and the payload schedule survive a save (format 4), at their largest.
+#[test]
+fn watch_settings_and_a_full_schedule_round_trip() {
+    let mut s = tuned_v3();
+    s.watch = beamshaper::config::WatchSettings {
+        enabled: true,
+        auto: true,
+        limits_hz: (0.5, 10.0),
+        payload: Some(7),
+        schedule: [[1.234_567_9; 4]; beamshaper::config::PAYLOAD_ENTRIES],
+    };
+    let rec = encode(&s);
+    assert!(rec.len() <= SETTINGS_MAX_BYTES);
+    assert_eq!(Settings::decode(&rec), Ok(s));
 }

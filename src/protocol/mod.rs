@@ -19,10 +19,12 @@ use crate::shaper::{design::DEFAULT_V_TOL, Impulse, ShaperKind};
 use core::fmt;
 
 mod reply;
+mod watch;
 pub use reply::{
     field, value, CaptureReply, ConfigReply, DumpReply, ModeLine, MoveReply, Num, ReplyError,
     ReplyLine, ShaperReply, StatusReply, SweepReply,
 };
+pub use watch::{PayloadCommand, WatchCommand, WatchReply};
 
 /// Most arguments a command line may have.
 pub const MAX_ARGUMENTS: usize = 24;
@@ -104,6 +106,10 @@ pub enum Command {
     Load,
     /// `defaults`.
     Defaults,
+    /// `watch …`: the drift watch ([`WatchCommand`], [`WatchReply`]).
+    Watch(WatchCommand),
+    /// `payload …`: the payload schedule ([`PayloadCommand`]).
+    Payload(PayloadCommand),
 }
 
 /// Arguments of `sweep` (paper eqs. 33–34).
@@ -351,6 +357,8 @@ impl Command {
             "sweep" => Command::Sweep(parse_sweep(args)?),
             "capture" => Command::Capture(parse_capture(args)?),
             "dump" => parse_dump(args)?,
+            "watch" => Command::Watch(watch::parse_watch(args)?),
+            "payload" => Command::Payload(watch::parse_payload(args)?),
             _ => return Err(Refusal::new("unknown", "unknown command (try help)")),
         })
     }
@@ -568,6 +576,8 @@ impl fmt::Display for Command {
             ),
             Command::Capture(d) => write!(f, "capture {d}"),
             Command::Dump { first, count } => write!(f, "dump {first} {count}"),
+            Command::Watch(w) => write!(f, "{w}"),
+            Command::Payload(p) => write!(f, "{p}"),
         }
     }
 }

@@ -6,6 +6,7 @@
 //! ([`beamshaper::config::Settings::encode`]); writes go to a temporary file that is renamed
 //! over the old one, so an interrupted save leaves the previous record intact.
 
+pub mod accel;
 pub mod client;
 pub mod plan;
 pub mod rig;
@@ -60,6 +61,7 @@ pub struct VirtualBoard {
     lines: LineBuffer,
     rig: Option<rig::VirtualRig>,
     rig_error: Option<String>,
+    ticks_since_poll: u32,
 }
 
 /// Reads the emulated flash: `Ok(None)` if there is no record; `Err(Version)` for an intact
@@ -97,12 +99,24 @@ impl VirtualBoard {
             lines: LineBuffer::new(),
             rig: None,
             rig_error: None,
+            ticks_since_poll: 0,
         }
     }
 
-    /// Attaches a virtual rig to the setpoint output: from now on every tick drives it.
+    /// Attaches a virtual rig to the setpoint output: from now on every tick drives it. With
+    /// an accelerometer on it, the board's watch gets its samples (the only way the watch
+    /// learns anything about the rig).
     pub fn attach_rig(&mut self, rig: rig::VirtualRig) {
+        let accel = rig.accel_config();
         self.rig = Some(rig);
+        if accel.is_some() {
+            self.console.set_accel(accel, &mut *self.rt);
+        }
+    }
+
+    /// The console (for inspection).
+    pub fn console(&self) -> &Console {
+        &self.console
     }
 
     /// Why the attached rig stopped (its sensor log could not be written), if it did.
@@ -161,7 +175,17 @@ impl VirtualBoard {
                 if let Err(e) = res {
                     self.rig_error = Some(error_chain(&e));
                     self.rig = None;
+                    continue;
                 }
+                for ev in r.take_accel() {
+                    self.console.watch_event(ev);
+                }
+            }
+            // The firmware's sensor task polls the watch at its FIFO rate; here every 10 ticks.
+            self.ticks_since_poll += 1;
+            if self.ticks_since_poll >= 10 {
+                self.ticks_since_poll = 0;
+                self.console.watch_poll(&mut *self.rt);
             }
         }
     }
@@ -296,7 +320,7 @@ mod flash_tests {
         let mut boot = String::new();
         let mut b = VirtualBoard::boot(Some(flash.clone()), &mut boot);
         assert!(
-            boot.contains("stored settings are format version 1, this firmware reads version 3"),
+            boot.contains("stored settings are format version 1, this firmware reads version 4"),
             "{boot}"
         );
         assert!(

@@ -113,6 +113,13 @@ pub struct VirtualRig {
     ticks: u64,
     out: std::io::BufWriter<std::fs::File>,
     path: PathBuf,
+    /// The rig and the model options in force (rebuilt by a drift).
+    rig: Rig,
+    opts: ModelOptions,
+    /// Tip accelerometer, if attached ([`VirtualRig::attach_accel`]).
+    accel: Option<super::accel::AccelSim>,
+    /// Drifts not yet applied, by time.
+    drifts: Vec<super::accel::Drift>,
 }
 
 impl VirtualRig {
@@ -159,7 +166,64 @@ impl VirtualRig {
             ticks: 0,
             out,
             path: log.to_path_buf(),
+            rig: rig.clone(),
+            opts: ModelOptions::default(),
+            accel: None,
+            drifts: Vec::new(),
         })
+    }
+
+    /// Attaches a tip accelerometer: from now on each tick adds its samples
+    /// ([`VirtualRig::take_accel`]).
+    pub fn attach_accel(&mut self, accel: super::accel::AccelSim) {
+        self.accel = Some(accel);
+    }
+
+    /// The accelerometer's configuration, if one is attached.
+    pub fn accel_config(&self) -> Option<beamshaper::sensor::AccelConfig> {
+        self.accel.as_ref().map(|a| a.config())
+    }
+
+    /// The accelerometer's events since the last call.
+    pub fn take_accel(&mut self) -> Vec<beamshaper::sensor::SensorEvent> {
+        self.accel.as_mut().map_or_else(Vec::new, |a| a.take())
+    }
+
+    /// Schedules changes of the rig at board times (`vboard --drift`).
+    pub fn schedule_drifts(&mut self, drifts: &[super::accel::Drift]) {
+        self.drifts.extend_from_slice(drifts);
+        self.drifts.sort_by(|a, b| b.at_s.total_cmp(&a.at_s));
+    }
+
+    /// The model options in force (tip mass, stiffness scale).
+    pub fn model_options(&self) -> &ModelOptions {
+        &self.opts
+    }
+
+    /// Applies the drifts that are due at board time `t_s`: rebuilds the beam, keeping the
+    /// modal coordinates.
+    fn apply_drifts(&mut self, t_s: f64) -> Result<(), RigError> {
+        use super::accel::DriftChange;
+        let mut changed = false;
+        while self.drifts.last().is_some_and(|d| d.at_s <= t_s) {
+            let Some(d) = self.drifts.pop() else { break };
+            match d.change {
+                DriftChange::TipMassKg(m) => self.opts.tip_mass_kg = m,
+                DriftChange::StiffnessScale(s) => self.opts.stiffness_scale = s,
+            }
+            changed = true;
+        }
+        if !changed {
+            return Ok(());
+        }
+        let model_err = |e: anyhow::Error| RigError::Model(e.into());
+        let model = BeamModel::new(&self.rig, &self.opts).map_err(model_err)?;
+        let beam = BaseMotionSim::new(&model, self.dt).map_err(model_err)?;
+        let mut state = beam.rest();
+        state.copy_from(&self.beam_state);
+        self.beam = beam;
+        self.beam_state = state;
+        Ok(())
     }
 
     /// The sensor log's path.
@@ -175,6 +239,12 @@ impl VirtualRig {
         self.beam
             .step(&mut self.beam_state, self.carriage[1] - v_before);
         let tip = self.beam.tip_m(&self.beam_state, self.carriage[0]);
+        if let Some(a) = self.accel.as_mut() {
+            a.tick(tip);
+        }
+        if !self.drifts.is_empty() {
+            self.apply_drifts((self.ticks + 1) as f64 * self.dt)?;
+        }
         self.latency.push_back(tip);
         while self.latency.len() > self.latency_ticks + 1 {
             self.latency.pop_front();

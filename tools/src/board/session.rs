@@ -237,6 +237,15 @@ impl Session {
         self.send(&Command::Certify(*c)).map(|_| ())
     }
 
+    /// `payload <n> store`: the installed shaper's mode frequencies become entry `n` of the
+    /// board's payload schedule (`payload n` selects it later).
+    pub fn payload_store(&mut self, n: u8) -> Result<(), SessionError> {
+        self.send(&Command::Payload(
+            beamshaper::protocol::PayloadCommand::Store(n),
+        ))
+        .map(|_| ())
+    }
+
     /// `save` (the board stores its running configuration).
     pub fn save(&mut self) -> Result<(), SessionError> {
         self.send(&Command::Save).map(|_| ())

@@ -38,6 +38,17 @@ pub struct VboardArgs {
     /// Camera latency (ms).
     #[arg(long, default_value_t = 20.0, value_parser = finite_f64)]
     camera_latency_ms: f64,
+    /// Put a simulated ADXL345 (3 200 Hz, ±16 g, 3.9 mg/LSB) on the rig's tip; the board's
+    /// drift watch (`watch on`) reads it.
+    #[arg(long)]
+    accel: bool,
+    /// The simulated accelerometer's noise, 1 sigma (m/s²).
+    #[arg(long, default_value_t = board::accel::ADXL345_NOISE_M_S2, value_parser = finite_f64)]
+    accel_noise_m_s2: f64,
+    /// Change the rig at a board time: `tip_mass_kg=X@T` or `stiffness_scale=S@T` (T in board
+    /// seconds; repeatable; works with --time-scale).
+    #[arg(long)]
+    drift: Vec<board::accel::Drift>,
 }
 
 /// `sweep` arguments: the sweep design, and a board to run it on.
@@ -130,12 +141,25 @@ fn virtual_rig(a: &VboardArgs, rig_path: &PathBuf, tick_hz: f64) -> Result<board
     let mut sensors = board::rig::RigSensors::camera(&rig);
     sensors.noise_m = a.camera_noise_um * 1e-6;
     sensors.latency_s = a.camera_latency_ms * 1e-3;
-    Ok(board::rig::VirtualRig::new(
-        &rig,
-        sensors,
-        tick_hz,
-        &a.sensor_out,
-    )?)
+    let mut vr = board::rig::VirtualRig::new(&rig, sensors, tick_hz, &a.sensor_out)?;
+    if a.accel {
+        vr.attach_accel(board::accel::AccelSim::new(
+            board::accel::adxl345(),
+            a.accel_noise_m_s2.max(0.0),
+            0.3,
+            1.0 / tick_hz,
+            7,
+        ));
+        println!(
+            "simulated ADXL345 on the tip (noise {} m/s^2)",
+            a.accel_noise_m_s2
+        );
+    }
+    for d in &a.drift {
+        println!("drift at board time {} s: {:?}", d.at_s, d.change);
+    }
+    vr.schedule_drifts(&a.drift);
+    Ok(vr)
 }
 
 /// `beamtool console`: sends each line, prints the info lines (`# …`) and the final line.

@@ -17,6 +17,7 @@ pub mod paper;
 pub mod read;
 pub mod truth;
 pub mod tune;
+pub mod watch;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
@@ -75,6 +76,9 @@ pub enum Command {
     KlipperCompare(crate::cli::klipper::KlipperCompareArgs),
     /// Coverage of the output-only (SSI-cov) ±2σ on synthetic recordings with known modes.
     OmaCoverage(crate::cli::oma::OmaCoverageArgs),
+    /// Poll a board's drift watch after each move: print, write a CSV and an SVG of f1 over
+    /// the moves against the band.
+    Watch(crate::cli::watch::WatchArgs),
 }
 
 /// Runs one command: one arm per command (keep one line per arm where possible, append new
@@ -116,6 +120,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::BenchRead(a) => crate::cli::read::bench_read(a),
         Command::KlipperCompare(a) => crate::cli::klipper::klipper_compare(a),
         Command::OmaCoverage(a) => crate::cli::oma::oma_coverage(a),
+        Command::Watch(a) => crate::cli::watch::watch(a),
     }
 }
 

@@ -80,6 +80,10 @@ pub struct TuneArgs {
     /// `verified=predicted-only`.
     #[arg(long)]
     pub accept_predicted: bool,
+    /// Also store the tuned frequencies as entry N (0-7) of the board's payload schedule
+    /// (`payload N` on the console selects it later).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(0..8))]
+    pub payload: Option<u8>,
     /// How the recording is read (`--columns`, `--axis`).
     #[command(flatten)]
     pub read: super::read::ReadArgs,
@@ -106,6 +110,7 @@ impl TuneArgs {
             signal: SignalArg::Auto,
             time_scale: o.time_scale,
             accept_predicted: o.accept_predicted,
+            payload: o.payload,
             read: super::read::ReadArgs {
                 columns: o.read.columns,
                 axis: o.read.axis,
@@ -133,6 +138,7 @@ impl TuneArgs {
             },
             time_scale: self.time_scale,
             accept_predicted: self.accept_predicted,
+            payload: self.payload,
             read: self.read.options(),
         }
     }

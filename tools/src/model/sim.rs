@@ -190,6 +190,16 @@ pub struct BaseMotionState {
     eta: Vec<Vector2<f64>>,
 }
 
+impl BaseMotionState {
+    /// Copies the modal coordinates of `other` (mode by mode, as many as both have): a state
+    /// carried over to a rebuilt simulator (the virtual rig's drift).
+    pub fn copy_from(&mut self, other: &BaseMotionState) {
+        for (a, b) in self.eta.iter_mut().zip(&other.eta) {
+            *a = *b;
+        }
+    }
+}
+
 impl BaseMotionSim {
     /// The beam at rest on the base.
     pub fn rest(&self) -> BaseMotionState {

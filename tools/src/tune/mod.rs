@@ -104,6 +104,9 @@ pub struct TuneOptions {
     /// When nothing can measure the shaper, save it on the identified modes' prediction
     /// alone (within the tolerance), recorded as `predicted-only` on the board.
     pub accept_predicted: bool,
+    /// Also store the tuned frequencies as this entry of the board's payload schedule
+    /// (`payload N store`, before `save`).
+    pub payload: Option<u8>,
 }
 
 impl TuneOptions {
@@ -124,6 +127,7 @@ impl TuneOptions {
             time_scale: 200.0,
             read: Default::default(),
             accept_predicted: false,
+            payload: None,
         }
     }
 }
@@ -387,6 +391,9 @@ fn run_job(
     if report.passed {
         let c = certificate(o, &report);
         bench.session.certify(&c).map_err(StepError::from)?;
+        if let Some(n) = o.payload {
+            bench.session.payload_store(n).map_err(StepError::from)?;
+        }
         bench.session.save().map_err(StepError::from)?;
         view.saved();
     }

@@ -116,6 +116,10 @@ pub fn tune_spectrum(
     };
     let done = program(&mut bench.session, &c)
         .and_then(|()| bench.session.certify(&certificate).map_err(StepError::from))
+        .and_then(|()| match o.payload {
+            Some(n) => bench.session.payload_store(n).map_err(StepError::from),
+            None => Ok(()),
+        })
         .and_then(|()| bench.session.save().map_err(StepError::from));
     if let Err(e) = done {
         return Err(TuneError::Restored {
