@@ -242,12 +242,147 @@ pub(crate) const SOURCES: [(Source, &str); 2] =
     [(Source::Internal, "internal"), (Source::StepDir, "stepdir")];
 
 /// A finite number, or a refusal (`syntax` if not a number, `range` if not finite).
+///
+/// Decimal text `[+-]digits[.digits][(e|E)[+-]digits]` (or `inf`/`nan`, refused as not finite),
+/// read without core's float parser, whose 128-bit power tables cost ~13 kB of flash
+/// ([`decimal_f64`]).
 pub(crate) fn parse_f64(s: &str) -> Result<f64, Refusal> {
-    let v: f64 = s.parse().map_err(|_| syntax("expected a number"))?;
+    let v = decimal_f64(s).ok_or(syntax("expected a number"))?;
     if !v.is_finite() {
         return Err(Refusal::new("range", "number must be finite"));
     }
     Ok(v)
+}
+
+/// Exact powers of ten as doubles (10²² is the largest).
+const POW10: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+    1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+];
+
+/// A decimal's significand (its first 19 significant digits, trailing zeros removed) and power
+/// of ten: the text is ±`m` × 10^`e`.
+#[derive(Clone, Copy, PartialEq, Eq)]
+struct Decimal {
+    m: u64,
+    e: i64,
+}
+
+/// The value of decimal text. Where the significand m < 2⁵³ and |e| ≤ 22 both are exact doubles
+/// and one IEEE multiplication or division rounds correctly (Clinger 1990's fast path). Beyond
+/// it, the double near m·10^e ([`SCALE10_ULP`]) whose shortest representation (`{:e}`, what this
+/// firmware and every host print) is the text's decimal is the correctly rounded value, since
+/// that decimal lies in its rounding interval; text no double prints that way is read within a
+/// few ulp. `None`: not a number.
+fn decimal_f64(s: &str) -> Option<f64> {
+    let (neg, body) = match s.as_bytes().first()? {
+        b'-' => (true, &s[1..]),
+        b'+' => (false, &s[1..]),
+        _ => (false, s),
+    };
+    let lower = |w: &str| body.eq_ignore_ascii_case(w);
+    if lower("inf") || lower("infinity") || lower("nan") {
+        return Some(f64::INFINITY);
+    }
+    let d = decimal(body)?;
+    let x = scale10(d.m as f64, d.e);
+    let v = if (d.m < 1 << 53 && d.e.abs() <= 22) || x == 0.0 || !x.is_finite() {
+        x
+    } else {
+        shortest_match(x, d).unwrap_or(x)
+    };
+    Some(if neg { -v } else { v })
+}
+
+/// Ulp between `scale10`'s result and m·10^e at most: one rounding of m and one per factor
+/// (at most 15 factors of 10²² to 10³⁰⁸), half an ulp each.
+const SCALE10_ULP: u64 = 16;
+
+/// Among the doubles within [`SCALE10_ULP`] of `x`, the one whose shortest representation is
+/// `d`.
+fn shortest_match(x: f64, d: Decimal) -> Option<f64> {
+    use core::fmt::Write as _;
+    let bits = x.to_bits();
+    (0..=2 * SCALE10_ULP).find_map(|i| {
+        let b = bits.checked_add(i)?.checked_sub(SCALE10_ULP)?;
+        let y = f64::from_bits(b);
+        let mut text: heapless::String<32> = heapless::String::new();
+        write!(text, "{y:e}").ok()?;
+        (decimal(&text)? == d).then_some(y)
+    })
+}
+
+/// The unsigned decimal `body` (see [`parse_f64`]); `None` when it is not one.
+fn decimal(body: &str) -> Option<Decimal> {
+    let (mant, exp_txt) = match body.find(['e', 'E']) {
+        Some(i) => (&body[..i], Some(&body[i + 1..])),
+        None => (body, None),
+    };
+    let (int, frac) = mant.split_once('.').unwrap_or((mant, ""));
+    if int.is_empty() && frac.is_empty() {
+        return None;
+    }
+    let (mut m, mut e, mut digits) = (0u64, 0i64, 0u32);
+    let marked = int.bytes().map(|c| (c, false));
+    for (c, fractional) in marked.chain(frac.bytes().map(|c| (c, true))) {
+        let d = c.checked_sub(b'0').filter(|d| *d <= 9)?;
+        if m == 0 && d == 0 {
+            // a leading zero: no significance, only its place
+            e -= i64::from(fractional);
+        } else if digits < 19 {
+            m = m * 10 + u64::from(d);
+            digits += 1;
+            e -= i64::from(fractional);
+        } else if !fractional {
+            // an integer digit beyond the 19 kept
+            e += 1;
+        }
+    }
+    if let Some(t) = exp_txt {
+        let (eneg, et) = match t.as_bytes().first()? {
+            b'-' => (true, &t[1..]),
+            b'+' => (false, &t[1..]),
+            _ => (false, t),
+        };
+        if et.is_empty() {
+            return None;
+        }
+        let mut x = 0i64;
+        for c in et.bytes() {
+            x = (x * 10 + i64::from(c.checked_sub(b'0').filter(|d| *d <= 9)?)).min(100_000);
+        }
+        e += if eneg { -x } else { x };
+    }
+    while m != 0 && m % 10 == 0 {
+        m /= 10;
+        e += 1;
+    }
+    if m == 0 {
+        e = 0;
+    }
+    Some(Decimal { m, e })
+}
+
+/// `x` × 10^`e` by exact powers of ten (one rounding where |e| ≤ 22).
+fn scale10(mut x: f64, mut e: i64) -> f64 {
+    if x == 0.0 {
+        return 0.0;
+    }
+    while e > 22 && x.is_finite() {
+        x *= POW10[22];
+        e -= 22;
+    }
+    while e < -22 && x != 0.0 {
+        x /= POW10[22];
+        e += 22;
+    }
+    // |e| ≤ 22 here unless x over- or underflowed on the way (then x is ∞ or 0 and stays so)
+    let p = POW10[e.unsigned_abs().min(22) as usize];
+    if e >= 0 {
+        x * p
+    } else {
+        x / p
+    }
 }
 
 /// A mode slot `1..=4`.
