@@ -169,25 +169,46 @@ pub fn select(orders: &[OrderPoles], c: &StabCriteria) -> Vec<StableMode> {
 }
 
 /// Runs `estimate(order)` for every order, labels, selects. Errors of single orders are
-/// skipped (an order too high for the data); at least one order must succeed. `progress`
-/// advances once per order.
+/// skipped (an order too high for the data); at least one order must succeed. The orders are
+/// independent: with a spare core ([`crate::numeric::cores`]) the upper half runs beside the
+/// lower, the results kept in order (the same answer either way). `progress` advances once per
+/// order of the lower half and once for the upper.
 pub fn diagram(
     method: &str,
     orders: impl IntoIterator<Item = usize>,
     c: &StabCriteria,
-    mut estimate: impl FnMut(usize) -> Result<Vec<Pole>>,
+    estimate: impl Fn(usize) -> Result<Vec<Pole>> + Sync,
     progress: &mut dyn crate::progress::Progress,
 ) -> Result<Diagram> {
     let orders: Vec<usize> = orders.into_iter().collect();
+    progress.stage(method);
+    let (lower, upper) = orders.split_at(orders.len() / 2);
+    let run = |part: &[usize]| part.iter().map(|&n| (n, estimate(n))).collect::<Vec<_>>();
+    let mut results = Vec::with_capacity(orders.len());
+    std::thread::scope(|scope| {
+        let beside = crate::numeric::cores::take().map(|core| {
+            scope.spawn(move || {
+                let _held = core;
+                run(upper)
+            })
+        });
+        for (i, &n) in lower.iter().enumerate() {
+            results.push((n, estimate(n)));
+            progress.advance(i as u64 + 1, orders.len() as u64);
+        }
+        match beside.map(|h| h.join()) {
+            Some(Ok(up)) => results.extend(up),
+            _ => results.extend(run(upper)),
+        }
+    });
+    progress.advance(orders.len() as u64, orders.len() as u64);
     let mut raw = Vec::new();
     let mut last_err = None;
-    progress.stage(method);
-    for (i, &n) in orders.iter().enumerate() {
-        match estimate(n) {
+    for (n, r) in results {
+        match r {
             Ok(p) => raw.push((n, p)),
             Err(e) => last_err = Some(e),
         }
-        progress.advance(i as u64 + 1, orders.len() as u64);
     }
     if raw.is_empty() {
         return Err(last_err.unwrap_or_else(|| anyhow!("{method}: no model orders")));
