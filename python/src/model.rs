@@ -56,25 +56,7 @@ impl PyRig {
     fn modes<'py>(&self, py: Python<'py>, n: usize) -> PyResult<Bound<'py, PyAny>> {
         let rig = self.rig.clone();
         let v = run_released(py, move || {
-            let m = model(&rig, n)?;
-            let cm = m.clamped_modes()?;
-            let free = m.free_base_freqs_hz()?;
-            let two_pi = 2.0 * std::f64::consts::PI;
-            let modes: Vec<_> = (0..cm.omega_rad_s.len())
-                .map(|r| {
-                    serde_json::json!({
-                        "mode": r + 1,
-                        "freq_hz_clamped_base": cm.omega_rad_s[r] / two_pi,
-                        "freq_hz_free_base": free.get(r),
-                        "damping_ratio": cm.zeta[r],
-                        "participation_kg_sqrt": cm.participation[r],
-                        "tip_per_modal_coordinate": cm.tip[r],
-                    })
-                })
-                .collect();
-            Ok(serde_json::json!({
-                "beam_mass_kg": m.beam_mass_kg, "rayleigh_alpha1_per_s": m.rayleigh.0,
-                "rayleigh_alpha2_s": m.rayleigh.1, "modes": modes }))
+            beamtools::model::modes_report::modes_report(&model(&rig, n)?)
         })?;
         json_to_py(py, &v)
     }

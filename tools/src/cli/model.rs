@@ -308,24 +308,8 @@ pub fn modes(a: ModesArgs) -> Result<()> {
     let free = model.free_base_freqs_hz()?;
     let two_pi = 2.0 * std::f64::consts::PI;
     if a.json {
-        let v: Vec<_> = (0..cm.omega_rad_s.len())
-            .map(|r| {
-                serde_json::json!({
-                    "mode": r + 1,
-                    "freq_hz_clamped_base": cm.omega_rad_s[r] / two_pi,
-                    "freq_hz_free_base": free.get(r),
-                    "damping_ratio": cm.zeta[r],
-                    "participation_kg_sqrt": cm.participation[r],
-                    "tip_per_modal_coordinate": cm.tip[r],
-                })
-            })
-            .collect();
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-            "beam_mass_kg": model.beam_mass_kg, "rayleigh_alpha1_per_s": model.rayleigh.0,
-            "rayleigh_alpha2_s": model.rayleigh.1, "modes": v }))?
-        );
+        let report = crate::model::modes_report::modes_report(&model)?;
+        println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
     println!("beam mass {:.4} kg, carriage {:.3} kg, {} basis functions; Rayleigh alpha1 = {:.4e} 1/s, alpha2 = {:.4e} s",

@@ -10,6 +10,7 @@
 
 pub mod basis;
 pub mod galerkin;
+pub mod modes_report;
 pub mod mount;
 pub mod rig;
 pub mod sim;
