@@ -10,7 +10,7 @@
 
 use super::frf::Frf;
 use super::lsce::{impulse_response, lsce_poles};
-use super::lscf::lscf_poles_sk;
+use super::lscf::LscfLines;
 use super::peak::pick_peaks;
 use super::pipeline::{refine_estimates, IdentOptions, Method, MethodResult};
 use super::stabilisation::{diagram, Diagram, StableMode};
@@ -119,8 +119,10 @@ impl FrfEstimator for Lscf {
         let (fq, h) = (&frf.freq_hz[band.clone()], &frf.h1[band]);
         let w = vec![1.0; fq.len()];
         let orders: Vec<usize> = (2..=o.max_order.max(4)).collect();
+        let lines = LscfLines::new(fq, h, &w, o.max_order.max(4));
         let poles = |n| {
-            Ok(lscf_poles_sk(fq, h, &w, n, 1.0, o.sk_iterations)?
+            Ok(lines
+                .poles(n, 1.0, o.sk_iterations)?
                 .into_iter()
                 .map(|p| p.remove_decay(frf.window_decay_s))
                 .filter(|p| p.zeta > 0.0 && p.zeta < o.zeta_max)

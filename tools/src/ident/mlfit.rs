@@ -18,7 +18,8 @@
 //! θ = (ln ω_r, ln ζ_r) only. The 1-σ uncertainty of each f_r and ζ_r is the Gauss–Newton
 //! covariance s² (JᵀJ)⁻¹ of the projected problem, s² = V / (N − p).
 
-use crate::numeric::lm::{fd_jacobian, minimize, Difference, LmOptions};
+use crate::numeric::cores;
+use crate::numeric::lm::{fd_jacobian_batched, minimize_batched, Difference, LmOptions};
 use anyhow::{bail, Result};
 use nalgebra::{DMatrix, DVector};
 use realfft::num_complex::Complex64;
@@ -100,11 +101,54 @@ impl Problem<'_> {
         for (j, sc) in scale.iter().enumerate() {
             a.column_mut(j).scale_mut(1.0 / sc);
         }
-        let svd = a.clone().svd(true, true);
-        let c = svd.solve(&y, 1e-12).ok()?;
+        let c = solve_scaled(&a, &y)?;
         let r = &a * c - y;
         r.iter().all(|v| v.is_finite()).then_some(r)
     }
+
+    /// [`Self::projected`] at several points, the second half on a spare core when one is free
+    /// ([`crate::numeric::cores`]); the results are those of one call per point, in order.
+    fn projected_batch(&self, thetas: &[DVector<f64>]) -> Vec<Option<DVector<f64>>> {
+        let core = if thetas.len() >= 2 {
+            cores::take()
+        } else {
+            None
+        };
+        let Some(_core) = core else {
+            return thetas.iter().map(|t| self.projected(t)).collect();
+        };
+        let (first, second) = thetas.split_at(thetas.len().div_ceil(2));
+        std::thread::scope(|scope| {
+            let theirs =
+                scope.spawn(|| second.iter().map(|t| self.projected(t)).collect::<Vec<_>>());
+            let mut mine: Vec<_> = first.iter().map(|t| self.projected(t)).collect();
+            match theirs.join() {
+                Ok(v) => mine.extend(v),
+                Err(_) => mine.extend(second.iter().map(|t| self.projected(t))),
+            }
+            mine
+        })
+    }
+}
+
+/// The least-squares coefficients of `a c ≈ y` for `a` with unit-norm columns: Householder QR
+/// (backward stable, the residual is accurate to rounding, which the finite-difference Jacobian
+/// needs), or the SVD with singular values below 1e-12 dropped when R has a diagonal below
+/// 1e-12 (a rank-deficient basis, e.g. two poles on top of each other). `None` when neither
+/// gives finite values.
+fn solve_scaled(a: &DMatrix<f64>, y: &DVector<f64>) -> Option<DVector<f64>> {
+    let p = a.ncols();
+    let qr = a.clone().qr();
+    let r = qr.r();
+    if (0..p).all(|i| r[(i, i)].abs() > 1e-12) {
+        let mut qty = y.clone();
+        qr.q_tr_mul(&mut qty);
+        let mut c = qty.rows(0, p).into_owned();
+        if r.solve_upper_triangular_mut(&mut c) && c.iter().all(|v| v.is_finite()) {
+            return Some(c);
+        }
+    }
+    a.clone().svd(true, true).solve(y, 1e-12).ok()
 }
 
 /// The adapter's options of the fit: central differences of step 1e-6 in (ln ω, ln ζ),
@@ -180,8 +224,9 @@ pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> R
     };
     let cost_start = r0.norm_squared() * w_max;
     let f = |theta: &DVector<f64>| problem.projected(theta);
+    let batch = |thetas: &[DVector<f64>]| problem.projected_batch(thetas);
     let opts = lm_options(theta0.len());
-    let out = minimize(&f, theta0, &opts);
+    let out = minimize_batched(&f, &batch, theta0, &opts);
     if !out.cost.is_finite() {
         bail!("the fit did not converge ({})", out.termination);
     }
@@ -189,7 +234,7 @@ pub fn refine_modes(frf: &Frf, band_hz: (f64, f64), start: &[ModeEstimate]) -> R
     let Some(r) = problem.projected(&theta) else {
         bail!("the fit diverged");
     };
-    let Some(j) = fd_jacobian(&f, &theta, &r, &opts) else {
+    let Ok(j) = fd_jacobian_batched(&batch, &theta, &r, &opts) else {
         bail!("the fit diverged");
     };
     let n_obs = r.len() as f64;

@@ -82,7 +82,7 @@ pub struct IdentOptions {
     /// ([`super::denoise`]); skipped with a warning when the input is not a sweep, and never
     /// applied to the force (it also carries the beam's reaction at its resonances).
     pub track_input: bool,
-    /// Sanathanan–Koerner iterations of LSCF ([`super::lscf::lscf_poles_sk`]): reduce the
+    /// Sanathanan–Koerner iterations of LSCF ([`super::lscf::LscfLines::poles`]): reduce the
     /// damping bias of output noise; 1 by default (more iterations lost poles at low orders;
     /// docs/ident.md, "Numbers behind the design choices").
     pub sk_iterations: usize,

@@ -170,9 +170,10 @@ pub fn select(orders: &[OrderPoles], c: &StabCriteria) -> Vec<StableMode> {
 
 /// Runs `estimate(order)` for every order, labels, selects. Errors of single orders are
 /// skipped (an order too high for the data); at least one order must succeed. The orders are
-/// independent: with a spare core ([`crate::numeric::cores`]) the upper half runs beside the
-/// lower, the results kept in order (the same answer either way). `progress` advances once per
-/// order of the lower half and once for the upper.
+/// independent: with a spare core ([`crate::numeric::cores`]) two threads take them from one
+/// queue, highest (costliest) first — the longest-processing-time rule (Graham 1969), which
+/// keeps the two threads' loads within one order of each other without a cost model — and the
+/// results are kept in order (the same answer either way). `progress` advances once per order.
 pub fn diagram(
     method: &str,
     orders: impl IntoIterator<Item = usize>,
@@ -182,26 +183,7 @@ pub fn diagram(
 ) -> Result<Diagram> {
     let orders: Vec<usize> = orders.into_iter().collect();
     progress.stage(method);
-    let (lower, upper) = orders.split_at(orders.len() / 2);
-    let run = |part: &[usize]| part.iter().map(|&n| (n, estimate(n))).collect::<Vec<_>>();
-    let mut results = Vec::with_capacity(orders.len());
-    std::thread::scope(|scope| {
-        let beside = crate::numeric::cores::take().map(|core| {
-            scope.spawn(move || {
-                let _held = core;
-                run(upper)
-            })
-        });
-        for (i, &n) in lower.iter().enumerate() {
-            results.push((n, estimate(n)));
-            progress.advance(i as u64 + 1, orders.len() as u64);
-        }
-        match beside.map(|h| h.join()) {
-            Some(Ok(up)) => results.extend(up),
-            _ => results.extend(run(upper)),
-        }
-    });
-    progress.advance(orders.len() as u64, orders.len() as u64);
+    let results = run_orders(&orders, &estimate, progress);
     let mut raw = Vec::new();
     let mut last_err = None;
     for (n, r) in results {
@@ -220,6 +202,57 @@ pub fn diagram(
         orders: labelled,
         modes,
     })
+}
+
+/// `estimate(n)` for every order of `orders`, in that order; the work is shared with a spare
+/// core when one is free (see [`diagram`]).
+fn run_orders(
+    orders: &[usize],
+    estimate: &(impl Fn(usize) -> Result<Vec<Pole>> + Sync),
+    progress: &mut dyn crate::progress::Progress,
+) -> Vec<(usize, Result<Vec<Pole>>)> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let total = orders.len() as u64;
+    // Queue positions in descending order of the model order.
+    let mut queue: Vec<usize> = (0..orders.len()).collect();
+    queue.sort_by(|&a, &b| orders[b].cmp(&orders[a]));
+    let next = AtomicUsize::new(0);
+    let work = || {
+        let mut done = Vec::new();
+        while let Some(&i) = queue.get(next.fetch_add(1, Ordering::Relaxed)) {
+            done.push((i, estimate(orders[i])));
+        }
+        done
+    };
+    let mut results: Vec<Option<Result<Vec<Pole>>>> = orders.iter().map(|_| None).collect();
+    std::thread::scope(|scope| {
+        let beside = crate::numeric::cores::take().map(|core| {
+            scope.spawn(|| {
+                let _held = core;
+                work()
+            })
+        });
+        let mut mine = 0u64;
+        while let Some(&i) = queue.get(next.fetch_add(1, Ordering::Relaxed)) {
+            results[i] = Some(estimate(orders[i]));
+            mine += 1;
+            progress.advance(mine, total);
+        }
+        if let Some(Ok(theirs)) = beside.map(|h| h.join()) {
+            for (i, r) in theirs {
+                results[i] = Some(r);
+            }
+        }
+    });
+    progress.advance(total, total);
+    orders
+        .iter()
+        .zip(results)
+        .map(|(&n, r)| {
+            // An order whose thread died is computed here (the result is the same).
+            (n, r.unwrap_or_else(|| estimate(n)))
+        })
+        .collect()
 }
 
 impl Diagram {
