@@ -219,7 +219,12 @@ def simulate(rig: Rig, base_cmd_m: Any, rate_hz: float, n_modes: int = 4) -> Rec
     return _beamshaper.simulate(rig, base_cmd_m, rate_hz, n_modes)
 
 
-def diagnose(rig: Rig, fit: Sequence[PathLike], validate: PathLike) -> Dict[str, Any]:
+def diagnose(
+    rig: Rig,
+    fit: Sequence[PathLike],
+    validate: PathLike,
+    columns: Optional[Union[str, Dict[str, Any]]] = None,
+) -> Dict[str, Any]:
     """Diagnose the model of ``rig`` against recordings: ``beamtool diagnose``.
 
     Each recording is read and prepared by the library's entry point
@@ -233,6 +238,9 @@ def diagnose(rig: Rig, fit: Sequence[PathLike], validate: PathLike) -> Dict[str,
         rig: the :class:`Rig` (from a file).
         fit: recording CSVs to fit on (paths).
         validate: the recording held out for validation.
+        columns: which column of every file holds which channel, with its scale to SI, as
+            :func:`read_recording` takes it (``beamtool diagnose --columns``); ``None`` for
+            files in the project's names.
 
     Returns:
         The CLI's JSON report (``--json``, ``beamtools::diagnose::report::to_json``) as Python
@@ -243,4 +251,6 @@ def diagnose(rig: Rig, fit: Sequence[PathLike], validate: PathLike) -> Dict[str,
         ValueError: a recording the rig cannot simulate, without information, or inconsistent.
         KeyboardInterrupt: Ctrl-C (checked at each progress report).
     """
-    return _beamshaper.diagnose(rig, [os.fspath(p) for p in fit], os.fspath(validate))
+    return _beamshaper.diagnose(
+        rig, [os.fspath(p) for p in fit], os.fspath(validate), columns
+    )

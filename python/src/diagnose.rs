@@ -3,20 +3,22 @@
 use crate::arrays::json_to_py;
 use crate::guard::run_cancellable;
 use crate::model::PyRig;
-use beamtools::diagnose::load::load;
+use beamtools::diagnose::load::load_with;
 use beamtools::diagnose::report::to_json;
 use pyo3::prelude::*;
 use std::path::PathBuf;
 
 /// Diagnoses `rig` against recordings (documented in `beamshaper/__init__.py`).
 #[pyfunction]
-#[pyo3(signature = (rig, fit, validate))]
+#[pyo3(signature = (rig, fit, validate, columns=None))]
 pub fn diagnose<'py>(
     py: Python<'py>,
     rig: PyRef<'_, PyRig>,
     fit: Vec<PathBuf>,
     validate: PathBuf,
+    columns: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let opts = crate::recording::read_options(columns, None)?;
     if fit.is_empty() {
         return Err(crate::guard::value_error(
             "fit: want at least one recording to fit the model on",
@@ -26,7 +28,7 @@ pub fn diagnose<'py>(
     let (report, notes) = run_cancellable(py, move |cancel| {
         let mut notes = Vec::new();
         let mut prepared = |p: &PathBuf| -> anyhow::Result<_> {
-            let l = load(p, &r)?;
+            let l = load_with(p, &r, &opts)?;
             notes.extend(l.notes.iter().map(|n| format!("{}: {n}", p.display())));
             Ok(l.prepared)
         };

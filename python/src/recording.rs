@@ -191,7 +191,10 @@ impl PySpectrum {
 
 /// The CLI's `--columns` (a string `channel=column[:scale],…` or a dict `{channel: column}` /
 /// `{channel: (column, scale)}`) and `--axis`.
-fn read_options(columns: Option<&Bound<'_, PyAny>>, axis: Option<&str>) -> PyResult<ReadOptions> {
+pub(crate) fn read_options(
+    columns: Option<&Bound<'_, PyAny>>,
+    axis: Option<&str>,
+) -> PyResult<ReadOptions> {
     let spec = match columns {
         None => None,
         Some(c) if c.is_instance_of::<PyString>() => Some(c.extract::<String>()?),

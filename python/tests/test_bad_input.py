@@ -131,3 +131,12 @@ def test_diagnose_refuses(tmp_path):
         bs.diagnose(rig, [], tmp_path / "v.csv")
     with pytest.raises(OSError):
         bs.diagnose(rig, [tmp_path / "f.csv"], tmp_path / "v.csv")
+    # a logger's file without a map is refused by its time column; a bad map by its channel
+    f = tmp_path / "logger.csv"
+    f.write_text("t,pos,tip\n" + "".join(f"{10 * k},{0.001 * k},0\n" for k in range(50)))
+    with pytest.raises(ValueError, match="time column `t` has no unit"):
+        bs.diagnose(rig, [f], f)
+    with pytest.raises(ValueError, match="unknown channel `tip`"):
+        bs.diagnose(rig, [f], f, columns="tip=tip")
+    with pytest.raises(ValueError, match="column `nope`"):
+        bs.diagnose(rig, [f], f, columns={"time_s": ("t", 0.001), "tip_pos_m": "nope"})

@@ -218,3 +218,75 @@ fn a_bad_columns_map_is_refused_by_name_on_the_command_line() {
     assert!(!ok);
     assert!(err.contains("want x, y or z"), "{err}");
 }
+
+/// A recording of the truth generator in the project's names, and the same recording as a
+/// logger might write it (time in ms, positions in mm, its own column names, another order).
+fn truth_recording_and_its_foreign_twin(dir: &Path) -> (PathBuf, PathBuf) {
+    let out = dir.to_str().unwrap();
+    let (ok, err) = beamtool(&["truth", "--out", out, "--duration-s", "20", "--n-fit", "1"]);
+    assert!(ok, "{err}");
+    let ours = dir.join("fit1.csv");
+    let text = std::fs::read_to_string(&ours).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "time_s,base_cmd_m,base_pos_m,tip_pos_m,force_n"
+    );
+    let mut foreign = String::from("F,tip mm,t,pos,cmd\n");
+    for l in lines {
+        let c: Vec<f64> = l.split(',').map(num).collect();
+        let row = [c[4], c[3] * 1e3, c[0] * 1e3, c[2] * 1e3, c[1] * 1e3];
+        let cells: Vec<String> = row.iter().map(|v| format!("{v:e}")).collect();
+        foreign.push_str(&cells.join(","));
+        foreign.push('\n');
+    }
+    let theirs = dir.join("logger.csv");
+    std::fs::write(&theirs, foreign).unwrap();
+    (ours, theirs)
+}
+
+#[test]
+fn the_diagnosis_reads_a_loggers_columns_as_the_project_names_them() {
+    use beamtools::diagnose::load::{load, load_with};
+    let dir = std::env::temp_dir().join(format!("beamtool-diag-columns-{}", std::process::id()));
+    let (ours, theirs) = truth_recording_and_its_foreign_twin(&dir);
+    let rig = beamtools::model::Rig::from_toml_file(dir.join("rig.toml")).unwrap();
+    let a = load(&ours, &rig).unwrap().prepared;
+    let map =
+        "time_s=t:0.001,base_cmd_m=cmd:0.001,base_pos_m=pos:0.001,tip_pos_m=tip mm:0.001,force_n=F";
+    let b = load_with(&theirs, &rig, &columns(map)).unwrap().prepared;
+    let close = |x: &[f64], y: &[f64], what: &str| {
+        assert_eq!(x.len(), y.len(), "{what}");
+        let scale = x.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-300);
+        let worst = x
+            .iter()
+            .zip(y)
+            .fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
+        assert!(
+            worst <= 1e-9 * scale,
+            "{what}: differs by {worst:e} of {scale:e}"
+        );
+    };
+    assert!((a.dt - b.dt).abs() <= 1e-12 * a.dt);
+    close(&a.time_s, &b.time_s, "time_s");
+    close(&a.cmd_m, &b.cmd_m, "base_cmd_m");
+    close(
+        a.base_m.as_ref().unwrap(),
+        b.base_m.as_ref().unwrap(),
+        "base_pos_m",
+    );
+    close(
+        a.tip_m.as_ref().unwrap(),
+        b.tip_m.as_ref().unwrap(),
+        "tip_pos_m",
+    );
+    close(
+        a.force_n.as_ref().unwrap(),
+        b.force_n.as_ref().unwrap(),
+        "force_n",
+    );
+    // Without the map the logger's file is refused by name, not misread.
+    let e = format!("{:#}", load(&theirs, &rig).err().expect("refused"));
+    assert!(e.contains("time"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -9,6 +9,7 @@ use crate::ident::spectrum::amplitude_spectrum;
 use crate::model::Rig;
 use crate::plot::{lines, Series};
 use crate::progress::Progress;
+use crate::recording::ReadOptions;
 use crate::truth::EFFECTS;
 use anyhow::{Context, Result};
 use clap::Args;
@@ -34,6 +35,10 @@ pub struct DiagnoseArgs {
     /// Write report.md, diagnosis.json and SVG plots into this directory.
     #[arg(long)]
     pub report: Option<PathBuf>,
+    /// How every recording is read (`--columns`: the same mapping for the fit and the
+    /// validation files).
+    #[command(flatten)]
+    pub read: super::read::ReadArgs,
 }
 
 fn bar(len: u64) -> ProgressBar {
@@ -105,23 +110,28 @@ impl Progress for StageProgress {
     }
 }
 
-/// Reads and prepares one recording of `rig` ([`crate::diagnose::load`]), printing its notes.
-pub fn load(path: &Path, rig: &Rig) -> Result<Prepared> {
-    let loaded = crate::diagnose::load::load(path, rig)?;
+/// Reads and prepares one recording of `rig` with the reading options `opts`
+/// ([`crate::diagnose::load`]), printing its notes.
+pub fn load(path: &Path, rig: &Rig, opts: &ReadOptions) -> Result<Prepared> {
+    let loaded = crate::diagnose::load::load_with(path, rig, opts)?;
     super::print_notes(path, &loaded.notes);
     Ok(loaded.prepared)
 }
 
-/// Runs a diagnosis on files, with progress shown when `show`.
+/// Runs a diagnosis on files read with `opts`, with progress shown when `show`.
 pub fn diagnose_files(
     rig: &Path,
     fit: &[PathBuf],
     validate: &Path,
+    opts: &ReadOptions,
     show: bool,
 ) -> Result<Diagnosis> {
     let rig = Rig::from_toml_file(rig)?;
-    let fit: Vec<Prepared> = fit.iter().map(|p| load(p, &rig)).collect::<Result<_>>()?;
-    let val = load(validate, &rig)?;
+    let fit: Vec<Prepared> = fit
+        .iter()
+        .map(|p| load(p, &rig, opts))
+        .collect::<Result<_>>()?;
+    let val = load(validate, &rig, opts)?;
     let mut progress = StageProgress::new(show);
     let d = run_diagnosis(&rig, &fit, &val, &mut progress)?;
     progress.finish();
@@ -252,7 +262,7 @@ fn spectrum_plot(d: &Diagnosis, dir: &Path, name: &str, r0: &[f64], r1: &[f64]) 
 /// Runs `diagnose`.
 pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
     let t0 = std::time::Instant::now();
-    let d = diagnose_files(&a.rig, &a.fit, &a.validate, true)?;
+    let d = diagnose_files(&a.rig, &a.fit, &a.validate, &a.read.options(), true)?;
     if std::env::var_os("DIAG_SELECT").is_some() {
         for line in &d.trace {
             eprintln!("{line}");

@@ -1,5 +1,5 @@
-//! How the commands read a recording file (`--columns`, `--axis`, shared by `identify`, `tune`
-//! and `frf`), and `bench-read`: the reading's speed and memory on a file, beside a named peer
+//! How the commands read a recording file (`--columns`, `--axis`, shared by `identify`, `tune`,
+//! `frf` and `diagnose`), and `bench-read`: the reading's speed and memory on a file, beside a named peer
 //! reading the same file in the same run.
 
 use crate::recording::{Axis, ColumnMap, ReadOptions, Recording};

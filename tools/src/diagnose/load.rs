@@ -10,6 +10,7 @@
 
 use crate::diagnose::model::Prepared;
 use crate::model::Rig;
+use crate::recording::ReadOptions;
 use anyhow::Result;
 use std::path::Path;
 
@@ -22,13 +23,26 @@ pub struct Loaded {
     pub notes: Vec<String>,
 }
 
-/// Reads and prepares the recording at `path` for `rig`.
+/// Reads and prepares the recording at `path` for `rig`, its columns named as the project
+/// names them (`time_s`, `base_pos_m`, …).
 ///
 /// Errors: the file cannot be read or parsed (the recording reader's messages), or the
 /// recording is too short, still or inconsistent for the diagnosis ([`Prepared::new`]).
 pub fn load(path: &Path, rig: &Rig) -> Result<Loaded> {
-    let (rec, gaps) =
-        crate::recording::Recording::read_csv_leaving_gaps(path, &["tip_pos_m", "force_n"])?;
+    load_with(path, rig, &ReadOptions::default())
+}
+
+/// [`load`] with the reading options `opts`: `opts.columns` maps the project's channels to
+/// the file's columns, each with its scale to SI (`beamtool diagnose --columns`, the mapping
+/// `identify` and `tune` take).
+///
+/// Errors: as [`load`], and a mapped column the file does not have.
+pub fn load_with(path: &Path, rig: &Rig, opts: &ReadOptions) -> Result<Loaded> {
+    let (rec, gaps) = crate::recording::Recording::read_csv_leaving_gaps_with(
+        path,
+        &["tip_pos_m", "force_n"],
+        opts,
+    )?;
     let rec = crate::recording::glitch::mend_tip_glitches(rec);
     let rec = match first_natural_freq_hz(rig) {
         Some(f1) => crate::recording::orient::orient(rec, f1 / 4.0, 10.0 * f1),
