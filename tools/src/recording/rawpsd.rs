@@ -210,21 +210,22 @@ pub fn raw_spectrum(raw: &RawAccel) -> Result<KlipperSpectrum> {
     })
 }
 
-/// [`read_raw`] then [`raw_spectrum`], with a one-line description of what was computed
-/// (rows, rate, segment, resolution, segments averaged). Errors: those of both.
-pub fn read_raw_spectrum(path: &Path) -> Result<(KlipperSpectrum, String)> {
+/// [`read_raw`] then [`raw_spectrum`]. Errors: those of both, with the file named.
+pub fn read_raw_spectrum(path: &Path) -> Result<KlipperSpectrum> {
     let raw = read_raw(path)?;
-    let s = raw_spectrum(&raw).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    let n = raw.time_s.len();
-    let m = 2 * (s.freq_hz.len() - 1);
-    let fs = s.freq_hz[1] * m as f64;
-    let note = format!(
-        "Klipper raw accelerometer file: {n} rows at {} Hz (N / span), PSD as Klipper v0.13.0 computes it: Welch, Kaiser β 6, {m}-sample segments (Δf {} Hz), 50 % overlap, {} segments, mean detrend, density, summed over x, y, z",
-        super::fmt_sig(fs, 5),
-        super::fmt_sig(s.freq_hz[1], 4),
-        (n - m / 2) / (m - m / 2)
-    );
-    Ok((s, note))
+    raw_spectrum(&raw).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+}
+
+/// One line saying how the raw file's spectrum `s` (from [`raw_spectrum`]) was computed:
+/// rate, segment, resolution.
+pub fn spectrum_note(s: &KlipperSpectrum) -> String {
+    let m = 2 * (s.freq_hz.len().max(2) - 1);
+    let df = s.freq_hz.get(1).copied().unwrap_or(f64::NAN);
+    format!(
+        "PSD computed as Klipper v0.13.0 does from a raw file: {} Hz (N / span), Welch with a Kaiser β 6 window, {m}-sample segments (Δf {} Hz), 50 % overlap, mean detrend, density, summed over x, y, z",
+        super::fmt_sig(df * m as f64, 5),
+        super::fmt_sig(df, 4),
+    )
 }
 
 /// The spectrum `s` in Klipper's file format (`save_calibration_data`): the header
