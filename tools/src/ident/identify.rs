@@ -70,11 +70,21 @@ pub fn identify_file(
         }
     }
     let rec = Recording::read_any_with(path, &opts.read, &mut |n| progress(Stage::Reading(n)))?;
-    let mut id = identify(&rec, opts, progress).map_err(|e| {
+    let id = identify(&rec, opts, progress).map_err(|e| {
         // what reading noted (the columns read, a row-wise log, a staircase, …) follows the error
         let notes: String = rec.notes.iter().map(|n| format!("\n  note: {n}")).collect();
         anyhow::anyhow!("{}: {e:#}{notes}", path.display())
-    })?;
+    });
+    if let (Err(e), PathChoice::Auto) = (&id, opts.path) {
+        // a Klipper raw file whose time-domain paths found nothing: its PSD's peaks
+        if crate::recording::rawpsd::is_raw_file(path) {
+            let why = format!("the time-domain paths found no mode ({e:#})");
+            if let Ok(Some(s)) = super::klipper_raw::spectrum_path(path, opts, Some(&why)) {
+                return Ok(s);
+            }
+        }
+    }
+    let mut id = id?;
     // what reading noted or mended (ignored columns, blank cells filled, …) heads the warnings
     id.warnings.splice(0..0, rec.notes.iter().cloned());
     Ok(id)

@@ -229,15 +229,30 @@ fn axis_of(acc: &[Vec<f64>; 3], asked: Option<Axis>) -> Axis {
 /// when the path is asked for (`--path spectrum`) or, under `auto`, when the file holds a
 /// sweep. `Ok(None)`: not this path (another path reads the file).
 ///
-/// Errors: the file cannot be read as Klipper's raw CSV, is too short for Klipper's PSD, or
-/// holds no power in the band.
+/// Errors: the file cannot be read as Klipper's raw CSV; on the asked path, too short for
+/// Klipper's PSD (under `auto` such a file goes to the time-domain paths); no power in the
+/// band.
 pub fn identify_klipper_raw(path: &Path, opts: &IdentifyOptions) -> Result<Option<Identification>> {
-    let asked = opts.path == PathChoice::Spectrum;
-    if !matches!(opts.path, PathChoice::Auto | PathChoice::Spectrum) {
-        return Ok(None);
+    match opts.path {
+        PathChoice::Spectrum => spectrum_path(path, opts, Some("spectrum path asked for")),
+        PathChoice::Auto => spectrum_path(path, opts, None),
+        _ => Ok(None),
     }
+}
+
+/// The spectrum path on the raw file at `path`: taken when it holds a sweep, or whatever it
+/// holds when `forced` says why (then errors are the caller's). `Ok(None)` when not taken.
+pub fn spectrum_path(
+    path: &Path,
+    opts: &IdentifyOptions,
+    forced: Option<&str>,
+) -> Result<Option<Identification>> {
     let raw = read_raw(path)?;
-    let s = raw_spectrum(&raw).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    let s = match raw_spectrum(&raw) {
+        Ok(s) => s,
+        Err(e) if forced.is_some() => bail!("{}: {e}", path.display()),
+        Err(_) => return Ok(None), // too short for Klipper's PSD: the time-domain paths
+    };
     let axis = axis_of(&raw.acc_mm_s2, opts.read.axis);
     let m = 2 * (s.freq_hz.len() - 1);
     let fs = s.freq_hz[1] * m as f64;
@@ -246,10 +261,10 @@ pub fn identify_klipper_raw(path: &Path, opts: &IdentifyOptions) -> Result<Optio
         MAX_FREQ_HZ.min(opts.decay.f_max_hz).min(0.5 * fs),
     );
     let sweep = swept_ridge(&raw.acc_mm_s2[axis.index()], fs, m, band);
-    let why = match (&sweep, asked) {
+    let why = match (&sweep, forced) {
         (Ok(w), _) => w.clone(),
-        (Err(w), true) => format!("spectrum path asked for; {w}"),
-        (Err(_), false) => return Ok(None),
+        (Err(w), Some(f)) => format!("{f}; {w}"),
+        (Err(_), None) => return Ok(None),
     };
     spectrum_identification(path, &s, axis, band, why, raw.time_s.len()).map(Some)
 }
