@@ -219,10 +219,43 @@ pub fn window_half_power_hz(m: usize, fs: f64) -> f64 {
     2.0 * k as f64 * fs / pad as f64
 }
 
-/// The axis of the raw file to identify: `--axis`, else the one with the most energy (the
-/// reader's rule, [`choose_axis`]).
-fn axis_of(acc: &[Vec<f64>; 3], asked: Option<Axis>) -> Axis {
-    choose_axis([&acc[0], &acc[1], &acc[2]], asked).0
+/// The axis of the raw file at `path` to identify, and why: `--axis`; else the axis Klipper's
+/// `TEST_RESONANCES` names in the file (`raw_data_x_…`, `raw_data_y_…`: the axis it excited;
+/// Klipper writes the accelerations after its `axes_map`, so in the printer's axes); else the
+/// one with the most energy (the reader's rule, [`choose_axis`]). A note is added to `warnings`
+/// when the named axis is not the one with the most energy.
+fn axis_of(
+    path: &Path,
+    acc: &[Vec<f64>; 3],
+    asked: Option<Axis>,
+    warnings: &mut Vec<String>,
+) -> (Axis, &'static str) {
+    let most = choose_axis([&acc[0], &acc[1], &acc[2]], None).0;
+    if let Some(a) = asked {
+        return (a, "--axis");
+    }
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let named = match () {
+        _ if name.starts_with("raw_data_x_") => Some(Axis::X),
+        _ if name.starts_with("raw_data_y_") => Some(Axis::Y),
+        _ => None,
+    };
+    match named {
+        Some(a) => {
+            if a != most {
+                warnings.push(format!(
+                    "axis {} (the test's, from the file name) is read; axis {} holds more energy (choose it with --axis)",
+                    a.name(),
+                    most.name()
+                ));
+            }
+            (a, "the test's axis, from the file name")
+        }
+        None => (most, "the axis with the most energy"),
+    }
 }
 
 /// Identifies Klipper's raw accelerometer file at `path` on the spectrum path (module docs)
@@ -253,7 +286,8 @@ pub fn spectrum_path(
         Err(e) if forced.is_some() => bail!("{}: {e}", path.display()),
         Err(_) => return Ok(None), // too short for Klipper's PSD: the time-domain paths
     };
-    let axis = axis_of(&raw.acc_mm_s2, opts.read.axis);
+    let mut warnings = vec![];
+    let (axis, axis_why) = axis_of(path, &raw.acc_mm_s2, opts.read.axis, &mut warnings);
     let m = 2 * (s.freq_hz.len() - 1);
     let fs = s.freq_hz[1] * m as f64;
     let band = (
@@ -266,7 +300,10 @@ pub fn spectrum_path(
         (Err(w), Some(f)) => format!("{f}; {w}"),
         (Err(_), None) => return Ok(None),
     };
-    spectrum_identification(path, &s, axis, band, why, raw.time_s.len()).map(Some)
+    let why = format!("{why}; axis {}: {axis_why}", axis.name());
+    let mut id = spectrum_identification(path, &s, axis, band, why, raw.time_s.len())?;
+    id.warnings.splice(0..0, warnings);
+    Ok(Some(id))
 }
 
 /// The [`Identification`] of the PSD of `axis` in `s` (module docs, step 3).
