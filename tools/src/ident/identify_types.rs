@@ -72,7 +72,7 @@ impl fmt::Display for IdentPath {
             IdentPath::Spectrum => "magnitude spectrum",
             IdentPath::OutputOnly => "output-only (SSI-cov)",
             IdentPath::RingDowns => "pooled ring-downs after steps",
-            IdentPath::KlipperPsd => "Klipper PSD (swept resonance test)",
+            IdentPath::KlipperPsd => "Klipper PSD peaks (spectrum path)",
         })
     }
 }
