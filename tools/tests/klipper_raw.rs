@@ -126,10 +126,10 @@ fn simulate(fs: f64) -> Vec<f64> {
     out
 }
 
-/// Writes the raw file: x the test axis, y 10 % of it (mounting), z gravity + 5 %; noise,
+/// Writes the raw file (chip at `nominal_hz`, its clock 0.01 % slow): x the test axis, y 10 % of it (mounting), z gravity + 5 %; noise,
 /// quantisation, the chip's clock and the printer's stamps (module docs).
-fn write_raw(path: &Path, seed: u64) {
-    let fs_chip = 3200.0 * (1.0 - 1e-4);
+fn write_raw(path: &Path, seed: u64, nominal_hz: f64) {
+    let fs_chip = nominal_hz * (1.0 - 1e-4);
     let a = simulate(fs_chip);
     let mut rng = StdRng::seed_from_u64(seed);
     let mut clock = StdRng::seed_from_u64(seed + 1);
@@ -191,7 +191,7 @@ fn exact_csv(s: &KlipperSpectrum) -> String {
 fn a_raw_resonance_test_file_identifies_and_tunes_like_its_psd_file() {
     let dir = tempfile::tempdir().unwrap();
     let raw_path = dir.path().join("raw_data_x_20260101_000000.csv");
-    write_raw(&raw_path, 7);
+    write_raw(&raw_path, 7, 3200.0);
     let raw = read_raw(&raw_path).unwrap();
     assert!(raw.time_s.len() > 400_000);
     let s = raw_spectrum(&raw).unwrap();
@@ -285,6 +285,26 @@ fn same_design_from_its_spectrum_files(dir: &Path, raw_path: &Path, s: &KlipperS
         );
         assert!((o.vibrations - or.vibrations).abs() <= 0.005, "{what}");
     }
+}
+
+#[test]
+fn a_lis2dw_rate_file_also_identifies_at_its_psds_largest_peak() {
+    // LIS2DW (Klipper's other common chip) at 1.6 kHz: 1024-sample segments, Δf 1.56 Hz
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("raw_data_x_lis2dw_20260101_000000.csv");
+    write_raw(&p, 11, 1600.0);
+    let s = raw_spectrum(&read_raw(&p).unwrap()).unwrap();
+    assert_eq!(2 * (s.freq_hz.len() - 1), 1024);
+    let (fpk, f_lo, f_hi) = largest_peak(&s.freq_hz, &s.psd_x);
+    let id = identify_file(&p, &IdentifyOptions::default(), &mut |_| {}).unwrap();
+    assert_eq!(id.path, IdentPath::KlipperPsd, "{}", id.reason);
+    assert!(
+        id.modes
+            .iter()
+            .any(|m| f_lo < m.freq_hz && m.freq_hz < f_hi),
+        "{fpk} ({f_lo}-{f_hi}) Hz: {:?}",
+        id.modes
+    );
 }
 
 #[test]
