@@ -73,7 +73,9 @@ pub struct IdentifyArgs {
     #[arg(long)]
     pub frf_plot: Option<PathBuf>,
     /// Identification path: auto (decided from the recording and reported), frf (input/output
-    /// FRF), decay (free decay of the tip, after the base's last move).
+    /// FRF), decay (free decay of the tip, after the base's last move), output-only (SSI-cov),
+    /// spectrum (peaks of Klipper's PSD of a raw accelerometer file; auto takes it for a
+    /// resonance test's sweep).
     #[arg(long, default_value = "auto")]
     pub path: String,
     /// How the recording is read (`--columns`, `--axis`).

@@ -25,7 +25,8 @@ pub const GOAL_BETTER: f64 = 0.5;
 /// `klipper-compare` arguments.
 #[derive(Args, Debug, Clone)]
 pub struct KlipperCompareArgs {
-    /// Klipper spectrum files (`resonances_*.csv`, `calibration_data_*.csv`).
+    /// Klipper spectrum files (`resonances_*.csv`, `calibration_data_*.csv`) or raw
+    /// accelerometer files (`raw_data_*.csv`: their PSD computed as Klipper does).
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
     /// Also print Klipper's own console lines for each file ("Fitted shaper …",
@@ -242,35 +243,41 @@ impl SpectrumView for Printer<'_> {
 
 fn show_design(a: &TuneArgs, s: &KlipperSpectrum, fit: &FitSpectrum, c: &Comparison) -> Result<()> {
     let input = a.recording.clone().unwrap_or_default();
+    let raw = crate::recording::rawpsd::is_raw_file(&input);
+    let kind = match (raw, s.normalized) {
+        (true, _) => "raw accelerometer file, PSD divided by frequency as Klipper does",
+        (false, true) => "calibration_data file, PSD already divided by frequency",
+        (false, false) => "resonances file, PSD divided by frequency as Klipper does",
+    };
     println!(
-        "spectrum {}: {} bins {:.1}-{:.1} Hz, Klipper {} file ({}); peaks {:?} Hz",
+        "spectrum {}: {} bins {:.1}-{:.1} Hz, Klipper {kind}; peaks {:?} Hz",
         input.display(),
         s.freq_hz.len(),
         s.freq_hz[0],
         s.freq_hz[s.freq_hz.len() - 1],
-        if s.normalized {
-            "calibration_data"
-        } else {
-            "resonances"
-        },
-        if s.normalized {
-            "PSD already divided by frequency"
-        } else {
-            "PSD divided by frequency as Klipper does"
-        },
         c.peaks_hz
             .iter()
             .map(|f| (f * 10.0).round() / 10.0)
             .collect::<Vec<_>>()
     );
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
+    if raw {
+        let psd = a.out.join("psd.csv");
+        std::fs::write(&psd, crate::recording::rawpsd::format_spectrum_csv(s, &[]))
+            .with_context(|| format!("cannot write {}", psd.display()))?;
+        println!(
+            "  {}; written in Klipper's resonances format -> {}",
+            crate::recording::rawpsd::spectrum_note(s),
+            psd.display()
+        );
+    }
     println!("Klipper's own calibration (v0.13.0 method):");
     for l in klipper_console(&c.klipper) {
         println!("  {l}");
     }
     println!("design (least smoothing within Klipper's recommendation's remaining vibrations):");
     println!("{}", comparison_table(fit, c));
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("cannot create {}", a.out.display()))?;
     spectrum_plot(&a.out.join("spectrum.svg"), s, fit, c)?;
     write_report(&a.out.join("tune.json"), &input, fit, c, None)?;
     println!("plot {}", a.out.join("spectrum.svg").display());
@@ -441,12 +448,18 @@ fn short(p: &Path) -> String {
     }
 }
 
-/// `beamtool tune`: a Klipper spectrum file (`resonances_*.csv`, `calibration_data_*.csv`) goes
-/// to the spectrum design ([`tune_spectrum`]); anything else to [`super::tune::tune`]. (Here,
+/// `beamtool tune`: a Klipper spectrum file (`resonances_*.csv`, `calibration_data_*.csv`) or a
+/// Klipper raw accelerometer file (its PSD as Klipper computes it) goes to the spectrum design
+/// ([`tune_spectrum`]); anything else to [`super::tune::tune`]. (Here,
 /// not in `cli/tune.rs`, so that the two modules do not import each other.)
 pub fn run_tune(a: TuneArgs) -> Result<()> {
     match a.recording.as_deref() {
-        Some(p) if crate::recording::psd::is_spectrum_file(p) => tune_spectrum(&a),
+        Some(p)
+            if crate::recording::psd::is_spectrum_file(p)
+                || crate::recording::rawpsd::is_raw_file(p) =>
+        {
+            tune_spectrum(&a)
+        }
         _ => super::tune::tune(a).map(|_| ()),
     }
 }

@@ -64,12 +64,27 @@ pub fn identify_file(
     if is_lvm {
         return identify_spectrum_file(path, opts);
     }
+    if crate::recording::rawpsd::is_raw_file(path) {
+        if let Some(id) = super::klipper_raw::identify_klipper_raw(path, opts)? {
+            return Ok(id);
+        }
+    }
     let rec = Recording::read_any_with(path, &opts.read, &mut |n| progress(Stage::Reading(n)))?;
-    let mut id = identify(&rec, opts, progress).map_err(|e| {
+    let id = identify(&rec, opts, progress).map_err(|e| {
         // what reading noted (the columns read, a row-wise log, a staircase, …) follows the error
         let notes: String = rec.notes.iter().map(|n| format!("\n  note: {n}")).collect();
         anyhow::anyhow!("{}: {e:#}{notes}", path.display())
-    })?;
+    });
+    if let (Err(e), PathChoice::Auto) = (&id, opts.path) {
+        // a Klipper raw file whose time-domain paths found nothing: its PSD's peaks
+        if crate::recording::rawpsd::is_raw_file(path) {
+            let why = format!("the time-domain paths found no mode ({e:#})");
+            if let Ok(Some(s)) = super::klipper_raw::spectrum_path(path, opts, Some(&why)) {
+                return Ok(s);
+            }
+        }
+    }
+    let mut id = id?;
     // what reading noted or mended (ignored columns, blank cells filled, …) heads the warnings
     id.warnings.splice(0..0, rec.notes.iter().cloned());
     Ok(id)
@@ -85,6 +100,9 @@ pub fn identify(
     opts: &IdentifyOptions,
     progress: &mut dyn FnMut(Stage),
 ) -> Result<Identification> {
+    if opts.path == PathChoice::Spectrum {
+        bail!("the spectrum path (--path spectrum) reads Klipper's raw accelerometer file (header `#time,accel_x,accel_y,accel_z`); this recording is not one");
+    }
     rec.validate_gapped()?;
     check_time_unit(rec)?;
     let mut warnings: Vec<String> = Vec::new();
@@ -117,9 +135,10 @@ pub fn identify(
     };
     match path {
         IdentPath::Frf => frf_path(&seg, opts, &mut out, progress)?,
-        IdentPath::FreeDecay | IdentPath::RingDown | IdentPath::Spectrum => {
-            decay_path(&seg, opts, &mut out, progress)?
-        }
+        IdentPath::FreeDecay
+        | IdentPath::RingDown
+        | IdentPath::Spectrum
+        | IdentPath::KlipperPsd => decay_path(&seg, opts, &mut out, progress)?,
         IdentPath::OutputOnly => {
             super::identify_paths::output_only_path(&seg, opts, &mut out, progress)?
         }
@@ -544,7 +563,7 @@ fn asked_path(choice: PathChoice, moves: bool, ring_s: f64) -> Option<(IdentPath
             IdentPath::OutputOnly,
             "output-only asked for: SSI-cov of the tip response".into(),
         )),
-        PathChoice::Auto => None,
+        PathChoice::Auto | PathChoice::Spectrum => None,
     }
 }
 

@@ -23,17 +23,22 @@ pub enum PathChoice {
     Decay,
     /// Output-only (SSI-cov) identification of the tip response ([`super::ssi`]).
     OutputOnly,
+    /// Peaks of Klipper's PSD of a raw accelerometer file ([`super::klipper_raw`]).
+    Spectrum,
 }
 
 impl PathChoice {
-    /// `auto`, `frf`, `decay`.
+    /// `auto`, `frf`, `decay`, `output-only`, `spectrum`.
     pub fn from_name(s: &str) -> Result<Self> {
         match s.to_ascii_lowercase().as_str() {
             "auto" => Ok(PathChoice::Auto),
             "frf" | "sweep" => Ok(PathChoice::Frf),
             "decay" | "free-decay" | "ringdown" | "ring-down" => Ok(PathChoice::Decay),
             "output-only" | "oma" | "ssi" => Ok(PathChoice::OutputOnly),
-            _ => bail!("unknown identification path `{s}` (auto, frf, decay, output-only)"),
+            "spectrum" | "psd" => Ok(PathChoice::Spectrum),
+            _ => {
+                bail!("unknown identification path `{s}` (auto, frf, decay, output-only, spectrum)")
+            }
         }
     }
 }
@@ -53,6 +58,9 @@ pub enum IdentPath {
     OutputOnly,
     /// Pooled ring-downs after the base's steps, base as input ([`super::ringdowns`]).
     RingDowns,
+    /// Peaks of Klipper's PSD of a raw accelerometer file of a resonance test
+    /// ([`super::klipper_raw`]).
+    KlipperPsd,
 }
 
 impl fmt::Display for IdentPath {
@@ -64,6 +72,7 @@ impl fmt::Display for IdentPath {
             IdentPath::Spectrum => "magnitude spectrum",
             IdentPath::OutputOnly => "output-only (SSI-cov)",
             IdentPath::RingDowns => "pooled ring-downs after steps",
+            IdentPath::KlipperPsd => "Klipper PSD peaks (spectrum path)",
         })
     }
 }

@@ -35,6 +35,7 @@ pub mod frf;
 pub mod identify;
 pub mod identify_paths;
 pub mod identify_types;
+pub mod klipper_raw;
 pub mod longrec;
 pub mod lsce;
 pub mod lscf;

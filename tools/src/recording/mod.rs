@@ -38,6 +38,7 @@ pub mod klipper;
 pub mod multirate;
 pub mod orient;
 pub mod psd;
+pub mod rawpsd;
 mod read;
 pub mod regular;
 pub mod rowwise;

@@ -1,4 +1,5 @@
-//! `tune` on a measured spectrum (Klipper's `resonances_*.csv` / `calibration_data_*.csv`):
+//! `tune` on a measured spectrum (Klipper's `resonances_*.csv` / `calibration_data_*.csv`, or
+//! the PSD Klipper computes from a raw accelerometer file, [`crate::recording::rawpsd`]):
 //! spectrum → design ([`crate::shaping::spectrum::design_for_spectrum`], scored by Klipper's
 //! metrics beside Klipper's own recommendation) → board.
 //!
@@ -64,16 +65,26 @@ pub fn candidate(c: &Comparison) -> Candidate {
     }
 }
 
-/// Reads and designs for `objective` with the box's `vibration_margin` (fraction; see
+/// The spectrum at `path`: a Klipper spectrum file as written ([`read_spectrum`]), or the PSD
+/// Klipper computes from a raw accelerometer file ([`crate::recording::rawpsd`]).
+/// Errors: those of the file's reader.
+pub fn load_spectrum(path: &Path) -> anyhow::Result<KlipperSpectrum> {
+    match crate::recording::rawpsd::is_raw_file(path) {
+        true => crate::recording::rawpsd::read_raw_spectrum(path),
+        false => read_spectrum(path),
+    }
+}
+
+/// Reads ([`load_spectrum`]: a spectrum or a raw accelerometer file) and designs for `objective` with the box's `vibration_margin` (fraction; see
 /// [`design_for_spectrum`]) (no board): the spectrum at `path`, its fitting bins and
 /// the comparison.
-/// Errors: the spectrum file's (see [`read_spectrum`]).
+/// Errors: the file's (see [`load_spectrum`]).
 pub fn design_file(
     path: &Path,
     objective: Objective,
     vibration_margin: f64,
 ) -> anyhow::Result<(KlipperSpectrum, FitSpectrum, Comparison)> {
-    let s = read_spectrum(path)?;
+    let s = load_spectrum(path)?;
     let fit = FitSpectrum::from_spectrum(&s);
     if fit.freq_hz.len() < 3 {
         anyhow::bail!(
