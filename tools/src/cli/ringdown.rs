@@ -1,7 +1,9 @@
 //! `ringdown-coverage`: the coverage of the pooled ring-down path's ±2σ on synthetic
 //! closed-loop recordings ([`crate::ident::ringdown_sim`]).
 
-use crate::ident::ringdown_sim::{ringdown_coverage, CoverageSpec, LinkDesign, SigmaCoverage};
+use crate::ident::ringdown_sim::{
+    ringdown_coverage, CoverageSpec, LinkDesign, RingdownCoverage, SigmaCoverage,
+};
 use crate::ident::ringdowns::RingdownOptions;
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -48,6 +50,10 @@ pub struct RingdownCoverageArgs {
     /// Print every run.
     #[arg(long)]
     pub per_run: bool,
+    /// Write one recording (the first seed's design) as a CSV `time_s,base_pos_m,tip_pos_m`
+    /// here, and stop.
+    #[arg(long)]
+    pub write_csv: Option<PathBuf>,
     /// Write the result as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -75,12 +81,46 @@ pub fn ringdown_coverage_cmd(a: RingdownCoverageArgs) -> Result<()> {
             ..Default::default()
         },
     };
+    if let Some(p) = &a.write_csv {
+        return write_synthetic(&spec, a.seed, p);
+    }
     let c = ringdown_coverage(&spec, a.runs, a.seed, &mut |k, n| {
         if k % 20 == 0 || k == n {
             eprintln!("  .. {k}/{n} runs");
         }
     });
-    if a.per_run {
+    print_coverage(&c, a.fixed, a.per_run);
+    if let Some(j) = &a.json {
+        std::fs::write(j, serde_json::to_string_pretty(&c)?)
+            .with_context(|| format!("cannot write {}", j.display()))?;
+        println!("JSON -> {}", j.display());
+    }
+    Ok(())
+}
+
+/// Writes the design of run `seed` of `spec` as a recording CSV to `p`.
+fn write_synthetic(spec: &CoverageSpec, seed: u64, p: &std::path::Path) -> Result<()> {
+    let d = crate::ident::ringdown_sim::draw_design(spec, seed);
+    let (b, y) = crate::ident::ringdown_sim::simulate_link(&d);
+    let mut rec = crate::recording::Recording::with_uniform_time(b.len(), d.rate_hz);
+    rec.tip_pos_m = Some(b.iter().zip(&y).map(|(b, y)| b + y).collect());
+    rec.base_pos_m = Some(b);
+    rec.write_csv(p)?;
+    println!(
+        "synthetic closed-loop recording (seed {}, arm {} Hz, ζ {}, Kp {}, Kd {}) -> {}",
+        seed,
+        d.freq_hz,
+        d.zeta,
+        d.kp,
+        d.kd,
+        p.display()
+    );
+    Ok(())
+}
+
+/// The coverage table of [`ringdown_coverage_cmd`] (every run too with `per_run`).
+fn print_coverage(c: &RingdownCoverage, fixed: bool, per_run: bool) {
+    if per_run {
         println!("  seed  f_true  f_est  σf(rep) σf(jack) σf(boot) biasf | ζ_true ζ_est σζ(rep) σζ(jack) σζ(boot) biasζ");
         for p in &c.per_run {
             println!(
@@ -94,7 +134,7 @@ pub fn ringdown_coverage_cmd(a: RingdownCoverageArgs) -> Result<()> {
     println!(
         "pooled ring-down coverage: {} runs ({}), {} failed; mean error f {:+.2e} Hz, ζ {:+.2e}; rms error f {:.2e} Hz, ζ {:.2e}",
         c.runs,
-        if a.fixed { "fixed design" } else { "drawn designs" },
+        if fixed { "fixed design" } else { "drawn designs" },
         c.failed,
         c.mean_error.0,
         c.mean_error.1,
@@ -121,10 +161,4 @@ pub fn ringdown_coverage_cmd(a: RingdownCoverageArgs) -> Result<()> {
     row("reported (max of jackknife, boot)", &c.reported);
     row("jackknife over segments alone", &c.jackknife);
     row("bias-corrected, bootstrap sd", &c.corrected);
-    if let Some(j) = &a.json {
-        std::fs::write(j, serde_json::to_string_pretty(&c)?)
-            .with_context(|| format!("cannot write {}", j.display()))?;
-        println!("JSON -> {}", j.display());
-    }
-    Ok(())
 }

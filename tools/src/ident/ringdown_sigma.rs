@@ -22,26 +22,26 @@ use std::ops::Range;
 /// 1/√(2·replicas), 7 % at 100).
 pub const BOOTSTRAP_REPLICAS: usize = 100;
 
-/// The quantisation step of `x`: the smallest nonzero change between successive samples when
-/// every sample lies on that grid (within 10⁻⁶ of a step) from the first; 0 otherwise (not
-/// quantised, or fewer than 10 changes).
+/// The quantisation step of `x`: the mean of the successive changes within 1.5 × the smallest
+/// nonzero one (so that values printed to a few digits still give the step), when every
+/// sample lies on that grid from the first (within 1 % of a step: a continuous signal fills
+/// its steps); 0 otherwise (not quantised, or fewer than 10 changes).
 pub fn quantisation_step(x: &[f64]) -> f64 {
     let scale = x.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-300);
-    let mut q = f64::INFINITY;
-    let mut changes = 0;
-    for w in x.windows(2) {
-        let d = (w[1] - w[0]).abs();
-        if d > 1e-9 * scale {
-            q = q.min(d);
-            changes += 1;
-        }
-    }
-    if changes < 10 || !q.is_finite() {
+    let d: Vec<f64> = x
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|d| *d > 1e-9 * scale)
+        .collect();
+    let q0 = d.iter().copied().fold(f64::INFINITY, f64::min);
+    if d.len() < 10 || !q0.is_finite() {
         return 0.0;
     }
+    let near: Vec<f64> = d.iter().copied().filter(|v| *v < 1.5 * q0).collect();
+    let q = near.iter().sum::<f64>() / near.len() as f64;
     let on_grid = x.iter().all(|v| {
         let u = (v - x[0]) / q;
-        (u - u.round()).abs() < 1e-6 * (1.0 + u.abs())
+        (u - u.round()).abs() < 0.01
     });
     if on_grid {
         q
