@@ -15,6 +15,7 @@ pub mod model;
 pub mod oma;
 pub mod paper;
 pub mod read;
+pub mod ringdown;
 pub mod truth;
 pub mod tune;
 pub mod watch;
@@ -79,6 +80,8 @@ pub enum Command {
     /// Poll a board's drift watch after each move: print, write a CSV and an SVG of f1 over
     /// the moves against the band.
     Watch(crate::cli::watch::WatchArgs),
+    /// Coverage of the pooled ring-down path's ±2σ on synthetic closed-loop recordings.
+    RingdownCoverage(crate::cli::ringdown::RingdownCoverageArgs),
 }
 
 /// Runs one command: one arm per command (keep one line per arm where possible, append new
@@ -121,6 +124,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::KlipperCompare(a) => crate::cli::klipper::klipper_compare(a),
         Command::OmaCoverage(a) => crate::cli::oma::oma_coverage(a),
         Command::Watch(a) => crate::cli::watch::watch(a),
+        Command::RingdownCoverage(a) => crate::cli::ringdown::ringdown_coverage_cmd(a),
     }
 }
 
