@@ -237,16 +237,22 @@ pub fn identify(
         let id = run_released(py, move || identify_spectrum_file(&s.path, &opts))?;
         return Ok(PyIdentification { id });
     }
-    let rec = recording
-        .downcast::<PyRecording>()
-        .map_err(|_| {
-            value_error(
-                "identify wants a Recording or a Spectrum (read_recording, Recording.from_arrays)",
-            )
-        })?
-        .get()
-        .rec
-        .clone();
+    let pyrec = recording.downcast::<PyRecording>().map_err(|_| {
+        value_error(
+            "identify wants a Recording or a Spectrum (read_recording, Recording.from_arrays)",
+        )
+    })?;
+    if let Some((file, read)) = pyrec.get().klipper_raw.clone() {
+        // a Klipper raw file: the CLI's own entry point, so a resonance test's sweep takes the
+        // peaks of Klipper's PSD as `beamtool identify FILE` does
+        let opts = IdentifyOptions { read, ..opts };
+        let mut check = SignalCheck::new();
+        let id = run_released(py, move || {
+            beamtools::ident::identify::identify_file(&file, &opts, &mut |_| check.poll())
+        })?;
+        return Ok(PyIdentification { id });
+    }
+    let rec = pyrec.get().rec.clone();
     let mut check = SignalCheck::new();
     let id = run_released(py, move || {
         let mut id = identify_recording(&rec, &opts, &mut |_| check.poll())?;

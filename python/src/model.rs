@@ -99,5 +99,6 @@ pub fn simulate(
     Ok(PyRecording {
         rec,
         from_npy: false,
+        klipper_raw: None,
     })
 }

@@ -18,6 +18,10 @@ pub struct PyRecording {
     /// Read from a `.npy` [time; signal] file (its signal is an acceleration for
     /// `design_shaper`'s recorded-vibration check, as `beamtool tune` reads it).
     pub from_npy: bool,
+    /// Read from a Klipper raw accelerometer CSV (the file and how it was read): `identify`
+    /// then takes the file's path as `beamtool identify` does (a resonance test's sweep goes
+    /// to the peaks of Klipper's PSD, `ident::klipper_raw`).
+    pub klipper_raw: Option<(PathBuf, ReadOptions)>,
 }
 
 #[pymethods]
@@ -56,6 +60,7 @@ impl PyRecording {
         Ok(PyRecording {
             rec,
             from_npy: false,
+            klipper_raw: None,
         })
     }
 
@@ -252,12 +257,18 @@ pub fn read_recording(
     let from_npy = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
+    let klipper_raw =
+        beamtools::recording::rawpsd::is_raw_file(&path).then(|| (path.clone(), opts.clone()));
     let mut check = crate::guard::SignalCheck::new();
     let rec = run_released(py, move || {
         Recording::read_any_with(&path, &opts, &mut |_| check.poll())
     })?;
-    Ok(PyRecording { rec, from_npy }
-        .into_pyobject(py)?
-        .into_any()
-        .unbind())
+    Ok(PyRecording {
+        rec,
+        from_npy,
+        klipper_raw,
+    }
+    .into_pyobject(py)?
+    .into_any()
+    .unbind())
 }

@@ -72,3 +72,37 @@ def test_decay_to_shaper(real_dir):
     # with the recording: the recorded free vibration must also stay within the tolerance
     checked = bs.design_shaper(ident, tolerance_pct=2.0, recording=rec)
     assert checked.duration_s >= shaper.duration_s
+
+
+def klipper_raw_resonance_test(path, f_mode=42.0, zeta=0.06, rate=3200.0, seed=3):
+    """A Klipper ``TEST_RESONANCES … OUTPUT=raw_data`` file: its sweep (acceleration 60·f mm/s²
+    rising 20→80 Hz at 2 Hz/s) through one lightly damped toolhead mode, ADXL345 steps
+    (38.3 mm/s²) and noise, ``#time,accel_x,accel_y,accel_z``."""
+    from scipy import signal
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(30.0 * rate)) / rate
+    f = 20.0 + 2.0 * t
+    drive = 60.0 * f * np.sin(2 * np.pi * (20.0 * t + t**2))
+    wn = 2 * np.pi * f_mode
+    b, a = signal.bilinear([2 * zeta * wn, wn**2], [1, 2 * zeta * wn, wn**2], fs=rate)
+    x = signal.lfilter(b, a, drive) + rng.normal(0, 50.0, t.size)
+    y = 0.1 * x + rng.normal(0, 50.0, t.size)
+    z = rng.normal(0, 50.0, t.size)
+    q = 38.3
+    rows = np.column_stack([t + 100.0, *(np.round(v / q) * q for v in (x, y, z))])
+    with open(path, "w") as fh:
+        fh.write("#time,accel_x,accel_y,accel_z\n")
+        np.savetxt(fh, rows, fmt=["%.6f", "%.2f", "%.2f", "%.2f"], delimiter=",")
+
+
+def test_cli_and_package_identical_on_a_klipper_raw_file(cli, tmp_path):
+    path = tmp_path / "raw_data_x_20261202.csv"
+    klipper_raw_resonance_test(path)
+    cli_report = cli_json(cli, ["identify", str(path)], tmp_path)
+    rec = bs.read_recording(path)
+    assert isinstance(rec, bs.Recording)
+    ident = bs.identify(rec)
+    assert ident.to_dict() == cli_report
+    assert "Klipper PSD" in ident.path
+    assert abs(ident.modes[0].freq_hz - 42.0) < 2.0
