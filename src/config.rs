@@ -265,8 +265,8 @@ impl core::fmt::Display for ConfigError {
             ConfigError::Taps(TapError::TooLong { duration_s, max_s }) => write!(
                 f,
                 "shaper lasts {} s, the buffer holds {} s at this tick rate",
-                crate::protocol::Num(*duration_s, 4),
-                crate::protocol::Num(*max_s, 4)
+                crate::protocol::num::Num(*duration_s, 4),
+                crate::protocol::num::Num(*max_s, 4)
             ),
             ConfigError::Taps(TapError::TickRate) => f.write_str("tick rate invalid"),
             ConfigError::Taps(TapError::AmplitudeRange) => {

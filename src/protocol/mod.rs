@@ -18,10 +18,12 @@ use crate::reference::SweepKind;
 use crate::shaper::{design::DEFAULT_V_TOL, Impulse, ShaperKind};
 use core::fmt;
 
+pub mod num;
 mod reply;
 mod watch;
+pub use num::Num;
 pub use reply::{
-    field, value, CaptureReply, ConfigReply, DumpReply, ModeLine, MoveReply, Num, ReplyError,
+    field, value, CaptureReply, ConfigReply, DumpReply, ModeLine, MoveReply, ReplyError,
     ReplyLine, ShaperReply, StatusReply, SweepReply,
 };
 pub use watch::{PayloadCommand, WatchCommand, WatchReply};

@@ -11,8 +11,9 @@
 use super::frf::Frf;
 use super::lsce::{impulse_response, lsce_poles};
 use super::lscf::LscfLines;
+use super::mlfit::refine_estimates;
+use super::options::{IdentOptions, Method, MethodResult};
 use super::peak::pick_peaks;
-use super::pipeline::{refine_estimates, IdentOptions, Method, MethodResult};
 use super::stabilisation::{diagram, Diagram, StableMode};
 use super::ModeEstimate;
 use crate::progress::Progress;

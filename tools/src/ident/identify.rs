@@ -40,9 +40,9 @@ use super::longrec::{
     explore_resolution_hz, half_power_resolution_hz, input_band_top_hz, resolution_note,
     segment_for_resolution, segmented,
 };
+use super::mlfit::refine_estimates;
 use super::pipeline::{
-    estimate_on_frf, frf_band, frf_with_options, refine_estimates, IdentOptions, IdentResult,
-    Method,
+    estimate_on_frf, frf_band, frf_with_options, IdentOptions, IdentResult, Method,
 };
 use super::spectrum::{amplitude_spectrum, peaks};
 use super::ModeEstimate;

@@ -289,6 +289,35 @@ fn refined_modes(
     Ok(modes)
 }
 
+/// Replaces `modes` by their maximum-likelihood refinement ([`super::mlfit`]); the σ of each is
+/// the fit's Gauss–Newton σ and the method's own spread in quadrature. On failure the modes
+/// stay and a warning says why (`method` names them in it).
+pub fn refine_estimates(
+    frf: &Frf,
+    band: (f64, f64),
+    modes: &mut [ModeEstimate],
+    method: &str,
+    warnings: &mut Vec<String>,
+) {
+    if modes.is_empty() {
+        return;
+    }
+    match super::mlfit::refine_modes(frf, band, modes) {
+        Ok(r) => {
+            for (e, q) in modes.iter_mut().zip(&r.modes) {
+                e.freq_hz_std = e.freq_hz_std.hypot(q.freq_hz_std);
+                e.zeta_std = e.zeta_std.hypot(q.zeta_std);
+                e.freq_hz = q.freq_hz;
+                e.zeta = q.zeta;
+                e.method = format!("{}+ml", e.method);
+            }
+        }
+        Err(e) => warnings.push(format!(
+            "maximum-likelihood refinement skipped ({e:#}); {method} estimates kept"
+        )),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -42,6 +42,7 @@ pub mod lscf;
 pub mod magspec;
 pub mod mlfit;
 pub mod oma_sim;
+pub mod options;
 pub mod peak;
 pub mod pipeline;
 pub mod poles;
