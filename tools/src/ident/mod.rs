@@ -45,6 +45,7 @@ pub mod peak;
 pub mod pipeline;
 pub mod poles;
 pub mod protocol;
+pub mod quiet;
 pub mod report;
 pub mod ringdowns;
 pub mod spectrum;
