@@ -16,7 +16,10 @@
 //!    band → free decay of the tip; a base that oscillates (≥ 6 reversals beyond its noise)
 //!    → FRF path (Welch H1, LSCF/LSCE stabilised over orders, ML refinement, paper §5.2);
 //!    moves (fewer reversals) followed by ≥ 3 s of stillness → free decay of the tip
-//!    deflection after the last move (log decrement eqs. 28–29 + damped-sinusoid fits).
+//!    deflection after the last move (log decrement eqs. 28–29 + damped-sinusoid fits). A base
+//!    that keeps creeping after its move (still for less than 3 s) is judged by what the tip's
+//!    dominant mode sees of it instead ([`super::quiet`]: its increments' excitation and its
+//!    quasi-static deflection against the decay the tip shows; the bound widens the σ).
 //! 4. **Only physical modes** ([`screen_modes`], FRF path): a mode must be stable at ≥ 25 %
 //!    of the model orders, show a peak in the output auto-spectrum ≥ 13 dB over its local
 //!    noise floor where the input has energy (within 40 dB of its in-band maximum), and have
