@@ -14,7 +14,8 @@ pub struct ReadArgs {
     /// Which column of the file holds which channel, with its scale to SI:
     /// `channel=file_column[:scale],…`, e.g.
     /// `time_s=t:0.001,base_pos_m=theta:0.45,tip_pos_m=defl:0.001`. Channels: time_s,
-    /// base_cmd_m, base_pos_m, tip_pos_m, force_n, tip_acc_m_s2. Unmapped columns are ignored.
+    /// base_cmd_m, base_pos_m, tip_pos_m, force_n, tip_acc_m_s2, and tip_defl_m (the tip
+    /// measured from the base, read as tip_pos_m = base + it). Unmapped columns are ignored.
     #[arg(long, value_parser = parse_columns)]
     pub columns: Option<ColumnMap>,
     /// Axis of a Klipper raw accelerometer CSV (`#time,accel_x,accel_y,accel_z`) read as the

@@ -70,7 +70,9 @@ pub struct FreeDecayResult {
     pub warnings: Vec<String>,
 }
 
-/// Zero-phase band-pass by FFT masking with raised-cosine edges (±10 % of the band).
+/// Zero-phase band-pass by FFT masking with raised-cosine edges (±10 % of the band, and at
+/// least two lines of the record's resolution, 2/T: a narrower edge rings for ~1/edge, over
+/// the whole of a short record, and ripples its peaks).
 pub fn band_pass(x: &[f64], rate_hz: f64, lo_hz: f64, hi_hz: f64) -> Vec<f64> {
     let n = x.len();
     let nfft = n.next_power_of_two() * 2;
@@ -84,7 +86,7 @@ pub fn band_pass(x: &[f64], rate_hz: f64, lo_hz: f64, hi_hz: f64) -> Vec<f64> {
     let inv = planner.plan_fft_inverse(nfft);
     let mut spec = fwd.make_output_vec();
     let _ = fwd.process(&mut buf, &mut spec);
-    let edge = 0.1 * (hi_hz - lo_hz);
+    let edge = (0.1 * (hi_hz - lo_hz)).max(2.0 * rate_hz / n as f64);
     for (k, c) in spec.iter_mut().enumerate() {
         let f = k as f64 * rate_hz / nfft as f64;
         let g = if f < lo_hz - edge || f > hi_hz + edge {

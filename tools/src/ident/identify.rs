@@ -16,7 +16,10 @@
 //!    band → free decay of the tip; a base that oscillates (≥ 6 reversals beyond its noise)
 //!    → FRF path (Welch H1, LSCF/LSCE stabilised over orders, ML refinement, paper §5.2);
 //!    moves (fewer reversals) followed by ≥ 3 s of stillness → free decay of the tip
-//!    deflection after the last move (log decrement eqs. 28–29 + damped-sinusoid fits).
+//!    deflection after the last move (log decrement eqs. 28–29 + damped-sinusoid fits). A base
+//!    that keeps creeping after its move (still for less than 3 s) is judged by what the tip's
+//!    dominant mode sees of it instead ([`super::quiet`]: its increments' excitation and its
+//!    quasi-static deflection against the decay the tip shows; the bound widens the σ).
 //! 4. **Only physical modes** ([`screen_modes`], FRF path): a mode must be stable at ≥ 25 %
 //!    of the model orders, show a peak in the output auto-spectrum ≥ 13 dB over its local
 //!    noise floor where the input has energy (within 40 dB of its in-band maximum), and have
@@ -116,6 +119,9 @@ pub fn identify(
     }
     progress(Stage::Excitation);
     let mut base = base_channel(&seg).map(base_motion);
+    if let Some(b) = base.as_mut() {
+        quiet_base(&seg, b);
+    }
     let (path, reason) = choose_path(&seg, base.as_ref(), opts);
     decimate_for_path(&mut seg, &mut base, path, opts, &mut warnings, progress);
     let rate = seg.sample_rate_hz();
@@ -229,6 +235,19 @@ fn frf_path(
         progress(Stage::Refining(kept.len()));
         refine_estimates(&frf, r.band_hz, &mut kept, "FRF", &mut out.warnings);
     }
+    let mut rejected = rejected;
+    // the refinement is held to the same damping rule as the screening (step 4)
+    let (kept, implausible): (Vec<_>, Vec<_>) = kept
+        .into_iter()
+        .partition(|m| m.zeta >= 1e-4 && m.zeta < fo.zeta_max && m.zeta_std < m.zeta);
+    rejected.extend(implausible.into_iter().map(|m| RejectedMode {
+        reason: format!(
+            "after the maximum-likelihood refinement the damping is not determined (ζ = {} ± {})",
+            fmt_sig(m.zeta, 3),
+            fmt_sig(m.zeta_std, 3)
+        ),
+        mode: m,
+    }));
     out.modes = kept;
     out.rejected = rejected;
     out.reason = format!("{}; FRF {} -> {}", out.reason, r.input, r.output);
@@ -346,6 +365,11 @@ fn decay_path(
     progress(Stage::Estimating(out.path, t.len()));
     let r = identify_free_decay(&t, &x, &opts.decay)?;
     out.modes = r.modes.clone();
+    if let (IdentPath::RingDown, Some(q)) =
+        (out.path, out.base.as_ref().and_then(|b| b.quiet.as_ref()))
+    {
+        super::quiet::widen_for_excitation(&mut out.modes, q);
+    }
     out.warnings.extend(r.warnings.iter().cloned());
     out.span_s = (t[0], t[t.len() - 1]);
     out.decay_result = Some(r);
@@ -366,7 +390,10 @@ pub fn free_decay_signal(rec: &Recording) -> Result<(Vec<f64>, Vec<f64>, String)
     }
     let mut warnings = Vec::new();
     let seg = clean_segment(rec, &mut warnings);
-    let base = base_channel(&seg).map(base_motion);
+    let mut base = base_channel(&seg).map(base_motion);
+    if let Some(b) = base.as_mut() {
+        quiet_base(&seg, b);
+    }
     let from = base.as_ref().map_or(0, |b| b.still_from);
     let (t, x) = tip_signal(&seg, from);
     if t.len() < 64 {
@@ -546,6 +573,48 @@ pub fn base_motion(b: &[f64]) -> BaseMotion {
         still_from: if moves { still_from } else { 0 },
         reversals,
         ends_still: !moves || noise < 0.05 * range,
+        quiet: None,
+    }
+}
+
+/// The shortest ring-down (s) the ring-down path takes.
+const RING_DOWN_MIN_S: f64 = 3.0;
+
+/// The first sample of `rec`'s ring-down when its base moves, stops and then no longer
+/// excites the tip's dominant mode before it settles within its still band
+/// ([`super::quiet::quiet_start`]); `None` otherwise (no base or tip position, a base that
+/// never moves or oscillates, or no such start). For the model-free check of `tune`, which
+/// applies the shaper to the free vibration from there.
+pub fn quiet_ring_down_start(rec: &Recording) -> Option<usize> {
+    let mut b = base_motion(base_channel(rec)?);
+    quiet_base(rec, &mut b);
+    b.quiet.map(|q| q.from)
+}
+
+/// Moves the ring-down's start of a moving base `b` (fewer than 6 reversals, ending still)
+/// to where its motion stops exciting the tip's dominant mode ([`super::quiet::quiet_start`]),
+/// when its still band leaves less than [`RING_DOWN_MIN_S`] of ring-down (a base that keeps
+/// creeping after its move) and that start is earlier.
+fn quiet_base(seg: &Recording, b: &mut BaseMotion) {
+    if b.still_from == 0 || !b.ends_still || b.reversals >= 6 || seg.tip_pos_m.is_none() {
+        return;
+    }
+    let Some(x) = base_channel(seg) else {
+        return;
+    };
+    let n = x.len();
+    let mut tail = x[n - (n / 10).max(8).min(n)..].to_vec();
+    let fin = median(&mut tail);
+    // the still band decides when it leaves a ring-down of RING_DOWN_MIN_S
+    let rate = seg.sample_rate_hz();
+    if (n - b.still_from) as f64 / rate >= RING_DOWN_MIN_S {
+        return;
+    }
+    let (_, y) = tip_signal(seg, 0);
+    let q = super::quiet::quiet_start(x, &y, rate, fin, b.range_m);
+    if let Some(q) = q.filter(|q| q.from < b.still_from) {
+        b.still_from = q.from;
+        b.quiet = Some(q);
     }
 }
 
@@ -636,7 +705,13 @@ pub fn choose_path_io(
             ),
         );
     }
-    if ring_s >= 3.0 && rec.len() - b.still_from >= 64 {
+    if ring_s >= RING_DOWN_MIN_S && rec.len() - b.still_from >= 64 {
+        if let Some(q) = &b.quiet {
+            return (
+                IdentPath::RingDown,
+                q.describe(rec.time_s[b.still_from] - rec.time_s[0]),
+            );
+        }
         return (
             IdentPath::RingDown,
             format!(

@@ -170,6 +170,10 @@ pub struct BaseMotion {
     /// base never moves beyond 20 × its noise (range against the larger of the tail's noise
     /// and the sample-to-sample noise, 1.4826 × MAD of second differences / √6).
     pub ends_still: bool,
+    /// When the base's excitation of the tip's dominant mode ([`super::quiet`]) lets the
+    /// ring-down start before the base settles within its still band: that start (then
+    /// `still_from`), the excitation bound and the amplitudes it was judged against.
+    pub quiet: Option<super::quiet::QuietStart>,
 }
 
 /// The result of [`identify`].

@@ -47,6 +47,7 @@ pub mod peak;
 pub mod pipeline;
 pub mod poles;
 pub mod protocol;
+pub mod quiet;
 pub mod report;
 pub(crate) mod ringdown_fit;
 pub mod ringdown_sigma;

@@ -18,7 +18,7 @@ use anyhow::{bail, Result};
 /// One entry of `--columns`: the project's channel, the file's column and the scale to SI.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ColumnEntry {
-    /// `time_s` or one of [`CHANNELS`].
+    /// `time_s`, one of [`CHANNELS`], or [`TIP_DEFLECTION`].
     pub channel: &'static str,
     /// The file's column name (header field), as written.
     pub column: String,
@@ -77,10 +77,16 @@ pub struct ReadOptions {
     pub axis: Option<Axis>,
 }
 
+/// The `--columns` name of a tip position measured *from the base* (m): a crane's sway angle
+/// times its rope length, a flexible link's tip deflection in the hub's frame. It is read as
+/// `tip_pos_m` = base + this (the base channel, `base_pos_m` or else `base_cmd_m`, is needed).
+pub const TIP_DEFLECTION: &str = "tip_defl_m";
+
 /// Every channel name `--columns` accepts.
 pub fn channel_names() -> Vec<&'static str> {
     let mut v = vec!["time_s"];
     v.extend(CHANNELS);
+    v.push(TIP_DEFLECTION);
     v
 }
 
@@ -127,6 +133,10 @@ impl ColumnMap {
             if entries.iter().any(|e| e.channel == channel) {
                 bail!("--columns: channel `{channel}` given twice");
             }
+            let tips = ["tip_pos_m", TIP_DEFLECTION];
+            if tips.contains(&channel) && entries.iter().any(|e| tips.contains(&e.channel)) {
+                bail!("--columns: give the tip as tip_pos_m (lab frame) or tip_defl_m (from the base), not both");
+            }
             entries.push(ColumnEntry {
                 channel,
                 column: column.to_string(),
@@ -134,6 +144,11 @@ impl ColumnMap {
             });
         }
         Ok(ColumnMap { entries })
+    }
+
+    /// True when the tip is given from the base ([`TIP_DEFLECTION`]).
+    pub fn tip_from_base(&self) -> bool {
+        self.entries.iter().any(|e| e.channel == TIP_DEFLECTION)
     }
 
     /// The entry for `time_s`, if any.
@@ -186,6 +201,7 @@ mod tests {
             ("tip_pos_m=x,tip_pos_m=y", "given twice"),
             ("tip_pos_m", "want `channel=file_column[:scale]`"),
             ("tip_pos_m=:2", "no file column"),
+            ("tip_pos_m=a,tip_defl_m=b", "not both"),
         ] {
             let e = ColumnMap::parse(spec).unwrap_err().to_string();
             assert!(e.contains(want), "{spec}: {e}");

@@ -190,16 +190,20 @@ pub struct Wanted<'a> {
 /// `Vec<f64>` each in the order of `wanted`; a blank cell is NaN unless the column is
 /// `required`. `progress(rows)` is called every 2²⁰ rows.
 ///
-/// Errors (file and data row named): a ragged row, a cell that is not a number, a blank
-/// required cell, text that is not UTF-8.
+/// Errors (file and data row named): a row without a column that is read (fields beyond the
+/// header are ignored), a cell that is not a number, a blank required cell, text that is not
+/// UTF-8.
 pub fn read_columns(
     path: &Path,
     layout: &Layout,
     wanted: &[Wanted<'_>],
     progress: &mut dyn FnMut(usize),
 ) -> Result<Vec<Vec<f64>>> {
+    // rows may carry fields beyond the header (LabVIEW writes trailing columns it does not
+    // name); a row without a column that is read is an error below
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(false)
+        .flexible(true)
         .comment(Some(b'#'))
         .delimiter(layout.delimiter)
         .from_path(path)

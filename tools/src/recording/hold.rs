@@ -13,8 +13,10 @@
 //! when the sensor updates. That is a pattern of the *times* of the changes, not of their sizes:
 //! a quantised signal that drifts slowly also repeats its value for many rows, but it changes
 //! by one step whenever it crosses one, at any row. A channel is read as a staircase when
-//! - at least half of its samples exactly repeat the one before (the updates are at most half
-//!   the log's rate);
+//! - at least [`MIN_REPEAT_SHARE`] of its samples exactly repeat the one before (updates at
+//!   most half the log's rate repeat half the rows, less the early changes allowed below: a
+//!   sensor at exactly half the rate of a jittering log, two topics of one rate interleaved in
+//!   a row-wise log, repeats on 48–50 %);
 //! - changes never come sooner than two log steps after the one before, except for at most
 //!   [`MAX_EARLY_SHARE`] of them (a value that changes at the log's rate is sampled at it);
 //! - the changes are not explained by quantisation: with a quantum q known, at least
@@ -48,6 +50,11 @@ pub const MIN_ON_GRID_SHARE: f64 = 0.99;
 /// Largest share of the changes that may come sooner than two log steps after the one before
 /// in a staircase (a rare glitch or a rounding flip).
 pub const MAX_EARLY_SHARE: f64 = 0.05;
+
+/// Smallest share of the samples that repeat the one before in a staircase: changes at
+/// least two log steps apart repeat every other row, except for the [`MAX_EARLY_SHARE`] of
+/// changes that may come sooner.
+pub const MIN_REPEAT_SHARE: f64 = (1.0 - MAX_EARLY_SHARE) / 2.0;
 
 /// The quantile of the intervals between changes taken as the shortest typical interval.
 pub const EARLY_QUANTILE: f64 = 0.05;
@@ -117,9 +124,9 @@ pub fn staircase(t: &[f64], x: &[f64], quantum: Option<f64>) -> Option<Staircase
     if n < 2 * MIN_CHANGES {
         return None;
     }
-    // at least half the samples repeat the one before: counted first, it rules out most channels
+    // enough samples repeat the one before: counted first, it rules out most channels
     let repeats = (1..n).filter(|&k| x[k] == x[k - 1]).count();
-    if 2 * repeats < n - 1 {
+    if (repeats as f64) < MIN_REPEAT_SHARE * (n - 1) as f64 {
         return None;
     }
     let mut steps: Vec<f64> = t[..n].windows(2).map(|w| w[1] - w[0]).collect();
@@ -144,7 +151,7 @@ pub fn staircase(t: &[f64], x: &[f64], quantum: Option<f64>) -> Option<Staircase
         }
     }
     let repeat_share = repeats as f64 / pairs.max(1) as f64;
-    if change_t.len() < MIN_CHANGES || 2 * repeats < pairs {
+    if change_t.len() < MIN_CHANGES || (repeats as f64) < MIN_REPEAT_SHARE * pairs as f64 {
         return None;
     }
     let mut gaps: Vec<f64> = change_t.windows(2).map(|w| w[1] - w[0]).collect();

@@ -230,6 +230,9 @@ impl Recording {
                 rec.notes.extend(notes);
             }
         }
+        if opts.columns.as_ref().is_some_and(|m| m.tip_from_base()) {
+            tip_from_base(&mut rec).map_err(at)?;
+        }
         let source = if is_klipper {
             Source::Klipper
         } else {
@@ -237,6 +240,27 @@ impl Recording {
         };
         Ok((rec, source))
     }
+}
+
+/// `tip_pos_m` read from a `tip_defl_m` column (the tip measured from the base) made the lab
+/// frame's: the base (`base_pos_m`, else `base_cmd_m`) added sample by sample, with a note.
+///
+/// Errors: no base channel.
+fn tip_from_base(rec: &mut Recording) -> Result<()> {
+    let (name, base) = match (&rec.base_pos_m, &rec.base_cmd_m) {
+        (Some(b), _) => ("base_pos_m", b.clone()),
+        (None, Some(b)) => ("base_cmd_m", b.clone()),
+        (None, None) => {
+            bail!("--columns: tip_defl_m is the tip measured from the base; map base_pos_m or base_cmd_m too")
+        }
+    };
+    if let Some(tip) = rec.tip_pos_m.as_mut() {
+        tip.iter_mut().zip(&base).for_each(|(t, b)| *t += b);
+    }
+    rec.notes.push(format!(
+        "--columns: tip_pos_m = {name} + tip_defl_m (the tip measured from the base, read in the lab frame)"
+    ));
+    Ok(())
 }
 
 /// The columns to read: the time column first, then each channel's (header index, channel,
@@ -276,7 +300,10 @@ fn plan(
             }
         }
         for (e, &i) in map.entries.iter().zip(&idx) {
-            if e.channel != "time_s" {
+            if e.channel == super::columns::TIP_DEFLECTION {
+                // read into tip_pos_m, the base added once the rows are filled
+                out.push((i, "tip_pos_m", e.scale));
+            } else if e.channel != "time_s" {
                 out.push((i, e.channel, e.scale));
             }
         }

@@ -63,7 +63,13 @@ pub fn free_vibration_of(rec: &Recording) -> Result<FreeVibration, String> {
                 .iter()
                 .rposition(|v| (v - last).abs() > 20e-6)
                 .map_or(0, |k| k + 1);
-            (tip.iter().zip(b).map(|(t, b)| t - b).collect(), moved)
+            // a base that creeps after its move but no longer excites the tip: the free
+            // vibration starts where identification's ring-down does (ident::quiet)
+            let quiet = crate::ident::identify::quiet_ring_down_start(rec).unwrap_or(moved);
+            (
+                tip.iter().zip(b).map(|(t, b)| t - b).collect(),
+                moved.min(quiet),
+            )
         }
         Some(b) => {
             let last = *b.last().ok_or("the recording is empty")?;
@@ -84,25 +90,8 @@ pub fn free_vibration_of(rec: &Recording) -> Result<FreeVibration, String> {
     }
     // The sensor's step is the tip channel's own (the base is at rest here).
     let quantum = hold::quantum(&tip[start..]);
-    let (xu, dt, note) = match hold::staircase(t, x, quantum) {
-        Some(st) => {
-            let held = held_samples(t, x, st.period_s);
-            let note = format!(
-                "the tip channel is a sample-and-hold staircase: {} samples at its update rate {} Hz (log rows at {} Hz)",
-                held.len(),
-                crate::recording::fmt_sig(st.update_rate_hz, 3),
-                crate::recording::fmt_sig(st.row_rate_hz, 3)
-            );
-            (held, st.period_s, Some(note))
-        }
-        None => {
-            let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-            steps.sort_by(f64::total_cmp);
-            let dt = steps[steps.len() / 2];
-            let (_, xu, _) = crate::recording::resample_uniform(t, x, 1.0 / dt);
-            (xu, dt, None)
-        }
-    };
+    let b = base.filter(|_| !acceleration).map(|b| &b[start..]);
+    let (xu, dt, note) = sensor_samples(t, x, &tip[start..], b, quantum);
     if xu.len() < 16 {
         return Err(format!(
             "only {} sensor samples of free vibration",
@@ -123,13 +112,57 @@ pub fn free_vibration_of(rec: &Recording) -> Result<FreeVibration, String> {
     })
 }
 
+/// The free vibration `x` (at times `t`) as the tip's sensor sampled it: a sample-and-hold
+/// staircase read at its update rate ([`held_samples`]), else resampled at the median step.
+/// The staircase is looked for in `x`, then in the tip channel `tip` (a base `base` that still
+/// creeps changes the deflection on other rows; the base is then interpolated at the tip's
+/// samples and subtracted). Returns (samples, step s, note).
+fn sensor_samples(
+    t: &[f64],
+    x: &[f64],
+    tip: &[f64],
+    base: Option<&[f64]>,
+    quantum: Option<f64>,
+) -> (Vec<f64>, f64, Option<String>) {
+    let staircase = match hold::staircase(t, x, quantum) {
+        Some(st) => Some((st, None)),
+        None => base.and_then(|b| hold::staircase(t, tip, quantum).map(|st| (st, Some(b)))),
+    };
+    let Some((st, b)) = staircase else {
+        let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+        steps.sort_by(f64::total_cmp);
+        let dt = steps[steps.len() / 2];
+        let (_, xu, _) = crate::recording::resample_uniform(t, x, 1.0 / dt);
+        return (xu, dt, None);
+    };
+    let held = match b {
+        None => held_samples(t, x, st.period_s).1,
+        Some(b) => {
+            let (tg, mut held) = held_samples(t, tip, st.period_s);
+            for (h, tk) in held.iter_mut().zip(&tg) {
+                *h -= interpolate(t, b, *tk);
+            }
+            held
+        }
+    };
+    let note = format!(
+        "the tip channel is a sample-and-hold staircase: {} samples at its update rate {} Hz (log rows at {} Hz){}",
+        held.len(),
+        crate::recording::fmt_sig(st.update_rate_hz, 3),
+        crate::recording::fmt_sig(st.row_rate_hz, 3),
+        if b.is_some() { ", the base interpolated at them" } else { "" }
+    );
+    (held, st.period_s, Some(note))
+}
+
 /// The sensor's samples in a sample-and-hold log (`x` at times `t`, updated every
 /// `period_s` on average): each change of value is an update, seen on the first row after
 /// it; a gap of m periods between changes holds m − 1 updates that repeated the value (a
 /// quantised signal at a turning point), placed evenly in it. These (time, value) samples
 /// are resampled to the uniform step `period_s` by linear interpolation — the sensor's own
 /// time stamps kept, so a jittering update clock does not shift the samples.
-fn held_samples(t: &[f64], x: &[f64], period_s: f64) -> Vec<f64> {
+/// Returns the uniform grid's times (s) and values.
+fn held_samples(t: &[f64], x: &[f64], period_s: f64) -> (Vec<f64>, Vec<f64>) {
     let mut ts: Vec<f64> = Vec::new();
     let mut xs: Vec<f64> = Vec::new();
     for k in 1..x.len() {
@@ -148,9 +181,23 @@ fn held_samples(t: &[f64], x: &[f64], period_s: f64) -> Vec<f64> {
         xs.push(x[k]);
     }
     if ts.len() < 2 {
-        return xs;
+        return (ts, xs);
     }
-    crate::recording::resample_uniform(&ts, &xs, 1.0 / period_s).1
+    let (tu, xu, _) = crate::recording::resample_uniform(&ts, &xs, 1.0 / period_s);
+    (tu, xu)
+}
+
+/// `x` (at increasing times `t`) at time `tk` by linear interpolation, held at the ends.
+fn interpolate(t: &[f64], x: &[f64], tk: f64) -> f64 {
+    let j = t.partition_point(|v| *v <= tk);
+    if j == 0 {
+        return x[0];
+    }
+    if j >= t.len() {
+        return x[t.len() - 1];
+    }
+    let a = (tk - t[j - 1]) / (t[j] - t[j - 1]);
+    (1.0 - a) * x[j - 1] + a * x[j]
 }
 
 /// The user's recorded free vibration as tip position (m) at a uniform step (s), for the
