@@ -44,8 +44,13 @@ pub const STEP_LOW: f64 = 0.25;
 /// Upper level of a step, see [`STEP_LOW`].
 pub const STEP_HIGH: f64 = 0.75;
 
-/// Fewest steps for the pooled fit (and for a jackknife over segments).
-pub const MIN_STEPS: usize = 4;
+/// Fewest steps for the pooled fit: a level change and its return, the least that tells a
+/// base stepping between levels (a square-wave reference) from one move, which the ring-down
+/// after the last move covers. The 1-σ does not rest on the number of segments: with two the
+/// jackknife has two refits, and the bootstrap of the quantised measurement
+/// ([`super::ringdown_sigma`]) does not depend on it (a real rotary flexible link logs two
+/// steps in 10 s, docs/ident.md).
+pub const MIN_STEPS: usize = 2;
 
 /// Most of the record a step-excited base spends in transit: between 25 % and 75 % of the
 /// range of its 10th..90th percentiles for at most 20 % of the time (a sine spends 33 % there,
