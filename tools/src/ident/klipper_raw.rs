@@ -177,7 +177,7 @@ pub fn psd_peaks(freq_hz: &[f64], p: &[f64], band: (f64, f64)) -> Vec<PsdPeak> {
         return vec![];
     }
     let th = max / SHAPER_VIBRATION_REDUCTION;
-    let mut cand: Vec<usize> = inb
+    let cand: Vec<usize> = inb
         .iter()
         .copied()
         .filter(|&i| {
@@ -186,18 +186,7 @@ pub fn psd_peaks(freq_hz: &[f64], p: &[f64], band: (f64, f64)) -> Vec<PsdPeak> {
             p[i] > th && left && right
         })
         .collect();
-    cand.sort_by(|&a, &b| p[b].total_cmp(&p[a]));
-    let mut kept: Vec<usize> = vec![];
-    for i in cand {
-        let distinct = kept.iter().all(|&j| {
-            let (a, b) = (i.min(j), i.max(j));
-            let dip = p[a..=b].iter().cloned().fold(f64::INFINITY, f64::min);
-            dip < HALF_POWER * p[i].min(p[j])
-        });
-        if distinct {
-            kept.push(i);
-        }
-    }
+    let kept = crate::numeric::peaks::distinct_peaks(p, cand, HALF_POWER, usize::MAX);
     kept.iter().map(|&k| peak_at(p, k, lo, hi, df)).collect()
 }
 

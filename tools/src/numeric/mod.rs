@@ -13,5 +13,6 @@
 pub mod arx;
 pub mod cores;
 pub mod lm;
+pub mod peaks;
 pub mod predictive;
 pub mod stats;

@@ -154,28 +154,14 @@ pub fn two_peaks(spec: &FitSpectrum) -> Vec<f64> {
     let p = &spec.psd;
     let max = p.iter().cloned().fold(0.0, f64::max);
     let th = max / SHAPER_VIBRATION_REDUCTION;
-    let mut cand: Vec<usize> = (1..p.len().saturating_sub(1))
+    let cand: Vec<usize> = (1..p.len().saturating_sub(1))
         .filter(|&i| p[i] > th && p[i] >= p[i - 1] && p[i] > p[i + 1])
         .filter(|&i| {
             (MIN_SHAPER_FREQ_HZ * (1.0 - PEAK_SEARCH_FRACTION)..=klipper::MAX_SHAPER_FREQ_HZ)
                 .contains(&spec.freq_hz[i])
         })
         .collect();
-    cand.sort_by(|&a, &b| p[b].total_cmp(&p[a]));
-    let mut kept: Vec<usize> = vec![];
-    for i in cand {
-        let distinct = kept.iter().all(|&j| {
-            let (a, b) = (i.min(j), i.max(j));
-            let dip = p[a..=b].iter().cloned().fold(f64::INFINITY, f64::min);
-            dip < PEAK_DIP_FRACTION * p[i].min(p[j])
-        });
-        if distinct {
-            kept.push(i);
-        }
-        if kept.len() == 2 {
-            break;
-        }
-    }
+    let kept = crate::numeric::peaks::distinct_peaks(p, cand, PEAK_DIP_FRACTION, 2);
     kept.iter().map(|&i| spec.freq_hz[i]).collect()
 }
 
