@@ -23,8 +23,8 @@ mod reply;
 mod watch;
 pub use num::Num;
 pub use reply::{
-    field, value, CaptureReply, ConfigReply, DumpReply, ModeLine, MoveReply, ReplyError,
-    ReplyLine, ShaperReply, StatusReply, SweepReply,
+    field, value, CaptureReply, ConfigReply, DumpReply, ModeLine, MoveReply, ReplyError, ReplyLine,
+    ShaperReply, StatusReply, SweepReply,
 };
 pub use watch::{PayloadCommand, WatchCommand, WatchReply};
 
