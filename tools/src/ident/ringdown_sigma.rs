@@ -22,34 +22,6 @@ use std::ops::Range;
 /// 1/√(2·replicas), 7 % at 100).
 pub const BOOTSTRAP_REPLICAS: usize = 100;
 
-/// The quantisation step of `x`: the mean of the successive changes within 1.5 × the smallest
-/// nonzero one (so that values printed to a few digits still give the step), when every
-/// sample lies on that grid from the first (within 1 % of a step: a continuous signal fills
-/// its steps); 0 otherwise (not quantised, or fewer than 10 changes).
-pub fn quantisation_step(x: &[f64]) -> f64 {
-    let scale = x.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-300);
-    let d: Vec<f64> = x
-        .windows(2)
-        .map(|w| (w[1] - w[0]).abs())
-        .filter(|d| *d > 1e-9 * scale)
-        .collect();
-    let q0 = d.iter().copied().fold(f64::INFINITY, f64::min);
-    if d.len() < 10 || !q0.is_finite() {
-        return 0.0;
-    }
-    let near: Vec<f64> = d.iter().copied().filter(|v| *v < 1.5 * q0).collect();
-    let q = near.iter().sum::<f64>() / near.len() as f64;
-    let on_grid = x.iter().all(|v| {
-        let u = (v - x[0]) / q;
-        (u - u.round()).abs() < 0.01
-    });
-    if on_grid {
-        q
-    } else {
-        0.0
-    }
-}
-
 /// The jackknife σ of (f, ζ) over the segments `segs` of decimated (b, y) at interval `dt`
 /// (each segment left out once, refitted from (f, ζ)); (0, 0) with fewer than 2 refits.
 pub(crate) fn jackknife_sigma(
@@ -164,7 +136,9 @@ pub(crate) fn bootstrap_sigma(
     replicas: usize,
     seed: u64,
 ) -> BootstrapSigma {
-    let (qb, qy) = (quantisation_step(d.b), quantisation_step(d.y));
+    // the quantisation steps as the reader finds them (0: not quantised)
+    let step = |x: &[f64]| crate::recording::hold::quantum(x).unwrap_or(0.0);
+    let (qb, qy) = (step(d.b), step(d.y));
     let dt = 1.0 / d.rate_hz;
     let n = d.b.len();
     let segs_full: Vec<Range<usize>> = d
