@@ -13,21 +13,6 @@ use anyhow::{bail, Result};
 use nalgebra::{DMatrix, DVector};
 use realfft::num_complex::Complex64;
 
-/// Poles of the order-`order` LSCF model of `h` at `freq_hz` (the lines to use), with
-/// per-line weights `weight` (e.g. 1 or the coherence), keeping physical poles with
-/// 0 < ζ < `zeta_max` inside [f_lo, f_hi] = the first and last line.
-///
-/// Errors: fewer lines than 2·order + 2, an ill-conditioned system.
-pub fn lscf_poles(
-    freq_hz: &[f64],
-    h: &[Complex64],
-    weight: &[f64],
-    order: usize,
-    zeta_max: f64,
-) -> Result<Vec<Pole>> {
-    LscfLines::new(freq_hz, h, weight, order).poles(order, zeta_max, 0)
-}
-
 /// The lines of one LSCF problem prepared once for every model order up to `max_order`: the
 /// discrete frequencies Ω_k = e^{iω_kΔt} and the first pass's Toeplitz diagonals (module docs)
 /// up to lag `max_order`. An order-n model uses their first n + 1 entries, so a stabilisation
@@ -230,7 +215,8 @@ mod tests {
     fn recovers_two_modes_of_an_exact_frf() {
         let f: Vec<f64> = (0..800).map(|k| 0.3 + k as f64 * 0.01).collect();
         let h = modal_frf(&f, &[(1.105, 0.0074, 1.0), (6.92, 0.0074, -0.6)]);
-        let p = lscf_poles(&f, &h, &vec![1.0; f.len()], 8, 0.2).unwrap();
+        let w = vec![1.0; f.len()];
+        let p = LscfLines::new(&f, &h, &w, 8).poles(8, 0.2, 0).unwrap();
         let m1 = p
             .iter()
             .find(|p| (p.freq_hz - 1.105).abs() < 0.01)
@@ -253,6 +239,8 @@ mod tests {
     fn too_few_lines_is_an_error() {
         let f = [1.0, 2.0, 3.0];
         let h = vec![Complex64::new(1.0, 0.0); 3];
-        assert!(lscf_poles(&f, &h, &[1.0; 3], 4, 0.2).is_err());
+        assert!(LscfLines::new(&f, &h, &[1.0; 3], 4)
+            .poles(4, 0.2, 0)
+            .is_err());
     }
 }
