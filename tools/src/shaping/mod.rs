@@ -112,24 +112,7 @@ pub fn candidates(modes: &[ModeEstimate], v_tol: f64, min_band: f64) -> Vec<Cand
     out
 }
 
-/// A recorded free vibration for the model-free check: tip position (m, or any displacement
-/// up to scale) at a uniform step `dt_s` (s) — the sensor's real update interval — and the
-/// sensor's quantisation step.
-#[derive(Clone, Debug, PartialEq)]
-pub struct RecordedVibration {
-    /// Samples (m).
-    pub position_m: Vec<f64>,
-    /// Sample step (s).
-    pub dt_s: f64,
-    /// Quantisation step of the samples (m); 0 when continuous.
-    pub quantum_m: f64,
-    /// Highest natural frequency in the vibration (Hz; the identified modes'), for the noise
-    /// estimate; 0 when unknown.
-    pub content_hz: f64,
-    /// How the samples were taken from the recording, when that needs saying (a
-    /// sample-and-hold staircase read at its update rate).
-    pub note: Option<String>,
-}
+pub use crate::measures::RecordedVibration;
 
 /// Percentage vibration (%) shaper `s` leaves on a recorded free vibration by superposition
 /// (model-free; [`crate::measures::superposed_check`] over windows of `window_s`, windows
@@ -151,15 +134,7 @@ pub fn superposed_check(
     window_s: f64,
     tolerance_pct: f64,
 ) -> crate::measures::SuperposedCheck {
-    crate::measures::superposed_check(
-        &rec.position_m,
-        rec.dt_s,
-        rec.quantum_m,
-        rec.content_hz,
-        s,
-        window_s,
-        tolerance_pct / 2.0,
-    )
+    crate::measures::superposed_check(rec, s, window_s, tolerance_pct / 2.0)
 }
 
 /// What the chosen shaper must satisfy.
@@ -315,6 +290,7 @@ mod tests {
             dt_s: dt,
             quantum_m: 0.0,
             content_hz: f_hz,
+            lowest_hz: f_hz,
             note: None,
         }
     }

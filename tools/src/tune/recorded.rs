@@ -239,6 +239,7 @@ pub fn recorded_position(
         dt_s: fv.dt_s,
         quantum_m,
         content_hz: f_max_hz,
+        lowest_hz: f1_hz,
         note: fv.note,
     }
 }

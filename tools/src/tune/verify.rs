@@ -172,7 +172,7 @@ fn shorter_window_check(
 ) -> Option<(f64, crate::measures::SuperposedCheck)> {
     let f1 = id.modes.first()?.freq_hz;
     let len_s = r.position_m.len() as f64 * r.dt_s;
-    let w = 0.9 * len_s - d.best.shaper.duration_s() - 3.0 * r.dt_s;
+    let w = 0.9 * len_s - d.best.shaper.duration_s() - r.equilibrium_period_s() - 3.0 * r.dt_s;
     (c.windows == 0 && w >= 3.0 / f1 && w < d.window_s)
         .then(|| (w, superposed_check(r, &d.best.shaper, w, tolerance_pct)))
 }
