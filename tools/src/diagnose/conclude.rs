@@ -57,8 +57,12 @@ fn measure_final(
     let long_run = reference.fit.std.clone();
     let spread = crate::diagnose::honesty::spread_std(&refits.values);
     crate::diagnose::honesty::add_spread_std(&mut reference.fit, &spread);
-    // the model's stated accuracy (Type B) belongs to what the recordings give; the
-    // alternatives' changes (added in quadrature after it) do not
+    // whether an effect is there is read from what the recordings give (long-run, split
+    // refits: Type A); the model's stated accuracy (Type B) and the alternatives' changes are
+    // systematic errors of its size, added to the reported 1 σ after it. A size within the
+    // model's stated accuracy is judged when the candidate is assessed (the model-accuracy
+    // rule), not counted twice here.
+    let std = reference.fit.std.clone();
     crate::diagnose::honesty::add_model_accuracy_std(
         rig,
         fit_data,
@@ -67,7 +71,6 @@ fn measure_final(
         set,
         &mut reference.fit,
     );
-    let std = reference.fit.std.clone();
     let alternatives = widen_for_model_form(ctx, cands, set, &mut reference.fit, budget);
     let evidence = crate::diagnose::selection::NullEvidence { std, alternatives };
     let h = crate::diagnose::honesty::Honesty {
@@ -290,12 +293,17 @@ fn identified_final(
             earlier,
             budget,
         );
-        match crate::diagnose::selection::unidentified_in_final(
-            &set,
-            &reference_h.fit,
-            &evidence,
-            ctx.calib.len(),
-        ) {
+        let unidentified =
+            match crate::diagnose::selection::decision::ablated("final_identification") {
+                true => None,
+                false => crate::diagnose::selection::unidentified_in_final(
+                    &set,
+                    &reference_h.fit,
+                    &evidence,
+                    ctx.calib.len(),
+                ),
+            };
+        match unidentified {
             Some((i, why)) if drop_effect(ctx, cands, sel, i, &why, budget) => {
                 if sel.chosen.len() < set.len()
                     && crate::diagnose::selection::resume_after_drop(

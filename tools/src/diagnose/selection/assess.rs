@@ -62,7 +62,9 @@ impl Ctx<'_> {
         let (mut fails, predictive, rule) = self.decide(&evidence, &r, base, k, whiteness.0);
         let (matter, beside) = self.calibration_matter(set, &f, off);
         fails.extend(matter);
-        fails.extend(self.below_model_accuracy(set, &f));
+        if !super::decision::ablated("model_accuracy") {
+            fails.extend(self.below_model_accuracy(set, &f));
+        }
         fails.extend(self.deflection_scale_disagreement(set, &r, off));
         let passed = fails.is_empty();
         let beside_mode = beside && fails.len() == 1;
@@ -327,7 +329,7 @@ impl Ctx<'_> {
             // the recording holds no information at the ceiling (the band edge, 0.45 × the
             // sample rate)
             let ceiling = cand.params[i].starts.iter().cloned().fold(0.0, f64::max);
-            let at_edge = fm >= 0.95 * ceiling;
+            let at_edge = fm >= 0.95 * ceiling && !super::decision::ablated("observable_band");
             if let Some(fr) = self
                 .model_freqs
                 .iter()

@@ -53,6 +53,19 @@ pub fn rule() -> Rule {
     }
 }
 
+/// The elements of the rule beside the test that the ablation table removes one at a time:
+/// `DIAG_ABLATE` lists them, comma-separated (`model_accuracy`: the model's stated accuracy
+/// bound on tip mass, root spring, cubic clamp and sensor gain; `observable_band`: a mount
+/// resonance at or beyond the band edge not identified; `identified_parameters`: a parameter
+/// inside its range with an undefined 1 σ fails its candidate; `final_identification`: an
+/// effect the final model's honest 1 σ does not hold 3 σ from "no effect" is dropped). Unset:
+/// every element applies.
+pub fn ablated(element: &str) -> bool {
+    std::env::var("DIAG_ABLATE")
+        .map(|v| v.split(',').any(|e| e.trim() == element))
+        .unwrap_or(false)
+}
+
 /// The level of one test among `tests` tests of one diagnosis (Bonferroni; selection counts
 /// the catalogue's candidates × its most rounds).
 pub fn per_test_level(tests: usize) -> f64 {

@@ -111,8 +111,9 @@ fn impossible_sign(cand: &Candidate, values: &[f64], off: usize) -> Option<usize
 
 /// What the final model's significance test reads ([`unidentified_in_final`]).
 pub(crate) struct NullEvidence {
-    /// Per parameter, the 1 σ the recordings give: long-run, their disagreement (split
-    /// refits) and the model's stated accuracy, without the model-form alternatives' changes.
+    /// Per parameter, the 1 σ the recordings give: long-run and their disagreement (split
+    /// refits), without the model's stated accuracy or the model-form alternatives' changes
+    /// (systematic errors of its size, in the reported 1 σ).
     pub std: Vec<f64>,
     /// Every model-form alternative's refit values (the discretisation, the drive's reading,
     /// the base-motion assumption: [`crate::diagnose::honesty::Alternative`]).
@@ -122,7 +123,7 @@ pub(crate) struct NullEvidence {
 /// The effect of the final model (`set` after `calib_len` calibration parameters, fitted as
 /// `f`) that fails the guard's significance condition ([`super::guard`] 5: ≥ [`MIN_SIGMAS`] σ
 /// from "no effect", [`sigmas_from_null`]) once judged with the σ the recordings give
-/// (`evidence.std`: long-run, split refits, the model's stated accuracy) at its fitted value
+/// (`evidence.std`: long-run, split refits) at its fitted value
 /// **and at the value of every model-form alternative** (`evidence.alternatives`) — the
 /// recordings do not identify it, whatever it gained when it was chosen against the round's
 /// linearised σ — the least identified first: its index in `set` and the reason. `None`: every
@@ -189,7 +190,7 @@ pub(crate) fn unidentified_in_final(
     Some((
         i,
         format!(
-            "not identified in the final model: {} (1 σ of the recordings: long-run, split refits, stated accuracy) — {z:.1} σ from no effect at its value or a model-form alternative's, fewer than {MIN_SIGMAS}",
+            "not identified in the final model: {} (1 σ of the recordings: long-run, split refits) — {z:.1} σ from no effect at its value or a model-form alternative's, fewer than {MIN_SIGMAS}",
             values.join(", ")
         ),
     ))
@@ -255,7 +256,10 @@ pub(crate) fn implausible(
                 p.name
             ));
         }
-        if f.std[off + i].is_nan() && interior(&p.transform, x) {
+        if f.std[off + i].is_nan()
+            && interior(&p.transform, x)
+            && !super::decision::ablated("identified_parameters")
+        {
             out.push(format!(
                 "{} = {v:.3e} not identified: the recordings leave a combination of its parameters unconstrained (1 σ undefined)",
                 p.name
