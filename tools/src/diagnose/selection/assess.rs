@@ -62,9 +62,7 @@ impl Ctx<'_> {
         let (mut fails, predictive, rule) = self.decide(&evidence, &r, base, k, whiteness.0);
         let (matter, beside) = self.calibration_matter(set, &f, off);
         fails.extend(matter);
-        if !super::decision::ablated("model_accuracy") {
-            fails.extend(self.below_model_accuracy(set, &f));
-        }
+        fails.extend(self.below_model_accuracy(set, &f));
         fails.extend(self.deflection_scale_disagreement(set, &r, off));
         let passed = fails.is_empty();
         let beside_mode = beside && fails.len() == 1;
@@ -176,6 +174,9 @@ impl Ctx<'_> {
     /// recordings' 1 σ). Other effects are not judged here. Returns the failed condition.
     fn below_model_accuracy(&self, set: &[&Candidate], f: &FitResult) -> Option<String> {
         use crate::effect::Effect;
+        if super::decision::ablated("model_accuracy") {
+            return None;
+        }
         let cand = *set.last()?;
         if !matches!(
             cand.id,
