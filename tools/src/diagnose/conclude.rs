@@ -14,7 +14,7 @@ use super::{assumptions, mount_resonance, stage, CandidateOutcome, Diagnosis, Re
 /// and, without `base_pos_m`, the base-motion assumption ([`honesty`]); the stability of every
 /// effect's parameters between the fit recordings, and the residual statistics before and
 /// after; and what the significance test of the final model reads
-/// ([`crate::diagnose::selection::NullEvidence`]).
+/// ([`crate::diagnose::selection::NullEvidence`]); the model-form alternatives' refitted models.
 fn measure_final(
     ctx: &Ctx,
     cands: &[Candidate],
@@ -26,6 +26,7 @@ fn measure_final(
 ) -> (
     crate::diagnose::honesty::Honesty,
     crate::diagnose::selection::NullEvidence,
+    Vec<crate::diagnose::honesty::AlternativeForm>,
 ) {
     let (rig, fit_data, sigma, calib) = (ctx.rig, ctx.fit_data, ctx.sigma, ctx.calib);
     budget.spend(crate::diagnose::honesty::long_run_std(
@@ -71,7 +72,7 @@ fn measure_final(
         set,
         &mut reference.fit,
     );
-    let alternatives = widen_for_model_form(ctx, cands, set, &mut reference.fit, budget);
+    let (alternatives, forms) = widen_for_model_form(ctx, cands, set, &mut reference.fit, budget);
     let evidence = crate::diagnose::selection::NullEvidence { std, alternatives };
     let h = crate::diagnose::honesty::Honesty {
         nominal: crate::diagnose::honesty::residual_stats(&residuals(
@@ -89,33 +90,34 @@ fn measure_final(
             &reference.fit.std,
         ),
     };
-    (h, evidence)
+    (h, evidence, forms)
 }
 
 /// Widens the 1-σ of the final model `f` (calibration + `set`) by what the model's form leaves
 /// open: the discretisation, the drive's reading between samples and, without `base_pos_m`,
 /// the base-motion assumption, and by the model's stated accuracy carried to every effect
 /// parameter read from the response's size ([`honesty`]). Returns the values of every alternative's refit
-/// ([`crate::diagnose::honesty::Alternative`]).
+/// ([`crate::diagnose::honesty::Alternative`]) and the refitted alternative models.
 fn widen_for_model_form(
     ctx: &Ctx,
     cands: &[Candidate],
     set: &[&Candidate],
     f: &mut FitResult,
     budget: &mut Budget,
-) -> Vec<Vec<f64>> {
+) -> (
+    Vec<Vec<f64>>,
+    Vec<crate::diagnose::honesty::AlternativeForm>,
+) {
     let (rig, fit_data, sigma, calib) = (ctx.rig, ctx.fit_data, ctx.sigma, ctx.calib);
-    let mut alternatives = Vec::new();
+    let (mut alternatives, mut forms) = (Vec::new(), Vec::new());
     let mut keep = |alt: crate::diagnose::honesty::Alternative, budget: &mut Budget| {
         budget.spend(alt.evaluations);
         alternatives.extend(alt.values);
+        forms.extend(alt.form);
     };
-    if !set.is_empty() {
-        let share = budget.share(3);
-        let alt =
-            crate::diagnose::honesty::add_basis_std(rig, fit_data, sigma, calib, set, f, share);
-        keep(alt, budget);
-    }
+    let share = budget.share(3);
+    let alt = crate::diagnose::honesty::add_basis_std(rig, fit_data, sigma, calib, set, f, share);
+    keep(alt, budget);
     let share = budget.share(3);
     let alt = crate::diagnose::honesty::add_drive_interpolation_std(
         rig, fit_data, sigma, calib, set, f, share,
@@ -133,7 +135,7 @@ fn widen_for_model_form(
             rig, fit_data, sigma, calib, set, f,
         ));
     }
-    alternatives
+    (alternatives, forms)
 }
 
 /// What the steps before selection found, carried into the [`Diagnosis`].
@@ -194,7 +196,8 @@ pub(crate) fn conclude(
         total_steps,
         "uncertainty and stability of the final model",
     );
-    let honesty = identified_final(ctx, cands, &mut sel, &mut cal, &earlier, budget, progress);
+    let (honesty, model_form) =
+        identified_final(ctx, cands, &mut sel, &mut cal, &earlier, budget, progress);
     let crate::diagnose::selection::Selection {
         chosen,
         outcomes: chosen_outcomes,
@@ -207,6 +210,7 @@ pub(crate) fn conclude(
         ctx.validate,
         &reference.vres,
         &reference.vpred,
+        &model_form,
         ctx.model_freqs,
     );
     if let (Some(u), Some(o)) = (unexplained.as_mut(), closest_failed(&rounds)) {
@@ -271,7 +275,8 @@ pub(crate) fn fit_bic(reference: &crate::diagnose::selection::Reference) -> f64 
 /// ([`crate::diagnose::selection::unidentified_in_final`], [`drop_effect`]), the selection resumed after each
 /// one removed ([`crate::diagnose::selection::resume_after_drop`], with the look-alike and backward checks when it
 /// adds one); `cal` and `sel.reference` carry the honest 1 σ on return, a loop's frequency beyond the recordings' band without one
-/// ([`crate::diagnose::honesty::beyond_band`], after the identification check, which it does not change).
+/// ([`crate::diagnose::honesty::beyond_band`], after the identification check, which it does not change);
+/// and every model-form alternative's prediction of the validation recording.
 fn identified_final(
     ctx: &Ctx,
     cands: &[Candidate],
@@ -280,11 +285,11 @@ fn identified_final(
     earlier: &Earlier,
     budget: &mut Budget,
     progress: &mut dyn crate::progress::Progress,
-) -> crate::diagnose::honesty::Honesty {
+) -> (crate::diagnose::honesty::Honesty, Vec<Prediction>) {
     loop {
         let set: Vec<&Candidate> = sel.chosen.iter().map(|&k| &cands[k]).collect();
         let (mut cal_h, mut reference_h) = (cal.clone(), sel.reference.clone());
-        let (h, evidence) = measure_final(
+        let (h, evidence, forms) = measure_final(
             ctx,
             cands,
             &set,
@@ -321,7 +326,14 @@ fn identified_final(
                 let fit = &mut sel.reference.fit;
                 let beyond_band =
                     crate::diagnose::honesty::beyond_band(&set, fit, ctx.calib.len(), rate_hz);
-                return crate::diagnose::honesty::Honesty { beyond_band, ..h };
+                let model_form = forms
+                    .iter()
+                    .filter_map(|m| m.predict(ctx.rig, ctx.validate, ctx.sigma, &set))
+                    .collect();
+                return (
+                    crate::diagnose::honesty::Honesty { beyond_band, ..h },
+                    model_form,
+                );
             }
         }
     }

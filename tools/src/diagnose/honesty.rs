@@ -374,11 +374,44 @@ pub fn add_drive_interpolation_std(
 /// says nothing). The significance test of the final model asks every effect to stand clear
 /// of "no effect" at these values too ([`super::selection::unidentified_in_final`]): the form
 /// may move an effect's size, but an effect that is there is there whichever form holds.
+/// Its `form` predicts the validation recording, which says how much structure the model's
+/// form alone leaves open there ([`super::unexplained`]).
 pub struct Alternative {
     /// Model evaluations used.
     pub evaluations: usize,
     /// The refit's physical values.
     pub values: Option<Vec<f64>>,
+    /// The refitted alternative model itself, where the refit says something.
+    pub form: Option<AlternativeForm>,
+}
+
+/// The model of a model-form alternative: its calibration (the form: basis size, drive
+/// reading), the effects it adds to the final set (the base-motion assumption's loop), and
+/// its refit optimum (representation).
+pub struct AlternativeForm {
+    /// The alternative's calibration.
+    pub calib: Calib,
+    /// Effects fitted after the final set's (a loop standing in for the unrecorded base).
+    pub extra: Vec<Candidate>,
+    /// The refit's representation vector (calibration, the final set, then `extra`).
+    pub x: DVector<f64>,
+}
+
+impl AlternativeForm {
+    /// The alternative's prediction of `validate` (the final set `set` before its own
+    /// effects); `None` where the model refuses it.
+    pub fn predict(
+        &self,
+        rig: &Rig,
+        validate: &Prepared,
+        sigma: [f64; 3],
+        set: &[&Candidate],
+    ) -> Option<super::model::Prediction> {
+        let with: Vec<&Candidate> = set.iter().copied().chain(&self.extra).collect();
+        let data = std::slice::from_ref(validate);
+        let problem = fit::Problem::new(rig, data, sigma, &self.calib, &with, self.x.clone());
+        problem.predictions(&self.x)?.into_iter().next()
+    }
 }
 
 impl Alternative {
@@ -387,6 +420,7 @@ impl Alternative {
         Alternative {
             evaluations: 0,
             values: None,
+            form: None,
         }
     }
 }
@@ -423,6 +457,11 @@ fn add_alternative_std(
     Alternative {
         evaluations: g.evaluations,
         values: Some(g.values),
+        form: Some(AlternativeForm {
+            calib: alt.clone(),
+            extra: Vec::new(),
+            x: g.x,
+        }),
     }
 }
 
@@ -681,6 +720,7 @@ pub fn add_base_assumption_std(
         return Alternative {
             evaluations: g.evaluations,
             values: None,
+            form: None,
         };
     }
     let own = look_alike_params(calib, set);
@@ -695,6 +735,11 @@ pub fn add_base_assumption_std(
     Alternative {
         evaluations: g.evaluations,
         values: Some(values),
+        form: Some(AlternativeForm {
+            calib: calib.clone(),
+            extra: vec![servo.clone()],
+            x: g.x,
+        }),
     }
 }
 

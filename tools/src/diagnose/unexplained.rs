@@ -15,6 +15,22 @@
 //!    first-difference estimator σ̂² = mean((r_{k+1} − r_k)²)/2, von Neumann 1941,
 //!    [`difference_noise`], counts structure near the Nyquist rate as noise.)
 //!
+//! 3. **beyond the model's form**: its structured rms exceeds what the model-form alternatives
+//!    of the final model change in their prediction of the same recording (each one's rms
+//!    change, combined in quadrature as the reported 1 σ combines their parameter changes)
+//!    ([`crate::diagnose::honesty::Alternative`]: one basis function more, the other standard
+//!    reading of the drive between samples, a loop standing in for an unrecorded base; each
+//!    refitted to the fit recordings). Those forms are equally standard readings of the same
+//!    samples, so a structure no larger than their disagreement is what the recordings leave
+//!    open about the model's form on this recording — its own null — not physics the catalogue
+//!    lacks. (A 50 Hz camera: the carriage's motion between samples, which the samples do not
+//!    hold, rings the second mode at 11.8 Hz; independent-v2 case32, a null.)
+//! 4. **inside the working band**: the band holding its spectral peak (below) starts below
+//!    the working band's pass edge ([`super::model::band_edge_hz`], 0.45 × the sample rate).
+//!    Above it the response is decided by what the carriage did between samples, which the
+//!    samples do not hold, and the model claims no accuracy there (a force residual at
+//!    48.9 Hz of a 100 Hz recording, own generator, null seed 996000).
+//!
 //! Its *structure* is either time structure (the Ljung–Box test above) or a **zero offset**:
 //! a residual mean at least the noise rms (a t statistic of at least √n), e.g. a tip sensor
 //! whose zero drifted between recordings, or a force bias. The mean counts in its rms (the
@@ -55,6 +71,9 @@ pub struct Unexplained {
     pub offset: f64,
     /// Structured rms √(rms² − σ̂²) over the noise rms σ̂.
     pub structured_over_noise: f64,
+    /// The model-form alternatives' rms change of the channel's prediction (combined in
+    /// quadrature) over the noise rms σ̂ (module docs, 3; 0 without alternatives).
+    pub model_form_over_noise: f64,
     /// Ljung–Box Q (20 lags) of the residual.
     pub ljung_box_q: f64,
     /// Nearest model mode (Hz) to the band centre, if any model modes exist.
@@ -163,9 +182,34 @@ fn command_rates(cmd_m: &[f64], rate: f64) -> (Vec<f64>, Vec<f64>) {
     (vel, acc)
 }
 
-/// The residual `r` of channel `c` located, when it is structured and above the noise
-/// (module docs); `None` otherwise.
-fn locate_channel(d: &Prepared, c: usize, r: &[f64], model_freqs: &[f64]) -> Option<Unexplained> {
+/// The model-form alternatives' rms differences (channel `c`'s unit) between `pred` and each
+/// alternative's prediction in `model_form`, combined in quadrature as the final model's 1 σ
+/// combines their parameter changes ([`crate::diagnose::honesty`], GUM 5.1.2) (module docs,
+/// 3); 0 without one on the channel.
+fn model_form_rms(pred: &Prediction, model_form: &[Prediction], c: usize) -> f64 {
+    let of = |p: &Prediction| [&p.base_m, &p.tip_m, &p.force_n][c].clone();
+    let Some(own) = of(pred) else { return 0.0 };
+    model_form
+        .iter()
+        .filter_map(|alt| of(alt))
+        .filter(|a| a.len() == own.len())
+        .map(|a| {
+            let d: Vec<f64> = own.iter().zip(&a).map(|(x, y)| x - y).collect();
+            rms(&d)
+        })
+        .filter(|m| m.is_finite())
+        .fold(0.0, f64::hypot)
+}
+
+/// The residual `r` of channel `c` located, when it is structured, above the noise and beyond
+/// the model's form (`form_rms`, [`model_form_rms`]; module docs); `None` otherwise.
+fn locate_channel(
+    d: &Prepared,
+    c: usize,
+    r: &[f64],
+    form_rms: f64,
+    model_freqs: &[f64],
+) -> Option<Unexplained> {
     if r.len() < 4 * LJUNG_BOX_LAGS {
         return None;
     }
@@ -182,13 +226,19 @@ fn locate_channel(d: &Prepared, c: usize, r: &[f64], model_freqs: &[f64]) -> Opt
     };
     let q = ljung_box(r, LJUNG_BOX_LAGS);
     let offset_shows = m.abs() >= noise && m.abs() > 0.0;
-    if !((q > LJUNG_BOX_CRITICAL || offset_shows) && ratio >= STRUCTURE_OVER_NOISE) {
+    if !((q > LJUNG_BOX_CRITICAL || offset_shows)
+        && ratio >= STRUCTURE_OVER_NOISE
+        && structured > form_rms)
+    {
+        return None;
+    }
+    let band = band_of(r, rate);
+    if band[0] >= super::model::band_edge_hz(d.dt) {
         return None;
     }
     let sig = super::channel_signal(d, c);
     let ms = sig.iter().sum::<f64>() / sig.len().max(1) as f64;
     let ss = rms(&sig.iter().map(|x| x - ms).collect::<Vec<_>>());
-    let band = band_of(r, rate);
     let centre = 0.5 * (band[0] + band[1]);
     let nearest = model_freqs
         .iter()
@@ -203,6 +253,7 @@ fn locate_channel(d: &Prepared, c: usize, r: &[f64], model_freqs: &[f64]) -> Opt
         residual_over_noise: e / noise.max(1e-300),
         offset: m,
         structured_over_noise: ratio,
+        model_form_over_noise: form_rms / noise.max(1e-300),
         ljung_box_q: q,
         nearest_model_mode_hz: nearest,
         correlation_velocity: corr(&centred, &vel),
@@ -211,18 +262,22 @@ fn locate_channel(d: &Prepared, c: usize, r: &[f64], model_freqs: &[f64]) -> Opt
     })
 }
 
-/// The channel whose validation residual is most clearly structured and above noise, located;
-/// `None` when every channel's residual is white or at the noise level.
+/// The channel whose validation residual (`vres`, of the final model's prediction `pred` of
+/// `d`) is most clearly structured, above noise and beyond the model's form (`model_form`: the
+/// model-form alternatives' predictions of `d`), located; `None` when every channel's residual
+/// is white, at the noise level or within the model's form.
 pub fn assess(
     d: &Prepared,
     vres: &[Option<Vec<f64>>; 3],
-    _pred: &Prediction,
+    pred: &Prediction,
+    model_form: &[Prediction],
     model_freqs: &[f64],
 ) -> Option<Unexplained> {
     let mut best: Option<Unexplained> = None;
     for c in 0..3 {
         let Some(r) = &vres[c] else { continue };
-        let Some(u) = locate_channel(d, c, r, model_freqs) else {
+        let form_rms = model_form_rms(pred, model_form, c);
+        let Some(u) = locate_channel(d, c, r, form_rms, model_freqs) else {
             continue;
         };
         if best
@@ -258,13 +313,62 @@ mod tests {
             [None, Some(white.iter().map(|v| v + offset).collect()), None]
         };
         let pred = Prediction::default();
-        assert!(assess(&d, &with(0.0), &pred, &[]).is_none());
-        assert!(assess(&d, &with(3e-5), &pred, &[]).is_none());
-        let u = assess(&d, &with(3e-4), &pred, &[]).expect("an offset of 3 noise rms");
+        assert!(assess(&d, &with(0.0), &pred, &[], &[]).is_none());
+        assert!(assess(&d, &with(3e-5), &pred, &[], &[]).is_none());
+        let u = assess(&d, &with(3e-4), &pred, &[], &[]).expect("an offset of 3 noise rms");
         assert_eq!(u.channel, "tip_pos_m");
         assert!((u.offset - 3e-4).abs() < 1e-5, "{}", u.offset);
         assert!(u.ljung_box_q < LJUNG_BOX_CRITICAL, "white in time");
         assert!((u.residual_over_noise - 10f64.sqrt()).abs() < 0.2);
+    }
+
+    #[test]
+    fn structure_within_the_model_forms_disagreement_is_not_unexplained() {
+        // a ring at 11.8 Hz of 2 noise rms left on the tip at 50 Hz: unexplained when the
+        // model's forms agree to within a quarter of it, not when they disagree by more than it
+        let (n, rate) = (3000, 50.0);
+        let mut rec = crate::recording::Recording::with_uniform_time(n, rate);
+        rec.base_cmd_m = Some(vec![0.0; n]);
+        rec.tip_pos_m = Some(vec![0.0; n]);
+        let d = Prepared::new("t", &rec).unwrap();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        let noise = Normal::new(0.0, 1e-5).unwrap();
+        let ring = |a: f64| -> Vec<f64> {
+            (0..n)
+                .map(|k| a * (2.0 * std::f64::consts::PI * 11.8 * k as f64 / rate).sin())
+                .collect()
+        };
+        let r: Vec<f64> = ring(2.0 * 2e-5 / 2f64.sqrt())
+            .iter()
+            .map(|v| v + noise.sample(&mut rng))
+            .collect();
+        let vres = [None, Some(r), None];
+        let pred = Prediction {
+            tip_m: Some(vec![0.0; n]),
+            ..Prediction::default()
+        };
+        let alt = |rms: f64| Prediction {
+            tip_m: Some(ring(rms * 2f64.sqrt())),
+            ..Prediction::default()
+        };
+        let u = assess(&d, &vres, &pred, &[alt(0.5e-5)], &[]).expect("beyond the forms");
+        assert!(
+            (u.structured_over_noise - 2.0).abs() < 0.3,
+            "{}",
+            u.structured_over_noise
+        );
+        assert!(
+            (u.model_form_over_noise - 0.5).abs() < 0.1,
+            "{}",
+            u.model_form_over_noise
+        );
+        assert!(assess(&d, &vres, &pred, &[alt(0.5e-5), alt(3e-5)], &[]).is_none());
+        // the same ring at 23.9 Hz, beyond the working band's pass edge (22.5 Hz at 50 Hz)
+        let high: Vec<f64> = (0..n)
+            .map(|k| 2e-5 * (2.0 * std::f64::consts::PI * 23.9 * k as f64 / rate).sin())
+            .map(|v| v + noise.sample(&mut rng))
+            .collect();
+        assert!(assess(&d, &[None, Some(high), None], &pred, &[], &[]).is_none());
     }
 
     #[test]
