@@ -177,6 +177,28 @@ fn unidentified_calibration(
         .collect()
 }
 
+/// What the final model `reference` leaves unexplained on the validation recording, beyond its
+/// model-form alternatives' predictions `model_form` ([`crate::diagnose::unexplained`]), with
+/// the closest catalogue effect of the last selection round of `rounds` and why it failed.
+fn unexplained(
+    ctx: &Ctx,
+    reference: &crate::diagnose::selection::Reference,
+    model_form: &[Prediction],
+    rounds: &[Vec<CandidateOutcome>],
+) -> Option<crate::diagnose::unexplained::Unexplained> {
+    let mut u = crate::diagnose::unexplained::assess(
+        ctx.validate,
+        &reference.vres,
+        &reference.vpred,
+        model_form,
+        ctx.model_freqs,
+    )?;
+    if let Some(o) = closest_failed(rounds) {
+        u.closest_catalogue_effect = Some(format!("{}: {}", o.id, o.reason));
+    }
+    Some(u)
+}
+
 /// The diagnosis from a finished selection: long-run 1-σ of the calibration and the final
 /// model, parameter stability, what stays unexplained.
 pub(crate) fn conclude(
@@ -206,16 +228,7 @@ pub(crate) fn conclude(
         ..
     } = sel;
     let final_set: Vec<Candidate> = chosen.iter().map(|&k| cands[k].clone()).collect();
-    let mut unexplained = crate::diagnose::unexplained::assess(
-        ctx.validate,
-        &reference.vres,
-        &reference.vpred,
-        &model_form,
-        ctx.model_freqs,
-    );
-    if let (Some(u), Some(o)) = (unexplained.as_mut(), closest_failed(&rounds)) {
-        u.closest_catalogue_effect = Some(format!("{}: {}", o.id, o.reason));
-    }
+    let unexplained = unexplained(ctx, &reference, &model_form, &rounds);
     let set: Vec<&Candidate> = final_set.iter().collect();
     let mount_resonance = mount_resonance(ctx, &set, &reference.fit);
     let outcomes = rounds.first().cloned().unwrap_or_default();

@@ -328,13 +328,7 @@ pub fn servo_candidate(order: usize, rate_hz: f64) -> Candidate {
         false,
     )];
     if order >= 2 {
-        params.push(def(
-            "servo_damping_ratio",
-            SERVO_DAMPING_RANGE,
-            vec![0.7],
-            1.0,
-            false,
-        ));
+        params.push(servo_damping_ratio());
     }
     params.push(def(
         "servo_velocity_ff",
@@ -475,13 +469,7 @@ fn servo_candidates(rate_hz: f64) -> Vec<Candidate> {
                 1.0,
                 false,
             ),
-            def(
-                "servo_damping_ratio",
-                SERVO_DAMPING_RANGE,
-                vec![0.7],
-                1.0,
-                false,
-            ),
+            servo_damping_ratio(),
         ],
     });
     // a position loop with velocity and acceleration feed-forward (how drives are tuned):
@@ -894,15 +882,21 @@ pub fn apply_effect(cand: &Candidate, values: &[f64], p: &mut Params) {
     }
 }
 
-/// The damping ratios a position loop's model takes ([`apply_servo`] holds it there): below
-/// 0.05 a second-order loop peaks 20 dB (1/(2ζ) = 10), beyond any drive's tuning
-/// (`selection::plausibility::MAX_LOOP_PEAK_GAIN`); above 5 it is two real poles two decades
-/// apart.
-/// The search runs inside the same range: a fit that wandered below it sat on a flat cost
-/// (the model held 0.05) with an undefined 1 σ, reported "not identified" instead of "at the
-/// limit of its search range" (second independent set: 62 of its 172 loop fits, in 39 of its
-/// 44 cases).
+/// The loop damping ratios the model holds ([`apply_servo`]; below 0.05 a loop peaks 20 dB, beyond
+/// any drive's tuning) and the search keeps to: below, the cost was flat and the 1 σ undefined,
+/// "not identified" rather than "at its limit" (second independent set: 62 of 172 loop fits).
 const SERVO_DAMPING_RANGE: Transform = Transform::Bounded(0.05, 5.0);
+
+/// A loop's damping ratio, from 0.7 inside [`SERVO_DAMPING_RANGE`].
+fn servo_damping_ratio() -> ParamDef {
+    def(
+        "servo_damping_ratio",
+        SERVO_DAMPING_RANGE,
+        vec![0.7],
+        1.0,
+        false,
+    )
+}
 
 /// The `servo_lag` values of a candidate (`get`: a value by parameter name) into `p`: the
 /// loop's order follows from the parameters the candidate has ([`servo_candidate`]).
