@@ -187,15 +187,17 @@ fn command_rates(cmd_m: &[f64], rate: f64) -> (Vec<f64>, Vec<f64>) {
 /// combines their parameter changes ([`crate::diagnose::honesty`], GUM 5.1.2) (module docs,
 /// 3); 0 without one on the channel.
 fn model_form_rms(pred: &Prediction, model_form: &[Prediction], c: usize) -> f64 {
-    let of = |p: &Prediction| [&p.base_m, &p.tip_m, &p.force_n][c].clone();
-    let Some(own) = of(pred) else { return 0.0 };
+    fn of(p: &Prediction, c: usize) -> Option<&[f64]> {
+        [&p.base_m, &p.tip_m, &p.force_n][c].as_deref()
+    }
+    let Some(own) = of(pred, c) else { return 0.0 };
     model_form
         .iter()
-        .filter_map(|alt| of(alt))
-        .filter(|a| a.len() == own.len())
+        .filter_map(|alt| of(alt, c))
+        .filter(|a| a.len() == own.len() && !own.is_empty())
         .map(|a| {
-            let d: Vec<f64> = own.iter().zip(&a).map(|(x, y)| x - y).collect();
-            rms(&d)
+            let ss: f64 = own.iter().zip(a).map(|(x, y)| (x - y) * (x - y)).sum();
+            (ss / own.len() as f64).sqrt()
         })
         .filter(|m| m.is_finite())
         .fold(0.0, f64::hypot)
