@@ -156,7 +156,7 @@ type FitEvidence = ([f64; 3], [usize; 3], [f64; 3]);
 
 /// Whether the fit recordings reject the model-form alternative `form` of the final model
 /// (effects `set`, its fit `evidence`): the alternative's refit is worse by the selection's own
-/// margin of very strong evidence, ΔBIC = Δ(−2 ln L) + Δk ln N > [`BIC_MARGIN`] with the
+/// margin of very strong evidence, ΔBIC = Δ(−2 ln L) + Δk ln N > `BIC_MARGIN` with the
 /// effective sample count N = Σ n_c / τ_c (the guard's condition 1, [`super::selection`]; Δk the
 /// parameters of the effects the form adds). Such a form is not one the model can take, and its
 /// refit does not veto an effect of the final model: second set, case00 (air drag at the
@@ -171,7 +171,6 @@ fn rejected_by_fit(
     form: &crate::diagnose::honesty::AlternativeForm,
     (rss, n, tau_fit): FitEvidence,
 ) -> bool {
-    use crate::diagnose::selection::guard::BIC_MARGIN;
     let with: Vec<&Candidate> = set.iter().copied().chain(&form.extra).collect();
     let problem = crate::diagnose::fit::Problem::new(
         ctx.rig,
@@ -191,11 +190,38 @@ fn rejected_by_fit(
         .map(|(d, p)| residuals(d, p))
         .collect();
     let (alt_rss, _) = crate::diagnose::fit_problem::channel_rss(&res);
-    let n_eff: f64 = (0..3).map(|c| n[c] as f64 / tau_fit[c].max(1.0)).sum();
     let dk: usize = form.extra.iter().map(|c| c.params.len()).sum();
-    let delta = crate::numeric::stats::delta_neg2ll_effective(&alt_rss, &rss, &n, &tau_fit)
+    form_rejected(&alt_rss, (rss, n, tau_fit), dk)
+}
+
+/// ΔBIC of a form with residual sums of squares `alt_rss` and `dk` more parameters against the
+/// model of `evidence` on the same fit recordings, above `BIC_MARGIN` (10, Kass & Raftery 1995:
+/// very strong evidence; [`crate::diagnose::selection::guard`]) ([`rejected_by_fit`]).
+fn form_rejected(alt_rss: &[f64; 3], (rss, n, tau_fit): FitEvidence, dk: usize) -> bool {
+    use crate::diagnose::selection::guard::BIC_MARGIN;
+    let n_eff: f64 = (0..3).map(|c| n[c] as f64 / tau_fit[c].max(1.0)).sum();
+    let delta = crate::numeric::stats::delta_neg2ll_effective(alt_rss, &rss, &n, &tau_fit)
         + dk as f64 * n_eff.max(1.0).ln();
     delta > BIC_MARGIN
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_form_the_fit_recordings_reject_by_very_strong_evidence_is_rejected() {
+        // 20 000 tip samples with residual correlated over 4: 5 000 effective ones
+        let evidence = ([0.0, 1.0, 0.0], [0, 20_000, 0], [1.0, 4.0, 1.0]);
+        // 1 % more residual power: Δ(−2 ln L) = 5 000 ln 1.01 ≈ 50 > 10
+        assert!(form_rejected(&[0.0, 1.01, 0.0], evidence, 0));
+        // 0.1 %: ≈ 5, within the margin — a form the data leave open
+        assert!(!form_rejected(&[0.0, 1.001, 0.0], evidence, 0));
+        // a form that fits better is never rejected...
+        assert!(!form_rejected(&[0.0, 0.9, 0.0], evidence, 0));
+        // ...unless it needs parameters the gain does not pay for (ln 5 000 ≈ 8.5 each)
+        assert!(form_rejected(&[0.0, 0.9999, 0.0], evidence, 2));
+    }
 }
 
 /// What the steps before selection found, carried into the [`Diagnosis`].

@@ -57,6 +57,17 @@ pub const MAGNITUDES: [&str; 4] = [
     "backlash_m",
 ];
 
+/// `x` (representation, in the order of `defs`) with every magnitude parameter ([`MAGNITUDES`])
+/// of a linear representation at its magnitude.
+pub(crate) fn as_magnitudes(defs: &[&ParamDef], mut x: DVector<f64>) -> DVector<f64> {
+    for (i, d) in defs.iter().enumerate().take(x.len()) {
+        if MAGNITUDES.contains(&d.name) && matches!(d.transform, Transform::Linear) {
+            x[i] = x[i].abs();
+        }
+    }
+    x
+}
+
 /// Fits `cand` (or the calibration alone) from every combination of starting values (at most
 /// 6) plus `warm` (a previous calibration, representation), keeping the lowest cost. A start
 /// from the rig's damping ratios at the best stiffness scale of a coarse scan (±65 % in E)
@@ -113,12 +124,7 @@ pub fn fit(
     }
     let problem = |x0: &DVector<f64>| Problem::new(rig, data, sigma, calib, cands, x0.clone());
     let run = run_starts(&problem, starts, max_evaluations, scan_evaluations);
-    let (cost, mut x) = (run.cost, run.x);
-    for (i, d) in defs.iter().enumerate() {
-        if MAGNITUDES.contains(&d.name) && matches!(d.transform, Transform::Linear) {
-            x[i] = x[i].abs();
-        }
-    }
+    let (cost, x) = (run.cost, as_magnitudes(&defs, run.x));
     let final_problem = problem(&x);
     let j = final_problem.jacobian_at(&x);
     let std_repr = lm::std_errors(&j, cost);
@@ -284,6 +290,29 @@ pub(crate) mod tests {
             carriage_mass_kg: 2.0,
             mode_freqs_hz: vec![2.7, 15.0, 41.0],
         }
+    }
+
+    #[test]
+    fn a_magnitude_is_reported_as_one_and_a_log_scale_is_left_alone() {
+        use super::super::effects::Transform;
+        let def = |name, transform| ParamDef {
+            name,
+            transform,
+            starts: vec![1.0],
+            scale: 1.0,
+            zero_is_null: true,
+            scan: vec![],
+        };
+        let (tip, backlash, friction) = (
+            def("tip_mass_kg", Transform::Linear),
+            def("backlash_m", Transform::Log),
+            def("friction_n", Transform::Linear),
+        );
+        let x = DVector::from_vec(vec![-0.012, -9.0, -0.2]);
+        let y = as_magnitudes(&[&tip, &backlash, &friction], x);
+        // the tip mass the model holds is |x|; a log scale's sign is its size; a friction's
+        // sign is physics (judged, not hidden)
+        assert_eq!(y.as_slice(), &[0.012, -9.0, -0.2]);
     }
 
     #[test]
