@@ -205,25 +205,6 @@ fn form_rejected(alt_rss: &[f64; 3], (rss, n, tau_fit): FitEvidence, dk: usize) 
     delta > BIC_MARGIN
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_form_the_fit_recordings_reject_by_very_strong_evidence_is_rejected() {
-        // 20 000 tip samples with residual correlated over 4: 5 000 effective ones
-        let evidence = ([0.0, 1.0, 0.0], [0, 20_000, 0], [1.0, 4.0, 1.0]);
-        // 1 % more residual power: Δ(−2 ln L) = 5 000 ln 1.01 ≈ 50 > 10
-        assert!(form_rejected(&[0.0, 1.01, 0.0], evidence, 0));
-        // 0.1 %: ≈ 5, within the margin — a form the data leave open
-        assert!(!form_rejected(&[0.0, 1.001, 0.0], evidence, 0));
-        // a form that fits better is never rejected...
-        assert!(!form_rejected(&[0.0, 0.9, 0.0], evidence, 0));
-        // ...unless it needs parameters the gain does not pay for (ln 5 000 ≈ 8.5 each)
-        assert!(form_rejected(&[0.0, 0.9999, 0.0], evidence, 2));
-    }
-}
-
 /// What the steps before selection found, carried into the [`Diagnosis`].
 pub(crate) struct Earlier {
     pub(crate) location: crate::diagnose::locate::Location,
@@ -561,4 +542,23 @@ pub(crate) fn simpler_form(
         .iter()
         .any(|x| x.passed && x.cand_index != k && x.cand_index != s && x.delta_val < o.delta_val);
     (!beaten).then_some((s, o))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_form_the_fit_recordings_reject_by_very_strong_evidence_is_rejected() {
+        // 20 000 tip samples with residual correlated over 4: 5 000 effective ones
+        let evidence = ([0.0, 1.0, 0.0], [0, 20_000, 0], [1.0, 4.0, 1.0]);
+        // 1 % more residual power: Δ(−2 ln L) = 5 000 ln 1.01 ≈ 50 > 10
+        assert!(form_rejected(&[0.0, 1.01, 0.0], evidence, 0));
+        // 0.1 %: ≈ 5, within the margin — a form the data leave open
+        assert!(!form_rejected(&[0.0, 1.001, 0.0], evidence, 0));
+        // a form that fits better is never rejected...
+        assert!(!form_rejected(&[0.0, 0.9, 0.0], evidence, 0));
+        // ...unless it needs parameters the gain does not pay for (ln 5 000 ≈ 8.5 each)
+        assert!(form_rejected(&[0.0, 0.9999, 0.0], evidence, 2));
+    }
 }
