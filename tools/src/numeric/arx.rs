@@ -101,18 +101,6 @@ impl Normal {
     pub fn rss(&self) -> f64 {
         self.rr
     }
-
-    /// The normal equations of the dictionary's columns `keep` alone (indices into the columns
-    /// this was built with; any out of range are ignored): the principal submatrix of G and the
-    /// matching entries of b.
-    pub fn restricted(&self, keep: &[usize]) -> Normal {
-        let cols: Vec<usize> = keep.iter().copied().filter(|&i| i < self.b.len()).collect();
-        Normal {
-            g: DMatrix::from_fn(cols.len(), cols.len(), |a, b| self.g[(cols[a], cols[b])]),
-            b: DVector::from_fn(cols.len(), |a, _| self.b[cols[a]]),
-            rr: self.rr,
-        }
-    }
 }
 
 /// The best generic correction with `k` coefficients.
@@ -195,28 +183,6 @@ pub fn best_correction_of_size(fit: &Normal, val: &Normal, k: usize) -> Option<C
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Restricting normal equations to some columns is the same as building them from those
-    /// columns alone.
-    #[test]
-    fn restricted_normal_equations_are_those_of_the_columns_kept() {
-        let n = 800;
-        let sig = |f: f64, k: usize| (2.0 * std::f64::consts::PI * f * k as f64 / 100.0).sin();
-        let y: Vec<f64> = (0..n).map(|k| sig(1.3, k)).collect();
-        let r: Vec<f64> = (0..n)
-            .map(|k| 0.5 * sig(1.3, k) + 0.1 * sig(4.1, k))
-            .collect();
-        let phi = dictionary(&[&y], &[]);
-        let mut whole = Normal::new(phi.len());
-        whole.add(&r, &phi);
-        let mut alone = Normal::new(1);
-        alone.add(&r, &phi[..1]);
-        let kept = whole.restricted(&[0, 7]);
-        assert_eq!(kept.b.len(), 1);
-        assert!((kept.g[(0, 0)] - alone.g[(0, 0)]).abs() < 1e-9 * alone.g[(0, 0)]);
-        assert!((kept.b[0] - alone.b[0]).abs() < 1e-9 * alone.b[0].abs());
-        assert_eq!(kept.rss(), whole.rss());
-    }
 
     /// A column left out of the dictionary is not available to the correction: a residual that
     /// is exactly the second signal's first difference is removed with it and not without it.

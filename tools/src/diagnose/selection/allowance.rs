@@ -1,7 +1,7 @@
 //! The model-form allowance of condition 3 of [`super::guard`]: what a physics-free correction
 //! with as many parameters earns on the validation residual ([`allowance`], with the
 //! dictionary's columns [`generic_columns`] less the candidates' own physics, [`FORCE_WITHOUT`],
-//! [`BASE_WITHOUT_LOOP`], [`TIP_WITHOUT_LATENCY`]), the split-refit spread's share, and the reduction credited to a
+//! [`BASE_WITHOUT_LOOP`]), the split-refit spread's share, and the reduction credited to a
 //! candidate per channel.
 
 use super::guard::*;
@@ -68,32 +68,6 @@ fn reduction_on(vrss: &[f64; 3], vrss0: &[f64; 3], vn: &[usize; 3], c: usize) ->
 pub(crate) fn split_change(rho: f64) -> f64 {
     1.0 - rho.min(1.0 / rho)
 }
-
-/// [`allowance`] for candidate `id` on channel `c`: for a tip-sensor latency on `tip_pos_m`,
-/// the dictionary without any difference ([`TIP_WITHOUT_LATENCY`]), else the whole one.
-pub(crate) fn allowance_for(id: Effect, base: &Reference, c: usize, k: usize) -> f64 {
-    if id == Effect::SensorDelay && c == 1 {
-        let keep = TIP_WITHOUT_LATENCY;
-        let restricted = base.generic[c]
-            .as_ref()
-            .map(|(fit_ne, val_ne)| (fit_ne.restricted(&keep), val_ne.restricted(&keep)));
-        return restricted
-            .and_then(|(fit_ne, val_ne)| arx::best_correction_of_size(&fit_ne, &val_ne, k))
-            .map_or(0.0, |g| g.val_reduction())
-            .max(base.split[c]);
-    }
-    allowance(base, c, k)
-}
-
-/// The tip dictionary's columns a tip-sensor latency is judged against: the predicted tip, the
-/// predicted deflection and the drive, each without its differences (indices into
-/// [`generic_columns`]' tip columns, three per signal). A reading τ late is
-/// `tip(t − τ) ≈ tip − τ d(tip)/dt + τ²/2 d²(tip)/dt²`, and d(tip) = d(deflection) + d(drive): any
-/// difference column is the latency's own physics, as a force ∝ velocity is friction's
-/// ([`FORCE_WITHOUT`]) and a lag of the command a loop's ([`BASE_WITHOUT_LOOP`]). With them the
-/// yardstick *is* the candidate: own generator, seed 997500 (1000 Hz), a 2 ms latency fitted to
-/// 1.97 ms at p ≈ 0 was held to an allowance of 86.6 % that a first difference earned.
-pub const TIP_WITHOUT_LATENCY: [usize; 3] = [0, 3, 6];
 
 /// The model-form allowance of channel `c` for `k` parameters: what the physics-free correction
 /// earns on `base`'s validation residual, or its split-refit spread if larger. Where no `k`

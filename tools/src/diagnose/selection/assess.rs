@@ -3,7 +3,7 @@
 //! counts, and the calibration-matter rules (a shift below the model's own accuracy, a
 //! deflection scale the mode bands disagree on, a resonant loop at a beam mode).
 
-use super::allowance::{allowance_for, credited_reduction, q_of};
+use super::allowance::{allowance, credited_reduction, q_of};
 use super::context::Ctx;
 use super::decision::Rule;
 use super::evidence::structure_evidence;
@@ -42,7 +42,7 @@ impl Ctx<'_> {
         let (best_channel, reduction) = credited_reduction(cand.id, &r.vrss, &base.vrss, &base.vn);
         let whiteness = (q_of(&base.vres[best_channel]), q_of(&r.vres[best_channel]));
         let significance = significance(cand, &f, off);
-        let allowance = allowance_for(cand.id, base, best_channel, k);
+        let allowance = allowance(base, best_channel, k);
         let (structured, share) = structure_evidence(
             base.vres[best_channel].as_deref(),
             r.vres[best_channel].as_deref(),

@@ -26,9 +26,7 @@
 //!    effect: a yardstick made of the candidate's own physics can never be beaten by it, see
 //!    `allowance::FORCE_WITHOUT`; on `base_pos_m` of a model without a loop without the
 //!    command's derivatives, a lag of the command being a position loop's physics,
-//!    `allowance::BASE_WITHOUT_LOOP`; on `tip_pos_m` for a tip-sensor latency without any
-//!    difference, a late reading being the tip's differences, `allowance::TIP_WITHOUT_LATENCY`;
-//!    a correction larger than the dictionary's rank counts as
+//!    `allowance::BASE_WITHOUT_LOOP`; a correction larger than the dictionary's rank counts as
 //!    the largest solvable one; for a length series
 //!    the best k-term smooth trend of the relative frequency error in the length); for
 //!    recordings also at least the *split-refit spread*: how much the validation rms residual
