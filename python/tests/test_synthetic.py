@@ -133,12 +133,19 @@ def test_ctrl_c_interrupts_a_long_call(tmp_path):
     cols = ["time_s", "base_cmd_m", "base_pos_m", "tip_pos_m", "force_n"]
     path = tmp_path / "rec.csv"
     np.savetxt(path, np.column_stack([r[c] for c in cols]), delimiter=",", header=",".join(cols), comments="", fmt="%.9g")
+    # Ctrl-C at a terminal: Python's own handler. A process started in the background of a
+    # non-interactive shell inherits SIGINT ignored, and Python then installs none.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT))
-    timer.start()
-    t0 = time.perf_counter()
-    with pytest.raises(KeyboardInterrupt):
-        bs.diagnose(rig, [path], path)
-    assert time.perf_counter() - t0 < 10.0
+    try:
+        timer.start()
+        t0 = time.perf_counter()
+        with pytest.raises(KeyboardInterrupt):
+            bs.diagnose(rig, [path], path)
+        assert time.perf_counter() - t0 < 10.0
+    finally:
+        timer.cancel()
+        signal.signal(signal.SIGINT, previous)
 
 
 def test_board_plan_refuses_what_the_board_cannot_run():
