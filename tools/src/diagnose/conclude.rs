@@ -135,6 +135,10 @@ fn widen_for_model_form(
         rig, fit_data, sigma, calib, set, f, share,
     );
     keep(alt, budget);
+    let share = budget.share(3);
+    let alt =
+        crate::diagnose::honesty::add_friction_law_std(rig, fit_data, sigma, calib, set, f, share);
+    keep(alt, budget);
     if let Some(servo) = crate::diagnose::honesty::identity_servo(cands, set, fit_data) {
         let share = budget.share(2);
         let alt = crate::diagnose::honesty::add_base_assumption_std(

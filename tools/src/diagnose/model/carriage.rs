@@ -6,9 +6,11 @@
 use super::params::Params;
 use super::sensor::delayed;
 
-/// Velocity over which Coulomb friction is smoothed (m/s): `F_c tanh(v / v_s)`, in the force
-/// channel and inside the position loop alike.
-pub(crate) const FRICTION_SMOOTHING_M_S: f64 = 1e-3;
+/// Velocity over which the model smooths Coulomb friction (m/s): `F_c tanh(v / v_s)`, in the
+/// force channel and inside the position loop alike. The recordings rarely resolve the
+/// transition through zero velocity; the model-form alternative that fits it
+/// ([`crate::diagnose::honesty::add_friction_law_std`]) carries that choice into the 1-σ.
+pub const FRICTION_SMOOTHING_M_S: f64 = 1e-3;
 
 /// Forces on the carriage besides the drive's and the beam's, which the motor supplies and a
 /// position loop must overcome (`base_friction`, `cogging_ripple`): Coulomb friction
@@ -16,7 +18,7 @@ pub(crate) const FRICTION_SMOOTHING_M_S: f64 = 1e-3;
 /// v in m/s). Inside a loop of finite stiffness they leave a following error: a Coulomb force
 /// over K_p = M ω_n² is a step of F_c / K_p at every reversal, which the integral action then
 /// removes (Ellis, *Control System Design Guide*, 4th ed., ch. 17, disturbance response).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CarriageLoad {
     /// Coulomb friction (N).
     pub friction_n: f64,
@@ -24,6 +26,20 @@ pub struct CarriageLoad {
     pub viscous_n_s_per_m: f64,
     /// Cogging: sine and cosine amplitudes (N) and pitch (m).
     pub cogging: Option<(f64, f64, f64)>,
+    /// Velocity over which the Coulomb term is smoothed (m/s; [`FRICTION_SMOOTHING_M_S`] in
+    /// the model, fitted by the friction law's model-form alternative).
+    pub smoothing_m_s: f64,
+}
+
+impl Default for CarriageLoad {
+    fn default() -> Self {
+        CarriageLoad {
+            friction_n: 0.0,
+            viscous_n_s_per_m: 0.0,
+            cogging: None,
+            smoothing_m_s: FRICTION_SMOOTHING_M_S,
+        }
+    }
 }
 
 impl CarriageLoad {
@@ -33,8 +49,11 @@ impl CarriageLoad {
             friction_n: p.friction_n,
             viscous_n_s_per_m: p.viscous_n_s_per_m,
             cogging: p.cogging,
+            smoothing_m_s: p.friction_smoothing_m_s,
         };
-        (load != CarriageLoad::default()).then_some(load)
+        let none =
+            load.friction_n == 0.0 && load.viscous_n_s_per_m == 0.0 && load.cogging.is_none();
+        (!none).then_some(load)
     }
 
     /// The load divided by the moving mass `mass_kg`: its force per unit mass (N/kg), what a
@@ -45,14 +64,15 @@ impl CarriageLoad {
             friction_n: self.friction_n / m,
             viscous_n_s_per_m: self.viscous_n_s_per_m / m,
             cogging: self.cogging.map(|(a, b, pitch)| (a / m, b / m, pitch)),
+            smoothing_m_s: self.smoothing_m_s,
         }
     }
 
     /// The force the motor spends on the load (N) at carriage position `y_m` and velocity
     /// `v_m_s`.
     pub fn force_n(&self, y_m: f64, v_m_s: f64) -> f64 {
-        let mut f = self.friction_n * (v_m_s / FRICTION_SMOOTHING_M_S).tanh()
-            + self.viscous_n_s_per_m * v_m_s;
+        let mut f =
+            self.friction_n * (v_m_s / self.smoothing_m_s).tanh() + self.viscous_n_s_per_m * v_m_s;
         if let Some((a, b, pitch)) = self.cogging {
             let (s, co) = (2.0 * std::f64::consts::PI * y_m / pitch).sin_cos();
             f += a * s + b * co;
@@ -65,7 +85,7 @@ impl CarriageLoad {
     /// damper of rate λ = (F_c / v_s + |c_v|) / m, and a held damper decays without overshoot
     /// for λh ≤ 1.
     pub(crate) fn substeps(&self, m_eff_kg: f64, dt: f64) -> usize {
-        let rate = (self.friction_n.abs() / FRICTION_SMOOTHING_M_S + self.viscous_n_s_per_m.abs())
+        let rate = (self.friction_n.abs() / self.smoothing_m_s + self.viscous_n_s_per_m.abs())
             / m_eff_kg.max(1e-9);
         ((rate * dt).ceil() as usize).clamp(1, 32)
     }

@@ -26,6 +26,8 @@ pub struct Params {
     pub friction_n: f64,
     /// Viscous friction (N·s/m).
     pub viscous_n_s_per_m: f64,
+    /// Velocity over which the Coulomb term is smoothed (m/s; [`super::FRICTION_SMOOTHING_M_S`]).
+    pub friction_smoothing_m_s: f64,
     /// Servo loop natural frequency √(K_p/M)/2π (Hz; K_p the loop's proportional gain, M the
     /// carriage mass: [`ServoLaw::natural_frequency_rad_s`]) and damping ratio ζ.
     pub servo: Option<(f64, f64)>,
@@ -156,6 +158,7 @@ impl Default for Params {
             base_mass_delta_kg: 0.0,
             friction_n: 0.0,
             viscous_n_s_per_m: 0.0,
+            friction_smoothing_m_s: super::FRICTION_SMOOTHING_M_S,
             servo: None,
             servo_ff: (0.0, 0.0),
             servo_order: 2,

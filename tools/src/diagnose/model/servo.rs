@@ -10,7 +10,7 @@
 //! `base_pos_m`.
 
 use super::beam::{root_generator, BeamCache};
-use super::carriage::{CarriageLoad, FRICTION_SMOOTHING_M_S};
+use super::carriage::CarriageLoad;
 use super::discrete::{advance, at_rest, bounded_expm, second_order};
 use super::params::Params;
 
@@ -136,7 +136,7 @@ impl<'a> LoadedLoop<'a> {
         limit: f64,
     ) -> Option<LoadedLoop<'a>> {
         let steps = load.substeps(m_eff, dt);
-        let c_lin = load.friction_n / FRICTION_SMOOTHING_M_S + load.viscous_n_s_per_m;
+        let c_lin = load.friction_n / load.smoothing_m_s + load.viscous_n_s_per_m;
         let maps = if steps == 1 || !(c_lin > 0.0) {
             None
         } else {
@@ -159,8 +159,8 @@ impl<'a> LoadedLoop<'a> {
 
     /// The slope of the load's force in the velocity (N·s/m) at `v_m_s`.
     fn slope(&self, v_m_s: f64) -> f64 {
-        let u = (v_m_s / FRICTION_SMOOTHING_M_S).cosh();
-        self.load.friction_n / (FRICTION_SMOOTHING_M_S * u * u) + self.load.viscous_n_s_per_m
+        let u = (v_m_s / self.load.smoothing_m_s).cosh();
+        self.load.friction_n / (self.load.smoothing_m_s * u * u) + self.load.viscous_n_s_per_m
     }
 
     /// The ladder's rung for velocity `v_m_s`: the nearest slope (log scale), or
