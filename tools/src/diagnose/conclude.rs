@@ -248,26 +248,76 @@ fn unidentified_calibration(
         .collect()
 }
 
-/// What the final model `reference` leaves unexplained on the validation recording, beyond its
-/// model-form alternatives' predictions `model_form` ([`crate::diagnose::unexplained`]), with
-/// the closest catalogue effect of the last selection round of `rounds` and why it failed.
+/// What the final model `reference` (effects `set`) leaves unexplained on the validation
+/// recording, beyond its model-form alternatives' predictions `model_form` and its own
+/// uncertainty ([`moved_by_one_sigma`]) ([`crate::diagnose::unexplained`]), with the closest
+/// catalogue effect of the last selection round of `rounds` and why it failed.
 fn unexplained(
     ctx: &Ctx,
+    set: &[&Candidate],
     reference: &crate::diagnose::selection::Reference,
     model_form: &[Prediction],
     rounds: &[Vec<CandidateOutcome>],
 ) -> Option<crate::diagnose::unexplained::Unexplained> {
+    let moved = moved_by_one_sigma(ctx, set, reference);
     let mut u = crate::diagnose::unexplained::assess(
         ctx.validate,
         &reference.vres,
         &reference.vpred,
         model_form,
+        &moved,
         ctx.model_freqs,
     )?;
     if let Some(o) = closest_failed(rounds) {
         u.closest_catalogue_effect = Some(format!("{}: {}", o.id, o.reason));
     }
     Some(u)
+}
+
+/// The final model's (`reference`, effects `set`) prediction of the validation recording with
+/// each of its parameters moved by its reported 1 σ, one at a time, for
+/// [`crate::diagnose::unexplained::within_uncertainty`]: `reference.vpred` plus the move's
+/// change of the prediction (both predictions made alike). A parameter whose 1 σ is undefined,
+/// or whose move the model refuses, is left out.
+fn moved_by_one_sigma(
+    ctx: &Ctx,
+    set: &[&Candidate],
+    reference: &crate::diagnose::selection::Reference,
+) -> Vec<Prediction> {
+    let f = &reference.fit;
+    let data = std::slice::from_ref(ctx.validate);
+    let problem =
+        crate::diagnose::fit::Problem::new(ctx.rig, data, ctx.sigma, ctx.calib, set, f.x.clone());
+    let predict = |x: &nalgebra::DVector<f64>| problem.predictions(x)?.into_iter().next();
+    let Some(at) = predict(&f.x) else {
+        return Vec::new();
+    };
+    let shifted = |a: &Option<Vec<f64>>, b: &Option<Vec<f64>>, m: &Option<Vec<f64>>| {
+        let (a, b, m) = (a.as_ref()?, b.as_ref()?, m.as_ref()?);
+        (a.len() == b.len() && b.len() == m.len()).then(|| {
+            a.iter()
+                .zip(b)
+                .zip(m)
+                .map(|((a, b), m)| a + m - b)
+                .collect()
+        })
+    };
+    let defs = problem.defs();
+    let n = f.x.len().min(f.std.len()).min(defs.len());
+    (0..n)
+        .filter(|&i| f.std[i].is_finite() && f.std[i] > 0.0)
+        .filter_map(|i| {
+            let mut x = f.x.clone();
+            x[i] = defs[i].repr(f.values[i] + f.std[i]);
+            let m = predict(&x)?;
+            let v = &reference.vpred;
+            Some(Prediction {
+                base_m: shifted(&v.base_m, &at.base_m, &m.base_m),
+                tip_m: shifted(&v.tip_m, &at.tip_m, &m.tip_m),
+                force_n: shifted(&v.force_n, &at.force_n, &m.force_n),
+            })
+        })
+        .collect()
 }
 
 /// The diagnosis from a finished selection: long-run 1-σ of the calibration and the final
@@ -299,8 +349,8 @@ pub(crate) fn conclude(
         ..
     } = sel;
     let final_set: Vec<Candidate> = chosen.iter().map(|&k| cands[k].clone()).collect();
-    let unexplained = unexplained(ctx, &reference, &model_form, &rounds);
     let set: Vec<&Candidate> = final_set.iter().collect();
+    let unexplained = unexplained(ctx, &set, &reference, &model_form, &rounds);
     let mount_resonance = mount_resonance(ctx, &set, &reference.fit);
     let outcomes = rounds.first().cloned().unwrap_or_default();
     let selected = outcomes
