@@ -134,29 +134,9 @@ pub fn within_uncertainty(
         }
         row += rc.len();
     }
-    let (g, b) = (a.tr_mul(&a), a.tr_mul(&r));
-    let radius_sq = chi2_upper(k, UNCERTAINTY_REGION_P);
-    let solve = |lambda: f64| -> Option<DVector<f64>> {
-        let ridge = lambda + 1e-12 * g.trace().max(f64::MIN_POSITIVE);
-        (g.clone() + DMatrix::identity(k, k) * ridge)
-            .cholesky()
-            .map(|ch| ch.solve(&b))
-    };
-    let Some(mut u) = solve(0.0) else {
+    let Some(u) = trust_region_shift(&a, &r, chi2_upper(k, UNCERTAINTY_REGION_P)) else {
         return vres.clone();
     };
-    if u.norm_squared() > radius_sq {
-        // ‖u(λ)‖ falls with λ and is below ‖b‖/λ: bisect on [0, ‖b‖/radius]
-        let (mut lo, mut hi) = (0.0, b.norm() / radius_sq.sqrt());
-        for _ in 0..100 {
-            let mid = 0.5 * (lo + hi);
-            match solve(mid) {
-                Some(v) if v.norm_squared() > radius_sq => lo = mid,
-                _ => hi = mid,
-            }
-        }
-        u = solve(hi).unwrap_or_else(|| DVector::zeros(k));
-    }
     let mut out = vres.clone();
     for (j, &c) in channels.iter().enumerate() {
         if let Some(rc) = out[c].as_mut() {
@@ -166,6 +146,37 @@ pub fn within_uncertainty(
         }
     }
     out
+}
+
+/// The u minimising ‖r − A u‖ subject to ‖u‖² ≤ `radius_sq`: the least-squares solution when
+/// it lies inside, else (AᵀA + λI)⁻¹ Aᵀr with λ found by bisection so that it lies on the
+/// boundary (‖u(λ)‖ falls with λ and is below ‖Aᵀr‖/λ). `None` when AᵀA cannot be factored.
+fn trust_region_shift(
+    a: &nalgebra::DMatrix<f64>,
+    r: &nalgebra::DVector<f64>,
+    radius_sq: f64,
+) -> Option<nalgebra::DVector<f64>> {
+    let k = a.ncols();
+    let (g, b) = (a.tr_mul(a), a.tr_mul(r));
+    let solve = |lambda: f64| {
+        let ridge = lambda + 1e-12 * g.trace().max(f64::MIN_POSITIVE);
+        (g.clone() + nalgebra::DMatrix::identity(k, k) * ridge)
+            .cholesky()
+            .map(|ch| ch.solve(&b))
+    };
+    let u = solve(0.0)?;
+    if u.norm_squared() <= radius_sq {
+        return Some(u);
+    }
+    let (mut lo, mut hi) = (0.0, b.norm() / radius_sq.sqrt());
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        match solve(mid) {
+            Some(v) if v.norm_squared() > radius_sq => lo = mid,
+            _ => hi = mid,
+        }
+    }
+    solve(hi)
 }
 
 /// The upper `p` point of χ² with `k` degrees of freedom.
