@@ -419,44 +419,7 @@ pub fn add_friction_law_std(
             scan: Vec::new(),
         }],
     };
-    let mut with: Vec<&Candidate> = set.to_vec();
-    with.push(&law);
-    let g = fit::fit(
-        rig,
-        data,
-        sigma,
-        calib,
-        &with,
-        Some(&f.x),
-        &[],
-        max_evaluations,
-        false,
-    );
-    // a refit that ended worse than where it started (the final model) did not converge
-    if !(g.cost <= f.cost * (1.0 + 1e-9)) {
-        return Alternative {
-            evaluations: g.evaluations,
-            values: None,
-            form: None,
-        };
-    }
-    let mut values = f.values.clone();
-    for i in 0..f.std.len().min(g.values.len()) {
-        let d = g.values[i] - f.values[i];
-        if d.is_finite() && f.std[i].is_finite() {
-            f.std[i] = f.std[i].hypot(d);
-            values[i] = g.values[i];
-        }
-    }
-    Alternative {
-        evaluations: g.evaluations,
-        values: Some(values),
-        form: Some(AlternativeForm {
-            calib: calib.clone(),
-            extra: vec![law],
-            x: g.x,
-        }),
-    }
+    add_extension_std(rig, data, sigma, calib, set, law, f, max_evaluations, &[])
 }
 
 /// A model-form alternative's refit of the final model: the model evaluations it used and its
@@ -792,8 +755,40 @@ pub fn add_base_assumption_std(
     f: &mut FitResult,
     max_evaluations: usize,
 ) -> Alternative {
+    let own = look_alike_params(calib, set);
+    add_extension_std(
+        rig,
+        data,
+        sigma,
+        calib,
+        set,
+        servo.clone(),
+        f,
+        max_evaluations,
+        &own,
+    )
+}
+
+/// Refits the final model `f` (calibration + `set`) warm with the effect `extra` appended (a
+/// model-form alternative that extends the model: a loop for an unrecorded base, the friction
+/// law's width; at most `max_evaluations`), adds each parameter's change to its 1-σ in
+/// quadrature but those of `left_alone` (indices in `f`), and returns the alternative with
+/// the refit's values of `f`'s parameters (`left_alone` at `f`'s). A refit that ends worse than
+/// it started says nothing.
+#[allow(clippy::too_many_arguments)]
+fn add_extension_std(
+    rig: &Rig,
+    data: &[Prepared],
+    sigma: [f64; 3],
+    calib: &Calib,
+    set: &[&Candidate],
+    extra: Candidate,
+    f: &mut FitResult,
+    max_evaluations: usize,
+    left_alone: &[usize],
+) -> Alternative {
     let mut with: Vec<&Candidate> = set.to_vec();
-    with.push(servo);
+    with.push(&extra);
     let g = fit::fit(
         rig,
         data,
@@ -805,7 +800,7 @@ pub fn add_base_assumption_std(
         max_evaluations,
         false,
     );
-    // a refit that ended worse than the identity start did not converge: no information
+    // a refit that ended worse than where it started (the final model) did not converge
     if !(g.cost <= f.cost * (1.0 + 1e-9)) {
         return Alternative {
             evaluations: g.evaluations,
@@ -813,11 +808,10 @@ pub fn add_base_assumption_std(
             form: None,
         };
     }
-    let own = look_alike_params(calib, set);
     let mut values = f.values.clone();
     for i in 0..f.std.len().min(g.values.len()) {
         let d = g.values[i] - f.values[i];
-        if d.is_finite() && f.std[i].is_finite() && !own.contains(&i) {
+        if d.is_finite() && f.std[i].is_finite() && !left_alone.contains(&i) {
             f.std[i] = f.std[i].hypot(d);
             values[i] = g.values[i];
         }
@@ -827,7 +821,7 @@ pub fn add_base_assumption_std(
         values: Some(values),
         form: Some(AlternativeForm {
             calib: calib.clone(),
-            extra: vec![servo.clone()],
+            extra: vec![extra],
             x: g.x,
         }),
     }
