@@ -274,11 +274,11 @@ fn unexplained(
     Some(u)
 }
 
-/// The final model's (`reference`, effects `set`) prediction of the validation recording with
+/// The final model's (`reference`, effects `set`) predictions of the validation recording with
 /// each of its parameters moved by its reported 1 σ, one at a time, for
-/// [`crate::diagnose::unexplained::within_uncertainty`]: `reference.vpred` plus the move's
-/// change of the prediction (both predictions made alike). A parameter whose 1 σ is undefined,
-/// or whose move the model refuses, is left out.
+/// [`crate::diagnose::unexplained::within_uncertainty`]; made as `reference.vpred` is
+/// (`Ctx::reference`), so each differs from it by the move alone. A parameter whose 1 σ is
+/// undefined, or whose move the model refuses, is left out.
 fn moved_by_one_sigma(
     ctx: &Ctx,
     set: &[&Candidate],
@@ -288,20 +288,6 @@ fn moved_by_one_sigma(
     let data = std::slice::from_ref(ctx.validate);
     let problem =
         crate::diagnose::fit::Problem::new(ctx.rig, data, ctx.sigma, ctx.calib, set, f.x.clone());
-    let predict = |x: &nalgebra::DVector<f64>| problem.predictions(x)?.into_iter().next();
-    let Some(at) = predict(&f.x) else {
-        return Vec::new();
-    };
-    let shifted = |a: &Option<Vec<f64>>, b: &Option<Vec<f64>>, m: &Option<Vec<f64>>| {
-        let (a, b, m) = (a.as_ref()?, b.as_ref()?, m.as_ref()?);
-        (a.len() == b.len() && b.len() == m.len()).then(|| {
-            a.iter()
-                .zip(b)
-                .zip(m)
-                .map(|((a, b), m)| a + m - b)
-                .collect()
-        })
-    };
     let defs = problem.defs();
     let n = f.x.len().min(f.std.len()).min(defs.len());
     (0..n)
@@ -309,13 +295,7 @@ fn moved_by_one_sigma(
         .filter_map(|i| {
             let mut x = f.x.clone();
             x[i] = defs[i].repr(f.values[i] + f.std[i]);
-            let m = predict(&x)?;
-            let v = &reference.vpred;
-            Some(Prediction {
-                base_m: shifted(&v.base_m, &at.base_m, &m.base_m),
-                tip_m: shifted(&v.tip_m, &at.tip_m, &m.tip_m),
-                force_n: shifted(&v.force_n, &at.force_n, &m.force_n),
-            })
+            problem.predictions(&x)?.into_iter().next()
         })
         .collect()
 }

@@ -22,9 +22,9 @@
 //!    the 95 % interval ± t₀.₉₇₅(ν) σ beside it (GUM, JCGM 100:2008 G.4).
 //! 5. **Model-form alternatives** ([`Alternative`]): each refit's values (one basis function
 //!    more, the other reading of the drive, the base-motion assumption, the friction law's
-//!    width) are kept beside the σ they widen. Whether an effect is there is asked at each of them with the σ the
-//!    recordings give ([`super::selection::unidentified_in_final`]); how large it is carries
-//!    their changes.
+//!    width) are kept beside the σ they widen. Whether an effect is there is asked at each of
+//!    them with the σ the recordings give ([`super::selection::unidentified_in_final`]); how
+//!    large it is carries their changes.
 //! 6. **The model's stated accuracy** (Type B): on parameters read from the pattern of the
 //!    natural frequencies ([`add_model_accuracy_std`], also read by the significance test) and,
 //!    in the reported 1-σ only, on every effect parameter read from the size of the response
