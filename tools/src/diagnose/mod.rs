@@ -214,7 +214,7 @@ pub struct Diagnosis {
     /// reported `mount_frequency_hz` of that effect. `None` without such a mount.
     pub mount_resonance: Option<(f64, f64)>,
     /// Selection trace: every round's candidates with ΔBIC, validation Δ(−2 ln L), reduction,
-    /// allowance and verdict, split-refit spreads and backward checks (`DIAG_SELECT=1` makes
+    /// allowance and verdict, split-refit gains and backward checks (`DIAG_SELECT=1` makes
     /// `beamtool diagnose` print it).
     pub trace: Vec<String>,
 }

@@ -1,7 +1,7 @@
 //! The model-form allowance of condition 3 of [`super::guard`]: what a physics-free correction
 //! with as many parameters earns on the validation residual ([`allowance`], with the
 //! dictionary's columns [`generic_columns`] less the candidates' own physics, [`FORCE_WITHOUT`],
-//! [`BASE_WITHOUT_LOOP`]), the split-refit spread's share, and the reduction credited to a
+//! [`BASE_WITHOUT_LOOP`]), the split-refit gain's share, and the reduction credited to a
 //! candidate per channel.
 
 use super::guard::*;
@@ -58,19 +58,21 @@ fn reduction_on(vrss: &[f64; 3], vrss0: &[f64; 3], vn: &[usize; 3], c: usize) ->
     }
 }
 
-/// The size of a split refit's change of the validation rms residual, ratio `rho` (refit /
-/// reference), on the scale of a candidate's reduction (1 − new/old, at most 1): 1 − ρ for an
-/// improvement and 1 − 1/ρ, the reduction from the refit back to the reference, for a
-/// worsening — the same |ln ρ| either way. The plain |1 − ρ| of a worsening is unbounded:
-/// a model so far that predicts the validation 2.3× worse when refitted to one recording gave an
-/// allowance of 132 %, which no reduction can beat (`quadratic_damping` 85400: its 92 % gain,
-/// the drag the amplitude-dependent split refits had disagreed on, was refused).
-pub(crate) fn split_change(rho: f64) -> f64 {
-    1.0 - rho.min(1.0 / rho)
+/// The gain a split refit reaches on the validation rms residual, ratio `rho` (refit /
+/// reference), on the scale of a candidate's reduction: 1 − ρ for an improvement, 0 for a
+/// worsening. The allowance is what re-tuning the parameters the model already has can earn
+/// without new physics; a refit that predicts the validation worse earns nothing — it shows the
+/// one recording leaves those parameters loosely held, which the full fit settles, not a gain a
+/// candidate could be mistaken for. Counted as a change of either sign (|ln ρ|, until December
+/// 2026), a model with an unrecorded base and a loop in it, both refits 25 % off the
+/// validation, held a drag that gained 22 % with Δ(−2 ln L) −1 241 below that allowance
+/// (independent-v2 case01); no null set moved (docs/diagnose.md, "Results").
+pub(crate) fn split_gain(rho: f64) -> f64 {
+    (1.0 - rho).max(0.0)
 }
 
 /// The model-form allowance of channel `c` for `k` parameters: what the physics-free correction
-/// earns on `base`'s validation residual, or its split-refit spread if larger. Where no `k`
+/// earns on `base`'s validation residual, or its split-refit gain if larger. Where no `k`
 /// columns of the dictionary can be solved (its rank is below k: two of its signals the same),
 /// a correction of k parameters is one of fewer, and the largest solvable size stands
 /// ([`arx::best_correction_of_size`]). Until session 41 that counted 0, and a loop form of

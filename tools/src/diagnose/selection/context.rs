@@ -2,7 +2,7 @@
 //! trace; fitting a set of candidates, turning a fit into a [`Reference`], the split-refit
 //! spread, and evaluating a candidate (fit, then [`Ctx::assess`]).
 
-use super::allowance::{generic_column_count, generic_columns, split_change};
+use super::allowance::{generic_column_count, generic_columns, split_gain};
 use super::guard::*;
 use super::state::Reference;
 use crate::diagnose::effects::{Calib, Candidate};
@@ -136,14 +136,14 @@ impl Ctx<'_> {
         })
     }
 
-    /// The split-refit spread of `base` (model `set`): refitted to each fit recording alone
-    /// (warm from `base`, `max_evaluations` shared), the relative change of the validation rms
-    /// residual per channel; its smallest magnitude over the recordings is how much re-tuning
-    /// the existing parameters to other excitation at least moves the validation error — a gain
-    /// within it is not evidence of new physics (the smallest, because one recording alone may
-    /// leave the model undetermined). Zero with a single fit recording. Returns it and the model
-    /// evaluations used.
-    pub(crate) fn split_spread(
+    /// The split-refit gain of `base` (model `set`): refitted to each fit recording alone
+    /// (warm from `base`, `max_evaluations` shared), the reduction of the validation rms
+    /// residual per channel ([`split_gain`], 0 for a worsening); its smallest over the
+    /// recordings is what re-tuning the existing parameters to other excitation earns whichever
+    /// recording it is tuned to — a gain within it is not evidence of new physics (the smallest,
+    /// because one recording alone may leave the model undetermined and gain by chance). Zero
+    /// with a single fit recording. Returns it and the model evaluations used.
+    pub(crate) fn split_refit_gain(
         &self,
         set: &[&Candidate],
         base: &Reference,
@@ -179,7 +179,7 @@ impl Ctx<'_> {
             let (vrss, _) = channel_rss(std::slice::from_ref(&vres));
             for c in 0..3 {
                 if base.vn[c] > 0 && base.vrss[c] > 0.0 {
-                    let change = split_change((vrss[c] / base.vrss[c]).sqrt());
+                    let change = split_gain((vrss[c] / base.vrss[c]).sqrt());
                     if change.is_finite() {
                         spread[c] = spread[c].min(change);
                     }
@@ -190,7 +190,7 @@ impl Ctx<'_> {
             *v = 0.0;
         }
         self.trace(format!(
-            "split-refit spread of the validation residual per channel: {spread:?}"
+            "split-refit gain on the validation residual per channel: {spread:?}"
         ));
         (spread, used)
     }

@@ -29,10 +29,10 @@
 //!    `allowance::BASE_WITHOUT_LOOP`; a correction larger than the dictionary's rank counts as
 //!    the largest solvable one; for a length series
 //!    the best k-term smooth trend of the relative frequency error in the length); for
-//!    recordings also at least the *split-refit spread*: how much the validation rms residual
-//!    changes when the model so far is refitted to one fit recording alone (the smallest such
-//!    change over the fit recordings): a gain that re-tuning the existing parameters to other
-//!    excitation could also produce is no evidence of new physics. This replaces
+//!    recordings also at least the *split-refit gain*: how much the validation rms residual
+//!    drops when the model so far is refitted to one fit recording alone (the smallest such
+//!    gain over the fit recordings, 0 where a refit predicts worse): a gain that re-tuning the
+//!    existing parameters to other excitation also produces is no evidence of new physics. This replaces
 //!    a fixed percentage chosen on one generator's floor: the allowance is large where generic
 //!    model-form freedom explains much, ≈ 0 where the residual is white or unrelated to the
 //!    model's input and output;
@@ -111,7 +111,7 @@ pub struct Evidence {
     /// Relative rms reduction of the never-fitted residual (the channel it helps most).
     pub reduction: f64,
     /// The model-form allowance: the same reduction earned by the physics-free correction with
-    /// as many coefficients (or, for recordings, the larger split-refit spread).
+    /// as many coefficients (or, for recordings, the larger split-refit gain).
     pub allowance: f64,
     /// Structured power of that residual before and after (`None`: not a time series).
     pub structured: Option<(f64, f64)>,

@@ -14,7 +14,7 @@ use crate::diagnose::{stage, CandidateOutcome};
 use crate::progress::Progress;
 
 /// Refits the current model alone first, so that a better joint optimum of what is already
-/// chosen is never credited to the next candidate; then measures its split-refit spread.
+/// chosen is never credited to the next candidate; then measures its split-refit gain.
 fn refresh_reference(
     ctx: &Ctx,
     cands: &[Candidate],
@@ -34,7 +34,7 @@ fn refresh_reference(
             }
         }
     }
-    let (split, used) = ctx.split_spread(&set, reference, budget.share(pool_len + 2));
+    let (split, used) = ctx.split_refit_gain(&set, reference, budget.share(pool_len + 2));
     budget.spend(used);
     reference.split = split;
 }

@@ -30,9 +30,9 @@ pub(crate) struct Reference {
     /// part, [`super::decision::predictive_test`]).
     pub(crate) fres: Vec<[Option<Vec<f64>>; 3]>,
     pub(crate) tau_val: [f64; 3],
-    /// Per channel, how much the validation rms residual changes when this model is refitted
-    /// to one fit recording alone (the smallest |relative change| over the fit recordings;
-    /// [`Ctx::split_spread`]), 0 until computed.
+    /// Per channel, how much the validation rms residual drops when this model is refitted to
+    /// one fit recording alone (the smallest relative gain over the fit recordings, 0 for a
+    /// worsening; [`Ctx::split_refit_gain`]), 0 until computed.
     pub(crate) split: [f64; 3],
 }
 
