@@ -17,20 +17,27 @@
 //! So when an effect is chosen and its look-alike passed every guard in the same round (it
 //! explains the recordings on its own as well), the final model is refitted with the look-alike
 //! in its place (warm from both optima, the same calibration and the other effects) and the two
-//! are compared with the guard's own margins, on all channels at once (so `force_n` speaks
-//! wherever it can, after every other effect — friction — is in the model):
-//! - the look-alike better by ΔBIC < −[`BIC_MARGIN`] on the fit recordings *and* Δ(−2 ln L) <
-//!   −[`VALIDATION_MARGIN`] on the validation recording: it replaces the chosen effect;
-//! - the chosen effect better by both margins, and in the round it was chosen better than its
+//! are compared on all channels at once (so `force_n` speaks wherever it can, after every other
+//! effect — friction — is in the model) by the decision rule's own test
+//! ([`super::decision`]: the Diebold–Mariano test of equal predictive accuracy over the fit and
+//! validation recordings, at the per-test level; the two models are not nested, so each side is
+//! charged the in-sample gain of the parameters it has beyond the other's) ([`predictive_verdict`]):
+//! - the model with the look-alike predicts better: the look-alike replaces the chosen effect;
+//! - the final model predicts better, and in the round it was chosen the chosen effect beat its
 //!   look-alike by more than the model-form allowance (a gap a physics-free correction with as
 //!   many parameters cannot close) and more than the spread among the fitted forms of one
 //!   effect (the loop's orders: what model form alone moves the gain by): it stays,
 //!   distinguished;
 //! - otherwise the two are reported **indistinguishable** with these channels (JSON
 //!   `indistinguishable_from`), rather than one named with a confidence the recordings do not
-//!   give. The one named is the one with the lower BIC on the fit recordings, unless the
-//!   validation recording favours the chosen effect by its margin: of two equivalent
-//!   explanations the information criterion picks, as among one effect's forms.
+//!   give. The one named is the one with the lower BIC on the fit recordings: of two
+//!   equivalent explanations the information criterion picks, as among one effect's forms.
+//!
+//! Under the earlier rule ([`super::decision::Rule::Guard`], the ablation) the two tests are the
+//! guard's margins instead ([`verdict`]: ΔBIC < −[`BIC_MARGIN`] on the fit recordings *and*
+//! Δ(−2 ln L) < −[`VALIDATION_MARGIN`] on the validation recording). Every look-alike check of
+//! the shared sets and the held-out seeds reaches the same verdict under both (docs/diagnose.md,
+//! "Results").
 //!
 //! A look-alike that comes in a *later* round, beside its chosen partner, is a second filter in
 //! series on the same path. It is the partner's model form ([`within_partner_form`]), and fails,
@@ -41,12 +48,14 @@
 use super::allowance::allowance;
 use super::budget::Budget;
 use super::context::Ctx;
+use super::decision::{in_sample_optimism, predictive_test, Rule};
 use super::guard::{delta_neg2ll_effective, BIC_MARGIN, VALIDATION_MARGIN};
 use super::state::{n_of, Reference, Selection};
 use crate::diagnose::effects::Candidate;
 use crate::diagnose::fit::CHANNEL_NAMES;
 use crate::diagnose::CandidateOutcome;
 use crate::effect::Effect;
+use crate::numeric::predictive::PredictiveTest;
 use nalgebra::DVector;
 
 /// A chosen effect the recordings cannot tell from another one (module docs).
@@ -87,9 +96,18 @@ pub(crate) fn resolve(ctx: &Ctx, cands: &[Candidate], sel: &mut Selection, budge
             continue;
         };
         let (r, db, dv) = (refit.reference, refit.delta_bic, refit.delta_val);
+        let rule = super::decision::rule();
+        let tests = match rule {
+            Rule::Predictive => format!(
+                "; Diebold–Mariano z {} for {b}, {} for {a}",
+                dm_words(refit.alt_test.as_ref()),
+                dm_words(refit.chosen_test.as_ref())
+            ),
+            Rule::Guard => String::new(),
+        };
         let numbers = match &refit.not_converged {
             None => format!(
-                "{b} in its place: ΔBIC {db:+.1} on the fit recordings, validation Δ(−2lnL) {dv:+.1}"
+                "{b} in its place: ΔBIC {db:+.1} on the fit recordings, validation Δ(−2lnL) {dv:+.1}{tests}"
             ),
             Some(why) => format!(
                 "{b} in its place: the refit did not converge ({why}), so no numbers are given"
@@ -97,7 +115,22 @@ pub(crate) fn resolve(ctx: &Ctx, cands: &[Candidate], sel: &mut Selection, budge
         };
         ctx.trace(format!("look-alike check of {a}: {numbers}"));
         let (beyond, gap) = beyond_model_form(sel, p, &alt);
-        let v = verdict(refit.not_converged.is_none(), db, dv, beyond);
+        let converged = refit.not_converged.is_none();
+        let v = match rule {
+            Rule::Guard => verdict(converged, db, dv, beyond),
+            Rule::Predictive => {
+                let passes = |t: Option<&PredictiveTest>| {
+                    super::decision::predictive_failure(t, ctx.tests).is_none()
+                };
+                predictive_verdict(
+                    converged,
+                    db,
+                    passes(refit.alt_test.as_ref()),
+                    passes(refit.chosen_test.as_ref()),
+                    beyond,
+                )
+            }
+        };
         if matches!(v, Verdict::Swap | Verdict::IndistinguishableSimpler) {
             ctx.trace(format!("look-alike check of {a}: {gap}"));
             let swapped = v == Verdict::Swap;
@@ -106,7 +139,14 @@ pub(crate) fn resolve(ctx: &Ctx, cands: &[Candidate], sel: &mut Selection, budge
                 effect: a,
                 indistinguishable: !swapped,
                 words: if swapped {
-                    format!("chosen over {a}, which passed too: {numbers} (both margins beaten)")
+                    format!(
+                        "chosen over {a}, which passed too: {numbers} ({})",
+                        match rule {
+                            Rule::Guard => "both margins beaten",
+                            Rule::Predictive =>
+                                "it predicts the recordings better at the family-wise level",
+                        }
+                    )
                 } else {
                     format!(
                         "{}; named for its lower BIC on the fit recordings",
@@ -168,11 +208,47 @@ fn verdict(converged: bool, db: f64, dv: f64, beyond: bool) -> Verdict {
     }
 }
 
+/// The verdict of [`Rule::Predictive`]: the look-alike replaces the chosen effect when the
+/// model with it predicts the recordings better by the predictive test at the per-test level
+/// (`alt_better`, [`super::decision`]); the chosen effect stays, distinguished, when the
+/// reverse test passes (`chosen_better`) and it beat the look-alike beyond model form in its
+/// round (`beyond`); otherwise the two are indistinguishable, the one with the lower BIC on
+/// the fit recordings named (ΔBIC `db` of the look-alike against the final model). The test
+/// replaces the margins of [`verdict`]; a refit that did not converge says nothing.
+fn predictive_verdict(
+    converged: bool,
+    db: f64,
+    alt_better: bool,
+    chosen_better: bool,
+    beyond: bool,
+) -> Verdict {
+    if !converged {
+        Verdict::Indistinguishable
+    } else if alt_better {
+        Verdict::Swap
+    } else if chosen_better && beyond {
+        Verdict::Keep
+    } else if db < 0.0 && !chosen_better {
+        Verdict::IndistinguishableSimpler
+    } else {
+        Verdict::Indistinguishable
+    }
+}
+
+/// A Diebold–Mariano z in words ("–" without one).
+fn dm_words(t: Option<&PredictiveTest>) -> String {
+    t.map_or("–".into(), |t| format!("{:.1}", t.z))
+}
+
 /// The final model refitted with a look-alike in place ([`refit_with`]).
 struct Refit {
     reference: Reference,
     delta_bic: f64,
     delta_val: f64,
+    /// The predictive test of the model with the look-alike against the final model.
+    alt_test: Option<PredictiveTest>,
+    /// The predictive test of the final model against the model with the look-alike.
+    chosen_test: Option<PredictiveTest>,
     /// Why the refit cannot be trusted, if so: the model refused parameter sets next to its
     /// best point (the Jacobian there crosses a non-finite prediction), or it never left the
     /// refusal level.
@@ -268,10 +344,25 @@ fn refit_with(
     let db =
         delta_neg2ll_effective(&r.rss, &base.rss, &n_fit, &base.tau_fit) + dk * n_eff.max(1.0).ln();
     let dv = delta_neg2ll_effective(&r.vrss, &base.vrss, &base.vn, &base.tau_val);
+    // non-nested: each side is charged the in-sample gain of the parameters it has beyond the
+    // other's
+    let (k_alt, k_chosen) = (alt_cand.params.len(), cands[sel.chosen[p]].params.len());
+    let alt_test = predictive_test(
+        [&r.fres[..], std::slice::from_ref(&r.vres)],
+        [&base.fres[..], std::slice::from_ref(&base.vres)],
+        in_sample_optimism(k_alt.saturating_sub(k_chosen), &base.tau_fit),
+    );
+    let chosen_test = predictive_test(
+        [&base.fres[..], std::slice::from_ref(&base.vres)],
+        [&r.fres[..], std::slice::from_ref(&r.vres)],
+        in_sample_optimism(k_chosen.saturating_sub(k_alt), &r.tau_fit),
+    );
     Some(Refit {
         reference: r,
         delta_bic: db,
         delta_val: dv,
+        alt_test,
+        chosen_test,
         not_converged,
     })
 }
@@ -512,6 +603,38 @@ mod tests {
             Verdict::Indistinguishable
         );
         assert_eq!(verdict(true, -50.0, -50.0, false), Verdict::Swap);
+    }
+
+    #[test]
+    fn the_predictive_verdict_swaps_only_on_the_test_and_keeps_only_beyond_model_form() {
+        // a refit that did not converge says nothing, whatever the tests read
+        assert_eq!(
+            predictive_verdict(false, -500.0, true, false, false),
+            Verdict::Indistinguishable
+        );
+        assert_eq!(
+            predictive_verdict(true, 30.0, true, false, false),
+            Verdict::Swap
+        );
+        assert_eq!(
+            predictive_verdict(true, 8268.8, false, true, true),
+            Verdict::Keep
+        );
+        // independent-v2 case24: the loop far better, but its gap over the latency within the
+        // spread of its own forms
+        assert_eq!(
+            predictive_verdict(true, 8268.8, false, true, false),
+            Verdict::Indistinguishable
+        );
+        // neither test passes: the lower BIC is named
+        assert_eq!(
+            predictive_verdict(true, -0.7, false, false, false),
+            Verdict::IndistinguishableSimpler
+        );
+        assert_eq!(
+            predictive_verdict(true, 5.5, false, false, false),
+            Verdict::Indistinguishable
+        );
     }
 
     #[test]
