@@ -95,42 +95,12 @@ pub(crate) fn resolve(ctx: &Ctx, cands: &[Candidate], sel: &mut Selection, budge
         let Some(refit) = refit_with(ctx, cands, sel, p, &alt, budget) else {
             continue;
         };
-        let (r, db, dv) = (refit.reference, refit.delta_bic, refit.delta_val);
         let rule = super::decision::rule();
-        let tests = match rule {
-            Rule::Predictive => format!(
-                "; Diebold–Mariano z {} for {b}, {} for {a}",
-                dm_words(refit.alt_test.as_ref()),
-                dm_words(refit.chosen_test.as_ref())
-            ),
-            Rule::Guard => String::new(),
-        };
-        let numbers = match &refit.not_converged {
-            None => format!(
-                "{b} in its place: ΔBIC {db:+.1} on the fit recordings, validation Δ(−2lnL) {dv:+.1}{tests}"
-            ),
-            Some(why) => format!(
-                "{b} in its place: the refit did not converge ({why}), so no numbers are given"
-            ),
-        };
+        let numbers = refit.words(a, b, rule);
         ctx.trace(format!("look-alike check of {a}: {numbers}"));
         let (beyond, gap) = beyond_model_form(sel, p, &alt);
-        let converged = refit.not_converged.is_none();
-        let v = match rule {
-            Rule::Guard => verdict(converged, db, dv, beyond),
-            Rule::Predictive => {
-                let passes = |t: Option<&PredictiveTest>| {
-                    super::decision::predictive_failure(t, ctx.tests).is_none()
-                };
-                predictive_verdict(
-                    converged,
-                    db,
-                    passes(refit.alt_test.as_ref()),
-                    passes(refit.chosen_test.as_ref()),
-                    beyond,
-                )
-            }
-        };
+        let v = refit.verdict(rule, beyond, ctx.tests);
+        let r = refit.reference;
         if matches!(v, Verdict::Swap | Verdict::IndistinguishableSimpler) {
             ctx.trace(format!("look-alike check of {a}: {gap}"));
             let swapped = v == Verdict::Swap;
@@ -255,6 +225,51 @@ struct Refit {
     not_converged: Option<String>,
 }
 
+impl Refit {
+    /// The comparison's numbers in words: chosen effect `a`, look-alike `b` in its place.
+    fn words(&self, a: Effect, b: Effect, rule: Rule) -> String {
+        let (db, dv) = (self.delta_bic, self.delta_val);
+        let tests = match rule {
+            Rule::Predictive => format!(
+                "; Diebold–Mariano z {} for {b}, {} for {a}",
+                dm_words(self.alt_test.as_ref()),
+                dm_words(self.chosen_test.as_ref())
+            ),
+            Rule::Guard => String::new(),
+        };
+        match &self.not_converged {
+            None => format!(
+                "{b} in its place: ΔBIC {db:+.1} on the fit recordings, validation Δ(−2lnL) {dv:+.1}{tests}"
+            ),
+            Some(why) => format!(
+                "{b} in its place: the refit did not converge ({why}), so no numbers are given"
+            ),
+        }
+    }
+
+    /// The verdict of `rule` ([`verdict`], [`predictive_verdict`]), `beyond` whether the chosen
+    /// effect beat its look-alike beyond model form in its round, `tests` the tests of the
+    /// diagnosis (the per-test level).
+    fn verdict(&self, rule: Rule, beyond: bool, tests: usize) -> Verdict {
+        let converged = self.not_converged.is_none();
+        match rule {
+            Rule::Guard => verdict(converged, self.delta_bic, self.delta_val, beyond),
+            Rule::Predictive => {
+                let passes = |t: Option<&PredictiveTest>| {
+                    super::decision::predictive_failure(t, tests).is_none()
+                };
+                predictive_verdict(
+                    converged,
+                    self.delta_bic,
+                    passes(self.alt_test.as_ref()),
+                    passes(self.chosen_test.as_ref()),
+                    beyond,
+                )
+            }
+        }
+    }
+}
+
 /// Before the first comparison, the final model itself is refitted from its optimum with the
 /// same share of the budget as its look-alike gets, so that extra iterations are never credited
 /// to the look-alike.
@@ -344,18 +359,11 @@ fn refit_with(
     let db =
         delta_neg2ll_effective(&r.rss, &base.rss, &n_fit, &base.tau_fit) + dk * n_eff.max(1.0).ln();
     let dv = delta_neg2ll_effective(&r.vrss, &base.vrss, &base.vn, &base.tau_val);
-    // non-nested: each side is charged the in-sample gain of the parameters it has beyond the
-    // other's
-    let (k_alt, k_chosen) = (alt_cand.params.len(), cands[sel.chosen[p]].params.len());
-    let alt_test = predictive_test(
-        [&r.fres[..], std::slice::from_ref(&r.vres)],
-        [&base.fres[..], std::slice::from_ref(&base.vres)],
-        in_sample_optimism(k_alt.saturating_sub(k_chosen), &base.tau_fit),
-    );
-    let chosen_test = predictive_test(
-        [&base.fres[..], std::slice::from_ref(&base.vres)],
-        [&r.fres[..], std::slice::from_ref(&r.vres)],
-        in_sample_optimism(k_chosen.saturating_sub(k_alt), &r.tau_fit),
+    let (alt_test, chosen_test) = tests_both_ways(
+        &r,
+        base,
+        alt_cand.params.len(),
+        cands[sel.chosen[p]].params.len(),
     );
     Some(Refit {
         reference: r,
@@ -365,6 +373,28 @@ fn refit_with(
         chosen_test,
         not_converged,
     })
+}
+
+/// The predictive tests of the model with the look-alike (`with`, `k_alt` effect parameters)
+/// against the final model (`base`, `k_chosen`) and the reverse. The models are not nested, so
+/// each side is charged the in-sample gain of the parameters it has beyond the other's.
+fn tests_both_ways(
+    with: &Reference,
+    base: &Reference,
+    k_alt: usize,
+    k_chosen: usize,
+) -> (Option<PredictiveTest>, Option<PredictiveTest>) {
+    let alt_test = predictive_test(
+        [&with.fres[..], std::slice::from_ref(&with.vres)],
+        [&base.fres[..], std::slice::from_ref(&base.vres)],
+        in_sample_optimism(k_alt.saturating_sub(k_chosen), &base.tau_fit),
+    );
+    let chosen_test = predictive_test(
+        [&base.fres[..], std::slice::from_ref(&base.vres)],
+        [&with.fres[..], std::slice::from_ref(&with.vres)],
+        in_sample_optimism(k_chosen.saturating_sub(k_alt), &with.tau_fit),
+    );
+    (alt_test, chosen_test)
 }
 
 /// Why the fit `f` of `set` did not converge, if so ([`Refit::not_converged`]): the Jacobian
