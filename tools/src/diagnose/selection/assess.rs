@@ -112,11 +112,7 @@ impl Ctx<'_> {
         k: usize,
         q_before: f64,
     ) -> (Vec<String>, Option<PredictiveTest>, Rule) {
-        let predictive = super::decision::predictive_test(
-            [&r.fres[..], std::slice::from_ref(&r.vres)],
-            [&base.fres[..], std::slice::from_ref(&base.vres)],
-            super::decision::in_sample_optimism(k, &base.tau_fit),
-        );
+        let predictive = r.predictive_test_against(base, k);
         let rule = super::decision::rule();
         let fails = match rule {
             Rule::Guard => {

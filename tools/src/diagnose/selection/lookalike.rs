@@ -48,7 +48,7 @@
 use super::allowance::allowance;
 use super::budget::Budget;
 use super::context::Ctx;
-use super::decision::{in_sample_optimism, predictive_test, Rule};
+use super::decision::Rule;
 use super::guard::{delta_neg2ll_effective, BIC_MARGIN, VALIDATION_MARGIN};
 use super::state::{n_of, Reference, Selection};
 use crate::diagnose::effects::Candidate;
@@ -359,12 +359,10 @@ fn refit_with(
     let db =
         delta_neg2ll_effective(&r.rss, &base.rss, &n_fit, &base.tau_fit) + dk * n_eff.max(1.0).ln();
     let dv = delta_neg2ll_effective(&r.vrss, &base.vrss, &base.vn, &base.tau_val);
-    let (alt_test, chosen_test) = tests_both_ways(
-        &r,
-        base,
-        alt_cand.params.len(),
-        cands[sel.chosen[p]].params.len(),
-    );
+    // not nested: each side is charged the parameters it has beyond the other's
+    let (k_alt, k_chosen) = (alt_cand.params.len(), cands[sel.chosen[p]].params.len());
+    let alt_test = r.predictive_test_against(base, k_alt.saturating_sub(k_chosen));
+    let chosen_test = base.predictive_test_against(&r, k_chosen.saturating_sub(k_alt));
     Some(Refit {
         reference: r,
         delta_bic: db,
@@ -373,28 +371,6 @@ fn refit_with(
         chosen_test,
         not_converged,
     })
-}
-
-/// The predictive tests of the model with the look-alike (`with`, `k_alt` effect parameters)
-/// against the final model (`base`, `k_chosen`) and the reverse. The models are not nested, so
-/// each side is charged the in-sample gain of the parameters it has beyond the other's.
-fn tests_both_ways(
-    with: &Reference,
-    base: &Reference,
-    k_alt: usize,
-    k_chosen: usize,
-) -> (Option<PredictiveTest>, Option<PredictiveTest>) {
-    let alt_test = predictive_test(
-        [&with.fres[..], std::slice::from_ref(&with.vres)],
-        [&base.fres[..], std::slice::from_ref(&base.vres)],
-        in_sample_optimism(k_alt.saturating_sub(k_chosen), &base.tau_fit),
-    );
-    let chosen_test = predictive_test(
-        [&base.fres[..], std::slice::from_ref(&base.vres)],
-        [&with.fres[..], std::slice::from_ref(&with.vres)],
-        in_sample_optimism(k_chosen.saturating_sub(k_alt), &with.tau_fit),
-    );
-    (alt_test, chosen_test)
 }
 
 /// Why the fit `f` of `set` did not converge, if so ([`Refit::not_converged`]): the Jacobian

@@ -36,6 +36,24 @@ pub(crate) struct Reference {
     pub(crate) split: [f64; 3],
 }
 
+impl Reference {
+    /// The predictive test of this model against `without`, the model it is compared with
+    /// ([`super::decision::predictive_test`]: fit and validation residuals, every recorded
+    /// channel), charging this model the in-sample gain of its `extra_params` parameters beyond
+    /// `without`'s ([`super::decision::in_sample_optimism`], at `without`'s autocorrelation time).
+    pub(crate) fn predictive_test_against(
+        &self,
+        without: &Reference,
+        extra_params: usize,
+    ) -> Option<crate::numeric::predictive::PredictiveTest> {
+        super::decision::predictive_test(
+            [&self.fres[..], std::slice::from_ref(&self.vres)],
+            [&without.fres[..], std::slice::from_ref(&without.vres)],
+            super::decision::in_sample_optimism(extra_params, &without.tau_fit),
+        )
+    }
+}
+
 /// What forward selection ends with.
 #[derive(Clone)]
 pub(crate) struct Selection {
