@@ -7,6 +7,7 @@
 
 mod allocator;
 pub mod board;
+pub mod bootstrap;
 pub mod diagnose;
 pub mod ident;
 mod identbench;
@@ -82,6 +83,9 @@ pub enum Command {
     Watch(crate::cli::watch::WatchArgs),
     /// Coverage of the pooled ring-down path's ±2σ on synthetic closed-loop recordings.
     RingdownCoverage(crate::cli::ringdown::RingdownCoverageArgs),
+    /// The diagnosis' decision rule on null replicates of your recordings (parametric bootstrap
+    /// of the calibrated no-effect model): false alarms and the p-values' uniformity.
+    DiagnoseBootstrap(crate::cli::bootstrap::BootstrapArgs),
 }
 
 /// Runs one command: one arm per command (keep one line per arm where possible, append new
@@ -125,6 +129,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::OmaCoverage(a) => crate::cli::oma::oma_coverage(a),
         Command::Watch(a) => crate::cli::watch::watch(a),
         Command::RingdownCoverage(a) => crate::cli::ringdown::ringdown_coverage_cmd(a),
+        Command::DiagnoseBootstrap(a) => crate::cli::bootstrap::bootstrap(a),
     }
 }
 

@@ -17,6 +17,8 @@
 //!   ([`selection::guard`]: BIC + validation + model-form allowance + whiteness + significance),
 //!   the evidence measures, the rounds, pairs, placement, look-alikes
 //!   ([`selection::lookalike`]) and the backward step ([`selection::backward`]);
+//! - [`bootstrap`]: a parametric bootstrap of the calibrated no-effect model (the decision
+//!   rule checked on nulls made from the user's own recordings);
 //! - [`conclude`]: the final model measured, its effects required to be identified, the
 //!   [`Diagnosis`] assembled;
 //! - [`report`]: JSON, words, SVG plots; [`proof`]: the own-generator proof; [`honesty`]:
@@ -34,6 +36,7 @@
 //! fit recordings' samples), never on the clock, so the same recordings give the same answer on
 //! any machine.
 
+pub mod bootstrap;
 pub mod calibrate;
 pub mod conclude;
 pub mod effects;

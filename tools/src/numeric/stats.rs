@@ -153,20 +153,81 @@ pub fn ljung_box(r: &[f64], lags: usize) -> f64 {
 /// `var(r) − innovation_variance` is the predictable (structured) variance. 0 for fewer than
 /// `order + 2` samples or a constant `r`.
 pub fn innovation_variance(r: &[f64], order: usize) -> f64 {
+    let mut last = 0.0;
+    levinson_durbin(r, order, |p, _, e| {
+        if p == order {
+            last = e;
+        }
+    });
+    last
+}
+
+/// An autoregressive model x_t = Σ_{j=1..p} a_j x_{t−j} + e_t, e_t white with variance
+/// `innovation_variance` (units of x squared).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Autoregressive {
+    /// a_1 … a_p.
+    pub coefficients: Vec<f64>,
+    /// Variance of e_t.
+    pub innovation_variance: f64,
+}
+
+impl Autoregressive {
+    /// Fits `r` (mean removed) by Levinson–Durbin on its biased sample autocovariances (Yule–Walker;
+    /// Box & Jenkins, §3.2; the model is then stable) with the order 0 … `max_order` of least
+    /// Akaike information n ln σ̂²_p + 2p (Akaike 1974). `None` for fewer than `max_order + 2`
+    /// samples or a constant `r`.
+    pub fn fit_aic(r: &[f64], max_order: usize) -> Option<Self> {
+        let n = r.len() as f64;
+        let mut best: Option<(f64, Self)> = None;
+        levinson_durbin(r, max_order, |p, a, e| {
+            let aic = n * e.ln() + 2.0 * p as f64;
+            if best.as_ref().map_or(true, |(b, _)| aic < *b) {
+                let model = Self {
+                    coefficients: a[1..=p].to_vec(),
+                    innovation_variance: e,
+                };
+                best = Some((aic, model));
+            }
+        });
+        best.map(|(_, m)| m)
+    }
+
+    /// `n` samples of the stationary process driven by `white` (independent N(0, 1) draws,
+    /// scaled by the innovation standard deviation), after a burn-in as long as the output
+    /// (from rest, so every pole of the stable model has decayed by its share of 2n samples).
+    pub fn simulate(&self, n: usize, mut white: impl FnMut() -> f64) -> Vec<f64> {
+        let s = self.innovation_variance.sqrt();
+        let p = self.coefficients.len();
+        let mut x = vec![0.0; 2 * n + p];
+        for t in p..x.len() {
+            let past: f64 = (1..=p).map(|j| self.coefficients[j - 1] * x[t - j]).sum();
+            x[t] = past + s * white();
+        }
+        x.split_off(n + p)
+    }
+}
+
+/// The Levinson–Durbin recursion on the biased sample autocovariances of `r` (mean removed),
+/// calling `each(p, a, e_p)` for every order p = 0 … `max_order` with the coefficients
+/// `a[1..=p]` and the innovation variance e_p; stops early (without calling) on fewer than
+/// `max_order + 2` samples, a constant `r` or a non-positive e_p.
+fn levinson_durbin(r: &[f64], max_order: usize, mut each: impl FnMut(usize, &[f64], f64)) {
     let n = r.len();
-    if n < order + 2 {
-        return 0.0;
+    if n < max_order + 2 {
+        return;
     }
     let m = r.iter().sum::<f64>() / n as f64;
-    let c: Vec<f64> = (0..=order)
+    let c: Vec<f64> = (0..=max_order)
         .map(|k| (k..n).map(|i| (r[i] - m) * (r[i - k] - m)).sum::<f64>() / n as f64)
         .collect();
     if !(c[0] > 0.0) {
-        return 0.0;
+        return;
     }
-    let mut a = vec![0.0; order + 1];
+    let mut a = vec![0.0; max_order + 1];
     let mut e = c[0];
-    for k in 1..=order {
+    each(0, &a, e);
+    for k in 1..=max_order {
         let acc: f64 = (1..k).map(|j| a[j] * c[k - j]).sum();
         let kappa = (c[k] - acc) / e;
         let prev = a.clone();
@@ -176,10 +237,28 @@ pub fn innovation_variance(r: &[f64], order: usize) -> f64 {
         }
         e *= 1.0 - kappa * kappa;
         if !(e > 0.0) {
-            return 0.0;
+            return;
         }
+        each(k, &a, e);
     }
-    e
+}
+
+/// The one-sample Kolmogorov–Smirnov statistic D = sup |F_n(p) − p| of `p` against the uniform
+/// distribution on [0, 1] (Massey 1951), with its large-sample 5 % critical value 1.36/√n.
+/// `None` for no values.
+pub fn ks_uniform(p: &[f64]) -> Option<(f64, f64)> {
+    if p.is_empty() {
+        return None;
+    }
+    let mut s = p.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len() as f64;
+    let d = s
+        .iter()
+        .enumerate()
+        .map(|(i, &x)| ((i + 1) as f64 / n - x).max(x - i as f64 / n))
+        .fold(0.0, f64::max);
+    Some((d, 1.36 / n.sqrt()))
 }
 
 /// White-noise variance of `r` from its spectral floor: the median of the periodogram
@@ -317,6 +396,40 @@ pub fn noise_variance(r: &[f64], order: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_autoregressive_fit_finds_the_order_and_coefficients_it_was_simulated_with() {
+        use rand::SeedableRng;
+        use rand_distr::Distribution;
+        // a resonant AR(2): poles at radius 0.95, ±0.3 rad; innovation variance 4
+        let truth = Autoregressive {
+            coefficients: vec![2.0 * 0.95 * 0.3f64.cos(), -0.95 * 0.95],
+            innovation_variance: 4.0,
+        };
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let normal = rand_distr::StandardNormal;
+        let x = truth.simulate(20_000, || normal.sample(&mut rng));
+        assert_eq!(x.len(), 20_000);
+        let fit = Autoregressive::fit_aic(&x, 20).expect("fits");
+        assert!(fit.coefficients.len() >= 2, "{fit:?}");
+        for (a, b) in fit.coefficients.iter().zip(&truth.coefficients) {
+            assert!((a - b).abs() < 0.03, "{fit:?}");
+        }
+        // AIC leaves out what the process does not have: the extra coefficients are small
+        assert!(fit.coefficients[2..].iter().all(|a| a.abs() < 0.03), "{fit:?}");
+        assert!((fit.innovation_variance / 4.0 - 1.0).abs() < 0.05, "{fit:?}");
+        assert_eq!(Autoregressive::fit_aic(&[1.0; 50], 4), None);
+    }
+
+    #[test]
+    fn the_kolmogorov_smirnov_statistic_is_small_on_a_uniform_grid_and_large_on_a_pile() {
+        let grid: Vec<f64> = (0..100).map(|i| (i as f64 + 0.5) / 100.0).collect();
+        let (d, crit) = ks_uniform(&grid).unwrap();
+        assert!((d - 0.005).abs() < 1e-12 && (crit - 0.136).abs() < 1e-12, "{d} {crit}");
+        let pile = vec![0.01; 50];
+        assert!((ks_uniform(&pile).unwrap().0 - 0.99).abs() < 1e-12);
+        assert_eq!(ks_uniform(&[]), None);
+    }
 
     #[test]
     fn an_encoders_counts_have_a_quantum_and_noise_has_none() {
