@@ -208,19 +208,55 @@ impl Autoregressive {
     }
 }
 
+/// The biased sample autocovariances c_k = Σ_{i≥k} (x_i − x̄)(x_{i−k} − x̄) / n of `x` for lags
+/// 0 … `max_lag` (`max_lag` < n). Summed directly up to lag [`DIRECT_AUTOCOVARIANCE_LAGS`], through
+/// a zero-padded real FFT beyond (the Wiener–Khinchin relation; O(n log n) instead of
+/// O(n · max_lag)).
+pub fn autocovariances(x: &[f64], max_lag: usize) -> Vec<f64> {
+    let n = x.len();
+    let m = x.iter().sum::<f64>() / n.max(1) as f64;
+    if max_lag <= DIRECT_AUTOCOVARIANCE_LAGS {
+        return (0..=max_lag)
+            .map(|k| (k..n).map(|i| (x[i] - m) * (x[i - k] - m)).sum::<f64>() / n as f64)
+            .collect();
+    }
+    let len = (2 * n).next_power_of_two();
+    let mut planner = realfft::RealFftPlanner::<f64>::new();
+    let (fwd, inv) = (planner.plan_fft_forward(len), planner.plan_fft_inverse(len));
+    let mut buf: Vec<f64> = x.iter().map(|v| v - m).collect();
+    buf.resize(len, 0.0);
+    let mut spec = fwd.make_output_vec();
+    fwd.process(&mut buf, &mut spec).expect("sizes from the planner");
+    for z in spec.iter_mut() {
+        *z = realfft::num_complex::Complex::new(z.norm_sqr(), 0.0);
+    }
+    inv.process(&mut spec, &mut buf).expect("sizes from the planner");
+    buf.truncate(max_lag + 1);
+    buf.iter().map(|v| v / (len as f64 * n as f64)).collect()
+}
+
+/// Lags up to which [`autocovariances`] sums directly (below it the FFT saves nothing).
+const DIRECT_AUTOCOVARIANCE_LAGS: usize = 64;
+
+impl Autoregressive {
+    /// The process' long-run variance, 2π × its spectral density at frequency zero:
+    /// σ²_e / (1 − Σ a_j)² (the autoregressive spectral estimator, Berk 1974; den Haan & Levin
+    /// 1997). ∞ for a unit root.
+    pub fn spectrum_at_zero(&self) -> f64 {
+        let g = 1.0 - self.coefficients.iter().sum::<f64>();
+        self.innovation_variance / (g * g)
+    }
+}
+
 /// The Levinson–Durbin recursion on the biased sample autocovariances of `r` (mean removed),
 /// calling `each(p, a, e_p)` for every order p = 0 … `max_order` with the coefficients
 /// `a[1..=p]` and the innovation variance e_p; stops early (without calling) on fewer than
 /// `max_order + 2` samples, a constant `r` or a non-positive e_p.
 fn levinson_durbin(r: &[f64], max_order: usize, mut each: impl FnMut(usize, &[f64], f64)) {
-    let n = r.len();
-    if n < max_order + 2 {
+    if r.len() < max_order + 2 {
         return;
     }
-    let m = r.iter().sum::<f64>() / n as f64;
-    let c: Vec<f64> = (0..=max_order)
-        .map(|k| (k..n).map(|i| (r[i] - m) * (r[i - k] - m)).sum::<f64>() / n as f64)
-        .collect();
+    let c = autocovariances(r, max_order);
     if !(c[0] > 0.0) {
         return;
     }
@@ -419,6 +455,18 @@ mod tests {
         assert!(fit.coefficients[2..].iter().all(|a| a.abs() < 0.03), "{fit:?}");
         assert!((fit.innovation_variance / 4.0 - 1.0).abs() < 0.05, "{fit:?}");
         assert_eq!(Autoregressive::fit_aic(&[1.0; 50], 4), None);
+    }
+
+    #[test]
+    fn autocovariances_through_the_fft_are_the_direct_sums() {
+        let x: Vec<f64> = (0..1000).map(|k| (k as f64 * 0.37).sin() + (k % 7) as f64).collect();
+        let fft = autocovariances(&x, 200);
+        let m = x.iter().sum::<f64>() / 1000.0;
+        for k in [0, 1, 65, 200] {
+            let direct = (k..1000).map(|i| (x[i] - m) * (x[i - k] - m)).sum::<f64>() / 1000.0;
+            assert!((fft[k] - direct).abs() < 1e-9 * direct.abs().max(1.0), "{k}");
+        }
+        assert_eq!(autocovariances(&x, 10).len(), 11);
     }
 
     #[test]
