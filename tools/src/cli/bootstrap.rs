@@ -2,7 +2,7 @@
 //! recordings ([`crate::diagnose::bootstrap`]): how many name an effect or report `unexplained`,
 //! and whether the candidates' p-values are uniform.
 
-use crate::diagnose::bootstrap::null_model;
+use crate::diagnose::bootstrap::{null_model, NoiseFrom};
 use crate::diagnose::report::to_json;
 use crate::diagnose::{diagnose as run_diagnosis, model::Prepared};
 use crate::model::Rig;
@@ -31,6 +31,11 @@ pub struct BootstrapArgs {
     /// Seed of the noise draws.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Where each channel's noise model is read: `final` (the residual of the diagnosis' final
+    /// model of these recordings) or `calibrated` (the calibrated nominal model's: every effect
+    /// of the rig counted as noise).
+    #[arg(long, default_value = "final", value_parser = ["final", "calibrated"])]
+    pub noise_from: String,
     /// Output directory: bootstrap.json (the noise models, every replicate's outcome, the
     /// p-values' Kolmogorov–Smirnov statistic) and replicate-NN.json (each diagnosis).
     #[arg(long)]
@@ -54,7 +59,17 @@ pub fn bootstrap(a: BootstrapArgs) -> Result<()> {
         .map(|p| super::diagnose::load(p, &rig, &opts))
         .collect::<Result<_>>()?;
     let val = super::diagnose::load(&a.validate, &rig, &opts)?;
-    let null = null_model(&rig, &fit, &val)?;
+    let from = match a.noise_from.as_str() {
+        "calibrated" => NoiseFrom::Calibrated,
+        _ => NoiseFrom::Final,
+    };
+    let null = null_model(&rig, &fit, &val, from)?;
+    if let Some(named) = &null.named {
+        println!(
+            "the recordings' own diagnosis named [{}]: left out of every replicate; the noise is what its final model leaves",
+            named.join(", ")
+        );
+    }
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("cannot create {}", a.out.display()))?;
     let mut rng = rand::rngs::StdRng::seed_from_u64(a.seed);
@@ -138,8 +153,10 @@ fn summarise(
             json!({"recording": name, "base_pos_m": each[0], "tip_pos_m": each[1], "force_n": each[2]})
         })
         .collect();
+    let named_first = &null.named;
     let summary = json!({
         "rig": a.rig, "fit": a.fit, "validate": a.validate, "seed": a.seed,
+        "noise_from": a.noise_from, "named_on_the_recordings": named_first,
         "noise_models": noise,
         "replicates": rows,
         "false_alarms": alarms,

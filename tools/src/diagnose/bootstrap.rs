@@ -10,10 +10,12 @@
 //! 1. the recordings are prepared and brought to the working rate as [`super::diagnose`] does,
 //!    and the nominal model is calibrated to the fit recordings ([`super::calibrate`]);
 //! 2. every recorded channel of every recording (fit and validation) gets a noise model: an
-//!    autoregressive process fitted to its calibrated residual
-//!    ([`crate::numeric::stats::Autoregressive::fit_aic`], order by AIC up to
-//!    [`MAX_NOISE_ORDER`]) — the residual's own spectrum, model-form error included, as
-//!    stationary Gaussian noise;
+//!    autoregressive process ([`crate::numeric::stats::Autoregressive::fit_aic`], order by AIC
+//!    up to [`MAX_NOISE_ORDER`]) fitted to what the model leaves — by default the residual of
+//!    the diagnosis' own final model of these recordings ([`NoiseFrom::Final`]: what the named
+//!    effects explain is physics, not noise), or the calibrated nominal model's residual
+//!    ([`NoiseFrom::Calibrated`]: every effect of the rig counted as noise) — the residual's
+//!    own spectrum, model-form error included, as stationary Gaussian noise;
 //! 3. a replicate is the calibrated model's prediction on the recording's own inputs (command,
 //!    and the measured base where the beam is driven by it) plus one draw of that noise, on
 //!    every channel; samples left out of the recording (a rail, no reading) stay left out;
@@ -53,32 +55,70 @@ pub struct NullModel {
     pub noise: Vec<[Option<Autoregressive>; 3]>,
     /// Recording names, in the order of `noise`.
     pub names: Vec<String>,
+    /// The effects the diagnosis of the recordings named ([`NoiseFrom::Final`]; `None` with
+    /// [`NoiseFrom::Calibrated`]): left out of every replicate.
+    pub named: Option<Vec<String>>,
 }
 
-/// Calibrates the nominal model to `fit_data` (brought to the working rate first) and fits each
-/// channel's noise model to its calibrated residual (module header, steps 1–2).
+/// Where a channel's noise model is read (module header, step 2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NoiseFrom {
+    /// The residual of the diagnosis' final model of the recordings.
+    Final,
+    /// The residual of the calibrated nominal model.
+    Calibrated,
+}
+
+/// Calibrates the nominal model to `fit_data` (brought to the working rate first, the drive
+/// read as the diagnosis of the recordings chooses) and fits each channel's noise model to the
+/// residual `from` says (module header, steps 1–2).
 ///
-/// Errors: as [`super::diagnose`]'s set-up and calibration (recordings without information, a
-/// rig the model refuses), or a channel whose residual has no noise to model (constant).
-pub fn null_model(rig: &Rig, fit_data: &[Prepared], validate: &Prepared) -> Result<NullModel> {
+/// Errors: as [`super::diagnose`] (recordings without information, a rig the model refuses),
+/// or a channel whose residual has no noise to model (constant).
+pub fn null_model(
+    rig: &Rig,
+    fit_data: &[Prepared],
+    validate: &Prepared,
+    from: NoiseFrom,
+) -> Result<NullModel> {
     let working_rate = super::rate::choose(fit_data, validate);
     let (fit_w, val_w) = super::rate::to_working_rate(&working_rate, fit_data, validate);
     let quantum = super::calibrate::drive_quantum_m(&fit_w);
     let su = super::calibrate::setup(rig, &fit_w, &val_w, quantum)?;
-    let mut budget = Budget::for_samples(fit_w.iter().map(|d| d.cmd_m.len()).sum());
     let mut silent = crate::progress::Silent;
-    let cal = super::calibrate::calibrate(rig, &fit_w, &su.calib, &mut budget, &mut silent, 1)?;
-    let vpred = validation_prediction(rig, &val_w, cal.sigma, &su.calib, &cal.fit)?;
+    let diagnosis = match from {
+        NoiseFrom::Final => Some(super::diagnose(rig, fit_data, validate, &mut silent)?),
+        NoiseFrom::Calibrated => None,
+    };
+    let calib = diagnosis
+        .as_ref()
+        .map_or(su.calib.clone(), |d| su.calib.with_reading(d.drive_reading.chosen));
+    let mut budget = Budget::for_samples(fit_w.iter().map(|d| d.cmd_m.len()).sum());
+    let cal = super::calibrate::calibrate(rig, &fit_w, &calib, &mut budget, &mut silent, 1)?;
+    let vpred = validation_prediction(rig, &val_w, cal.sigma, &calib, &[], &cal.fit)?;
     let mut preds = cal.preds;
     preds.push(vpred);
+    let left = match &diagnosis {
+        None => preds.clone(),
+        Some(d) => {
+            let set: Vec<&super::effects::Candidate> = d.final_set.iter().collect();
+            let x = d.final_fit.x.clone();
+            let mut p = fit::Problem::new(rig, &fit_w, d.sigma, &calib, &set, x.clone())
+                .predictions(&x)
+                .ok_or_else(|| anyhow!("the final model cannot simulate the fit recordings"))?;
+            p.push(d.final_val_pred.clone());
+            p
+        }
+    };
     let all: Vec<&Prepared> = fit_w.iter().chain(std::iter::once(&val_w)).collect();
     let noise = all
         .iter()
-        .zip(&preds)
+        .zip(&left)
         .map(|(d, p)| channel_noise(d, p))
         .collect::<Result<Vec<_>>>()?;
     Ok(NullModel {
         names: all.iter().map(|d| d.name.clone()).collect(),
+        named: diagnosis.map(|d| d.effects.iter().map(|e| e.id.to_string()).collect()),
         fit: fit_w.clone(),
         validate: val_w.clone(),
         preds,
@@ -92,10 +132,11 @@ fn validation_prediction(
     validate: &Prepared,
     sigma: [f64; 3],
     calib: &Calib,
+    set: &[&super::effects::Candidate],
     cal: &FitResult,
 ) -> Result<Prediction> {
     let data = std::slice::from_ref(validate);
-    fit::Problem::new(rig, data, sigma, calib, &[], cal.x.clone())
+    fit::Problem::new(rig, data, sigma, calib, set, cal.x.clone())
         .predictions(&cal.x)
         .map(|mut p| p.remove(0))
         .ok_or_else(|| {
@@ -201,7 +242,7 @@ mod tests {
         let rig = rig();
         let fit = vec![recording(&rig, 1), recording(&rig, 2)];
         let val = recording(&rig, 3);
-        let null = null_model(&rig, &fit, &val).expect("calibrates");
+        let null = null_model(&rig, &fit, &val, NoiseFrom::Calibrated).expect("calibrates");
         assert_eq!(null.noise.len(), 3);
         let mut rng = rand::rngs::StdRng::seed_from_u64(9);
         let (rf, rv) = null.replicate(&mut rng);
