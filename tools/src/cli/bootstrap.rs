@@ -92,7 +92,11 @@ pub fn bootstrap(a: BootstrapArgs) -> Result<()> {
         println!(
             "replicate {i:2}: named [{}]{} ({} candidate p-values, smallest {:.1e}; {:.1} s)",
             named.join(", "),
-            if d.unexplained.is_some() { ", unexplained" } else { "" },
+            if d.unexplained.is_some() {
+                ", unexplained"
+            } else {
+                ""
+            },
             ps.len(),
             ps.iter().copied().fold(1.0, f64::min),
             t0.elapsed().as_secs_f64()
@@ -116,7 +120,10 @@ fn summarise(
     p_values: &[f64],
 ) -> Result<()> {
     let named = rows.iter().filter(|r| r["effects"] != json!([])).count();
-    let unexplained = rows.iter().filter(|r| r["unexplained"] == json!(true)).count();
+    let unexplained = rows
+        .iter()
+        .filter(|r| r["unexplained"] == json!(true))
+        .count();
     let alarms = rows
         .iter()
         .filter(|r| r["effects"] != json!([]) || r["unexplained"] == json!(true))

@@ -90,9 +90,9 @@ pub fn null_model(
         NoiseFrom::Final => Some(super::diagnose(rig, fit_data, validate, &mut silent)?),
         NoiseFrom::Calibrated => None,
     };
-    let calib = diagnosis
-        .as_ref()
-        .map_or(su.calib.clone(), |d| su.calib.with_reading(d.drive_reading.chosen));
+    let calib = diagnosis.as_ref().map_or(su.calib.clone(), |d| {
+        su.calib.with_reading(d.drive_reading.chosen)
+    });
     let mut budget = Budget::for_samples(fit_w.iter().map(|d| d.cmd_m.len()).sum());
     let cal = super::calibrate::calibrate(rig, &fit_w, &calib, &mut budget, &mut silent, 1)?;
     let vpred = validation_prediction(rig, &val_w, cal.sigma, &calib, &[], &cal.fit)?;
@@ -224,7 +224,8 @@ mod tests {
         rec.tip_pos_m = Some(cmd.clone());
         rec.force_n = Some(vec![0.0; n]);
         let clean = Prepared::new("r", &rec).unwrap();
-        let p = crate::diagnose::model::predict(rig, &Params::default(), &clean, &mut None).unwrap();
+        let p =
+            crate::diagnose::model::predict(rig, &Params::default(), &clean, &mut None).unwrap();
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
         let mut noisy = |v: &[f64], s: f64| -> Vec<f64> {
             v.iter()
@@ -252,7 +253,11 @@ mod tests {
             let tip1 = rep.tip_m.as_ref().unwrap();
             assert_eq!(tip0.len(), tip1.len());
             // the replicate differs from the recording by about √2 × the noise (two draws)
-            let diff = (tip0.iter().zip(tip1).map(|(a, b)| (a - b).powi(2)).sum::<f64>()
+            let diff = (tip0
+                .iter()
+                .zip(tip1)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
                 / tip0.len() as f64)
                 .sqrt();
             assert!(diff > 1e-4 && diff < 2e-4, "{diff}");
@@ -263,7 +268,10 @@ mod tests {
         // every channel's noise model is white noise of the size it was drawn with
         for ch in &null.noise {
             let tip = ch[1].as_ref().unwrap();
-            assert!((tip.innovation_variance.sqrt() / 1e-4 - 1.0).abs() < 0.15, "{tip:?}");
+            assert!(
+                (tip.innovation_variance.sqrt() / 1e-4 - 1.0).abs() < 0.15,
+                "{tip:?}"
+            );
         }
     }
 }

@@ -226,11 +226,13 @@ pub fn autocovariances(x: &[f64], max_lag: usize) -> Vec<f64> {
     let mut buf: Vec<f64> = x.iter().map(|v| v - m).collect();
     buf.resize(len, 0.0);
     let mut spec = fwd.make_output_vec();
-    fwd.process(&mut buf, &mut spec).expect("sizes from the planner");
+    fwd.process(&mut buf, &mut spec)
+        .expect("sizes from the planner");
     for z in spec.iter_mut() {
         *z = realfft::num_complex::Complex::new(z.norm_sqr(), 0.0);
     }
-    inv.process(&mut spec, &mut buf).expect("sizes from the planner");
+    inv.process(&mut spec, &mut buf)
+        .expect("sizes from the planner");
     buf.truncate(max_lag + 1);
     buf.iter().map(|v| v / (len as f64 * n as f64)).collect()
 }
@@ -452,19 +454,30 @@ mod tests {
             assert!((a - b).abs() < 0.03, "{fit:?}");
         }
         // AIC leaves out what the process does not have: the extra coefficients are small
-        assert!(fit.coefficients[2..].iter().all(|a| a.abs() < 0.03), "{fit:?}");
-        assert!((fit.innovation_variance / 4.0 - 1.0).abs() < 0.05, "{fit:?}");
+        assert!(
+            fit.coefficients[2..].iter().all(|a| a.abs() < 0.03),
+            "{fit:?}"
+        );
+        assert!(
+            (fit.innovation_variance / 4.0 - 1.0).abs() < 0.05,
+            "{fit:?}"
+        );
         assert_eq!(Autoregressive::fit_aic(&[1.0; 50], 4), None);
     }
 
     #[test]
     fn autocovariances_through_the_fft_are_the_direct_sums() {
-        let x: Vec<f64> = (0..1000).map(|k| (k as f64 * 0.37).sin() + (k % 7) as f64).collect();
+        let x: Vec<f64> = (0..1000)
+            .map(|k| (k as f64 * 0.37).sin() + (k % 7) as f64)
+            .collect();
         let fft = autocovariances(&x, 200);
         let m = x.iter().sum::<f64>() / 1000.0;
         for k in [0, 1, 65, 200] {
             let direct = (k..1000).map(|i| (x[i] - m) * (x[i - k] - m)).sum::<f64>() / 1000.0;
-            assert!((fft[k] - direct).abs() < 1e-9 * direct.abs().max(1.0), "{k}");
+            assert!(
+                (fft[k] - direct).abs() < 1e-9 * direct.abs().max(1.0),
+                "{k}"
+            );
         }
         assert_eq!(autocovariances(&x, 10).len(), 11);
     }
@@ -473,7 +486,10 @@ mod tests {
     fn the_kolmogorov_smirnov_statistic_is_small_on_a_uniform_grid_and_large_on_a_pile() {
         let grid: Vec<f64> = (0..100).map(|i| (i as f64 + 0.5) / 100.0).collect();
         let (d, crit) = ks_uniform(&grid).unwrap();
-        assert!((d - 0.005).abs() < 1e-12 && (crit - 0.136).abs() < 1e-12, "{d} {crit}");
+        assert!(
+            (d - 0.005).abs() < 1e-12 && (crit - 0.136).abs() < 1e-12,
+            "{d} {crit}"
+        );
         let pile = vec![0.01; 50];
         assert!((ks_uniform(&pile).unwrap().0 - 0.99).abs() < 1e-12);
         assert_eq!(ks_uniform(&[]), None);
