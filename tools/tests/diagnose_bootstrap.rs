@@ -1,11 +1,11 @@
 //! The parametric bootstrap of the no-effect model (`beamtool diagnose-bootstrap`): a replicate
 //! of a recording with a tip mass holds no tip mass, and the diagnosis of it names nothing.
 
+mod common;
+
 use beamtools::diagnose::bootstrap::{null_model, NoiseFrom};
 use beamtools::diagnose::diagnose;
-use beamtools::diagnose::model::Prepared;
-use beamtools::model::Rig;
-use beamtools::truth::{generate, TruthOptions};
+use beamtools::truth::TruthOptions;
 use rand::SeedableRng;
 
 #[test]
@@ -14,14 +14,7 @@ fn a_replicate_leaves_out_what_the_recordings_named_and_names_nothing() {
         duration_s: 20.0,
         ..Default::default()
     };
-    let case = generate("tip_mass", 7, &opts).unwrap();
-    let rig = Rig::from_toml_str(&case.rig_toml).unwrap();
-    let fit: Vec<Prepared> = case
-        .fit
-        .iter()
-        .map(|r| Prepared::new("fit", r).unwrap())
-        .collect();
-    let val = Prepared::new("validate", &case.validate).unwrap();
+    let (rig, fit, val, _) = common::prepared_case("tip_mass", 7, &opts);
     let null = null_model(&rig, &fit, &val, NoiseFrom::Final).unwrap();
     assert_eq!(null.named.as_deref(), Some(&["tip_mass".to_string()][..]));
     // every recorded channel has a noise model, at most the order cap

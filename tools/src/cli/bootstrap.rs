@@ -16,15 +16,9 @@ use std::path::PathBuf;
 /// `diagnose-bootstrap` arguments.
 #[derive(Args, Debug)]
 pub struct BootstrapArgs {
-    /// Rig file (TOML).
-    #[arg(long)]
-    pub rig: PathBuf,
-    /// Fit recording(s) (CSV), repeatable.
-    #[arg(long = "fit", required = true)]
-    pub fit: Vec<PathBuf>,
-    /// Validation recording (CSV).
-    #[arg(long)]
-    pub validate: PathBuf,
+    /// The recordings, as `diagnose` reads them.
+    #[command(flatten)]
+    pub inputs: super::diagnose::Recordings,
     /// Null replicates to diagnose (each a whole diagnosis: about as long as one `diagnose`).
     #[arg(long, default_value_t = 10)]
     pub replicates: usize,
@@ -40,9 +34,6 @@ pub struct BootstrapArgs {
     /// p-values' Kolmogorov–Smirnov statistic) and replicate-NN.json (each diagnosis).
     #[arg(long)]
     pub out: PathBuf,
-    /// How every recording is read (as `diagnose`).
-    #[command(flatten)]
-    pub read: super::read::ReadArgs,
 }
 
 /// Runs the bootstrap: calibrates the no-effect model, diagnoses `replicates` draws of it, and
@@ -51,14 +42,15 @@ pub fn bootstrap(a: BootstrapArgs) -> Result<()> {
     if a.replicates == 0 {
         bail!("--replicates must be at least 1");
     }
-    let rig = Rig::from_toml_file(&a.rig)?;
-    let opts = a.read.options();
-    let fit: Vec<Prepared> = a
+    let i = &a.inputs;
+    let rig = Rig::from_toml_file(&i.rig)?;
+    let opts = i.read.options();
+    let fit: Vec<Prepared> = i
         .fit
         .iter()
         .map(|p| super::diagnose::load(p, &rig, &opts))
         .collect::<Result<_>>()?;
-    let val = super::diagnose::load(&a.validate, &rig, &opts)?;
+    let val = super::diagnose::load(&i.validate, &rig, &opts)?;
     let from = match a.noise_from.as_str() {
         "calibrated" => NoiseFrom::Calibrated,
         _ => NoiseFrom::Final,
@@ -162,7 +154,7 @@ fn summarise(
         .collect();
     let named_first = &null.named;
     let summary = json!({
-        "rig": a.rig, "fit": a.fit, "validate": a.validate, "seed": a.seed,
+        "rig": a.inputs.rig, "fit": a.inputs.fit, "validate": a.inputs.validate, "seed": a.seed,
         "noise_from": a.noise_from, "named_on_the_recordings": named_first,
         "noise_models": noise,
         "replicates": rows,

@@ -17,9 +17,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
-/// `diagnose` arguments.
+/// The recordings of one diagnosis and how they are read (`diagnose`, `diagnose-bootstrap`).
 #[derive(Args, Debug)]
-pub struct DiagnoseArgs {
+pub struct Recordings {
     /// Rig file (TOML).
     #[arg(long)]
     pub rig: PathBuf,
@@ -29,16 +29,24 @@ pub struct DiagnoseArgs {
     /// Validation recording (CSV), never fitted.
     #[arg(long)]
     pub validate: PathBuf,
+    /// How every recording is read (`--columns`: the same mapping for the fit and the
+    /// validation files).
+    #[command(flatten)]
+    pub read: super::read::ReadArgs,
+}
+
+/// `diagnose` arguments.
+#[derive(Args, Debug)]
+pub struct DiagnoseArgs {
+    /// The recordings.
+    #[command(flatten)]
+    pub inputs: Recordings,
     /// Write the JSON result here.
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Write report.md, diagnosis.json and SVG plots into this directory.
     #[arg(long)]
     pub report: Option<PathBuf>,
-    /// How every recording is read (`--columns`: the same mapping for the fit and the
-    /// validation files).
-    #[command(flatten)]
-    pub read: super::read::ReadArgs,
 }
 
 fn bar(len: u64) -> ProgressBar {
@@ -262,7 +270,8 @@ fn spectrum_plot(d: &Diagnosis, dir: &Path, name: &str, r0: &[f64], r1: &[f64]) 
 /// Runs `diagnose`.
 pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
     let t0 = std::time::Instant::now();
-    let d = diagnose_files(&a.rig, &a.fit, &a.validate, &a.read.options(), true)?;
+    let i = &a.inputs;
+    let d = diagnose_files(&i.rig, &i.fit, &i.validate, &i.read.options(), true)?;
     if std::env::var_os("DIAG_SELECT").is_some() {
         for line in &d.trace {
             eprintln!("{line}");

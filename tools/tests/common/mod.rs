@@ -39,6 +39,19 @@ pub fn diagnose_case(
     seed: u64,
     opts: &TruthOptions,
 ) -> (serde_json::Value, serde_json::Value, Rig) {
+    let (rig, fit, val, truth) = prepared_case(effect, seed, opts);
+    let d = diagnose(&rig, &fit, &val, &mut beamtools::progress::Silent).unwrap();
+    (to_json(&d), truth, rig)
+}
+
+/// The generator's case `effect` at `seed` as the diagnosis reads it: the rig handed over, the
+/// two fit recordings and the validation recording prepared, and the truth.
+#[allow(dead_code)]
+pub fn prepared_case(
+    effect: &str,
+    seed: u64,
+    opts: &TruthOptions,
+) -> (Rig, Vec<Prepared>, Prepared, serde_json::Value) {
     let case = generate(effect, seed, opts).unwrap();
     let rig = Rig::from_toml_str(&case.rig_toml).unwrap();
     let fit: Vec<Prepared> = case
@@ -47,8 +60,8 @@ pub fn diagnose_case(
         .map(|r| Prepared::new("fit", r).unwrap())
         .collect();
     let val = Prepared::new("validate", &case.validate).unwrap();
-    let d = diagnose(&rig, &fit, &val, &mut beamtools::progress::Silent).unwrap();
-    (to_json(&d), serde_json::to_value(&case.truth).unwrap(), rig)
+    let truth = serde_json::to_value(&case.truth).unwrap();
+    (rig, fit, val, truth)
 }
 
 /// Catalogue effects named in a diagnosis JSON, sorted; `servo_lag` left out (every generated
