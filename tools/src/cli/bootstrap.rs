@@ -55,6 +55,14 @@ pub fn bootstrap(a: BootstrapArgs) -> Result<()> {
         "calibrated" => NoiseFrom::Calibrated,
         _ => NoiseFrom::Final,
     };
+    println!(
+        "calibrating the no-effect model{} …",
+        if from == NoiseFrom::Final {
+            " and diagnosing the recordings (the noise is what the final model leaves)"
+        } else {
+            ""
+        }
+    );
     let null = null_model(&rig, &fit, &val, from)?;
     if let Some(named) = &null.named {
         println!(
