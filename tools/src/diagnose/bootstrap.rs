@@ -86,62 +86,65 @@ pub fn null_model(
     let quantum = super::calibrate::drive_quantum_m(&fit_w);
     let su = super::calibrate::setup(rig, &fit_w, &val_w, quantum)?;
     let mut silent = crate::progress::Silent;
-    let diagnosis = match from {
-        NoiseFrom::Final => Some(super::diagnose(rig, fit_data, validate, &mut silent)?),
-        NoiseFrom::Calibrated => None,
-    };
-    let calib = diagnosis.as_ref().map_or(su.calib.clone(), |d| {
-        su.calib.with_reading(d.drive_reading.chosen)
-    });
-    let mut budget = Budget::for_samples(fit_w.iter().map(|d| d.cmd_m.len()).sum());
-    let cal = super::calibrate::calibrate(rig, &fit_w, &calib, &mut budget, &mut silent, 1)?;
-    let vpred = validation_prediction(rig, &val_w, cal.sigma, &calib, &[], &cal.fit)?;
-    let mut preds = cal.preds;
-    preds.push(vpred);
-    let left = match &diagnosis {
-        None => preds.clone(),
-        Some(d) => {
+    // the no-effect model's predictions (fit recordings, then validation) and what is left as
+    // noise: the diagnosis' own calibration and final model, or a calibration alone
+    let (preds, left, named) = match from {
+        NoiseFrom::Final => {
+            let d = super::diagnose(rig, fit_data, validate, &mut silent)?;
+            let calib = su.calib.with_reading(d.drive_reading.chosen);
             let set: Vec<&super::effects::Candidate> = d.final_set.iter().collect();
-            let x = d.final_fit.x.clone();
-            let mut p = fit::Problem::new(rig, &fit_w, d.sigma, &calib, &set, x.clone())
-                .predictions(&x)
-                .ok_or_else(|| anyhow!("the final model cannot simulate the fit recordings"))?;
-            p.push(d.final_val_pred.clone());
-            p
+            let mut preds = predictions(rig, &fit_w, d.sigma, &calib, &[], &d.calibration)?;
+            preds.push(d.val_pred_nominal.clone());
+            let mut left = predictions(rig, &fit_w, d.sigma, &calib, &set, &d.final_fit)?;
+            left.push(d.final_val_pred.clone());
+            (
+                preds,
+                left,
+                Some(d.effects.iter().map(|e| e.id.to_string()).collect()),
+            )
+        }
+        NoiseFrom::Calibrated => {
+            let mut budget = Budget::for_samples(fit_w.iter().map(|d| d.cmd_m.len()).sum());
+            let cal =
+                super::calibrate::calibrate(rig, &fit_w, &su.calib, &mut budget, &mut silent, 1)?;
+            let mut preds = cal.preds;
+            let val = std::slice::from_ref(&val_w);
+            preds.extend(predictions(rig, val, cal.sigma, &su.calib, &[], &cal.fit)?);
+            (preds.clone(), preds, None)
         }
     };
-    let all: Vec<&Prepared> = fit_w.iter().chain(std::iter::once(&val_w)).collect();
-    let noise = all
+    let noise = fit_w
         .iter()
+        .chain(std::iter::once(&val_w))
         .zip(&left)
         .map(|(d, p)| channel_noise(d, p))
         .collect::<Result<Vec<_>>>()?;
     Ok(NullModel {
-        names: all.iter().map(|d| d.name.clone()).collect(),
-        named: diagnosis.map(|d| d.effects.iter().map(|e| e.id.to_string()).collect()),
-        fit: fit_w.clone(),
-        validate: val_w.clone(),
+        names: fit_w
+            .iter()
+            .chain(std::iter::once(&val_w))
+            .map(|d| d.name.clone())
+            .collect(),
+        named,
+        fit: fit_w,
+        validate: val_w,
         preds,
         noise,
     })
 }
 
-/// The calibrated model's prediction of the validation recording.
-fn validation_prediction(
+/// The predictions of the model `set` fitted as `f` on `data` (`calib`, `sigma`: as fitted).
+fn predictions(
     rig: &Rig,
-    validate: &Prepared,
+    data: &[Prepared],
     sigma: [f64; 3],
     calib: &Calib,
     set: &[&super::effects::Candidate],
-    cal: &FitResult,
-) -> Result<Prediction> {
-    let data = std::slice::from_ref(validate);
-    fit::Problem::new(rig, data, sigma, calib, set, cal.x.clone())
-        .predictions(&cal.x)
-        .map(|mut p| p.remove(0))
-        .ok_or_else(|| {
-            anyhow!("the calibrated nominal model cannot simulate the validation recording")
-        })
+    f: &FitResult,
+) -> Result<Vec<Prediction>> {
+    fit::Problem::new(rig, data, sigma, calib, set, f.x.clone())
+        .predictions(&f.x)
+        .ok_or_else(|| anyhow!("the fitted model cannot simulate the recordings"))
 }
 
 /// The noise model of each recorded channel of `d` under the prediction `p`.
