@@ -11,12 +11,15 @@
 //! diagnosis' force channel the carriage velocity, i.e. viscous friction): a yardstick that
 //! contains a candidate's physics cannot measure whether that physics is needed. For a
 //! given number k of free coefficients and every subset S (|S| = k), the coefficients c are
-//! those of least squares on the **fit** recordings' residual; the correction is then applied,
-//! never refitted, to the **validation** recording's residual, and the subset that gains most
-//! there is kept (the most a generic k-term correction learnt on the fit data can earn). That
-//! gain is what k free parameters without any physics earn on validation: a catalogue effect with
-//! k parameters that does not beat it has not shown that its physics, rather than generic
-//! model-form freedom, is what the recordings need.
+//! those of least squares on the **fit** recordings' residual, and the subset that fits them
+//! best is kept — chosen on the fit recordings, as a candidate's parameters are; the
+//! correction is then applied, never refitted, to the **validation** recording's residual.
+//! That gain is what k free parameters without any physics earn on validation: a catalogue
+//! effect with k parameters that does not beat it has not shown that its physics, rather than
+//! generic model-form freedom, is what the recordings need. (Choosing the subset on the
+//! validation recording instead, as until December 2026, made the yardstick the best of up to
+//! C(8, 4) = 70 corrections on the very data it is compared on, a maximum over subsets that no
+//! single candidate gets.)
 //!
 //! Computation: Gram matrices of the (rms-normalised) dictionary on fit and validation data,
 //! every subset of size k solved by Cholesky (at most C(9, 4) = 126 systems of size ≤ 4).
@@ -123,8 +126,8 @@ impl Correction {
     }
 }
 
-/// The `k`-column correction (module docs) fitted on `fit` that gains most on `val`; `None` for k = 0 or
-/// when no subset can be solved.
+/// The `k`-column correction (module docs) that fits `fit` best, with its gain on `val`;
+/// `None` for k = 0 or when no subset can be solved.
 pub fn best_correction(fit: &Normal, val: &Normal, k: usize) -> Option<Correction> {
     let m = fit.b.len();
     let k = k.min(m);
@@ -160,7 +163,7 @@ pub fn best_correction(fit: &Normal, val: &Normal, k: usize) -> Option<Correctio
             }
         }
         let val_after = val_after.max(0.0);
-        if best.as_ref().map_or(true, |b| val_after < b.val_rss.1) {
+        if best.as_ref().map_or(true, |b| fit_after < b.fit_rss.1) {
             best = Some(Correction {
                 columns: cols,
                 coef: c,
