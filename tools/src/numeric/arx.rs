@@ -187,6 +187,25 @@ pub fn best_correction_of_size(fit: &Normal, val: &Normal, k: usize) -> Option<C
 mod tests {
     use super::*;
 
+    /// The columns are chosen on the fit recordings, as a candidate's parameters are: where the
+    /// fit residual is one signal and the validation residual another, the correction of one
+    /// column is the fit residual's and earns nothing on validation — the validation
+    /// recording's own signal is not picked for it.
+    #[test]
+    fn the_columns_are_chosen_on_the_fit_recordings() {
+        let n = 1500;
+        let sig = |f: f64, k: usize| (2.0 * std::f64::consts::PI * f * k as f64 / 100.0).sin();
+        let a: Vec<f64> = (0..n).map(|k| sig(0.37, k)).collect();
+        let b: Vec<f64> = (0..n).map(|k| sig(1.9, k)).collect();
+        let phi = dictionary(&[&a, &b], &[]);
+        let (mut f, mut v) = (Normal::new(phi.len()), Normal::new(phi.len()));
+        f.add(&a, &phi);
+        v.add(&b, &phi);
+        let c = best_correction(&f, &v, 1).unwrap();
+        assert_eq!(c.columns, vec![0]);
+        assert!(c.val_reduction() < 0.01, "{}", c.val_reduction());
+    }
+
     /// A column left out of the dictionary is not available to the correction: a residual that
     /// is exactly the second signal's first difference is removed with it and not without it.
     #[test]
