@@ -18,7 +18,7 @@
 //! effect with k parameters that does not beat it has not shown that its physics, rather than
 //! generic model-form freedom, is what the recordings need. (Choosing the subset on the
 //! validation recording instead, as until December 2026, made the yardstick the best of up to
-//! C(8, 4) = 70 corrections on the very data it is compared on, a maximum over subsets that no
+//! C(9, 4) = 126 corrections on the very data it is compared on, a maximum over subsets that no
 //! single candidate gets.)
 //!
 //! Computation: Gram matrices of the (rms-normalised) dictionary on fit and validation data,
