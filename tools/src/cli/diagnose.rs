@@ -44,7 +44,8 @@ pub struct DiagnoseArgs {
     /// Write the JSON result here.
     #[arg(long)]
     pub json: Option<PathBuf>,
-    /// Write report.md, diagnosis.json and SVG plots into this directory.
+    /// Write report.md, diagnosis.json, SVG plots and validation_predictions.csv (the validation
+    /// recording, the nominal and the final model's predictions) into this directory.
     #[arg(long)]
     pub report: Option<PathBuf>,
 }
@@ -146,7 +147,9 @@ pub fn diagnose_files(
     Ok(d)
 }
 
-/// Writes `report.md`, `diagnosis.json` and the SVG plots into `dir`.
+/// Writes `report.md`, `diagnosis.json`, the SVG plots and `validation_predictions.csv` (the
+/// validation recording beside the calibrated nominal model's and the final model's predictions,
+/// [`write_predictions`]) into `dir`.
 pub fn write_report(d: &Diagnosis, dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir)?;
     std::fs::write(
@@ -170,6 +173,48 @@ pub fn write_report(d: &Diagnosis, dir: &Path) -> Result<()> {
             channel_plots(d, dir, c, meas, r0, r1)?;
         }
     }
+    write_predictions(d, &dir.join("validation_predictions.csv"))
+}
+
+/// Writes the validation recording and both models' predictions of it as CSV: `time_s`, then
+/// per recorded channel (`base_pos_m`, `tip_pos_m`, `force_n`; SI units) the recording, the
+/// calibrated nominal model's prediction (`…_nominal`) and the final model's (`…_augmented`),
+/// one row per sample. The residuals the diagnosis reads are recording − prediction, except on
+/// samples held at a sensor's rail or without a reading, which it leaves out.
+pub fn write_predictions(d: &Diagnosis, path: &Path) -> Result<()> {
+    let v = &d.validate;
+    let p0 = &d.val_pred_nominal;
+    let p1 = &d.final_val_pred;
+    let columns: Vec<(&str, &Vec<f64>, &Vec<f64>, &Vec<f64>)> = [
+        (&v.base_m, &p0.base_m, &p1.base_m),
+        (&v.tip_m, &p0.tip_m, &p1.tip_m),
+        (&v.force_n, &p0.force_n, &p1.force_n),
+    ]
+    .into_iter()
+    .zip(CHANNEL_NAMES)
+    .filter_map(|((m, a, b), name)| Some((name, m.as_ref()?, a.as_ref()?, b.as_ref()?)))
+    .collect();
+    let mut w =
+        csv::Writer::from_path(path).with_context(|| format!("cannot write {}", path.display()))?;
+    let mut header = vec!["time_s".to_string()];
+    for (name, ..) in &columns {
+        header.extend([
+            name.to_string(),
+            format!("{name}_nominal"),
+            format!("{name}_augmented"),
+        ]);
+    }
+    w.write_record(&header)?;
+    for (k, t) in v.time_s.iter().enumerate() {
+        let mut row = vec![t.to_string()];
+        for (_, m, a, b) in &columns {
+            for s in [m, a, b] {
+                row.push(s.get(k).map_or(String::new(), |x| x.to_string()));
+            }
+        }
+        w.write_record(&row)?;
+    }
+    w.flush()?;
     Ok(())
 }
 
