@@ -5,16 +5,11 @@ mod common;
 
 use beamtools::diagnose::bootstrap::{null_model, NoiseFrom};
 use beamtools::diagnose::diagnose;
-use beamtools::truth::TruthOptions;
 use rand::SeedableRng;
 
 #[test]
 fn a_replicate_leaves_out_what_the_recordings_named_and_names_nothing() {
-    let opts = TruthOptions {
-        duration_s: 20.0,
-        ..Default::default()
-    };
-    let (rig, fit, val, _) = common::prepared_case("tip_mass", 7, &opts);
+    let (rig, fit, val, _) = common::short_tip_mass_case();
     let null = null_model(&rig, &fit, &val, NoiseFrom::Final).unwrap();
     assert_eq!(null.named.as_deref(), Some(&["tip_mass".to_string()][..]));
     // every recorded channel has a noise model, at most the order cap

@@ -7,15 +7,10 @@ mod common;
 use beamtools::cli::diagnose::write_report;
 use beamtools::diagnose::diagnose;
 use beamtools::diagnose::fit::residuals;
-use beamtools::truth::TruthOptions;
 
 #[test]
 fn the_report_holds_the_validation_recording_and_both_predictions() {
-    let opts = TruthOptions {
-        duration_s: 20.0,
-        ..Default::default()
-    };
-    let (rig, fit, val, _) = common::prepared_case("tip_mass", 7, &opts);
+    let (rig, fit, val, _) = common::short_tip_mass_case();
     let d = diagnose(&rig, &fit, &val, &mut beamtools::progress::Silent).unwrap();
     let dir = tempfile::tempdir().unwrap();
     write_report(&d, dir.path()).unwrap();

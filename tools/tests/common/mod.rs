@@ -64,6 +64,17 @@ pub fn prepared_case(
     (rig, fit, val, truth)
 }
 
+/// A short generated tip-mass case (seed 7, 20 s recordings): [`prepared_case`] for tests that
+/// need any diagnosis that names something, quickly.
+#[allow(dead_code)]
+pub fn short_tip_mass_case() -> (Rig, Vec<Prepared>, Prepared, serde_json::Value) {
+    let opts = TruthOptions {
+        duration_s: 20.0,
+        ..Default::default()
+    };
+    prepared_case("tip_mass", 7, &opts)
+}
+
 /// Catalogue effects named in a diagnosis JSON, sorted; `servo_lag` left out (every generated
 /// rig has a finite position loop, the proof's convention).
 #[allow(dead_code)]
