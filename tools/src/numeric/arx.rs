@@ -17,9 +17,9 @@
 //! That gain is what k free parameters without any physics earn on validation: a catalogue
 //! effect with k parameters that does not beat it has not shown that its physics, rather than
 //! generic model-form freedom, is what the recordings need. (Choosing the subset on the
-//! validation recording instead, as until December 2026, made the yardstick the best of up to
-//! C(9, 4) = 126 corrections on the very data it is compared on, a maximum over subsets that no
-//! single candidate gets.)
+//! validation recording instead would make the yardstick the best of up to C(9, 4) = 126
+//! corrections on the very data it is compared on, a maximum over subsets that no single
+//! candidate gets.)
 //!
 //! Computation: Gram matrices of the (rms-normalised) dictionary on fit and validation data,
 //! every subset of size k solved by Cholesky (at most C(9, 4) = 126 systems of size ≤ 4).
