@@ -37,10 +37,10 @@ use anyhow::{anyhow, Result};
 use rand::Rng;
 use rand_distr::StandardNormal;
 
-/// Highest order of a channel's noise model: 1 s of a 50 Hz recording, 40 ms at 1 kHz — longer
-/// than the Ljung–Box horizon (20 lags) the diagnosis reads whiteness over. A computational
-/// cap; the order is chosen below it by AIC.
-pub const MAX_NOISE_ORDER: usize = 50;
+/// Highest order of a channel's noise model: the order bound the `unexplained` test prewhitens a
+/// residual by ([`super::unexplained::PREWHITENING_MAX_ORDER`], its reason there), so the
+/// replicates' noise is of the family that test assumes. The order is chosen below it by AIC.
+pub const MAX_NOISE_ORDER: usize = super::unexplained::PREWHITENING_MAX_ORDER;
 
 /// The calibrated no-effect model of a set of recordings, ready to draw replicates from.
 pub struct NullModel {
