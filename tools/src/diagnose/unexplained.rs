@@ -49,10 +49,13 @@
 //!    (own generator, null seed 996003: the force residual 0.92 correlated with the commanded
 //!    acceleration) — is what the fit recordings did not pin down, not physics the model lacks.
 //!
-//! Its *structure* is either time structure (the Ljung–Box test above) or a **zero offset**:
-//! a residual mean at least the noise rms (a t statistic of at least √n), e.g. a tip sensor
-//! whose zero drifted between recordings, or a force bias. The mean counts in its rms (the
-//! offset is part of what the model leaves), never in its time structure.
+//! Its *structure* is either driven (the residual–input test above) or a **slow change of the
+//! zero** the drive does not excite: an offset, ramp or bow (a polynomial of degree
+//! [`ZERO_DRIFT_DEGREE`] in time) significant at [`STRUCTURE_LEVEL`] against the residual's own
+//! stationary long-run variance ([`crate::numeric::independence::slow_trend_test`]) and of an
+//! rms at least the noise rms — a tip sensor whose zero moved between recordings or drifts
+//! during one (thermal drift), a force bias. The mean counts in its rms (the offset is part of
+//! what the model leaves), never in its time structure.
 //!
 //! It is located, never named: the channel, the band holding half its spectral power around
 //! the spectral peak, the 1 s windows where its rms is over twice the median window rms, the
@@ -63,13 +66,16 @@ use super::fit::CHANNEL_NAMES;
 use super::model::{Prediction, Prepared};
 use super::selection::guard::{ljung_box, LJUNG_BOX_LAGS};
 use crate::ident::spectrum::amplitude_spectrum;
-use crate::numeric::independence::residual_input_test;
+use crate::numeric::independence::{residual_input_test, slow_trend_test};
 use crate::numeric::stats::noise_variance;
 use serde::Serialize;
 
 /// χ²(20) upper 0.1 % point (the Ljung–Box statistic's, reported beside the driven test).
 pub const LJUNG_BOX_CRITICAL: f64 = 45.3;
-/// Level of the residual–input test (module docs, 1): 0.1 %.
+/// Degree of the slow change of a sensor's zero tested beside the drive (module docs): offset,
+/// ramp and bow — a drift over the recording, not structure within it.
+pub const ZERO_DRIFT_DEGREE: usize = 2;
+/// Level of the residual–input test (module docs, 1) and of the zero-drift test: 0.1 %.
 pub const STRUCTURE_LEVEL: f64 = 0.001;
 /// Highest order of the autoregression that prewhitens a residual before the residual–input
 /// test, and of the noise model the parametric bootstrap draws
@@ -229,6 +235,10 @@ pub struct Unexplained {
     pub drive_correlation_chi2: Option<f64>,
     /// Its degrees of freedom (the rank of the commanded motion's lags).
     pub drive_correlation_dof: Option<usize>,
+    /// rms of the residual's slow zero change (offset, ramp, bow; the channel's unit).
+    pub zero_drift_rms: Option<f64>,
+    /// Its Wald statistic against the residual's long-run variance (χ² with 3 degrees of freedom).
+    pub zero_drift_chi2: Option<f64>,
     /// Nearest model mode (Hz) to the band centre, if any model modes exist.
     pub nearest_model_mode_hz: Option<f64>,
     /// Correlation of the residual with the commanded speed |v|·sign(v) and acceleration.
@@ -394,7 +404,12 @@ fn locate_channel(
     let driven = independence
         .as_ref()
         .is_some_and(|t| t.p_value < STRUCTURE_LEVEL);
-    let offset_shows = m.abs() >= noise && m.abs() > 0.0;
+    let drift = slow_trend_test(r, ZERO_DRIFT_DEGREE, PREWHITENING_MAX_ORDER);
+    let offset_shows = drift.as_ref().is_some_and(|t| {
+        t.p_value < STRUCTURE_LEVEL
+            && t.trend_rms >= STRUCTURE_OVER_NOISE * noise
+            && t.trend_rms > 0.0
+    });
     if !((driven || offset_shows) && ratio >= STRUCTURE_OVER_NOISE && structured > form_rms) {
         return None;
     }
@@ -422,6 +437,8 @@ fn locate_channel(
         ljung_box_q: q,
         drive_correlation_chi2: independence.as_ref().map(|t| t.statistic),
         drive_correlation_dof: independence.as_ref().map(|t| t.degrees_of_freedom),
+        zero_drift_rms: drift.as_ref().map(|t| t.trend_rms),
+        zero_drift_chi2: drift.as_ref().map(|t| t.statistic),
         nearest_model_mode_hz: nearest,
         correlation_velocity: corr(&centred, &vel),
         correlation_acceleration: corr(&centred, &acc),
@@ -494,6 +511,16 @@ mod tests {
         assert!((u.offset - 3e-4).abs() < 1e-5, "{}", u.offset);
         assert!(u.ljung_box_q < LJUNG_BOX_CRITICAL, "white in time");
         assert!((u.residual_over_noise - 10f64.sqrt()).abs() < 0.2);
+        // a zero drifting by 6 noise rms over the recording (a ramp of rms √3): not driven by
+        // the command, still left by the model
+        let ramp: Vec<f64> = (0..n).map(|k| 6e-4 * (k as f64 / n as f64 - 0.5)).collect();
+        let drifting = [
+            None,
+            Some(white.iter().zip(&ramp).map(|(a, b)| a + b).collect()),
+            None,
+        ];
+        let u = assess(&d, &drifting, &pred, &[], &[], &[]).expect("a drift of the zero");
+        assert!((u.zero_drift_rms.unwrap() / 1e-4 - 3f64.sqrt()).abs() < 0.1);
     }
 
     /// Commanded positions (m) of 20 mm trapezoid moves back and forth, one every 3 s, each
