@@ -210,6 +210,12 @@ mod tests {
         (vel, acc)
     }
 
+    /// `n` independent N(0, 1) draws.
+    fn white(rng: &mut rand::rngs::StdRng, n: usize) -> Vec<f64> {
+        let normal = Normal::new(0.0, 1.0).unwrap();
+        (0..n).map(|_| normal.sample(rng)).collect()
+    }
+
     /// Lightly damped resonance (2 Hz at 100 Hz, ζ 0.02) driven by `w`: what a residual that
     /// rings looks like.
     fn ring(w: &[f64]) -> Vec<f64> {
@@ -230,12 +236,10 @@ mod tests {
         let n = 4000;
         let (vel, acc) = drive(n);
         let mut rng = rand::rngs::StdRng::seed_from_u64(11);
-        let normal = Normal::new(0.0, 1.0).unwrap();
         let mut rejections = 0;
         let trials = 200;
         for _ in 0..trials {
-            let w: Vec<f64> = (0..n).map(|_| normal.sample(&mut rng)).collect();
-            let eps = ring(&w);
+            let eps = ring(&white(&mut rng, n));
             let q = crate::numeric::stats::ljung_box(&eps, 20);
             assert!(q > 45.3, "the noise is structured in time: Q {q}");
             let t = residual_input_test(&eps, &[&vel, &acc], 20, 50).unwrap();
@@ -252,9 +256,7 @@ mod tests {
         let n = 4000;
         let (vel, acc) = drive(n);
         let mut rng = rand::rngs::StdRng::seed_from_u64(12);
-        let normal = Normal::new(0.0, 1.0).unwrap();
-        let w: Vec<f64> = (0..n).map(|_| normal.sample(&mut rng)).collect();
-        let noise = ring(&w);
+        let noise = ring(&white(&mut rng, n));
         let noise_rms = (noise.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
         // a ringing response to the acceleration a fifth of the noise's rms
         let driven = ring(&acc);
@@ -274,7 +276,6 @@ mod tests {
         // allows; the same noise with a ramp of its own rms is a drift
         let n = 3000;
         let mut rng = rand::rngs::StdRng::seed_from_u64(13);
-        let normal = Normal::new(0.0, 1.0).unwrap();
         let mut rejections = 0;
         let trials = 200;
         let slow = |w: &[f64]| -> Vec<f64> {
@@ -285,16 +286,14 @@ mod tests {
             y
         };
         for _ in 0..trials {
-            let w: Vec<f64> = (0..n).map(|_| normal.sample(&mut rng)).collect();
-            let t = slow_trend_test(&slow(&w), 2, 50).unwrap();
+            let t = slow_trend_test(&slow(&white(&mut rng, n)), 2, 50).unwrap();
             if t.p_value < 0.05 {
                 rejections += 1;
             }
         }
         // binomial(200, 0.05): P(≥ 19) ≈ 0.03
         assert!(rejections < 19, "{rejections} of {trials} rejected at 5 %");
-        let w: Vec<f64> = (0..n).map(|_| normal.sample(&mut rng)).collect();
-        let noise = slow(&w);
+        let noise = slow(&white(&mut rng, n));
         let s = (noise.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
         let ramp: Vec<f64> = noise
             .iter()
