@@ -13,7 +13,7 @@
 //!    `ljung_box_q`, the earlier condition) calls both structure: on null replicates whose noise
 //!    is the calibrated residual's own coloured spectrum it reported `unexplained` on 31 of 40
 //!    (`beamtool diagnose-bootstrap --noise-from calibrated`, second set's nulls), and
-//!//! 2. **well above the noise**: its structured rms √(rms² − σ̂²) is at least
+//! 2. **well above the noise**: its structured rms √(rms² − σ̂²) is at least
 //!    [`STRUCTURE_OVER_NOISE`] × the noise rms σ̂, σ̂² the smaller of the residual's one-step
 //!    prediction-error variance from its own 20 previous samples
 //!    ([`innovation_variance`](crate::numeric::stats::innovation_variance): what its past
@@ -391,16 +391,12 @@ fn locate_channel(
     };
     let q = ljung_box(r, LJUNG_BOX_LAGS);
     let (vel, acc) = command_rates(&d.cmd_m, rate);
-    let independence = (d.cmd_m.len() == r.len())
-        .then(|| {
-            residual_input_test(
-                r,
-                &[&d.cmd_m, &vel, &acc],
-                LJUNG_BOX_LAGS,
-                PREWHITENING_MAX_ORDER,
-            )
-        })
-        .flatten();
+    let independence = residual_input_test(
+        r,
+        &[&d.cmd_m, &vel, &acc],
+        LJUNG_BOX_LAGS,
+        PREWHITENING_MAX_ORDER,
+    );
     let driven = independence
         .as_ref()
         .is_some_and(|t| t.p_value < STRUCTURE_LEVEL);
