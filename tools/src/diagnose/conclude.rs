@@ -421,7 +421,20 @@ fn identified_final(
                     &evidence,
                     ctx.calib.len(),
                 ),
-            };
+            }
+            .or_else(|| {
+                let ablated = crate::diagnose::selection::decision::ablated("observable_band");
+                let rate_hz = ctx.fit_data.iter().map(|d| 1.0 / d.dt).fold(0.0, f64::max);
+                let edge_hz = crate::diagnose::rate::PASS_EDGE * rate_hz;
+                (!ablated).then(|| {
+                    crate::diagnose::selection::unplaced_in_final(
+                        &set,
+                        &reference_h.fit,
+                        ctx.calib.len(),
+                        edge_hz,
+                    )
+                })?
+            });
         match unidentified {
             Some((i, why)) if drop_effect(ctx, cands, sel, i, &why, budget) => {
                 if sel.chosen.len() < set.len()

@@ -56,7 +56,8 @@ pub fn rule() -> Rule {
 /// The elements of the rule beside the test that the ablation table removes one at a time:
 /// `DIAG_ABLATE` lists them, comma-separated (`model_accuracy`: the model's stated accuracy
 /// bound on tip mass, root spring, cubic clamp and sensor gain; `observable_band`: a mount
-/// resonance at or beyond the band edge not identified; `identified_parameters`: a parameter
+/// resonance at or beyond the band edge not identified, and a final model's mount whose
+/// frequency + 2 σ reaches the edge dropped ([`super::unplaced_in_final`]); `identified_parameters`: a parameter
 /// inside its range with an undefined 1 σ fails its candidate; `final_identification`: an
 /// effect the final model's honest 1 σ does not hold 3 σ from "no effect" is dropped). Unset:
 /// every element applies.

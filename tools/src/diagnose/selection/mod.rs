@@ -44,5 +44,5 @@ pub(crate) use context::Ctx;
 pub(crate) use forward::{resume_after_drop, select_forward};
 pub use forward::{MAX_EFFECTS, MAX_RESUMPTIONS};
 pub(crate) use pairs::structural_pair_as_crack;
-pub(crate) use plausibility::{unidentified_in_final, NullEvidence};
+pub(crate) use plausibility::{unidentified_in_final, unplaced_in_final, NullEvidence};
 pub(crate) use state::{Reference, Selection};

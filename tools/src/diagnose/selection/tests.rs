@@ -440,6 +440,33 @@ fn a_negative_latency_in_the_final_model_is_not_identified() {
     assert!(unidentified_in_final(&[&tip, &delay], &g, &alone(&g), 1).is_none());
 }
 
+/// A mount is placed in the final model only when its frequency + 2 σ (reported: with the
+/// model's stated accuracy) lies inside the band: own null 1085000 at 100 Hz (edge 45 Hz), a
+/// mount at 40.1 ± 8.3 Hz, is not; v1 case06's 14.98 ± 0.03 Hz is; an undefined σ is not.
+#[test]
+fn a_final_mount_whose_interval_reaches_the_band_edge_is_not_placed() {
+    let mount = candidate(
+        Effect::MountResonance,
+        vec![
+            param("mount_frequency_hz", false),
+            param("mount_damping_ratio", false),
+        ],
+    );
+    let tip = candidate(Effect::TipMass, vec![param("tip_mass_kg", true)]);
+    let at =
+        |f_hz: f64, sd_hz: f64| fit(vec![1.0, 0.03, f_hz, 0.1], vec![1e-3, 0.003, sd_hz, 0.05]);
+    let (i, why) = unplaced_in_final(&[&tip, &mount], &at(40.1, 8.3), 1, 45.0)
+        .expect("the interval reaches beyond the band edge");
+    assert_eq!(i, 1);
+    assert!(why.contains("40.1 ± 8.3 Hz"), "{why}");
+    assert!(unplaced_in_final(&[&tip, &mount], &at(14.98, 0.03), 1, 45.0).is_none());
+    assert!(unplaced_in_final(&[&tip, &mount], &at(40.1, 2.0), 1, 45.0).is_none());
+    assert!(unplaced_in_final(&[&tip, &mount], &at(40.1, f64::NAN), 1, 45.0).is_some());
+    assert!(
+        unplaced_in_final(&[&tip], &fit(vec![1.0, 0.03], vec![1e-3, 0.003]), 1, 45.0).is_none()
+    );
+}
+
 #[test]
 fn after_a_backward_check_failing_candidates_are_shown_against_the_new_reference() {
     // null 79015: a failing mount kept ΔBIC −17426 against the first reference while the
