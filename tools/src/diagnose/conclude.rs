@@ -400,6 +400,9 @@ fn identified_final(
     budget: &mut Budget,
     progress: &mut dyn crate::progress::Progress,
 ) -> (crate::diagnose::honesty::Honesty, Vec<Prediction>) {
+    // the fit recordings' highest (working) rate: the band whose edge bounds a mount's
+    // placement and a loop's frequency
+    let rate_hz = ctx.fit_data.iter().map(|d| 1.0 / d.dt).fold(0.0, f64::max);
     loop {
         let set: Vec<&Candidate> = sel.chosen.iter().map(|&k| &cands[k]).collect();
         let (mut cal_h, mut reference_h) = (cal.clone(), sel.reference.clone());
@@ -423,17 +426,16 @@ fn identified_final(
                 ),
             }
             .or_else(|| {
-                let ablated = crate::diagnose::selection::decision::ablated("observable_band");
-                let rate_hz = ctx.fit_data.iter().map(|d| 1.0 / d.dt).fold(0.0, f64::max);
+                if crate::diagnose::selection::decision::ablated("observable_band") {
+                    return None;
+                }
                 let edge_hz = crate::diagnose::rate::PASS_EDGE * rate_hz;
-                (!ablated).then(|| {
-                    crate::diagnose::selection::unplaced_in_final(
-                        &set,
-                        &reference_h.fit,
-                        ctx.calib.len(),
-                        edge_hz,
-                    )
-                })?
+                crate::diagnose::selection::unplaced_in_final(
+                    &set,
+                    &reference_h.fit,
+                    ctx.calib.len(),
+                    edge_hz,
+                )
             });
         match unidentified {
             Some((i, why)) if drop_effect(ctx, cands, sel, i, &why, budget) => {
@@ -449,7 +451,6 @@ fn identified_final(
             _ => {
                 *cal = cal_h;
                 sel.reference = reference_h;
-                let rate_hz = ctx.fit_data.iter().map(|d| 1.0 / d.dt).fold(0.0, f64::max);
                 let fit = &mut sel.reference.fit;
                 let beyond_band =
                     crate::diagnose::honesty::beyond_band(&set, fit, ctx.calib.len(), rate_hz);
