@@ -129,9 +129,18 @@ fn placement_guard(
     })
 }
 
+/// Whether a resonance at `f_hz` (1 σ `sd_hz`) lies inside the observable band, below
+/// `band_edge_hz` by 2 σ: where the recordings resolve a peak, whichever value within its
+/// two-sided 95 % interval the resonance takes. Read by [`split_off_peak`] and by the final
+/// model's mount placement ([`super::plausibility::unplaced_in_final`]); `false` for an
+/// undefined σ.
+pub(crate) fn inside_band(f_hz: f64, sd_hz: f64, band_edge_hz: f64) -> bool {
+    sd_hz.is_finite() && f_hz + 2.0 * sd_hz < band_edge_hz
+}
+
 /// Whether a coupled mount's resonance `f_hz` (1 σ `sd_hz`, damping ratio `zeta`) is a second
 /// peak beside the model's modes `model_hz`: apart from every one by more than 2 σ and its
-/// half-power half-width ζ f, and inside the observable band (below `band_edge_hz` by 2 σ),
+/// half-power half-width ζ f, and inside the observable band ([`inside_band`]),
 /// where the recording resolves a peak ([`Ctx::calibration_matter`]).
 pub(crate) fn split_off_peak(
     f_hz: f64,
@@ -140,7 +149,7 @@ pub(crate) fn split_off_peak(
     band_edge_hz: f64,
     model_hz: &[f64],
 ) -> bool {
-    f_hz + 2.0 * sd_hz < band_edge_hz
+    inside_band(f_hz, sd_hz, band_edge_hz)
         && model_hz
             .iter()
             .all(|fr| (f_hz - fr).abs() > 2.0 * sd_hz + zeta * f_hz)

@@ -208,7 +208,7 @@ pub(crate) fn unidentified_in_final(
 /// error of a null rig also gives (second set, nulls case14 and case32: a mount at z 10.1 and
 /// 6.5). The same holds for a mount fitted inside the band whose frequency the model's stated
 /// accuracy leaves free to lie beyond it — the interval a coupled mount's split-off peak must
-/// also keep inside the band ([`super::placement::split_off_peak`]). Own generator, null seed
+/// also keep inside the band ([`super::placement::inside_band`]). Own generator, null seed
 /// 1085000 (100 Hz, edge 45 Hz): a mount at 40.1 Hz, ± 0.75 Hz from the recordings and
 /// ± 8.3 Hz with the stated accuracy, whitened the tip residual and was named.
 pub(crate) fn unplaced_in_final(
@@ -221,7 +221,7 @@ pub(crate) fn unplaced_in_final(
     for (i, c) in set.iter().enumerate() {
         if let Some(j) = c.params.iter().position(|p| p.name == "mount_frequency_hz") {
             let (v, sd) = (f.values[off + j], f.std[off + j]);
-            if !(sd.is_finite() && v + 2.0 * sd < band_edge_hz) {
+            if !super::placement::inside_band(v, sd, band_edge_hz) {
                 return Some((
                     i,
                     format!(
