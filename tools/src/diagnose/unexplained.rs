@@ -50,10 +50,13 @@
 //!    acceleration) — is what the fit recordings did not pin down, not physics the model lacks.
 //!
 //! Its *structure* is either driven (the residual–input test above) or a **slow change of the
-//! zero** the drive does not excite: an offset, ramp or bow (a polynomial of degree
-//! [`ZERO_DRIFT_DEGREE`] in time) significant at [`STRUCTURE_LEVEL`] against the residual's own
-//! stationary long-run variance ([`crate::numeric::independence::slow_trend_test`]) and of an
-//! rms at least the noise rms — a tip sensor whose zero moved between recordings or drifts
+//! zero** the drive does not excite: a polynomial in time of one of the degrees
+//! [`ZERO_DRIFT_DEGREES`] (offset, ramp and bow; a change through about one cycle within the
+//! recording) significant at [`STRUCTURE_LEVEL`], family-wise over the degrees (Bonferroni),
+//! against the residual's own stationary long-run variance, the test's scale corrected by
+//! [`ZERO_DRIFT_REPLICATES`] bootstrap series of the residual's own noise model
+//! ([`crate::numeric::independence::slow_trend_test`]: a bootstrap Bartlett correction, Rocke
+//! 1989), and of an rms at least the noise rms — a tip sensor whose zero moved between recordings or drifts
 //! during one (thermal drift), a force bias. The mean counts in its rms (the offset is part of
 //! what the model leaves), never in its time structure.
 //!
@@ -66,15 +69,22 @@ use super::fit::CHANNEL_NAMES;
 use super::model::{Prediction, Prepared};
 use super::selection::guard::{ljung_box, LJUNG_BOX_LAGS};
 use crate::ident::spectrum::amplitude_spectrum;
-use crate::numeric::independence::{residual_input_test, slow_trend_test};
+use crate::numeric::independence::{residual_input_test, slow_trend_test, SlowTrend};
 use crate::numeric::stats::noise_variance;
 use serde::Serialize;
 
 /// χ²(20) upper 0.1 % point (the Ljung–Box statistic's, reported beside the driven test).
 pub const LJUNG_BOX_CRITICAL: f64 = 45.3;
-/// Degree of the slow change of a sensor's zero tested beside the drive (module docs): offset,
-/// ramp and bow — a drift over the recording, not structure within it.
-pub const ZERO_DRIFT_DEGREE: usize = 2;
+/// Degrees of the slow change of a sensor's zero tested beside the drive (module docs): offset,
+/// ramp and bow (2), and a change through about one cycle within the recording (4: a quartic
+/// follows a sinusoid's full period over the span) — a drift over the recording, not structure
+/// within it. Each is tested at [`STRUCTURE_LEVEL`] / 2 (Bonferroni over the family).
+pub const ZERO_DRIFT_DEGREES: [usize; 2] = [2, 4];
+/// Bootstrap series that correct the zero-drift test's scale (its Bartlett factor, the
+/// replicates' mean statistic over its χ² mean): the factor's relative standard error is
+/// √(2 / (d + 1)) / √200, 6 % at degree 2, for a χ² statistic; a computational cap. Drawn only
+/// where the family's trend is at least the noise rms, which the flag needs anyway.
+pub const ZERO_DRIFT_REPLICATES: usize = 200;
 /// Level of the residual–input test (module docs, 1) and of the zero-drift test: 0.1 %.
 pub const STRUCTURE_LEVEL: f64 = 0.001;
 /// Highest order of the autoregression that prewhitens a residual before the residual–input
@@ -235,10 +245,14 @@ pub struct Unexplained {
     pub drive_correlation_chi2: Option<f64>,
     /// Its degrees of freedom (the rank of the commanded motion's lags).
     pub drive_correlation_dof: Option<usize>,
-    /// rms of the residual's slow zero change (offset, ramp, bow; the channel's unit).
+    /// rms of the residual's slow zero change (the channel's unit): the most significant degree
+    /// of [`ZERO_DRIFT_DEGREES`] (the family's degree whose trend clears the level, if any).
     pub zero_drift_rms: Option<f64>,
-    /// Its Wald statistic against the residual's long-run variance (χ² with 3 degrees of freedom).
+    /// Its Wald statistic against the residual's long-run variance over its bootstrap Bartlett
+    /// factor (χ² with `zero_drift_dof` degrees of freedom).
     pub zero_drift_chi2: Option<f64>,
+    /// Its degrees of freedom (the trend's degree + 1).
+    pub zero_drift_dof: Option<usize>,
     /// Nearest model mode (Hz) to the band centre, if any model modes exist.
     pub nearest_model_mode_hz: Option<f64>,
     /// Correlation of the residual with the commanded speed |v|·sign(v) and acceleration.
@@ -400,12 +414,25 @@ fn locate_channel(
     let driven = independence
         .as_ref()
         .is_some_and(|t| t.p_value < STRUCTURE_LEVEL);
-    let drift = slow_trend_test(r, ZERO_DRIFT_DEGREE, PREWHITENING_MAX_ORDER);
-    let offset_shows = drift.as_ref().is_some_and(|t| {
-        t.p_value < STRUCTURE_LEVEL
-            && t.trend_rms >= STRUCTURE_OVER_NOISE * noise
-            && t.trend_rms > 0.0
-    });
+    let large = |t: &SlowTrend| t.trend_rms >= STRUCTURE_OVER_NOISE * noise && t.trend_rms > 0.0;
+    let mut family = slow_trend_test(r, &ZERO_DRIFT_DEGREES, PREWHITENING_MAX_ORDER, 0, 0);
+    if family.iter().any(large) {
+        family = slow_trend_test(
+            r,
+            &ZERO_DRIFT_DEGREES,
+            PREWHITENING_MAX_ORDER,
+            ZERO_DRIFT_REPLICATES,
+            c as u64,
+        );
+    }
+    let level = STRUCTURE_LEVEL / ZERO_DRIFT_DEGREES.len() as f64;
+    let by_p = |a: &&SlowTrend, b: &&SlowTrend| a.p_value.total_cmp(&b.p_value);
+    let shown = family
+        .iter()
+        .filter(|t| t.p_value < level && large(t))
+        .min_by(by_p);
+    let offset_shows = shown.is_some();
+    let drift = shown.or_else(|| family.iter().min_by(by_p));
     if !((driven || offset_shows) && ratio >= STRUCTURE_OVER_NOISE && structured > form_rms) {
         return None;
     }
@@ -433,8 +460,9 @@ fn locate_channel(
         ljung_box_q: q,
         drive_correlation_chi2: independence.as_ref().map(|t| t.statistic),
         drive_correlation_dof: independence.as_ref().map(|t| t.degrees_of_freedom),
-        zero_drift_rms: drift.as_ref().map(|t| t.trend_rms),
-        zero_drift_chi2: drift.as_ref().map(|t| t.statistic),
+        zero_drift_rms: drift.map(|t| t.trend_rms),
+        zero_drift_chi2: drift.map(|t| t.statistic / t.bartlett_factor),
+        zero_drift_dof: drift.map(|t| t.degrees_of_freedom),
         nearest_model_mode_hz: nearest,
         correlation_velocity: corr(&centred, &vel),
         correlation_acceleration: corr(&centred, &acc),
