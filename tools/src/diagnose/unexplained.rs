@@ -67,6 +67,7 @@
 
 use super::fit::CHANNEL_NAMES;
 use super::model::{Prediction, Prepared};
+use super::selection::decision::ablated;
 use super::selection::guard::{ljung_box, LJUNG_BOX_LAGS};
 use crate::ident::spectrum::amplitude_spectrum;
 use crate::numeric::independence::{residual_input_test, slow_trend_test, SlowTrend};
@@ -414,25 +415,7 @@ fn locate_channel(
     let driven = independence
         .as_ref()
         .is_some_and(|t| t.p_value < STRUCTURE_LEVEL);
-    let large = |t: &SlowTrend| t.trend_rms >= STRUCTURE_OVER_NOISE * noise && t.trend_rms > 0.0;
-    let mut family = slow_trend_test(r, &ZERO_DRIFT_DEGREES, PREWHITENING_MAX_ORDER, 0, 0);
-    if family.iter().any(large) {
-        family = slow_trend_test(
-            r,
-            &ZERO_DRIFT_DEGREES,
-            PREWHITENING_MAX_ORDER,
-            ZERO_DRIFT_REPLICATES,
-            c as u64,
-        );
-    }
-    let level = STRUCTURE_LEVEL / ZERO_DRIFT_DEGREES.len() as f64;
-    let by_p = |a: &&SlowTrend, b: &&SlowTrend| a.p_value.total_cmp(&b.p_value);
-    let shown = family
-        .iter()
-        .filter(|t| t.p_value < level && large(t))
-        .min_by(by_p);
-    let offset_shows = shown.is_some();
-    let drift = shown.or_else(|| family.iter().min_by(by_p));
+    let (offset_shows, drift) = zero_drift(r, noise, c);
     if !((driven || offset_shows) && ratio >= STRUCTURE_OVER_NOISE && structured > form_rms) {
         return None;
     }
@@ -460,14 +443,45 @@ fn locate_channel(
         ljung_box_q: q,
         drive_correlation_chi2: independence.as_ref().map(|t| t.statistic),
         drive_correlation_dof: independence.as_ref().map(|t| t.degrees_of_freedom),
-        zero_drift_rms: drift.map(|t| t.trend_rms),
-        zero_drift_chi2: drift.map(|t| t.statistic / t.bartlett_factor),
-        zero_drift_dof: drift.map(|t| t.degrees_of_freedom),
+        zero_drift_rms: drift.as_ref().map(|t| t.trend_rms),
+        zero_drift_chi2: drift.as_ref().map(|t| t.statistic / t.bartlett_factor),
+        zero_drift_dof: drift.as_ref().map(|t| t.degrees_of_freedom),
         nearest_model_mode_hz: nearest,
         correlation_velocity: corr(&centred, &vel),
         correlation_acceleration: corr(&centred, &acc),
         closest_catalogue_effect: None,
     })
+}
+
+/// Whether channel `c`'s residual `r` holds a slow change of its zero (module docs): a degree
+/// of [`ZERO_DRIFT_DEGREES`] whose trend is significant at [`STRUCTURE_LEVEL`] over the family
+/// (Bonferroni) and at least [`STRUCTURE_OVER_NOISE`] × the noise rms `noise`; with the trend to
+/// report (that degree's, else the family's most significant).
+fn zero_drift(r: &[f64], noise: f64, c: usize) -> (bool, Option<SlowTrend>) {
+    let large = |t: &SlowTrend| t.trend_rms >= STRUCTURE_OVER_NOISE * noise && t.trend_rms > 0.0;
+    let mut family = slow_trend_test(r, &ZERO_DRIFT_DEGREES, PREWHITENING_MAX_ORDER, 0, 0);
+    if family.iter().any(large) {
+        family = slow_trend_test(
+            r,
+            &ZERO_DRIFT_DEGREES,
+            PREWHITENING_MAX_ORDER,
+            if ablated("zero_drift_calibration") {
+                0
+            } else {
+                ZERO_DRIFT_REPLICATES
+            },
+            c as u64,
+        );
+    }
+    let level = STRUCTURE_LEVEL / ZERO_DRIFT_DEGREES.len() as f64;
+    let by_p = |a: &&SlowTrend, b: &&SlowTrend| a.p_value.total_cmp(&b.p_value);
+    let shown = family
+        .iter()
+        .filter(|t| t.p_value < level && large(t))
+        .min_by(by_p);
+    let offset_shows = shown.is_some();
+    let drift = shown.or_else(|| family.iter().min_by(by_p)).cloned();
+    (offset_shows, drift)
 }
 
 /// The channel whose validation residual (`vres`, of the final model's prediction `pred` of

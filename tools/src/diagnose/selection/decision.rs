@@ -59,8 +59,10 @@ pub fn rule() -> Rule {
 /// resonance at or beyond the band edge not identified, and a final model's mount whose
 /// frequency + 2 σ reaches the edge dropped ([`super::unplaced_in_final`]); `identified_parameters`: a parameter
 /// inside its range with an undefined 1 σ fails its candidate; `final_identification`: an
-/// effect the final model's honest 1 σ does not hold 3 σ from "no effect" is dropped). Unset:
-/// every element applies.
+/// effect the final model's honest 1 σ does not hold 3 σ from "no effect" is dropped;
+/// `zero_drift_calibration`: `unexplained`'s zero-drift test read on its χ² tail without the
+/// bootstrap Bartlett correction, [`crate::diagnose::unexplained::ZERO_DRIFT_REPLICATES`]).
+/// Unset: every element applies.
 pub fn ablated(element: &str) -> bool {
     std::env::var("DIAG_ABLATE")
         .map(|v| v.split(',').any(|e| e.trim() == element))
