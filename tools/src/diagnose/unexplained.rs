@@ -23,7 +23,13 @@
 //!    predictable from its own noisy past, so the first alone counts part of it as noise; the
 //!    median of the spectrum does not see a structure confined to under half of the band. (The
 //!    first-difference estimator σ̂² = mean((r_{k+1} − r_k)²)/2, von Neumann 1941,
-//!    [`difference_noise`], counts structure near the Nyquist rate as noise.)
+//!    [`difference_noise`], counts structure near the Nyquist rate as noise.) σ̂² is at least
+//!    the recorded channel's quantisation error variance q²/12 (its step q on the recording,
+//!    [`crate::numeric::stats::quantum`]; Widrow & Kollár 2008, *Quantization Noise*, ch. 4):
+//!    the counts' error is no physics, yet a deterministic function of the sensed position —
+//!    driven by the motion, constant over each rest — which neither estimator above counts as
+//!    noise where the sensor's own noise is below a step (own generator, null seed 1085006:
+//!    a 1 µm encoder under 0.1 µm noise, its base residual 0.17 µm rms "driven" and "drifting").
 //!
 //! 3. **beyond the model's form**: its structured rms exceeds what the model-form alternatives
 //!    of the final model change in their prediction of the same recording (each one's rms
@@ -71,7 +77,7 @@ use super::selection::decision::ablated;
 use super::selection::guard::{ljung_box, LJUNG_BOX_LAGS};
 use crate::ident::spectrum::amplitude_spectrum;
 use crate::numeric::independence::{residual_input_test, slow_trend_test, SlowTrend};
-use crate::numeric::stats::noise_variance;
+use crate::numeric::stats::{noise_variance, quantum};
 use serde::Serialize;
 
 /// χ²(20) upper 0.1 % point (the Ljung–Box statistic's, reported beside the driven test).
@@ -394,7 +400,10 @@ fn locate_channel(
         return None;
     }
     let rate = 1.0 / d.dt;
-    let noise = noise_variance(r, LJUNG_BOX_LAGS).sqrt();
+    let step = recorded(d, c).and_then(quantum).unwrap_or(0.0);
+    let noise = noise_variance(r, LJUNG_BOX_LAGS)
+        .max(step * step / 12.0)
+        .sqrt();
     let m = r.iter().sum::<f64>() / r.len() as f64;
     let centred: Vec<f64> = r.iter().map(|x| x - m).collect();
     let e = rms(r);
@@ -451,6 +460,11 @@ fn locate_channel(
         correlation_acceleration: corr(&centred, &acc),
         closest_catalogue_effect: None,
     })
+}
+
+/// Channel `c` of `d` as recorded (base position, tip position, force), if recorded.
+fn recorded(d: &Prepared, c: usize) -> Option<&[f64]> {
+    [&d.base_m, &d.tip_m, &d.force_n][c].as_deref()
 }
 
 /// Whether channel `c`'s residual `r` holds a slow change of its zero (module docs): a degree
@@ -559,6 +573,42 @@ mod tests {
         ];
         let u = assess(&d, &drifting, &pred, &[], &[], &[]).expect("a drift of the zero");
         assert!((u.zero_drift_rms.unwrap() / 1e-4 - 3f64.sqrt()).abs() < 0.1);
+    }
+
+    #[test]
+    fn a_quantised_sensors_own_error_is_not_unexplained_and_a_drift_above_it_is() {
+        // a 1 µm encoder under 0.03 µm noise follows the moves: its error (the counts' rounding)
+        // is driven by the motion and constant over each rest, yet no physics (without the
+        // quantisation floor it is called driven, 3 noise rms); a drift of 10 µm over the
+        // recording is
+        let (n, rate) = (10_000, 500.0);
+        let mut rec = crate::recording::Recording::with_uniform_time(n, rate);
+        // rests off the grid, at two fractions of a count
+        let truth: Vec<f64> = moves(n, rate)
+            .iter()
+            .map(|x| x * (1.0 + 2.3e-5) + 0.37e-6)
+            .collect();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(8);
+        let noise = Normal::new(0.0, 3e-8).unwrap();
+        let counts: Vec<f64> = truth
+            .iter()
+            .map(|x| ((x + noise.sample(&mut rng)) / 1e-6).round() * 1e-6)
+            .collect();
+        rec.base_cmd_m = Some(truth.clone());
+        rec.base_pos_m = Some(counts.clone());
+        let d = Prepared::new("t", &rec).unwrap();
+        let error: Vec<f64> = counts.iter().zip(&truth).map(|(a, b)| a - b).collect();
+        let pred = Prediction::default();
+        let r = [Some(error.clone()), None, None];
+        assert!(assess(&d, &r, &pred, &[], &[], &[]).is_none());
+        let drifting: Vec<f64> = error
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + 1e-5 * (k as f64 / n as f64 - 0.5))
+            .collect();
+        let u = assess(&d, &[Some(drifting), None, None], &pred, &[], &[], &[])
+            .expect("a drift of ten counts");
+        assert_eq!(u.channel, "base_pos_m");
     }
 
     /// Commanded positions (m) of 20 mm trapezoid moves back and forth, one every 3 s, each
