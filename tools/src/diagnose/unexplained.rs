@@ -400,7 +400,10 @@ fn locate_channel(
         return None;
     }
     let rate = 1.0 / d.dt;
-    let step = recorded(d, c).and_then(quantum).unwrap_or(0.0);
+    let step = recorded(d, c)
+        .filter(|_| !ablated("quantisation_floor"))
+        .and_then(quantum)
+        .unwrap_or(0.0);
     let noise = noise_variance(r, LJUNG_BOX_LAGS)
         .max(step * step / 12.0)
         .sqrt();

@@ -61,7 +61,8 @@ pub fn rule() -> Rule {
 /// inside its range with an undefined 1 σ fails its candidate; `final_identification`: an
 /// effect the final model's honest 1 σ does not hold 3 σ from "no effect" is dropped;
 /// `zero_drift_calibration`: `unexplained`'s zero-drift test read on its χ² tail without the
-/// bootstrap Bartlett correction, [`crate::diagnose::unexplained::ZERO_DRIFT_REPLICATES`]).
+/// bootstrap Bartlett correction, [`crate::diagnose::unexplained::ZERO_DRIFT_REPLICATES`];
+/// `quantisation_floor`: `unexplained`'s noise rms no longer at least the channel's q/√12).
 /// Unset: every element applies.
 pub fn ablated(element: &str) -> bool {
     std::env::var("DIAG_ABLATE")
