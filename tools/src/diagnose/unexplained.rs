@@ -29,7 +29,8 @@
 //!    the counts' error is no physics, yet a deterministic function of the sensed position —
 //!    driven by the motion, constant over each rest — which neither estimator above counts as
 //!    noise where the sensor's own noise is below a step (own generator, null seed 1085006:
-//!    a 1 µm encoder under 0.1 µm noise, its base residual 0.17 µm rms "driven" and "drifting").
+//!    a 1 µm encoder at a third of the usual noise, its base residual 0.17 µm rms, constant
+//!    over each rest, called "driven" and "drifting").
 //!
 //! 3. **beyond the model's form**: its structured rms exceeds what the model-form alternatives
 //!    of the final model change in their prediction of the same recording (each one's rms
@@ -62,8 +63,8 @@
 //! against the residual's own stationary long-run variance, the test's scale corrected by
 //! [`ZERO_DRIFT_REPLICATES`] bootstrap series of the residual's own noise model
 //! ([`crate::numeric::independence::slow_trend_test`]: a bootstrap Bartlett correction, Rocke
-//! 1989), and of an rms at least the noise rms — a tip sensor whose zero moved between recordings or drifts
-//! during one (thermal drift), a force bias. The mean counts in its rms (the offset is part of
+//! 1989), and of an rms at least the noise rms — a tip sensor whose zero moved between
+//! recordings or drifts during one (thermal drift), a force bias. The mean counts in its rms (the offset is part of
 //! what the model leaves), never in its time structure.
 //!
 //! It is located, never named: the channel, the band holding half its spectral power around
