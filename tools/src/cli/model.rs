@@ -1,6 +1,7 @@
 //! `simulate` and `modes`: arguments, printing and files of the model commands over
 //! [`crate::model`].
 
+use crate::diagnose::model::spline_accel;
 use crate::measures::measure;
 use crate::model::sim::{BaseMotionSim, ForceSim};
 use crate::model::SIM_RATE_HZ;
@@ -87,21 +88,50 @@ fn shaper_for(kind: &str, f1: f64, f2: Option<f64>, zeta: f64) -> Result<Shaper>
     Ok(s)
 }
 
-/// `channel` of the uniform recording `rec` at [`SIM_RATE_HZ`]: `hold` = zero-order hold,
-/// else linear interpolation.
+/// `channel` of the uniform recording `rec` at [`SIM_RATE_HZ`]: `hold` = zero-order hold (a
+/// force a drive applies until its next update), else the cubic spline through the samples
+/// ([`spline_at`]).
 fn at_sim_rate(rec: &Recording, channel: &[f64], hold: bool) -> Vec<f64> {
     let rate = rec.sample_rate_hz();
     let last = channel.len() - 1;
     let n = ((rec.len() - 1) as f64 * SIM_RATE_HZ / rate).round() as usize + 1;
+    if !hold {
+        return spline_at(channel, rate, n);
+    }
     (0..n)
         .map(|k| {
             let pos = k as f64 * rate / SIM_RATE_HZ;
-            if hold {
-                return channel[((pos + 1e-9).floor() as usize).min(last)];
-            }
+            channel[((pos + 1e-9).floor() as usize).min(last)]
+        })
+        .collect()
+}
+
+/// A position sampled at `rate` Hz (`y`, m) at the first `n` ticks of [`SIM_RATE_HZ`]: the
+/// cubic spline through the samples, its knot accelerations [`spline_accel`] (de Boor, *A
+/// Practical Guide to Splines*, ch. IV, the interpolant's standard form
+/// `S = A y_i + B y_{i+1} + ((A³ − A) M_i + (B³ − B) M_{i+1}) h² / 6`, B the fraction of the
+/// interval, A = 1 − B). The samples say nothing of the motion between them; the piecewise-linear
+/// path (before December 2026) moves at constant velocity between them, so its whole velocity
+/// change falls on the one fine tick at each sample — the carriage force at the samples, which
+/// the output keeps, was then rate/[`SIM_RATE_HZ`]'s inverse × the acceleration (5 × for a
+/// 200 Hz command: 79 N where the drive pushed 20 N). The spline's acceleration is continuous
+/// and exact for a constant acceleration; a path at the internal rate is passed through as is.
+fn spline_at(y: &[f64], rate: f64, n: usize) -> Vec<f64> {
+    let h = 1.0 / rate;
+    let m = spline_accel(y, h);
+    let last = y.len() - 1;
+    (0..n)
+        .map(|k| {
+            let pos = k as f64 * rate / SIM_RATE_HZ;
             let i = (pos.floor() as usize).min(last);
-            let j = (i + 1).min(last);
-            channel[i] + (pos - i as f64) * (channel[j] - channel[i])
+            if i == last {
+                return y[last];
+            }
+            let b = pos - i as f64;
+            let a = 1.0 - b;
+            a * y[i]
+                + b * y[i + 1]
+                + ((a * a * a - a) * m[i] + (b * b * b - b) * m[i + 1]) * h * h / 6.0
         })
         .collect()
 }
@@ -347,4 +377,44 @@ pub fn modes(a: ModesArgs) -> Result<()> {
         println!("  mode {}: {}", r + 1, pts.join("  "));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A trapezoid's constant acceleration read from its 200 Hz samples at the internal rate:
+    /// the spline recovers it at every tick inside the phase, the piecewise-linear path put the
+    /// whole velocity change of an interval on one tick.
+    #[test]
+    fn a_command_sampled_slower_than_the_simulation_keeps_its_acceleration() {
+        let (rate, accel) = (200.0, 4.0);
+        // 0.1 s at 4 m/s² from rest, then 0.1 s at constant speed
+        let pos = |t: f64| {
+            if t < 0.1 {
+                0.5 * accel * t * t
+            } else {
+                0.02 + 0.4 * (t - 0.1)
+            }
+        };
+        let y: Vec<f64> = (0..60).map(|k| pos(k as f64 / rate)).collect();
+        let n = ((y.len() - 1) as f64 * SIM_RATE_HZ / rate) as usize + 1;
+        let fine = spline_at(&y, rate, n);
+        let h = 1.0 / SIM_RATE_HZ;
+        let acc = |k: usize| (fine[k + 1] - 2.0 * fine[k] + fine[k - 1]) / (h * h);
+        for k in 20..80 {
+            assert!(
+                (acc(k) - accel).abs() < 0.02 * accel,
+                "tick {k}: {}",
+                acc(k)
+            );
+        }
+        for k in 150..250 {
+            assert!(acc(k).abs() < 0.02 * accel, "tick {k}: {}", acc(k));
+        }
+        // through every sample
+        for (i, v) in y.iter().enumerate() {
+            assert!((fine[5 * i] - v).abs() < 1e-12);
+        }
+    }
 }
