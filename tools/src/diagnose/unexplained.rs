@@ -77,7 +77,9 @@ use super::model::{Prediction, Prepared};
 use super::selection::decision::ablated;
 use super::selection::guard::{ljung_box, LJUNG_BOX_LAGS};
 use crate::ident::spectrum::amplitude_spectrum;
-use crate::numeric::independence::{residual_input_test, slow_trend_test, SlowTrend};
+use crate::numeric::independence::{
+    residual_input_test, residual_regressor_test, slow_trend_test, InputIndependence, SlowTrend,
+};
 use crate::numeric::stats::{noise_variance, quantum};
 use serde::Serialize;
 
@@ -396,6 +398,7 @@ fn locate_channel(
     r: &[f64],
     form_rms: f64,
     model_freqs: &[f64],
+    sensitivities: &[Vec<f64>],
 ) -> Option<Unexplained> {
     if r.len() < 4 * LJUNG_BOX_LAGS {
         return None;
@@ -419,12 +422,7 @@ fn locate_channel(
     };
     let q = ljung_box(r, LJUNG_BOX_LAGS);
     let (vel, acc) = command_rates(&d.cmd_m, rate);
-    let independence = residual_input_test(
-        r,
-        &[&d.cmd_m, &vel, &acc],
-        LJUNG_BOX_LAGS,
-        PREWHITENING_MAX_ORDER,
-    );
+    let independence = drive_test(r, &[&d.cmd_m, &vel, &acc], sensitivities);
     let driven = independence
         .as_ref()
         .is_some_and(|t| t.p_value < STRUCTURE_LEVEL);
@@ -466,6 +464,49 @@ fn locate_channel(
     })
 }
 
+/// The residual–input test of module docs, 1 on the residual `r`: the commanded motion's lags
+/// (`inputs`) and the final model's sensitivities to its own parameters on this channel
+/// (`sensitivities`, each the prediction with one parameter moved by its 1 σ less the
+/// prediction), constant and drifting linearly through the recording,
+/// the noise's autoregression fitted to the residual less that regression (feasible GLS,
+/// [`residual_regressor_test`]). With `DIAG_ABLATE=drive_sensitivities` the lags alone, the
+/// autoregression fitted to the residual itself.
+fn drive_test(
+    r: &[f64],
+    inputs: &[&[f64]],
+    sensitivities: &[Vec<f64>],
+) -> Option<InputIndependence> {
+    if ablated("drive_sensitivities") {
+        return residual_input_test(r, inputs, LJUNG_BOX_LAGS, PREWHITENING_MAX_ORDER);
+    }
+    let n = r.len();
+    let half = 0.5 * n.saturating_sub(1).max(1) as f64;
+    let drifting: Vec<Vec<f64>> = sensitivities
+        .iter()
+        .filter(|s| s.len() == n)
+        .map(|s| {
+            s.iter()
+                .enumerate()
+                .map(|(t, v)| v * (t as f64 - half) / half)
+                .collect()
+        })
+        .collect();
+    let columns: Vec<&[f64]> = sensitivities
+        .iter()
+        .filter(|s| s.len() == n)
+        .map(Vec::as_slice)
+        .chain(drifting.iter().map(Vec::as_slice))
+        .collect();
+    residual_regressor_test(
+        r,
+        inputs,
+        LJUNG_BOX_LAGS,
+        &columns,
+        PREWHITENING_MAX_ORDER,
+        true,
+    )
+}
+
 /// Channel `c` of `d` as recorded (base position, tip position, force), if recorded.
 fn recorded(d: &Prepared, c: usize) -> Option<&[f64]> {
     [&d.base_m, &d.tip_m, &d.force_n][c].as_deref()
@@ -502,6 +543,23 @@ fn zero_drift(r: &[f64], noise: f64, c: usize) -> (bool, Option<SlowTrend>) {
     (offset_shows, drift)
 }
 
+/// The final model's sensitivities on channel `c` (`n` samples): each moved prediction of
+/// `moved` less `pred`, where both have the channel at that length and the move changes it.
+fn sensitivities(pred: &Prediction, moved: &[Prediction], c: usize, n: usize) -> Vec<Vec<f64>> {
+    fn of(p: &Prediction, c: usize) -> Option<&[f64]> {
+        [&p.base_m, &p.tip_m, &p.force_n][c].as_deref()
+    }
+    let Some(own) = of(pred, c).filter(|o| o.len() == n) else {
+        return Vec::new();
+    };
+    moved
+        .iter()
+        .filter_map(|m| of(m, c).filter(|a| a.len() == n))
+        .map(|a| a.iter().zip(own).map(|(x, y)| x - y).collect::<Vec<f64>>())
+        .filter(|d| d.iter().all(|v| v.is_finite()) && d.iter().any(|v| *v != 0.0))
+        .collect()
+}
+
 /// The channel whose validation residual (`vres`, of the final model's prediction `pred` of
 /// `d`) is most clearly structured, above noise and beyond the model's form (`model_form`: the
 /// model-form alternatives' predictions of `d`), located; `None` when every channel's residual
@@ -524,7 +582,8 @@ pub fn assess(
     for c in 0..3 {
         let Some(r) = &vres[c] else { continue };
         let form_rms = model_form_rms(pred, model_form, c);
-        let Some(u) = locate_channel(d, c, r, form_rms, model_freqs) else {
+        let directions = sensitivities(pred, moved, c, r.len());
+        let Some(u) = locate_channel(d, c, r, form_rms, model_freqs, &directions) else {
             continue;
         };
         if best

@@ -48,10 +48,39 @@ pub fn residual_input_test(
     lags: usize,
     max_order: usize,
 ) -> Option<InputIndependence> {
+    residual_regressor_test(residual, inputs, lags, &[], max_order, false)
+}
+
+/// [`residual_input_test`] with `regressors` beside the inputs' lags: further series made from
+/// the input alone (each as long as the residual, same sampling, entered at lag 0), such as a
+/// model's sensitivities to its own parameters on the recording — the directions of a
+/// discrepancy whose memory is longer than the lags (a lightly damped mode's frequency error
+/// grows through each ring for seconds). Under independence of residual and input any such
+/// series leaves the χ² law unchanged.
+///
+/// `feasible_gls`: the prewhitening autoregression is fitted to the residual less its
+/// least-squares regression on every column (Cochrane & Orcutt 1949, the feasible generalised
+/// least squares of a regression with autoregressive errors) instead of to the residual
+/// itself. Under independence both estimate the noise's autoregression; where the input drives
+/// most of the residual, the residual's own autoregression models that driven structure as
+/// noise and whitens it away (a ring the model's frequency error leaves is predictable from its
+/// own past), the regression's residual does not.
+pub fn residual_regressor_test(
+    residual: &[f64],
+    inputs: &[&[f64]],
+    lags: usize,
+    regressors: &[&[f64]],
+    max_order: usize,
+    feasible_gls: bool,
+) -> Option<InputIndependence> {
     use statrs::distribution::{ChiSquared, ContinuousCDF};
     let n = residual.len();
-    let k = inputs.len() * lags;
-    if lags == 0 || k == 0 || n < max_order + lags + 2 * k || inputs.iter().any(|u| u.len() != n) {
+    let k = inputs.len() * lags + regressors.len();
+    if lags == 0
+        || inputs.is_empty()
+        || n < max_order + lags + 2 * k
+        || inputs.iter().chain(regressors).any(|u| u.len() != n)
+    {
         return None;
     }
     let centred = |x: &[f64]| -> Vec<f64> {
@@ -59,7 +88,15 @@ pub fn residual_input_test(
         x.iter().map(|v| v - m).collect()
     };
     let eps = centred(residual);
-    let ar = crate::numeric::stats::Autoregressive::fit_aic(&eps, max_order)?;
+    let series: Vec<Vec<f64>> = inputs.iter().map(|x| centred(x)).collect();
+    let extra: Vec<Vec<f64>> = regressors.iter().map(|x| centred(x)).collect();
+    let noise_part = if feasible_gls {
+        let design = lagged_design(&series, &extra, lags, n);
+        regression_residual(&design, &eps[lags - 1..])?
+    } else {
+        eps.clone()
+    };
+    let ar = crate::numeric::stats::Autoregressive::fit_aic(&noise_part, max_order)?;
     let a = &ar.coefficients;
     let p = a.len();
     let filter = |x: &[f64]| -> Vec<f64> {
@@ -68,21 +105,10 @@ pub fn residual_input_test(
             .collect()
     };
     let e = filter(&eps);
-    let u: Vec<Vec<f64>> = inputs.iter().map(|x| filter(&centred(x))).collect();
-    // rows t = lags − 1 … (the filtered series' index), columns ũ_i(t − τ)
-    let rows = e.len() - (lags - 1);
-    let mut x = DMatrix::<f64>::zeros(rows, k);
-    for (i, ui) in u.iter().enumerate() {
-        for tau in 0..lags {
-            let col: Vec<f64> = (0..rows).map(|r| ui[r + lags - 1 - tau]).collect();
-            let s = (col.iter().map(|v| v * v).sum::<f64>() / rows as f64).sqrt();
-            if s > 0.0 {
-                for (r, v) in col.into_iter().enumerate() {
-                    x[(r, i * lags + tau)] = v / s;
-                }
-            }
-        }
-    }
+    let u: Vec<Vec<f64>> = series.iter().map(|x| filter(x)).collect();
+    let w: Vec<Vec<f64>> = extra.iter().map(|x| filter(x)).collect();
+    let x = lagged_design(&u, &w, lags, e.len());
+    let rows = x.nrows();
     let y = DVector::from_iterator(rows, e[lags - 1..].iter().copied());
     let syy = y.norm_squared();
     if !(syy > 0.0) {
@@ -113,6 +139,40 @@ pub fn residual_input_test(
         p_value,
         prewhitening_order: p,
     })
+}
+
+/// The design of [`residual_regressor_test`] on series of length `n`: rows t = lags − 1 … n − 1,
+/// columns u_i(t − τ) for every series of `u` and τ = 0 … lags − 1, then w_j(t); each column
+/// scaled to unit rms (a column that never varies stays zero).
+fn lagged_design(u: &[Vec<f64>], w: &[Vec<f64>], lags: usize, n: usize) -> DMatrix<f64> {
+    let rows = n - (lags - 1);
+    let mut x = DMatrix::<f64>::zeros(rows, u.len() * lags + w.len());
+    let mut put = |j: usize, col: Vec<f64>| {
+        let s = (col.iter().map(|v| v * v).sum::<f64>() / rows as f64).sqrt();
+        if s > 0.0 {
+            for (r, v) in col.into_iter().enumerate() {
+                x[(r, j)] = v / s;
+            }
+        }
+    };
+    for (i, ui) in u.iter().enumerate() {
+        for tau in 0..lags {
+            put(i * lags + tau, (0..rows).map(|r| ui[r + lags - 1 - tau]).collect());
+        }
+    }
+    for (j, wj) in w.iter().enumerate() {
+        put(u.len() * lags + j, wj[lags - 1..].to_vec());
+    }
+    x
+}
+
+/// `y` less its least-squares fit on the columns of `x` (by SVD, rank-revealing); `None` when
+/// the decomposition fails.
+fn regression_residual(x: &DMatrix<f64>, y: &[f64]) -> Option<Vec<f64>> {
+    let yv = DVector::from_column_slice(y);
+    let svd = x.clone().svd(true, true);
+    let fit = svd.solve(&yv, 1e-8 * svd.singular_values.max()).ok()?;
+    Some((yv - x * fit).iter().copied().collect())
 }
 
 /// A slow change of a residual's zero over the recording: its least-squares polynomial in time
