@@ -421,17 +421,20 @@ fn locate_channel(
         f64::INFINITY
     };
     let q = ljung_box(r, LJUNG_BOX_LAGS);
+    if !(ratio >= STRUCTURE_OVER_NOISE && structured > form_rms) {
+        return None;
+    }
+    let band = band_of(r, rate);
+    if band[0] >= super::model::band_edge_hz(d.dt) {
+        return None;
+    }
     let (vel, acc) = command_rates(&d.cmd_m, rate);
     let independence = drive_test(r, &[&d.cmd_m, &vel, &acc], sensitivities);
     let driven = independence
         .as_ref()
         .is_some_and(|t| t.p_value < STRUCTURE_LEVEL);
     let (offset_shows, drift) = zero_drift(r, noise, c);
-    if !((driven || offset_shows) && ratio >= STRUCTURE_OVER_NOISE && structured > form_rms) {
-        return None;
-    }
-    let band = band_of(r, rate);
-    if band[0] >= super::model::band_edge_hz(d.dt) {
+    if !(driven || offset_shows) {
         return None;
     }
     let sig = super::channel_signal(d, c);
@@ -467,10 +470,9 @@ fn locate_channel(
 /// The residual–input test of module docs, 1 on the residual `r`: the commanded motion's lags
 /// (`inputs`) and the final model's sensitivities to its own parameters on this channel
 /// (`sensitivities`, each the prediction with one parameter moved by its 1 σ less the
-/// prediction), constant and drifting linearly through the recording,
-/// the noise's autoregression fitted to the residual less that regression (feasible GLS,
-/// [`residual_regressor_test`]). With `DIAG_ABLATE=drive_sensitivities` the lags alone, the
-/// autoregression fitted to the residual itself.
+/// prediction), constant and drifting linearly through the recording, the prewhitening fitted
+/// by least squares ([`residual_regressor_test`]). With `DIAG_ABLATE=drive_sensitivities` the
+/// lags alone, prewhitened by Yule–Walker (the test before December 2026).
 fn drive_test(
     r: &[f64],
     inputs: &[&[f64]],
@@ -481,9 +483,9 @@ fn drive_test(
     }
     let n = r.len();
     let half = 0.5 * n.saturating_sub(1).max(1) as f64;
-    let drifting: Vec<Vec<f64>> = sensitivities
+    let own: Vec<&Vec<f64>> = sensitivities.iter().filter(|s| s.len() == n).collect();
+    let drifting: Vec<Vec<f64>> = own
         .iter()
-        .filter(|s| s.len() == n)
         .map(|s| {
             s.iter()
                 .enumerate()
@@ -491,20 +493,12 @@ fn drive_test(
                 .collect()
         })
         .collect();
-    let columns: Vec<&[f64]> = sensitivities
+    let columns: Vec<&[f64]> = own
         .iter()
-        .filter(|s| s.len() == n)
-        .map(Vec::as_slice)
+        .map(|s| s.as_slice())
         .chain(drifting.iter().map(Vec::as_slice))
         .collect();
-    residual_regressor_test(
-        r,
-        inputs,
-        LJUNG_BOX_LAGS,
-        &columns,
-        PREWHITENING_MAX_ORDER,
-        true,
-    )
+    residual_regressor_test(r, inputs, LJUNG_BOX_LAGS, &columns, PREWHITENING_MAX_ORDER)
 }
 
 /// Channel `c` of `d` as recorded (base position, tip position, force), if recorded.

@@ -193,6 +193,59 @@ impl Autoregressive {
         best.map(|(_, m)| m)
     }
 
+    /// Fits `r` (mean removed) by least squares on its own lags (the covariance method:
+    /// x_t on x_{t−1} … x_{t−p} over the common rows t = `max_order` … n − 1, one QR for every
+    /// order) with the order 0 … `max_order` of least Akaike information m ln σ̂²_p + 2p (m the
+    /// rows). Yule–Walker's windowed autocovariances ([`Autoregressive::fit_aic`]) bias poles
+    /// near the unit circle towards the origin — a lightly damped ring is whitened short of its
+    /// peak (Kay & Marple 1981, *Proc. IEEE* 69: 1380–1419, §IV; Ulrych & Clayton 1976) — where
+    /// least squares is asymptotically unbiased; the model need not be stable. `None` for fewer
+    /// than 2 `max_order` + 2 samples or a constant `r`.
+    pub fn fit_aic_least_squares(r: &[f64], max_order: usize) -> Option<Self> {
+        use nalgebra::{DMatrix, DVector};
+        let n = r.len();
+        if n < 2 * max_order + 2 {
+            return None;
+        }
+        let mean = r.iter().sum::<f64>() / n as f64;
+        let x: Vec<f64> = r.iter().map(|v| v - mean).collect();
+        let m = n - max_order;
+        let y = DVector::from_iterator(m, x[max_order..].iter().copied());
+        let yy = y.norm_squared();
+        if !(yy > 0.0) {
+            return None;
+        }
+        let design = DMatrix::from_fn(m, max_order, |i, j| x[max_order + i - j - 1]);
+        let qr = design.qr();
+        let (q, rf) = (qr.q(), qr.r());
+        let qty = q.transpose() * &y;
+        let mut best: Option<(f64, usize, f64)> = None;
+        let mut rss = yy;
+        for p in 0..=max_order {
+            if p > 0 {
+                if !(rf[(p - 1, p - 1)].abs() > 1e-12 * rf[(0, 0)].abs()) {
+                    break;
+                }
+                rss -= qty[p - 1] * qty[p - 1];
+            }
+            let var = (rss / m as f64).max(f64::MIN_POSITIVE);
+            let aic = m as f64 * var.ln() + 2.0 * p as f64;
+            if best.map_or(true, |(b, _, _)| aic < b) {
+                best = Some((aic, p, var));
+            }
+        }
+        let (_, p, var) = best?;
+        let mut a = vec![0.0; p];
+        for i in (0..p).rev() {
+            let tail: f64 = (i + 1..p).map(|j| rf[(i, j)] * a[j]).sum();
+            a[i] = (qty[i] - tail) / rf[(i, i)];
+        }
+        Some(Self {
+            coefficients: a,
+            innovation_variance: var,
+        })
+    }
+
     /// `n` samples of the stationary process driven by `white` (independent N(0, 1) draws,
     /// scaled by the innovation standard deviation), after a burn-in as long as the output
     /// (from rest, so every pole of the stable model has decayed by its share of 2n samples).
