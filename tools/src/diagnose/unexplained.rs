@@ -6,8 +6,16 @@
 //!    [`crate::numeric::independence`]) over [`LJUNG_BOX_LAGS`] lags of the commanded position,
 //!    velocity and acceleration rejects independence at the level [`STRUCTURE_LEVEL`] (0.1 %:
 //!    noise independent of the drive, however coloured, would be called driven once in a
-//!    thousand recordings), the residual prewhitened by its own autoregression (order by AIC up
-//!    to [`PREWHITENING_MAX_ORDER`]). Physics the model lacks is driven by the motion; a
+//!    thousand recordings), the residual prewhitened by its own autoregression (least squares,
+//!    order by AIC up to [`PREWHITENING_MAX_ORDER`]). Beside the lags, the final model's
+//!    sensitivities to its own parameters on the channel (each prediction with one parameter
+//!    moved by its 1 σ, less the prediction), constant and drifting linearly through the
+//!    recording ([`crate::numeric::independence::residual_regressor_test`]): a discrepancy
+//!    with a memory longer than the lags — a mode's frequency that is not the model's, or
+//!    that drifts through the recording as a modulus does with temperature — is predictable
+//!    from the residual's own past, and 20 lags of the prewhitened drive do not see it (own
+//!    second simulator, seed 131, case18: a tip residual at the first mode 91 × its noise,
+//!    p 0.79 on the lags alone). Physics the model lacks is driven by the motion; a
 //!    sensor's coloured noise or a loop's stationary jitter is structured in time but is not,
 //!    and the whiteness of the residual alone (Ljung–Box over 20 lags, reported as
 //!    `ljung_box_q`, the earlier condition) calls both structure: on null replicates whose noise

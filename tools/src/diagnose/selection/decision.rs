@@ -62,7 +62,9 @@ pub fn rule() -> Rule {
 /// effect the final model's honest 1 σ does not hold 3 σ from "no effect" is dropped;
 /// `zero_drift_calibration`: `unexplained`'s zero-drift test read on its χ² tail without the
 /// bootstrap Bartlett correction, [`crate::diagnose::unexplained::ZERO_DRIFT_REPLICATES`];
-/// `quantisation_floor`: `unexplained`'s noise rms no longer at least the channel's q/√12).
+/// `quantisation_floor`: `unexplained`'s noise rms no longer at least the channel's q/√12;
+/// `drive_sensitivities`: `unexplained`'s residual–input test on the commanded motion's lags
+/// alone, prewhitened by Yule–Walker, without the final model's sensitivities).
 /// Unset: every element applies.
 pub fn ablated(element: &str) -> bool {
     std::env::var("DIAG_ABLATE")
