@@ -261,7 +261,8 @@ pub struct Unexplained {
     pub ljung_box_q: f64,
     /// The residual–input test's n R² (module docs, 1; `None` where it could not be read).
     pub drive_correlation_chi2: Option<f64>,
-    /// Its degrees of freedom (the rank of the commanded motion's lags).
+    /// Its degrees of freedom (the rank of the commanded motion's lags and the final model's
+    /// sensitivities, constant and drifting).
     pub drive_correlation_dof: Option<usize>,
     /// rms of the residual's slow zero change (the channel's unit): the most significant degree
     /// of [`ZERO_DRIFT_DEGREES`] (the family's degree whose trend clears the level, if any).
