@@ -135,9 +135,6 @@ pub fn within_uncertainty(
     noise: [f64; 3],
 ) -> [Option<Vec<f64>>; 3] {
     use nalgebra::{DMatrix, DVector};
-    fn of(p: &Prediction, c: usize) -> Option<&[f64]> {
-        [&p.base_m, &p.tip_m, &p.force_n][c].as_deref()
-    }
     let channels: Vec<usize> = (0..3)
         .filter(|&c| vres[c].is_some() && of(pred, c).is_some() && noise[c] > 0.0)
         .collect();
@@ -383,9 +380,6 @@ fn command_rates(cmd_m: &[f64], rate: f64) -> (Vec<f64>, Vec<f64>) {
 /// combines their parameter changes ([`crate::diagnose::honesty`], GUM 5.1.2) (module docs,
 /// 3); 0 without one on the channel.
 fn model_form_rms(pred: &Prediction, model_form: &[Prediction], c: usize) -> f64 {
-    fn of(p: &Prediction, c: usize) -> Option<&[f64]> {
-        [&p.base_m, &p.tip_m, &p.force_n][c].as_deref()
-    }
     let Some(own) = of(pred, c) else { return 0.0 };
     model_form
         .iter()
@@ -510,6 +504,11 @@ fn drive_test(
     residual_regressor_test(r, inputs, LJUNG_BOX_LAGS, &columns, PREWHITENING_MAX_ORDER)
 }
 
+/// Channel `c` of the prediction `p` (base position, tip position, force), if predicted.
+fn of(p: &Prediction, c: usize) -> Option<&[f64]> {
+    [&p.base_m, &p.tip_m, &p.force_n][c].as_deref()
+}
+
 /// Channel `c` of `d` as recorded (base position, tip position, force), if recorded.
 fn recorded(d: &Prepared, c: usize) -> Option<&[f64]> {
     [&d.base_m, &d.tip_m, &d.force_n][c].as_deref()
@@ -549,9 +548,6 @@ fn zero_drift(r: &[f64], noise: f64, c: usize) -> (bool, Option<SlowTrend>) {
 /// The final model's sensitivities on channel `c` (`n` samples): each moved prediction of
 /// `moved` less `pred`, where both have the channel at that length and the move changes it.
 fn sensitivities(pred: &Prediction, moved: &[Prediction], c: usize, n: usize) -> Vec<Vec<f64>> {
-    fn of(p: &Prediction, c: usize) -> Option<&[f64]> {
-        [&p.base_m, &p.tip_m, &p.force_n][c].as_deref()
-    }
     let Some(own) = of(pred, c).filter(|o| o.len() == n) else {
         return Vec::new();
     };
