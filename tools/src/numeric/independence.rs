@@ -400,15 +400,7 @@ mod tests {
     /// Lightly damped resonance (2 Hz at 100 Hz, ζ 0.02) driven by `w`: what a residual that
     /// rings looks like.
     fn ring(w: &[f64]) -> Vec<f64> {
-        let (f, zeta, dt) = (2.0, 0.02, 0.01);
-        let wn = 2.0 * std::f64::consts::PI * f;
-        let r = (-zeta * wn * dt).exp();
-        let (a1, a2) = (2.0 * r * (wn * dt).cos(), -r * r);
-        let mut y = vec![0.0; w.len()];
-        for t in 2..w.len() {
-            y[t] = a1 * y[t - 1] + a2 * y[t - 2] + w[t];
-        }
-        y
+        ring_at(w, 2.0, 0.02)
     }
 
     #[test]
