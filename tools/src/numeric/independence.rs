@@ -581,7 +581,6 @@ mod tests {
         };
         let trials = 200;
         let (mut plain, mut corrected) = (0, 0);
-        let (mut bplain, mut bcorr) = (0, 0);
         for trial in 0..trials {
             let x = persistent(&white(&mut rng, n));
             let rejects = |v: &[SlowTrend]| v.iter().any(|t| t.p_value < 0.025);
