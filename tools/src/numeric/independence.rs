@@ -16,6 +16,9 @@
 //! χ² with as many degrees of freedom as the lagged inputs' rank (Ljung's ζ of §16.6 with the
 //! residual prewhitened). Columns are scaled to unit rms and solved by SVD, so collinear lags
 //! (a trapezoid's piecewise-constant acceleration) lose degrees of freedom, not accuracy.
+//! [`residual_regressor_test`] adds series made from the input alone (a model's sensitivities
+//! to its parameters: discrepancies whose memory is longer than the lags) and fits A(q) by
+//! least squares, which Yule–Walker's bias near the unit circle would otherwise spoil there.
 //!
 //! The one discrepancy a drive does not excite and a model should still not leave is a slow
 //! change of a sensor's zero (a thermal drift, a camera mount settling): [`slow_trend_test`]
