@@ -86,7 +86,8 @@ use super::selection::decision::ablated;
 use super::selection::guard::{ljung_box, LJUNG_BOX_LAGS};
 use crate::ident::spectrum::amplitude_spectrum;
 use crate::numeric::independence::{
-    residual_input_test, residual_regressor_test, slow_trend_test, InputIndependence, SlowTrend,
+    drifting, residual_input_test, residual_regressor_test, slow_trend_test, InputIndependence,
+    SlowTrend,
 };
 use crate::numeric::stats::{noise_variance, quantum};
 use serde::Serialize;
@@ -484,22 +485,15 @@ fn drive_test(
     if ablated("drive_sensitivities") {
         return residual_input_test(r, inputs, LJUNG_BOX_LAGS, PREWHITENING_MAX_ORDER);
     }
-    let n = r.len();
-    let half = 0.5 * n.saturating_sub(1).max(1) as f64;
-    let own: Vec<&Vec<f64>> = sensitivities.iter().filter(|s| s.len() == n).collect();
-    let drifting: Vec<Vec<f64>> = own
+    let own: Vec<&Vec<f64>> = sensitivities
         .iter()
-        .map(|s| {
-            s.iter()
-                .enumerate()
-                .map(|(t, v)| v * (t as f64 - half) / half)
-                .collect()
-        })
+        .filter(|s| s.len() == r.len())
         .collect();
+    let drift: Vec<Vec<f64>> = own.iter().map(|s| drifting(s)).collect();
     let columns: Vec<&[f64]> = own
         .iter()
         .map(|s| s.as_slice())
-        .chain(drifting.iter().map(Vec::as_slice))
+        .chain(drift.iter().map(Vec::as_slice))
         .collect();
     residual_regressor_test(r, inputs, LJUNG_BOX_LAGS, &columns, PREWHITENING_MAX_ORDER)
 }

@@ -122,6 +122,17 @@ fn regressor_test(
     })
 }
 
+/// `x` drifting linearly through the record: x_t · (t − t̄) / (t̄), t̄ the middle sample (−1 at
+/// the first sample, +1 at the last): the direction of a parameter whose effect `x` is when the
+/// parameter changes at a constant rate through the recording.
+pub fn drifting(x: &[f64]) -> Vec<f64> {
+    let half = 0.5 * x.len().saturating_sub(1).max(1) as f64;
+    x.iter()
+        .enumerate()
+        .map(|(t, v)| v * (t as f64 - half) / half)
+        .collect()
+}
+
 /// `x` less its mean.
 fn centred(x: &[f64]) -> Vec<f64> {
     let m = x.iter().sum::<f64>() / x.len() as f64;
@@ -467,12 +478,7 @@ mod tests {
             ring_at(acc, 2.0 * 1.001, 0.005),
         );
         let s: Vec<f64> = hi.iter().zip(&lo).map(|(a, b)| (a - b) / 0.002).collect();
-        let half = 0.5 * (s.len() - 1) as f64;
-        let drift = s
-            .iter()
-            .enumerate()
-            .map(|(t, v)| v * (t as f64 - half) / half)
-            .collect();
+        let drift = drifting(&s);
         (s, drift)
     }
 
